@@ -1,0 +1,213 @@
+//! The command line: argument definitions (clap derive; doc comments are the help text) and the
+//! commands they run.
+//!
+//! Exit codes, for every command:
+//! - 0: success (for `audit`: every row within the tolerance table)
+//! - 1: `audit` ran, and some row broke its tolerance-table entry (a regression)
+//! - 2: bad usage or input (a malformed argument, an unknown method or class, an unwritable file)
+
+use crate::audit::{self, AuditOptions, Precision};
+use crate::probe;
+use crate::sphere::cases::Class;
+use crate::sphere::methods::{method_by_name, Method, METHODS};
+use crate::sphere::tolerance;
+use anyhow::{bail, Context, Result};
+use clap::{Args, Parser, Subcommand};
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Proves how accurate ray–sphere intersection methods are, against an exact MPFR oracle.
+#[derive(Parser, Debug)]
+#[command(name = "rayproof", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Audit every method × precision × case class against the oracle and print a table.
+    Audit(AuditArgs),
+    /// Run the oracle and every method on one ray and one shape.
+    #[command(subcommand)]
+    Probe(ProbeCommand),
+}
+
+#[derive(Args, Debug)]
+pub struct AuditArgs {
+    /// Cases per class and precision.
+    #[arg(long, default_value_t = 20_000, value_parser = clap::value_parser!(u64).range(1..))]
+    pub cases: u64,
+    /// Seed of every case generator; the same seed gives byte-identical JSON.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Methods to audit (repeat or comma-separate); default: all.
+    #[arg(long, value_delimiter = ',', value_parser = parse_method)]
+    pub method: Vec<&'static Method>,
+    /// Precisions: f32, f64 (repeat or comma-separate); default: both.
+    #[arg(long, value_delimiter = ',', value_parser = parse_precision)]
+    pub precision: Vec<Precision>,
+    /// Case classes (repeat or comma-separate); default: all.
+    #[arg(long, value_delimiter = ',', value_parser = parse_class)]
+    pub class: Vec<Class>,
+    /// Run only shard K of N (cases whose index ≡ K mod N), written as K/N.
+    #[arg(long, value_parser = parse_shard, default_value = "0/1")]
+    pub shard: (u64, u64),
+    /// Write the full report as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the table as Markdown.
+    #[arg(long)]
+    pub markdown: Option<PathBuf>,
+    /// Replayable worst cases to print per row (0 for none).
+    #[arg(long, default_value_t = 1)]
+    pub worst: usize,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum ProbeCommand {
+    /// One ray against one sphere.
+    Sphere(ProbeSphereArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ProbeSphereArgs {
+    /// Ray origin X,Y,Z (decimal or hex floats, each rounded once to the precision).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub origin: [String; 3],
+    /// Ray direction X,Y,Z, used as given (not renormalised).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub dir: [String; 3],
+    /// Sphere centre X,Y,Z.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub center: [String; 3],
+    /// Sphere radius.
+    #[arg(long, value_parser = parse_number, allow_hyphen_values = true)]
+    pub radius: String,
+    /// f32 or f64.
+    #[arg(long, value_parser = parse_precision, default_value = "f64")]
+    pub precision: Precision,
+    /// Print the JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn parse_method(s: &str) -> Result<&'static Method, String> {
+    method_by_name(s).ok_or_else(|| {
+        format!("unknown method '{s}' (known: {})", METHODS.iter().map(|m| m.name).collect::<Vec<_>>().join(", "))
+    })
+}
+
+fn parse_precision(s: &str) -> Result<Precision, String> {
+    match s {
+        "f32" => Ok(Precision::F32),
+        "f64" => Ok(Precision::F64),
+        _ => Err(format!("unknown precision '{s}' (known: f32, f64)")),
+    }
+}
+
+fn parse_class(s: &str) -> Result<Class, String> {
+    Class::from_name(s).ok_or_else(|| {
+        format!("unknown class '{s}' (known: {})", Class::ALL.map(|c| c.name()).join(", "))
+    })
+}
+
+fn parse_shard(s: &str) -> Result<(u64, u64), String> {
+    let bad = || format!("'{s}' is not a shard K/N with 0 ≤ K < N");
+    let (k, n) = s.split_once('/').ok_or_else(bad)?;
+    let (k, n): (u64, u64) = (k.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+    if n == 0 || k >= n {
+        return Err(bad());
+    }
+    Ok((k, n))
+}
+
+fn parse_number(s: &str) -> Result<String, String> {
+    crate::real::parse_f64(s).map(|_| s.trim().to_string()).ok_or_else(|| format!("'{s}' is not a decimal or hex-float number"))
+}
+
+fn parse_triple(s: &str) -> Result<[String; 3], String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    if parts.len() != 3 {
+        return Err(format!("'{s}' is not three comma-separated numbers X,Y,Z"));
+    }
+    let v: Vec<String> = parts.iter().map(|p| parse_number(p)).collect::<Result<_, _>>()?;
+    Ok([v[0].clone(), v[1].clone(), v[2].clone()])
+}
+
+/// Writes a file through a temporary sibling and a rename, so no half-written file is left.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let name = path.file_name().context("output path has no file name")?;
+    let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
+    std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}
+
+/// Runs a parsed command; returns the process exit code.
+pub fn run(cli: Cli) -> Result<u8> {
+    match cli.command {
+        Command::Audit(a) => run_audit(a),
+        Command::Probe(ProbeCommand::Sphere(p)) => {
+            print!("{}", probe::sphere(&p.origin, &p.dir, &p.center, &p.radius, p.precision, p.json)?);
+            Ok(0)
+        }
+    }
+}
+
+fn run_audit(a: AuditArgs) -> Result<u8> {
+    let opts = AuditOptions {
+        cases: a.cases,
+        seed: a.seed,
+        methods: if a.method.is_empty() { METHODS.iter().collect() } else { a.method },
+        precisions: if a.precision.is_empty() { Precision::ALL.to_vec() } else { a.precision },
+        classes: if a.class.is_empty() { Class::ALL.to_vec() } else { a.class },
+        shard: a.shard,
+        progress: std::io::stderr().is_terminal(),
+    };
+    // Check output paths before the long run
+    for p in [&a.json, &a.markdown].into_iter().flatten() {
+        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        if !dir.is_dir() {
+            bail!("--json/--markdown: directory {} does not exist", dir.display());
+        }
+    }
+    let start = Instant::now();
+    let report = audit::run(&opts);
+    let secs = start.elapsed().as_secs_f64();
+    print!("{}", audit::table(&report));
+    if a.worst > 0 {
+        println!("\nWorst cases (replay with the probe line):");
+        print!("{}", audit::worst_cases(&report, a.worst));
+    }
+    let n: u64 = report.rows.iter().filter(|r| r.method == opts.methods[0].name).map(|r| r.cases).sum();
+    println!(
+        "\n{} cases × {} methods in {:.1} s on {} threads ({:.0} cases/s)",
+        n,
+        opts.methods.len(),
+        secs,
+        rayon::current_num_threads(),
+        n as f64 / secs
+    );
+    if let Some(p) = &a.json {
+        let text = serde_json::to_string_pretty(&report)? + "\n";
+        write_atomic(p, text.as_bytes())?;
+    }
+    if let Some(p) = &a.markdown {
+        write_atomic(p, audit::markdown(&report).as_bytes())?;
+    }
+    // Compare with the tolerance table
+    let breaks = tolerance::check(&report);
+    if breaks.is_empty() {
+        println!("tolerance table: every row within its entry");
+        Ok(0)
+    } else {
+        println!("tolerance table: {} row(s) out of bounds", breaks.len());
+        for b in &breaks {
+            println!("  {b}");
+        }
+        Ok(1)
+    }
+}

@@ -1,0 +1,22 @@
+//! # rayproof
+//!
+//! Tells, with proof, how accurate and how fast ray-tracing numerics are.
+//!
+//! Terminology (after libm-test):
+//! - **method**: one way to intersect a ray with a shape, written once over [`real::Real`]
+//!   (e.g. [`sphere::methods::algebraic`]), instantiated for `f32` and `f64`;
+//! - **oracle**: the exact answer from the inputs' exact binary values ([`sphere::oracle`]),
+//!   with MPFR (through `rug`) for roots and GMP integers for signs;
+//! - **class**: a named, seeded generator of hard cases whose membership the oracle confirms
+//!   ([`sphere::cases::Class`]);
+//! - **judgement**: how one method's answer compares with the oracle ([`sphere::Judgement`]);
+//! - **audit**: every method × precision × class, aggregated into rows ([`audit`]), checked
+//!   against one tolerance table ([`sphere::tolerance`]).
+
+pub mod audit;
+pub mod cli;
+pub mod dd;
+pub mod interval;
+pub mod probe;
+pub mod real;
+pub mod sphere;

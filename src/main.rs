@@ -1,0 +1,30 @@
+//! The `rayproof` binary: parse, run, map errors to exit codes (see [`rayproof::cli`]).
+
+use clap::error::ErrorKind;
+use clap::Parser;
+use rayproof::cli::{run, Cli};
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    // Usage errors: one line naming the argument, exit 2
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => {
+            print!("{e}");
+            return ExitCode::SUCCESS;
+        }
+        Err(e) => {
+            let text = e.render().to_string();
+            let line = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("error: invalid arguments");
+            eprintln!("{line}");
+            return ExitCode::from(2);
+        }
+    };
+    match run(cli) {
+        Ok(code) => ExitCode::from(code),
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
