@@ -279,7 +279,9 @@ fn propose<F: Real>(rng: &mut ChaCha8Rng, class: Class) -> Case<F> {
         Class::Huge => {
             let r = lu(rng, 4.0, 6.5);
             let c = add([0.0, -r, 0.0], mul(cube(rng), 10.0));
-            let h = lu(rng, -2.0, 1.5).min(1e-3 * r);
+            // Height above the surface, down to where f32/f64 can no longer tell it from 0
+            let eps = 2f64.powi(1 - F::MANT_BITS as i32);
+            let h = r * lu(rng, eps.log10() - 1.0, -3.0);
             let up = normalize(add([0.0, 1.0, 0.0], mul(cube(rng), 0.01)));
             let o = add(c, mul(up, r + h));
             let d = if rng.random_range(0..5) < 3 {

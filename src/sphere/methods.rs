@@ -194,6 +194,10 @@ pub fn hearn_baker<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>>
 /// The body of [`rtg7`], over any [`Scalar`] so that [`promote`] can run it in a wider type.
 #[inline(always)]
 fn rtg7_core<S: Scalar>(o: V<S>, d: V<S>, c: V<S>, r: S) -> Option<S> {
+    // Input guard: a radius that is not > 0 (negative, zero, NaN) is no sphere
+    if !(r > S::ZERO) {
+        return None;
+    }
     // Quadratic a t² + 2b' t + c with b' = f·d
     let f = sub(o, c);
     let a = dot(d, d);
@@ -221,7 +225,7 @@ fn rtg7_core<S: Scalar>(o: V<S>, d: V<S>, c: V<S>, r: S) -> Option<S> {
 /// `b' = f·d` (f = o − c), `D = a(r² − |f − (f·d̂)d̂|²)`, `q = −b' − sign(b')√D`, roots `c/q`, `q/a`.
 /// - Unit direction: not assumed. `D = 0` (tangent): a hit.
 /// - Origin on the surface: `c = 0` gives the root `0`, which is not returned.
-/// - `d = 0` or non-finite input: the NaN/zero guards return a miss.
+/// - `d = 0`, non-finite input, or a radius that is not `> 0`: a miss (NaN-safe guards).
 pub fn rtg7<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     let (o, d, c, r) = parts(ray, s);
     rtg7_core(o, d, c, r).and_then(finite_hit)
@@ -229,17 +233,51 @@ pub fn rtg7<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
 
 /// **Promote**: [`rtg7`]'s formula evaluated in the wider type (`f64` for `f32` inputs,
 /// double-double for `f64` inputs) and rounded once to `F`.
-/// - Conventions as [`rtg7`]; additionally a root that rounds to `0` in `F` is not returned.
+///
+/// Before widening, positions (o, c, r) and the direction are each scaled by an exact power of
+/// two so that their largest magnitude is about 1, and `t` is scaled back at the end. This costs
+/// two exponent reads and is exact, and it keeps subnormal or huge inputs from underflowing or
+/// overflowing in `|d|²` and `|o−c|²` (the wider type has no more exponent range than `f64`).
+/// - Conventions as [`rtg7`]; additionally a root that rounds to `0` or overflows in `F` is not returned.
 pub fn promote<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     let (o, d, c, r) = parts(ray, s);
-    let w = |v: V<F>| [v[0].widen(), v[1].widen(), v[2].widen()];
-    let t = rtg7_core(w(o), w(d), w(c), r.widen())?;
-    let t = F::narrow(t);
+    // Exact power-of-two scales for positions and direction
+    let max_abs = |v: &[F]| v.iter().fold(0.0f64, |m, x| m.max(x.to_f64().abs()));
+    let kp = -ilogb(max_abs(&[o[0], o[1], o[2], c[0], c[1], c[2], r]));
+    let kd = -ilogb(max_abs(&d));
+    let wp = |v: V<F>| v.map(|x| mul_pow2(x.widen(), kp));
+    // Wide evaluation, scaled back, rounded once
+    let t = rtg7_core(wp(o), d.map(|x| mul_pow2(x.widen(), kd)), wp(c), mul_pow2(r.widen(), kp))?;
+    let t = F::narrow(mul_pow2(t, kd - kp));
     if t > F::ZERO {
         finite_hit(t)
     } else {
         None
     }
+}
+
+/// ⌊log₂|x|⌋ for finite non-zero `x` (subnormals included); 0 otherwise.
+fn ilogb(x: f64) -> i32 {
+    if x == 0.0 || !x.is_finite() {
+        return 0;
+    }
+    let bits = x.abs().to_bits();
+    let e = ((bits >> 52) & 0x7ff) as i32;
+    if e == 0 {
+        -1023 - ((bits << 12).leading_zeros() as i32)
+    } else {
+        e - 1023
+    }
+}
+
+/// `x·2^k`, exact unless the result over- or underflows; for types with `f64`'s exponent range.
+fn mul_pow2<S: Scalar>(mut x: S, mut k: i32) -> S {
+    while k.abs() > 512 {
+        let step = 512 * k.signum();
+        x = x * S::from_f64(2f64.powi(step));
+        k -= step;
+    }
+    x * S::from_f64(2f64.powi(k))
 }
 
 /// **Interval** (pbrt-v4 `Sphere::BasicIntersect`): the whole computation in outward-rounded
@@ -252,9 +290,13 @@ pub fn promote<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
 /// it is surely `> 0`, else the far one.
 /// - Unit direction: not assumed. Tangent: a hit only if the interval `D` is surely `≥ 0`.
 /// - Origin on the surface: the near root's interval straddles 0, so the far root is returned.
-/// - `d = 0` or non-finite input: the intervals become unbounded or NaN and the method misses.
+/// - `d = 0` or non-finite input: the intervals become unbounded or NaN and the method misses;
+///   a radius that is not `> 0` is rejected up front.
 pub fn interval<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     let (o, d, c, r) = parts(ray, s);
+    if !(r > F::ZERO) {
+        return None;
+    }
     let p = Interval::point;
     // Ray in the sphere's frame
     let oi = [p(o[0]) - p(c[0]), p(o[1]) - p(c[1]), p(o[2]) - p(c[2])];
