@@ -62,7 +62,13 @@ impl Stats {
         v.sort_by(|a, b| a.total_cmp(b));
         let q = |p: f64| v[((v.len() - 1) as f64 * p).round() as usize];
         let mean = v.iter().sum::<f64>() / v.len() as f64;
-        Stats { count: v.len() as u64, max: *v.last().unwrap(), median: q(0.5), p99: q(0.99), mean }
+        Stats {
+            count: v.len() as u64,
+            max: *v.last().unwrap(),
+            median: q(0.5),
+            p99: q(0.99),
+            mean,
+        }
     }
 }
 
@@ -124,6 +130,9 @@ pub struct Row {
     pub ulps: Stats,
     /// Herbie's bits of error, log2(1 + ulps).
     pub bits: Stats,
+    /// Error relative to the case's sensitivity: ulps / max(1, condition ulps). Near 1: as accurate
+    /// as the inputs allow; large: the method lost digits the case did not force it to lose.
+    pub err_over_cond: Stats,
     /// |hit-point residual| `||o + t·d − c| − r|` in ulps of r.
     pub residual_ulps: Stats,
     pub invalid: InvalidStats,
@@ -144,6 +153,7 @@ pub struct Report {
 /// Everything recorded about one case for one method.
 struct Sample {
     judgement: Judgement,
+    cond: Option<f64>,
     residual: Option<f64>,
     enclosure: Option<(bool, u64)>,
     t_hex: Option<String>,
@@ -158,11 +168,23 @@ struct CaseResult {
     samples: Vec<Sample>,
 }
 
-fn evaluate<F: PickPrecision>(seed: u64, class: Class, index: u64, methods: &[&'static Method]) -> CaseResult {
+fn evaluate<F: PickPrecision>(
+    seed: u64,
+    class: Class,
+    index: u64,
+    methods: &[&'static Method],
+) -> CaseResult {
     let Some(case) = cases::generate::<F>(seed, class, index) else {
-        return CaseResult { index, probe: String::new(), truth: None, oracle_t_hex: None, samples: vec![] };
+        return CaseResult {
+            index,
+            probe: String::new(),
+            truth: None,
+            oracle_t_hex: None,
+            samples: vec![],
+        };
     };
     let truth = oracle::truth(&case);
+    let cond = oracle::condition_ulps(&case, &truth);
     let (ray, sphere) = (case.ray(), case.sphere());
     let samples = methods
         .iter()
@@ -170,19 +192,33 @@ fn evaluate<F: PickPrecision>(seed: u64, class: Class, index: u64, methods: &[&'
             let hit = F::pick(m)(&ray, &sphere);
             let judgement = judge(&truth, hit);
             let residual = match (judgement, hit) {
-                (Judgement::Ok { ulps: Some(_) }, Some(h)) => Some(oracle::residual_ulps(&case, h.t).abs()),
-                _ => None,
-            };
-            let enclosure = match (judgement, hit) {
                 (Judgement::Ok { ulps: Some(_) }, Some(h)) => {
-                    h.enclosure.map(|e| (enclosure_holds(&truth, e), e[1].ulps_between(e[0])))
+                    Some(oracle::residual_ulps(&case, h.t).abs())
                 }
                 _ => None,
             };
-            Sample { judgement, residual, enclosure, t_hex: hit.map(|h| h.t.hex()) }
+            let enclosure = match (judgement, hit) {
+                (Judgement::Ok { ulps: Some(_) }, Some(h)) => h
+                    .enclosure
+                    .map(|e| (enclosure_holds(&truth, e), e[1].ulps_between(e[0]))),
+                _ => None,
+            };
+            Sample {
+                judgement,
+                cond,
+                residual,
+                enclosure,
+                t_hex: hit.map(|h| h.t.hex()),
+            }
         })
         .collect();
-    CaseResult { index, probe: probe_line(&case), oracle_t_hex: truth.t_in::<F>().map(|t| t.hex()), truth: Some(truth), samples }
+    CaseResult {
+        index,
+        probe: probe_line(&case),
+        oracle_t_hex: truth.t_in::<F>().map(|t| t.hex()),
+        truth: Some(truth),
+        samples,
+    }
 }
 
 /// The full replay command of a case.
@@ -193,16 +229,25 @@ pub fn probe_line<F: Real>(case: &Case<F>) -> String {
 /// Runs the audit. `tick` is called once per finished case (for a progress bar).
 pub fn run(opts: &AuditOptions) -> Report {
     let per_combo = opts.cases;
-    let total = per_combo * opts.classes.len() as u64 * opts.precisions.len() as u64 / opts.shard.1.max(1);
-    let bar = if opts.progress { ProgressBar::new(total) } else { ProgressBar::hidden() };
+    let total =
+        per_combo * opts.classes.len() as u64 * opts.precisions.len() as u64 / opts.shard.1.max(1);
+    let bar = if opts.progress {
+        ProgressBar::new(total)
+    } else {
+        ProgressBar::hidden()
+    };
     bar.set_style(
-        ProgressStyle::with_template("{spinner} audit {bar:40} {pos}/{len} cases  {per_sec}  eta {eta}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{spinner} audit {bar:40} {pos}/{len} cases  {per_sec}  eta {eta}",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     let mut rows = Vec::new();
     for &prec in &opts.precisions {
         for &class in &opts.classes {
-            let indices: Vec<u64> = (0..opts.cases).filter(|i| i % opts.shard.1 == opts.shard.0).collect();
+            let indices: Vec<u64> = (0..opts.cases)
+                .filter(|i| i % opts.shard.1 == opts.shard.0)
+                .collect();
             let results: Vec<CaseResult> = indices
                 .par_iter()
                 .map(|&i| {
@@ -221,13 +266,25 @@ pub fn run(opts: &AuditOptions) -> Report {
     }
     bar.finish_and_clear();
     let shard = format!("{}/{}", opts.shard.0, opts.shard.1);
-    Report { tool: concat!("rayproof ", env!("CARGO_PKG_VERSION")), seed: opts.seed, cases_per_class: opts.cases, shard, rows }
+    Report {
+        tool: concat!("rayproof ", env!("CARGO_PKG_VERSION")),
+        seed: opts.seed,
+        cases_per_class: opts.cases,
+        shard,
+        rows,
+    }
 }
 
 /// How many examples of each kind a row keeps.
 const EXAMPLES_PER_KIND: usize = 1;
 
-fn aggregate(m: &Method, precision: Precision, class: Class, results: &[CaseResult], k: usize) -> Row {
+fn aggregate(
+    m: &Method,
+    precision: Precision,
+    class: Class,
+    results: &[CaseResult],
+    k: usize,
+) -> Row {
     let mut row = Row {
         method: m.name,
         precision,
@@ -246,30 +303,32 @@ fn aggregate(m: &Method, precision: Precision, class: Class, results: &[CaseResu
         ill_posed_disagree: 0,
         ulps: Stats::default(),
         bits: Stats::default(),
+        err_over_cond: Stats::default(),
         residual_ulps: Stats::default(),
         invalid: InvalidStats::default(),
         enclosure: None,
         examples: vec![],
     };
-    let (mut ulps, mut residuals, mut widths) = (vec![], vec![], vec![]);
+    let (mut ulps, mut residuals, mut widths, mut relc) = (vec![], vec![], vec![], vec![]);
     let mut enc = EnclosureStats::default();
     let mut has_enc = false;
     // Worst cases, first one wins ties (index order)
     let mut worst_ulps: Option<(u64, &CaseResult)> = None;
     let mut worst_res: Option<(f64, &CaseResult)> = None;
     let mut examples: Vec<Example> = vec![];
-    let example = |kind: &'static str, r: &CaseResult, ulps: Option<u64>, list: &mut Vec<Example>| {
-        if list.iter().filter(|e| e.kind == kind).count() < EXAMPLES_PER_KIND {
-            list.push(Example {
-                kind,
-                index: r.index,
-                probe: r.probe.clone(),
-                method_t: r.samples[k].t_hex.clone(),
-                oracle_t: r.oracle_t_hex.clone(),
-                ulps,
-            });
-        }
-    };
+    let example =
+        |kind: &'static str, r: &CaseResult, ulps: Option<u64>, list: &mut Vec<Example>| {
+            if list.iter().filter(|e| e.kind == kind).count() < EXAMPLES_PER_KIND {
+                list.push(Example {
+                    kind,
+                    index: r.index,
+                    probe: r.probe.clone(),
+                    method_t: r.samples[k].t_hex.clone(),
+                    oracle_t: r.oracle_t_hex.clone(),
+                    ulps,
+                });
+            }
+        };
     for r in results {
         let Some(truth) = &r.truth else {
             row.generator_failures += 1;
@@ -325,6 +384,9 @@ fn aggregate(m: &Method, precision: Precision, class: Class, results: &[CaseResu
             }
             Judgement::Ok { ulps: Some(u) } => {
                 ulps.push(u as f64);
+                if let Some(c) = s.cond {
+                    relc.push(u as f64 / c.max(1.0));
+                }
                 if worst_ulps.is_none_or(|(w, _)| u > w) {
                     worst_ulps = Some((u, r));
                 }
@@ -354,9 +416,14 @@ fn aggregate(m: &Method, precision: Precision, class: Class, results: &[CaseResu
         example("worst_residual", r, None, &mut examples);
     }
     let wrong = row.false_hit + row.false_miss + row.wrong_root + row.nonfinite_t;
-    row.wrong_rate = if row.well_posed > 0 { wrong as f64 / row.well_posed as f64 } else { 0.0 };
+    row.wrong_rate = if row.well_posed > 0 {
+        wrong as f64 / row.well_posed as f64
+    } else {
+        0.0
+    };
     row.bits = Stats::of(ulps.iter().map(|u| (1.0 + u).log2()).collect());
     row.ulps = Stats::of(ulps);
+    row.err_over_cond = Stats::of(relc);
     row.residual_ulps = Stats::of(residuals);
     if has_enc {
         enc.width_ulps = Stats::of(widths);
@@ -391,6 +458,7 @@ pub fn table(report: &Report) -> String {
          well = well-posed cases; ill = ill-posed (a 1-ulp input change flips the exact verdict), reported apart\n\
          wrong = false hit / false miss / wrong root / non-finite t on well-posed cases\n\
          ulps = t error against the correctly rounded root; bits = log2(1+ulps); resid = |o+t·d−c|−r in ulps of r\n\
+         err/cond = max of ulps / (ulps t moves when every input moves 1 ulp): ≈1 is as good as the inputs allow\n\
          invalid = invalid inputs: rejected / NaN t / hit\n",
         report.seed, report.cases_per_class, report.shard
     );
@@ -416,25 +484,38 @@ pub fn table(report: &Report) -> String {
             );
         }
         let inv = if row.invalid.cases > 0 {
-            format!("{}/{}/{}", row.invalid.rejected, row.invalid.nonfinite_t, row.invalid.hit)
+            format!(
+                "{}/{}/{}",
+                row.invalid.rejected, row.invalid.nonfinite_t, row.invalid.hit
+            )
         } else {
             "-".into()
         };
         let enc = row
             .enclosure
             .as_ref()
-            .map(|e| format!("{} viol, width med {}", e.violations, num(e.width_ulps.median)))
+            .map(|e| {
+                format!(
+                    "{} viol, width med {}",
+                    e.violations,
+                    num(e.width_ulps.median)
+                )
+            })
             .unwrap_or_default();
         out += &format!(
-            "  {:<12} {:>6} {:>5} {:>17} {:>8.4}% {:>8} {:>7} {:>6.1} {:>9} {:>12} {}\n",
+            "  {:<12} {:>6} {:>5} {:>17} {:>8.4}% {:>8} {:>7} {:>6.1} {:>8} {:>9} {:>12} {}\n",
             row.method,
             row.well_posed,
             row.ill_posed,
-            format!("{}/{}/{}/{}", row.false_hit, row.false_miss, row.wrong_root, row.nonfinite_t),
+            format!(
+                "{}/{}/{}/{}",
+                row.false_hit, row.false_miss, row.wrong_root, row.nonfinite_t
+            ),
             row.wrong_rate * 100.0,
             num(row.ulps.max),
             num(row.ulps.p99),
             row.bits.p99,
+            num(row.err_over_cond.max),
             num(row.residual_ulps.max),
             inv,
             enc
@@ -447,7 +528,12 @@ pub fn table(report: &Report) -> String {
 pub fn worst_cases(report: &Report, limit_per_row: usize) -> String {
     let mut out = String::new();
     for row in &report.rows {
-        for e in row.examples.iter().filter(|e| e.kind != "worst_residual").take(limit_per_row) {
+        for e in row
+            .examples
+            .iter()
+            .filter(|e| e.kind != "worst_residual")
+            .take(limit_per_row)
+        {
             out += &format!(
                 "{} {} {} {}: t = {} (oracle {}){}\n  {}\n",
                 row.precision.name(),
@@ -477,13 +563,13 @@ pub fn oracle_only<F: Real>(seed: u64, class: Class, n: u64) -> usize {
 pub fn markdown(report: &Report) -> String {
     let mut out = format!(
         "# rayproof audit\n\nSeed {}, {} cases per class, shard {}.\n\n\
-         | precision | class | method | well-posed | ill-posed | false hit | false miss | wrong root | non-finite t | wrong % | max ulps | p99 ulps | median ulps | p99 bits | max residual (ulps of r) | invalid rejected/NaN/hit |\n\
-         |---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
+         | precision | class | method | well-posed | ill-posed | false hit | false miss | wrong root | non-finite t | wrong % | max ulps | p99 ulps | median ulps | p99 bits | max err/cond | max residual (ulps of r) | invalid rejected/NaN/hit |\n\
+         |---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|\n",
         report.seed, report.cases_per_class, report.shard
     );
     for r in &report.rows {
         out += &format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.4} | {} | {} | {} | {:.1} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.4} | {} | {} | {} | {:.1} | {} | {} | {} |\n",
             r.precision.name(),
             r.class.name(),
             r.method,
@@ -498,6 +584,7 @@ pub fn markdown(report: &Report) -> String {
             num(r.ulps.p99),
             num(r.ulps.median),
             r.bits.p99,
+            num(r.err_over_cond.max),
             num(r.residual_ulps.max),
             if r.invalid.cases > 0 { format!("{}/{}/{}", r.invalid.rejected, r.invalid.nonfinite_t, r.invalid.hit) } else { "-".into() }
         );

@@ -95,7 +95,14 @@ pub struct ProbeSphereArgs {
 
 fn parse_method(s: &str) -> Result<&'static Method, String> {
     method_by_name(s).ok_or_else(|| {
-        format!("unknown method '{s}' (known: {})", METHODS.iter().map(|m| m.name).collect::<Vec<_>>().join(", "))
+        format!(
+            "unknown method '{s}' (known: {})",
+            METHODS
+                .iter()
+                .map(|m| m.name)
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
     })
 }
 
@@ -109,14 +116,20 @@ fn parse_precision(s: &str) -> Result<Precision, String> {
 
 fn parse_class(s: &str) -> Result<Class, String> {
     Class::from_name(s).ok_or_else(|| {
-        format!("unknown class '{s}' (known: {})", Class::ALL.map(|c| c.name()).join(", "))
+        format!(
+            "unknown class '{s}' (known: {})",
+            Class::ALL.map(|c| c.name()).join(", ")
+        )
     })
 }
 
 fn parse_shard(s: &str) -> Result<(u64, u64), String> {
     let bad = || format!("'{s}' is not a shard K/N with 0 ≤ K < N");
     let (k, n) = s.split_once('/').ok_or_else(bad)?;
-    let (k, n): (u64, u64) = (k.trim().parse().map_err(|_| bad())?, n.trim().parse().map_err(|_| bad())?);
+    let (k, n): (u64, u64) = (
+        k.trim().parse().map_err(|_| bad())?,
+        n.trim().parse().map_err(|_| bad())?,
+    );
     if n == 0 || k >= n {
         return Err(bad());
     }
@@ -124,7 +137,9 @@ fn parse_shard(s: &str) -> Result<(u64, u64), String> {
 }
 
 fn parse_number(s: &str) -> Result<String, String> {
-    crate::real::parse_f64(s).map(|_| s.trim().to_string()).ok_or_else(|| format!("'{s}' is not a decimal or hex-float number"))
+    crate::real::parse_f64(s)
+        .map(|_| s.trim().to_string())
+        .ok_or_else(|| format!("'{s}' is not a decimal or hex-float number"))
 }
 
 fn parse_triple(s: &str) -> Result<[String; 3], String> {
@@ -132,15 +147,25 @@ fn parse_triple(s: &str) -> Result<[String; 3], String> {
     if parts.len() != 3 {
         return Err(format!("'{s}' is not three comma-separated numbers X,Y,Z"));
     }
-    let v: Vec<String> = parts.iter().map(|p| parse_number(p)).collect::<Result<_, _>>()?;
+    let v: Vec<String> = parts
+        .iter()
+        .map(|p| parse_number(p))
+        .collect::<Result<_, _>>()?;
     Ok([v[0].clone(), v[1].clone(), v[2].clone()])
 }
 
 /// Writes a file through a temporary sibling and a rename, so no half-written file is left.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = path.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let dir = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
     let name = path.file_name().context("output path has no file name")?;
-    let tmp = dir.join(format!(".{}.tmp{}", name.to_string_lossy(), std::process::id()));
+    let tmp = dir.join(format!(
+        ".{}.tmp{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
     std::fs::write(&tmp, bytes).with_context(|| format!("cannot write {}", tmp.display()))?;
     std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(())
@@ -151,7 +176,10 @@ pub fn run(cli: Cli) -> Result<u8> {
     match cli.command {
         Command::Audit(a) => run_audit(a),
         Command::Probe(ProbeCommand::Sphere(p)) => {
-            print!("{}", probe::sphere(&p.origin, &p.dir, &p.center, &p.radius, p.precision, p.json)?);
+            print!(
+                "{}",
+                probe::sphere(&p.origin, &p.dir, &p.center, &p.radius, p.precision, p.json)?
+            );
             Ok(0)
         }
     }
@@ -161,17 +189,35 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
     let opts = AuditOptions {
         cases: a.cases,
         seed: a.seed,
-        methods: if a.method.is_empty() { METHODS.iter().collect() } else { a.method },
-        precisions: if a.precision.is_empty() { Precision::ALL.to_vec() } else { a.precision },
-        classes: if a.class.is_empty() { Class::ALL.to_vec() } else { a.class },
+        methods: if a.method.is_empty() {
+            METHODS.iter().collect()
+        } else {
+            a.method
+        },
+        precisions: if a.precision.is_empty() {
+            Precision::ALL.to_vec()
+        } else {
+            a.precision
+        },
+        classes: if a.class.is_empty() {
+            Class::ALL.to_vec()
+        } else {
+            a.class
+        },
         shard: a.shard,
         progress: std::io::stderr().is_terminal(),
     };
     // Check output paths before the long run
     for p in [&a.json, &a.markdown].into_iter().flatten() {
-        let dir = p.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
         if !dir.is_dir() {
-            bail!("--json/--markdown: directory {} does not exist", dir.display());
+            bail!(
+                "--json/--markdown: directory {} does not exist",
+                dir.display()
+            );
         }
     }
     let start = Instant::now();
@@ -182,7 +228,12 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         println!("\nWorst cases (replay with the probe line):");
         print!("{}", audit::worst_cases(&report, a.worst));
     }
-    let n: u64 = report.rows.iter().filter(|r| r.method == opts.methods[0].name).map(|r| r.cases).sum();
+    let n: u64 = report
+        .rows
+        .iter()
+        .filter(|r| r.method == opts.methods[0].name)
+        .map(|r| r.cases)
+        .sum();
     println!(
         "\n{} cases × {} methods in {:.1} s on {} threads ({:.0} cases/s)",
         n,

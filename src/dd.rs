@@ -75,7 +75,10 @@ impl Neg for DD {
     type Output = DD;
     #[inline(always)]
     fn neg(self) -> DD {
-        DD { hi: -self.hi, lo: -self.lo }
+        DD {
+            hi: -self.hi,
+            lo: -self.lo,
+        }
     }
 }
 

@@ -40,7 +40,10 @@ impl<F: Real> Interval<F> {
     }
     /// The whole line: what an undecidable operation returns.
     pub fn everything() -> Self {
-        Interval { lo: -F::INFINITY, hi: F::INFINITY }
+        Interval {
+            lo: -F::INFINITY,
+            hi: F::INFINITY,
+        }
     }
     #[inline(always)]
     pub fn square(self) -> Self {
@@ -56,8 +59,15 @@ impl<F: Real> Interval<F> {
     }
     #[inline(always)]
     pub fn sqrt(self) -> Self {
-        let lo = if self.lo > F::ZERO { self.lo.sqrt().next_down() } else { F::ZERO };
-        Interval::new(if lo < F::ZERO { F::ZERO } else { lo }, self.hi.sqrt().next_up())
+        let lo = if self.lo > F::ZERO {
+            self.lo.sqrt().next_down()
+        } else {
+            F::ZERO
+        };
+        Interval::new(
+            if lo < F::ZERO { F::ZERO } else { lo },
+            self.hi.sqrt().next_up(),
+        )
     }
     /// Midpoint, the value pbrt reports as the interval's float.
     #[inline(always)]
@@ -127,7 +137,12 @@ impl<F: Real> Mul for Interval<F> {
     type Output = Self;
     #[inline(always)]
     fn mul(self, o: Self) -> Self {
-        let p = [self.lo * o.lo, self.lo * o.hi, self.hi * o.lo, self.hi * o.hi];
+        let p = [
+            self.lo * o.lo,
+            self.lo * o.hi,
+            self.hi * o.lo,
+            self.hi * o.hi,
+        ];
         Interval::new(
             min4(p[0], p[1], p[2], p[3]).next_down(),
             max4(p[0], p[1], p[2], p[3]).next_up(),
@@ -143,7 +158,12 @@ impl<F: Real> Div for Interval<F> {
         if !(o.lo > F::ZERO || o.hi < F::ZERO) {
             return Interval::everything();
         }
-        let q = [self.lo / o.lo, self.lo / o.hi, self.hi / o.lo, self.hi / o.hi];
+        let q = [
+            self.lo / o.lo,
+            self.lo / o.hi,
+            self.hi / o.lo,
+            self.hi / o.hi,
+        ];
         Interval::new(
             min4(q[0], q[1], q[2], q[3]).next_down(),
             max4(q[0], q[1], q[2], q[3]).next_up(),
@@ -172,6 +192,9 @@ mod tests {
         let s = Interval::point(2.0f64).sqrt();
         assert!(s.lo * s.lo <= 2.0 && s.hi * s.hi >= 2.0);
         assert_eq!(Interval::new(-1.0f32, 2.0).square().lo, 0.0);
-        assert_eq!((Interval::point(1.0f32) / Interval::new(-1.0, 1.0)).hi, f32::INFINITY);
+        assert_eq!(
+            (Interval::point(1.0f32) / Interval::new(-1.0, 1.0)).hi,
+            f32::INFINITY
+        );
     }
 }

@@ -12,7 +12,14 @@ use serde_json::{json, Value};
 const DIGITS: usize = 45;
 
 /// Runs the probe; returns the text or JSON to print.
-pub fn sphere(o: &[String; 3], d: &[String; 3], c: &[String; 3], r: &str, prec: Precision, as_json: bool) -> Result<String> {
+pub fn sphere(
+    o: &[String; 3],
+    d: &[String; 3],
+    c: &[String; 3],
+    r: &str,
+    prec: Precision,
+    as_json: bool,
+) -> Result<String> {
     match prec {
         Precision::F32 => probe_in::<f32>(o, d, c, r, as_json),
         Precision::F64 => probe_in::<f64>(o, d, c, r, as_json),
@@ -20,11 +27,19 @@ pub fn sphere(o: &[String; 3], d: &[String; 3], c: &[String; 3], r: &str, prec: 
 }
 
 fn parse3<F: Real>(v: &[String; 3], what: &str) -> Result<[F; 3]> {
-    let p = |s: &String| F::parse(s).ok_or_else(|| anyhow!("--{what}: '{s}' is not a number in {}", F::NAME));
+    let p = |s: &String| {
+        F::parse(s).ok_or_else(|| anyhow!("--{what}: '{s}' is not a number in {}", F::NAME))
+    };
     Ok([p(&v[0])?, p(&v[1])?, p(&v[2])?])
 }
 
-fn probe_in<F: PickPrecision>(o: &[String; 3], d: &[String; 3], c: &[String; 3], r: &str, as_json: bool) -> Result<String> {
+fn probe_in<F: PickPrecision>(
+    o: &[String; 3],
+    d: &[String; 3],
+    c: &[String; 3],
+    r: &str,
+    as_json: bool,
+) -> Result<String> {
     let case = Case::<F> {
         o: parse3(o, "origin")?,
         d: parse3(d, "dir")?,
@@ -97,7 +112,11 @@ fn probe_in<F: PickPrecision>(o: &[String; 3], d: &[String; 3], c: &[String; 3],
     out += &format!(
         "oracle: {:?}{}\n",
         truth.verdict,
-        if truth.ill_posed { " (ill-posed: a 1-ulp input change flips the verdict)" } else { "" }
+        if truth.ill_posed {
+            " (ill-posed: a 1-ulp input change flips the verdict)"
+        } else {
+            ""
+        }
     );
     for (i, root) in roots.iter().enumerate() {
         out += &format!("  root t{} = {root}\n", i + 1);
@@ -106,7 +125,9 @@ fn probe_in<F: PickPrecision>(o: &[String; 3], d: &[String; 3], c: &[String; 3],
         out += &format!("  t (f32) = {}   t (f64) = {}\n", a.hex(), b.hex());
     }
     for (name, hit, j) in &rows {
-        let t = hit.map(|h| format!("{} ({:e})", h.t.hex(), h.t.to_f64())).unwrap_or_else(|| "miss".into());
+        let t = hit
+            .map(|h| format!("{} ({:e})", h.t.hex(), h.t.to_f64()))
+            .unwrap_or_else(|| "miss".into());
         let u = match j {
             Judgement::Ok { ulps: Some(u) } => format!(", {u} ulps"),
             _ => String::new(),

@@ -104,7 +104,11 @@ pub fn hex_float(x: f64) -> String {
     while digits.ends_with('0') {
         digits.pop();
     }
-    let frac = if digits.is_empty() { String::new() } else { format!(".{digits}") };
+    let frac = if digits.is_empty() {
+        String::new()
+    } else {
+        format!(".{digits}")
+    };
     format!("{sign}0x1{frac}p{exp:+}")
 }
 
@@ -114,7 +118,11 @@ pub fn parse_f64(s: &str) -> Option<f64> {
     let lower = t.to_ascii_lowercase();
     let body = lower.trim_start_matches(['+', '-']);
     if body.starts_with("0x") {
-        let with_p = if lower.contains('p') { lower.clone() } else { format!("{lower}p0") };
+        let with_p = if lower.contains('p') {
+            lower.clone()
+        } else {
+            format!("{lower}p0")
+        };
         hexf_parse::parse_hexf64(&with_p, false).ok()
     } else {
         t.parse::<f64>().ok()
@@ -226,7 +234,10 @@ impl RoundTo<f32> for f64 {
 /// through the exact `f64` value (hex text of at most 53 significant bits), then rounded once.
 fn parse_f32(s: &str) -> Option<f32> {
     let t = s.trim();
-    if t.to_ascii_lowercase().trim_start_matches(['+', '-']).starts_with("0x") {
+    if t.to_ascii_lowercase()
+        .trim_start_matches(['+', '-'])
+        .starts_with("0x")
+    {
         parse_f64(t).map(|x| x as f32)
     } else {
         t.parse::<f32>().ok()

@@ -93,7 +93,9 @@ const MAX_ATTEMPTS: usize = 200;
 /// Returns `None` only if [`MAX_ATTEMPTS`] proposals were all rejected (counted by the audit).
 pub fn generate<F: Real>(seed: u64, class: Class, index: u64) -> Option<Case<F>> {
     let mut rng = case_rng::<F>(seed, class, index);
-    (0..MAX_ATTEMPTS).map(|_| propose::<F>(&mut rng, class)).find(|c| is_member(c, class))
+    (0..MAX_ATTEMPTS)
+        .map(|_| propose::<F>(&mut rng, class))
+        .find(|c| is_member(c, class))
 }
 
 // ---- sampling helpers (all in f64, rounded once to F) ----
@@ -171,7 +173,14 @@ const TRIPLES: [[i32; 3]; 4] = [[3, 4, 5], [5, 12, 13], [8, 15, 17], [0, 1, 1]];
 
 /// A random signed permutation of an integer vector.
 fn shuffle_signs(rng: &mut ChaCha8Rng, v: [i32; 3]) -> [f64; 3] {
-    let perm = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]][rng.random_range(0..6)];
+    let perm = [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ][rng.random_range(0..6)];
     std::array::from_fn(|i| {
         let s = if rng.random::<bool>() { -1.0 } else { 1.0 };
         s * v[perm[i]] as f64
@@ -188,7 +197,12 @@ fn subnormal_scale<F: Real>() -> f64 {
 
 /// One proposal for a class (not yet confirmed).
 fn propose<F: Real>(rng: &mut ChaCha8Rng, class: Class) -> Case<F> {
-    let mk = |o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64| Case::<F> { o: to_f(o), d: to_f(d), c: to_f(c), r: F::from_f64(r) };
+    let mk = |o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64| Case::<F> {
+        o: to_f(o),
+        d: to_f(d),
+        c: to_f(c),
+        r: F::from_f64(r),
+    };
     match class {
         Class::Random => {
             // Scene scale s, sphere within it, origin up to 10 s away, half the rays aimed
@@ -196,14 +210,22 @@ fn propose<F: Real>(rng: &mut ChaCha8Rng, class: Class) -> Case<F> {
             let c = mul(cube(rng), s);
             let r = s * lu(rng, -2.0, 0.0);
             let o = mul(cube(rng), s * lu(rng, 0.0, 1.0));
-            let d = if rng.random::<bool>() { normalize(sub(add(c, mul(ball(rng), 1.5 * r)), o)) } else { unit(rng) };
+            let d = if rng.random::<bool>() {
+                normalize(sub(add(c, mul(ball(rng), 1.5 * r)), o))
+            } else {
+                unit(rng)
+            };
             mk(o, d, c, r)
         }
         Class::Inside => {
             let s = lu(rng, -2.0, 3.0);
             let c = mul(cube(rng), s);
             let r = s * lu(rng, -1.0, 0.0);
-            let o = if rng.random_range(0..16) == 0 { c } else { add(c, mul(ball(rng), 0.999 * r)) };
+            let o = if rng.random_range(0..16) == 0 {
+                c
+            } else {
+                add(c, mul(ball(rng), 0.999 * r))
+            };
             mk(o, unit(rng), c, r)
         }
         Class::OnSurface => {
@@ -238,14 +260,19 @@ fn propose<F: Real>(rng: &mut ChaCha8Rng, class: Class) -> Case<F> {
                 off[j] = t[1] as f64 * scale * if rng.random::<bool>() { 1.0 } else { -1.0 };
                 let mut d = [0.0; 3];
                 d[axis] = if rng.random::<bool>() { 1.0 } else { -1.0 };
-                let c: [f64; 3] = std::array::from_fn(|_| rng.random_range(-100..100) as f64 * scale);
+                let c: [f64; 3] =
+                    std::array::from_fn(|_| rng.random_range(-100..100) as f64 * scale);
                 let back = rng.random_range(1..64) as f64 * scale;
                 let o = sub(add(c, off), mul(d, back));
                 mk(o, d, c, t[2] as f64 * scale)
             } else {
                 // Rounded tangent: o = c + r·n⊥ − L·d, optionally nudged by ±k/2 ulps
                 let s = lu(rng, -2.0, 3.0);
-                let c = if rng.random::<bool>() { [0.0; 3] } else { mul(cube(rng), s) };
+                let c = if rng.random::<bool>() {
+                    [0.0; 3]
+                } else {
+                    mul(cube(rng), s)
+                };
                 let r = s * lu(rng, -1.0, 0.0);
                 let d = unit(rng);
                 let n = perp(rng, d);
@@ -298,7 +325,11 @@ fn propose<F: Real>(rng: &mut ChaCha8Rng, class: Class) -> Case<F> {
         }
         Class::Grazing => {
             let s = lu(rng, -2.0, 3.0);
-            let c = if rng.random::<bool>() { [0.0; 3] } else { mul(cube(rng), s) };
+            let c = if rng.random::<bool>() {
+                [0.0; 3]
+            } else {
+                mul(cube(rng), s)
+            };
             let r = s * lu(rng, -1.0, 0.0);
             let d = unit(rng);
             let n = perp(rng, d);
@@ -323,7 +354,9 @@ fn propose<F: Real>(rng: &mut ChaCha8Rng, class: Class) -> Case<F> {
                 // A whole subnormal direction: valid, but |d|² underflows to 0
                 7 => (3..6).for_each(|k| s[k] = F::from_f64(s[k].to_f64() * tiny)),
                 // A whole scene at subnormal scale
-                8 => s.iter_mut().for_each(|x| *x = F::from_f64(x.to_f64() / (1e4 * case.r.to_f64()) * tiny * 1e3)),
+                8 => s.iter_mut().for_each(|x| {
+                    *x = F::from_f64(x.to_f64() / (1e4 * case.r.to_f64()) * tiny * 1e3)
+                }),
                 // One subnormal direction component
                 _ => s[3 + i % 3] = F::from_f64(tiny),
             }
@@ -351,11 +384,17 @@ fn geometry<F: Real>(case: &Case<F>, ex: &Exact) -> Geometry {
     const P: u32 = 320;
     let fl = |x: &Integer| Float::with_val(P, x);
     let f: Vec<Float> = (0..3).map(|i| fl(&ex.o[i]) - fl(&ex.center[i])).collect();
-    let f2 = Float::with_val(P, &f[0] * &f[0]) + Float::with_val(P, &f[1] * &f[1]) + Float::with_val(P, &f[2] * &f[2]);
+    let f2 = Float::with_val(P, &f[0] * &f[0])
+        + Float::with_val(P, &f[1] * &f[1])
+        + Float::with_val(P, &f[2] * &f[2]);
     let dist = f2.clone().sqrt();
     // h² = |f|² − B'²/A
     let h2 = f2 - fl(&ex.bh).square() / fl(&ex.a);
-    let h = if h2.is_sign_negative() { Float::with_val(P, 0) } else { h2.sqrt() };
+    let h = if h2.is_sign_negative() {
+        Float::with_val(P, 0)
+    } else {
+        h2.sqrt()
+    };
     let r = fl(&ex.r);
     // ulp(r) in the scaled units: ulp(r_float) · (r_scaled / r_float)
     let ulp_scaled = Float::with_val(P, &r) * (super::oracle::ulp(case.r) / case.r.to_f64());
@@ -370,7 +409,11 @@ fn geometry<F: Real>(case: &Case<F>, ex: &Exact) -> Geometry {
 }
 
 fn has_subnormal<F: Real>(case: &Case<F>) -> bool {
-    let min_normal = if F::MANT_BITS == 24 { f32::MIN_POSITIVE as f64 } else { f64::MIN_POSITIVE };
+    let min_normal = if F::MANT_BITS == 24 {
+        f32::MIN_POSITIVE as f64
+    } else {
+        f64::MIN_POSITIVE
+    };
     case.scalars().iter().any(|x| {
         let v = x.to_f64().abs();
         v != 0.0 && v < min_normal
@@ -393,18 +436,29 @@ pub fn is_member<F: Real>(case: &Case<F>, class: Class) -> bool {
         Class::Behind => {
             // Wholly behind: B' > r·|d|, i.e. B' > 0 and B'² > r²·A
             let rr = Integer::from(&ex.r * &ex.r);
-            bh == Ordering::Greater && c == Ordering::Greater && Integer::from(&ex.bh * &ex.bh) > rr * &ex.a
+            bh == Ordering::Greater
+                && c == Ordering::Greater
+                && Integer::from(&ex.bh * &ex.bh) > rr * &ex.a
         }
         _ => {
             let g = geometry(case, &ex);
             match class {
                 Class::OnSurface => g.surface_ulps.abs() <= K_ULPS,
-                Class::Tangent => c == Ordering::Greater && bh == Ordering::Less && g.tangent_ulps.abs() <= K_ULPS,
-                Class::Grazing => {
-                    c == Ordering::Greater && bh == Ordering::Less && g.tangent_ulps.abs() > K_ULPS && g.perp_rel.abs() <= 1e-3
+                Class::Tangent => {
+                    c == Ordering::Greater && bh == Ordering::Less && g.tangent_ulps.abs() <= K_ULPS
                 }
-                Class::FarSmall => c == Ordering::Greater && (5e-7..=1.05e-2).contains(&g.size_ratio),
-                Class::Huge => case.r.to_f64() >= 1e4 && c == Ordering::Greater && g.height_rel <= 1e-3,
+                Class::Grazing => {
+                    c == Ordering::Greater
+                        && bh == Ordering::Less
+                        && g.tangent_ulps.abs() > K_ULPS
+                        && g.perp_rel.abs() <= 1e-3
+                }
+                Class::FarSmall => {
+                    c == Ordering::Greater && (5e-7..=1.05e-2).contains(&g.size_ratio)
+                }
+                Class::Huge => {
+                    case.r.to_f64() >= 1e4 && c == Ordering::Greater && g.height_rel <= 1e-3
+                }
                 _ => unreachable!("handled above"),
             }
         }

@@ -58,7 +58,12 @@ fn scale<S: Scalar>(a: V<S>, k: S) -> V<S> {
 }
 #[inline(always)]
 fn parts<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> (V<F>, V<F>, V<F>, F) {
-    (F::unvec3(ray.origin), F::unvec3(ray.dir), F::unvec3(s.center), s.radius)
+    (
+        F::unvec3(ray.origin),
+        F::unvec3(ray.dir),
+        F::unvec3(s.center),
+        s.radius,
+    )
 }
 
 /// The smaller strictly positive of two roots, as the seed's "偏小的正根" (smaller positive root).
@@ -130,7 +135,11 @@ pub fn geometric<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
         return None;
     }
     // (4) First intersection
-    let t = if outside { d_min - dhc2.sqrt() } else { d_min + dhc2.sqrt() };
+    let t = if outside {
+        d_min - dhc2.sqrt()
+    } else {
+        d_min + dhc2.sqrt()
+    };
     if t > F::ZERO {
         SphereHit::at(t)
     } else {
@@ -247,7 +256,12 @@ pub fn promote<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     let kd = -ilogb(max_abs(&d));
     let wp = |v: V<F>| v.map(|x| mul_pow2(x.widen(), kp));
     // Wide evaluation, scaled back, rounded once
-    let t = rtg7_core(wp(o), d.map(|x| mul_pow2(x.widen(), kd)), wp(c), mul_pow2(r.widen(), kp))?;
+    let t = rtg7_core(
+        wp(o),
+        d.map(|x| mul_pow2(x.widen(), kd)),
+        wp(c),
+        mul_pow2(r.widen(), kp),
+    )?;
     let t = F::narrow(mul_pow2(t, kd - kp));
     if t > F::ZERO {
         finite_hit(t)
@@ -316,7 +330,11 @@ pub fn interval<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     }
     // Stable root pair
     let root = disc.sqrt();
-    let q = if b.mid() < F::ZERO { (b - root) * F::from_f64(-0.5) } else { (b + root) * F::from_f64(-0.5) };
+    let q = if b.mid() < F::ZERO {
+        (b - root) * F::from_f64(-0.5)
+    } else {
+        (b + root) * F::from_f64(-0.5)
+    };
     let (mut t0, mut t1) = (q / a, cc / q);
     if t0.lo > t1.lo {
         std::mem::swap(&mut t0, &mut t1);
@@ -330,7 +348,10 @@ pub fn interval<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     if !(mid.is_finite() && t.hi.is_finite()) {
         return None;
     }
-    Some(SphereHit { t: mid, enclosure: Some([t.lo, t.hi]) })
+    Some(SphereHit {
+        t: mid,
+        enclosure: Some([t.lo, t.hi]),
+    })
 }
 
 #[inline(always)]
@@ -371,19 +392,53 @@ impl PickPrecision for f64 {
 
 macro_rules! method {
     ($name:ident, $robust:expr, $summary:expr) => {
-        Method { name: stringify!($name), summary: $summary, robust: $robust, f32: $name::<f32>, f64: $name::<f64> }
+        Method {
+            name: stringify!($name),
+            summary: $summary,
+            robust: $robust,
+            f32: $name::<f32>,
+            f64: $name::<f64>,
+        }
     };
 }
 
 /// Every ray–sphere method, in the order reports list them.
 pub const METHODS: &[Method] = &[
-    method!(algebraic, false, "textbook quadratic (seed 000 §1, seed 002 §2.3)"),
-    method!(geometric, false, "1996 non-analytic test, four steps (seed 000 §2); assumes unit d"),
-    method!(press, false, "stable root pair q = -(b+sign(b)sqrt(D))/2, c/q, q/a (Numerical Recipes)"),
-    method!(hearn_baker, false, "discriminant from the perpendicular vector (Hearn & Baker 10-72)"),
-    method!(rtg7, true, "perpendicular discriminant + stable pair (Ray Tracing Gems ch. 7, method 5)"),
-    method!(promote, true, "rtg7 in f64 (for f32) or double-double (for f64), rounded once"),
-    method!(interval, true, "pbrt-v4 interval arithmetic, midpoint plus enclosure"),
+    method!(
+        algebraic,
+        false,
+        "textbook quadratic (seed 000 §1, seed 002 §2.3)"
+    ),
+    method!(
+        geometric,
+        false,
+        "1996 non-analytic test, four steps (seed 000 §2); assumes unit d"
+    ),
+    method!(
+        press,
+        false,
+        "stable root pair q = -(b+sign(b)sqrt(D))/2, c/q, q/a (Numerical Recipes)"
+    ),
+    method!(
+        hearn_baker,
+        false,
+        "discriminant from the perpendicular vector (Hearn & Baker 10-72)"
+    ),
+    method!(
+        rtg7,
+        true,
+        "perpendicular discriminant + stable pair (Ray Tracing Gems ch. 7, method 5)"
+    ),
+    method!(
+        promote,
+        true,
+        "rtg7 in f64 (for f32) or double-double (for f64), rounded once"
+    ),
+    method!(
+        interval,
+        true,
+        "pbrt-v4 interval arithmetic, midpoint plus enclosure"
+    ),
 ];
 
 /// Looks a method up by name.

@@ -47,7 +47,13 @@ impl Judgement {
     }
     /// A wrong answer on valid input (counted only when the case is well posed).
     pub fn is_wrong(self) -> bool {
-        matches!(self, Judgement::FalseHit | Judgement::FalseMiss | Judgement::WrongRoot | Judgement::NonfiniteT)
+        matches!(
+            self,
+            Judgement::FalseHit
+                | Judgement::FalseMiss
+                | Judgement::WrongRoot
+                | Judgement::NonfiniteT
+        )
     }
 }
 
@@ -65,19 +71,27 @@ pub fn judge<F: Real>(truth: &Truth, hit: Option<SphereHit<F>>) -> Judgement {
         (_, Some(h)) if !h.t.is_finite() => Judgement::NonfiniteT,
         (false, Some(_)) => Judgement::FalseHit,
         // A root beyond the format's range cannot be returned: a miss is right
-        (true, None) if truth.t_in::<F>().is_some_and(|t| !t.is_finite()) => Judgement::Ok { ulps: None },
+        (true, None) if truth.t_in::<F>().is_some_and(|t| !t.is_finite()) => {
+            Judgement::Ok { ulps: None }
+        }
         (true, None) => Judgement::FalseMiss,
         (true, Some(h)) => {
             let want: F = truth.t_in::<F>().expect("a hit has a root");
             // Which root is the answer nearer to?
             if let Some([t1, t2]) = truth.roots {
-                let (right, other) = if truth.verdict == Verdict::Near { (t1, t2) } else { (t2, t1) };
+                let (right, other) = if truth.verdict == Verdict::Near {
+                    (t1, t2)
+                } else {
+                    (t2, t1)
+                };
                 let got = h.t.to_f64();
                 if (got - other).abs() < (got - right).abs() {
                     return Judgement::WrongRoot;
                 }
             }
-            Judgement::Ok { ulps: Some(h.t.ulps_between(want)) }
+            Judgement::Ok {
+                ulps: Some(h.t.ulps_between(want)),
+            }
         }
     }
 }

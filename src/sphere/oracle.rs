@@ -40,10 +40,16 @@ pub struct Case<F> {
 
 impl<F: Real> Case<F> {
     pub fn ray(&self) -> Ray<F> {
-        Ray { origin: F::vec3(self.o[0], self.o[1], self.o[2]), dir: F::vec3(self.d[0], self.d[1], self.d[2]) }
+        Ray {
+            origin: F::vec3(self.o[0], self.o[1], self.o[2]),
+            dir: F::vec3(self.d[0], self.d[1], self.d[2]),
+        }
     }
     pub fn sphere(&self) -> Sphere<F> {
-        Sphere { center: F::vec3(self.c[0], self.c[1], self.c[2]), radius: self.r }
+        Sphere {
+            center: F::vec3(self.c[0], self.c[1], self.c[2]),
+            radius: self.r,
+        }
     }
     /// The inputs in a fixed order: o, d, c, r.
     pub fn scalars(&self) -> [F; 10] {
@@ -51,11 +57,18 @@ impl<F: Real> Case<F> {
         [o[0], o[1], o[2], d[0], d[1], d[2], c[0], c[1], c[2], self.r]
     }
     pub fn from_scalars(s: [F; 10]) -> Self {
-        Case { o: [s[0], s[1], s[2]], d: [s[3], s[4], s[5]], c: [s[6], s[7], s[8]], r: s[9] }
+        Case {
+            o: [s[0], s[1], s[2]],
+            d: [s[3], s[4], s[5]],
+            c: [s[6], s[7], s[8]],
+            r: s[9],
+        }
     }
     /// Valid input: all finite, a non-zero direction, a radius `> 0`.
     pub fn is_valid(&self) -> bool {
-        self.scalars().iter().all(|x| x.is_finite()) && self.d.iter().any(|&x| x != F::ZERO) && self.r > F::ZERO
+        self.scalars().iter().all(|x| x.is_finite())
+            && self.d.iter().any(|&x| x != F::ZERO)
+            && self.r > F::ZERO
     }
     /// The replay line: `--origin X,Y,Z --dir X,Y,Z --center X,Y,Z --radius R` in hex floats.
     pub fn probe_args(&self) -> String {
@@ -144,7 +157,11 @@ fn decode(x: f64) -> (Integer, i32) {
     let bits = x.to_bits();
     let exp = ((bits >> 52) & 0x7ff) as i32;
     let frac = bits & ((1u64 << 52) - 1);
-    let (m, e) = if exp == 0 { (frac, -1074) } else { (frac | (1u64 << 52), exp - 1075) };
+    let (m, e) = if exp == 0 {
+        (frac, -1074)
+    } else {
+        (frac | (1u64 << 52), exp - 1075)
+    };
     let m = Integer::from(m);
     (if x.is_sign_negative() { -m } else { m }, e)
 }
@@ -154,26 +171,46 @@ impl Exact {
     pub fn new<F: Real>(case: &Case<F>) -> Exact {
         let s = case.scalars();
         let dec: Vec<(Integer, i32)> = s.iter().map(|x| decode(x.to_f64())).collect();
-        let emin = dec.iter().filter(|(m, _)| *m != 0).map(|(_, e)| *e).min().unwrap_or(0);
-        let v: Vec<Integer> = dec.into_iter().map(|(m, e)| m << (e - emin).max(0) as u32).collect();
+        let emin = dec
+            .iter()
+            .filter(|(m, _)| *m != 0)
+            .map(|(_, e)| *e)
+            .min()
+            .unwrap_or(0);
+        let v: Vec<Integer> = dec
+            .into_iter()
+            .map(|(m, e)| m << (e - emin).max(0) as u32)
+            .collect();
         let o = [v[0].clone(), v[1].clone(), v[2].clone()];
         let d = [v[3].clone(), v[4].clone(), v[5].clone()];
         let center = [v[6].clone(), v[7].clone(), v[8].clone()];
         let r = v[9].clone();
         let f: [Integer; 3] = std::array::from_fn(|i| Integer::from(&o[i] - &center[i]));
         let dot = |a: &[Integer; 3], b: &[Integer; 3]| -> Integer {
-            Integer::from(&a[0] * &b[0]) + Integer::from(&a[1] * &b[1]) + Integer::from(&a[2] * &b[2])
+            Integer::from(&a[0] * &b[0])
+                + Integer::from(&a[1] * &b[1])
+                + Integer::from(&a[2] * &b[2])
         };
         let a = dot(&d, &d);
         let bh = dot(&d, &f);
         let c = dot(&f, &f) - Integer::from(&r * &r);
         let disc = Integer::from(&bh * &bh) - Integer::from(&a * &c);
-        Exact { a, bh, c, disc, r, o, d, center }
+        Exact {
+            a,
+            bh,
+            c,
+            disc,
+            r,
+            o,
+            d,
+            center,
+        }
     }
 
     pub fn verdict(&self) -> Verdict {
         let sg = |x: &Integer| x.cmp0() as i8;
-        decide(Some(sg(&self.disc)), Some(sg(&self.c)), Some(sg(&self.bh))).expect("exact signs always decide")
+        decide(Some(sg(&self.disc)), Some(sg(&self.c)), Some(sg(&self.bh)))
+            .expect("exact signs always decide")
     }
 }
 
@@ -192,7 +229,9 @@ pub fn ill_posed<F: Real>(case: &Case<F>, base: Verdict) -> bool {
     let s = case.scalars();
     // All twenty moves at once, as one box
     let boxed = s.map(|v| Interval::new(v.next_down().to_f64(), v.next_up().to_f64()));
-    let moved_valid = s.iter().all(|v| v.next_down().is_finite() && v.next_up().is_finite())
+    let moved_valid = s
+        .iter()
+        .all(|v| v.next_down().is_finite() && v.next_up().is_finite())
         && case.r.next_down() > F::ZERO
         && case.d.iter().all(|&x| x != F::ZERO);
     if moved_valid {
@@ -220,11 +259,17 @@ pub struct Encl {
 
 impl Encl {
     fn round32(&self) -> Option<f32> {
-        let (a, b) = (self.lo.to_f32_round(Round::Nearest), self.hi.to_f32_round(Round::Nearest));
+        let (a, b) = (
+            self.lo.to_f32_round(Round::Nearest),
+            self.hi.to_f32_round(Round::Nearest),
+        );
         (a.to_bits() == b.to_bits()).then_some(a)
     }
     fn round64(&self) -> Option<f64> {
-        let (a, b) = (self.lo.to_f64_round(Round::Nearest), self.hi.to_f64_round(Round::Nearest));
+        let (a, b) = (
+            self.lo.to_f64_round(Round::Nearest),
+            self.hi.to_f64_round(Round::Nearest),
+        );
         (a.to_bits() == b.to_bits()).then_some(a)
     }
     pub fn mid(&self) -> Float {
@@ -264,7 +309,13 @@ pub fn root_enclosures(ex: &Exact, prec: u32) -> (Encl, Encl) {
     let mut cq_hi = conv(prec, &cmag, Round::Up);
     cq_hi.div_assign_round(&q_lo, Round::Up);
     // Signs, then order
-    let signed = |lo: Float, hi: Float, neg: bool| if neg { Encl { lo: -hi, hi: -lo } } else { Encl { lo, hi } };
+    let signed = |lo: Float, hi: Float, neg: bool| {
+        if neg {
+            Encl { lo: -hi, hi: -lo }
+        } else {
+            Encl { lo, hi }
+        }
+    };
     let c_neg = ex.c.cmp0() == Ordering::Less;
     let qa = signed(qa_lo, qa_hi, q_neg);
     let cq = signed(cq_lo, cq_hi, q_neg != c_neg);
@@ -305,13 +356,23 @@ impl Truth {
 /// Runs the oracle on one case.
 pub fn truth<F: Real>(case: &Case<F>) -> Truth {
     let v = verdict(case);
-    let mut out = Truth { verdict: v, ill_posed: false, roots: None, t_f32: None, t_f64: None, prec: 0, cap_reached: false };
+    let mut out = Truth {
+        verdict: v,
+        ill_posed: false,
+        roots: None,
+        t_f32: None,
+        t_f64: None,
+        prec: 0,
+        cap_reached: false,
+    };
     if v == Verdict::Invalid {
         return out;
     }
     out.ill_posed = ill_posed(case, v);
     let ex = Exact::new(case);
-    if ex.disc.cmp0() == Ordering::Less || (ex.bh.cmp0() == Ordering::Equal && ex.disc.cmp0() == Ordering::Equal) {
+    if ex.disc.cmp0() == Ordering::Less
+        || (ex.bh.cmp0() == Ordering::Equal && ex.disc.cmp0() == Ordering::Equal)
+    {
         return out;
     }
     // Ziv's loop on the answer root
@@ -348,12 +409,17 @@ pub fn roots_decimal<F: Real>(case: &Case<F>, digits: usize) -> Vec<String> {
         return vec![];
     }
     let ex = Exact::new(case);
-    if ex.disc.cmp0() == Ordering::Less || (ex.bh.cmp0() == Ordering::Equal && ex.disc.cmp0() == Ordering::Equal) {
+    if ex.disc.cmp0() == Ordering::Less
+        || (ex.bh.cmp0() == Ordering::Equal && ex.disc.cmp0() == Ordering::Equal)
+    {
         return vec![];
     }
     let prec = (digits as f64 * 3.33) as u32 + 128;
     let (t1, t2) = root_enclosures(&ex, prec);
-    [t1, t2].iter().map(|e| e.mid().to_string_radix(10, Some(digits))).collect()
+    [t1, t2]
+        .iter()
+        .map(|e| e.mid().to_string_radix(10, Some(digits)))
+        .collect()
 }
 
 /// Signed distance of the exact point `o + t·d` from the sphere, `|p − c| − r`, in ulps of `r`
@@ -373,6 +439,35 @@ pub fn residual_ulps<F: Real>(case: &Case<F>, t: F) -> f64 {
     let res = n2.sqrt() - fl(case.r);
     let ulp_r = ulp(case.r);
     (res / ulp_r).to_f64()
+}
+
+/// First-order sensitivity of the answer to the inputs, in ulps of `t`: how far `t` moves when
+/// every input moves by one ulp of its precision, Σᵢ |∂t/∂xᵢ|·ulp(xᵢ) / ulp(t).
+///
+/// From `F(t, x) = |o + t·d − c|² − r² = 0`: with `p = o + t·d − c`, `∂F/∂t = 2 d·p`,
+/// `∂F/∂o = 2p`, `∂F/∂c = −2p`, `∂F/∂d = 2t·p`, `∂F/∂r = −2r`, and `∂t/∂x = −(∂F/∂x)/(∂F/∂t)`.
+/// A method whose error is a small multiple of this is as accurate as the inputs allow
+/// (backward stable); a large multiple means the method, not the case, lost the digits.
+/// Evaluated in `f64` at the exact root: an estimate, not a bound. `None` for misses and
+/// when `∂F/∂t` is 0 (an exactly tangent ray).
+pub fn condition_ulps<F: Real>(case: &Case<F>, truth: &Truth) -> Option<f64> {
+    let t = truth.t_in::<F>()?.to_f64();
+    let (o, d, c) = (
+        case.o.map(|x| x.to_f64()),
+        case.d.map(|x| x.to_f64()),
+        case.c.map(|x| x.to_f64()),
+    );
+    let p: [f64; 3] = std::array::from_fn(|i| (o[i] - c[i]) + t * d[i]);
+    let dfdt = 2.0 * (d[0] * p[0] + d[1] * p[1] + d[2] * p[2]);
+    if dfdt == 0.0 || !t.is_finite() {
+        return None;
+    }
+    let mut sum = 2.0 * case.r.to_f64() * ulp(case.r);
+    for i in 0..3 {
+        sum += 2.0 * p[i].abs() * (ulp(case.o[i]) + ulp(case.c[i]) + t.abs() * ulp(case.d[i]));
+    }
+    let ut = ulp(F::from_f64(t));
+    Some(sum / dfdt.abs() / ut)
 }
 
 /// The ulp of `x` in its own precision (spacing of the floats at `|x|`).
@@ -403,28 +498,51 @@ mod tests {
         let t = truth(&case([0.0; 3], [0.0, 3.0, 4.0], [0.0; 3], 10.0));
         assert_eq!((t.verdict, t.t_f64), (Verdict::Far, Some(2.0)));
         // Behind: miss
-        assert_eq!(truth(&case([0.0, 0.0, 5.0], [0.0, 0.0, 1.0], [0.0; 3], 1.0)).verdict, Verdict::Miss);
+        assert_eq!(
+            truth(&case([0.0, 0.0, 5.0], [0.0, 0.0, 1.0], [0.0; 3], 1.0)).verdict,
+            Verdict::Miss
+        );
         // Exactly tangent at (1,0,0): a hit, and ill-posed
         let t = truth(&case([1.0, 0.0, -5.0], [0.0, 0.0, 1.0], [0.0; 3], 1.0));
-        assert_eq!((t.verdict, t.t_f64, t.ill_posed), (Verdict::Near, Some(5.0), true));
+        assert_eq!(
+            (t.verdict, t.t_f64, t.ill_posed),
+            (Verdict::Near, Some(5.0), true)
+        );
         // On the surface looking in: far root 2, and ill-posed (the near root is 0)
         let t = truth(&case([0.0, 0.0, -1.0], [0.0, 0.0, 1.0], [0.0; 3], 1.0));
-        assert_eq!((t.verdict, t.t_f64, t.ill_posed), (Verdict::Far, Some(2.0), true));
+        assert_eq!(
+            (t.verdict, t.t_f64, t.ill_posed),
+            (Verdict::Far, Some(2.0), true)
+        );
         // 1/3 is not a float: roots (−1 ∓ ...) — t = 1/3 exactly for o=(0,0,-4/3)... use r=1, o at z=-4, d=(0,0,9)
         let t = truth(&case([0.0, 0.0, -4.0], [0.0, 0.0, 9.0], [0.0; 3], 1.0));
         assert_eq!(t.t_f64, Some(1.0 / 3.0));
         assert_eq!(t.t_f32, Some(1.0f32 / 3.0));
         // Invalid inputs
-        assert_eq!(verdict(&case([f64::NAN, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0; 3], 1.0)), Verdict::Invalid);
-        assert_eq!(verdict(&case([0.0; 3], [0.0; 3], [0.0; 3], 1.0)), Verdict::Invalid);
-        assert_eq!(verdict(&case([0.0; 3], [1.0, 0.0, 0.0], [0.0; 3], -1.0)), Verdict::Invalid);
+        assert_eq!(
+            verdict(&case([f64::NAN, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0; 3], 1.0)),
+            Verdict::Invalid
+        );
+        assert_eq!(
+            verdict(&case([0.0; 3], [0.0; 3], [0.0; 3], 1.0)),
+            Verdict::Invalid
+        );
+        assert_eq!(
+            verdict(&case([0.0; 3], [1.0, 0.0, 0.0], [0.0; 3], -1.0)),
+            Verdict::Invalid
+        );
     }
 
     #[test]
     fn ties_resolve_exactly() {
         // t = 1 + 2^-24 exactly: halfway between two f32, rounds to even (1.0)
         let h = 1.0 + 2f64.powi(-24);
-        let t = truth(&case([0.0, 0.0, -(h + 1.0)], [0.0, 0.0, 1.0], [0.0; 3], 1.0));
+        let t = truth(&case(
+            [0.0, 0.0, -(h + 1.0)],
+            [0.0, 0.0, 1.0],
+            [0.0; 3],
+            1.0,
+        ));
         assert_eq!(t.t_f32, Some(1.0f32));
         assert_eq!(t.t_f64, Some(h));
         assert!(!t.cap_reached);
