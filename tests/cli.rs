@@ -1,0 +1,155 @@
+//! The `rayproof` binary: probe JSON, audit determinism, and one-line errors with exit code 2.
+
+use serde_json::Value;
+use std::process::{Command, Output};
+
+fn rayproof(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rayproof")).args(args).output().expect("binary runs")
+}
+
+fn rayproof_threads(threads: &str, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .env("RAYON_NUM_THREADS", threads)
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A usage error: exit code 2, exactly one line on stderr naming `what`, no panic.
+fn assert_one_line_error(o: &Output, what: &str) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(2), "stderr: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "more than one line: {err}");
+    assert!(err.contains(what), "'{what}' not named in: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn probe_json_has_the_documented_shape() {
+    let o = rayproof(&[
+        "probe", "sphere", "--origin", "0,0,-5", "--dir", "0,0,1", "--center", "0,0,0", "--radius", "1", "--precision", "f32",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    assert_eq!(v["precision"], "f32");
+    let oracle = &v["oracle"];
+    assert_eq!(oracle["hit"], true);
+    assert_eq!(oracle["ill_posed"], false);
+    assert_eq!(oracle["t_f32"], "0x1p+2");
+    assert_eq!(oracle["t_f64"], "0x1p+2");
+    let roots = oracle["roots"].as_array().unwrap();
+    assert_eq!(roots.len(), 2);
+    let digits = |s: &str| s.chars().filter(|c| c.is_ascii_digit()).count();
+    assert!(digits(roots[0].as_str().unwrap()) >= 40);
+    assert!(oracle["t"].as_str().unwrap().starts_with("4.000000000000000000000000000000000000000"));
+    let results = v["results"].as_array().unwrap();
+    assert_eq!(results.len(), rayproof::sphere::methods::METHODS.len());
+    for r in results {
+        assert_eq!(r["hit"], true);
+        assert_eq!(r["t"], "0x1p+2");
+        assert_eq!(r["ulp_error"], 0);
+        assert_eq!(r["verdict"], "ok");
+        assert!(r["method"].is_string());
+    }
+}
+
+#[test]
+fn probe_takes_hex_floats_and_reports_findings() {
+    // A far-small sphere that the f32 textbook discriminant misses (from the default audit)
+    let o = rayproof(&[
+        "probe", "sphere", "--origin", "0x1p+0,-0x1p+0,0x0p+0", "--dir", "0x1p+0,0,0", "--center", "0x1p+20,-0x1p+0,0",
+        "--radius", "0x1p-3", "--precision", "f32", "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["oracle"]["hit"], true);
+    let verdict = |m: &str| {
+        v["results"].as_array().unwrap().iter().find(|r| r["method"] == m).unwrap()["verdict"].as_str().unwrap().to_string()
+    };
+    assert_eq!(verdict("promote"), "ok");
+    assert_eq!(verdict("rtg7"), "ok");
+    // The textbook discriminant b² − 4ac cancels to ≤ 0 here: 2^40 − (2^40 − 2^-6) in f32
+    assert_eq!(verdict("algebraic"), "false_miss");
+}
+
+#[test]
+fn probe_reports_invalid_input() {
+    let o = rayproof(&[
+        "probe", "sphere", "--origin", "nan,0,0", "--dir", "0,0,1", "--center", "0,0,0", "--radius", "1", "--json",
+    ]);
+    assert!(o.status.success());
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["oracle"]["valid"], false);
+    for r in v["results"].as_array().unwrap() {
+        assert_eq!(r["verdict"], "invalid");
+    }
+}
+
+#[test]
+fn malformed_arguments_get_one_line_and_exit_2() {
+    let o = rayproof(&["probe", "sphere", "--origin", "1,2", "--dir", "0,0,1", "--center", "0,0,0", "--radius", "1"]);
+    assert_one_line_error(&o, "--origin");
+    let o = rayproof(&["probe", "sphere", "--origin", "1,2,x", "--dir", "0,0,1", "--center", "0,0,0", "--radius", "1"]);
+    assert_one_line_error(&o, "--origin");
+    let o = rayproof(&["probe", "sphere", "--origin", "0,0,0", "--dir", "0,0,1", "--center", "0,0,0", "--radius", "one"]);
+    assert_one_line_error(&o, "--radius");
+    let o = rayproof(&["audit", "--cases", "0"]);
+    assert_one_line_error(&o, "--cases");
+    let o = rayproof(&["audit", "--method", "magic"]);
+    assert_one_line_error(&o, "--method");
+    let o = rayproof(&["audit", "--precision", "f16"]);
+    assert_one_line_error(&o, "--precision");
+    let o = rayproof(&["audit", "--class", "nowhere"]);
+    assert_one_line_error(&o, "--class");
+    let o = rayproof(&["audit", "--shard", "3/2"]);
+    assert_one_line_error(&o, "--shard");
+    let o = rayproof(&["audit", "--frobnicate"]);
+    assert_one_line_error(&o, "--frobnicate");
+    let o = rayproof(&["audit", "--cases", "10", "--json", "/no/such/dir/out.json"]);
+    assert_one_line_error(&o, "/no/such/dir");
+}
+
+#[test]
+fn audit_json_is_byte_identical_for_any_thread_count() {
+    let dir = std::env::temp_dir().join(format!("rayproof-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (a, b) = (dir.join("one.json"), dir.join("two.json"));
+    let md = dir.join("audit.md");
+    let args = |p: &std::path::Path| {
+        vec!["audit".to_string(), "--cases".into(), "300".into(), "--seed".into(), "42".into(), "--json".into(), p.display().to_string()]
+    };
+    let one = rayproof_threads("1", &args(&a).iter().map(|s| s.as_str()).collect::<Vec<_>>());
+    let mut two_args = args(&b);
+    two_args.extend(["--markdown".to_string(), md.display().to_string()]);
+    let two = rayproof_threads("2", &two_args.iter().map(|s| s.as_str()).collect::<Vec<_>>());
+    assert!(one.status.code().is_some_and(|c| c <= 1), "{}", stderr(&one));
+    assert!(two.status.code().is_some_and(|c| c <= 1), "{}", stderr(&two));
+    let (ja, jb) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    assert!(!ja.is_empty());
+    assert_eq!(ja, jb, "JSON differs between 1 and 2 threads");
+    let v: Value = serde_json::from_slice(&ja).unwrap();
+    assert_eq!(v["seed"], 42);
+    assert_eq!(v["rows"].as_array().unwrap().len(), 7 * 2 * 9);
+    let table = std::fs::read_to_string(&md).unwrap();
+    assert!(table.contains("| f32 | far_small | algebraic |"));
+    // The printed table names every class and the worst cases carry probe lines
+    let text = String::from_utf8_lossy(&one.stdout);
+    assert!(text.contains("f32 · far_small") && text.contains("rayproof probe sphere --origin"));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn shards_cover_the_case_space() {
+    let full = rayproof(&["audit", "--cases", "50", "--class", "random", "--method", "rtg7", "--precision", "f32"]);
+    assert!(full.status.code().is_some_and(|c| c <= 1));
+    for shard in ["0/2", "1/2"] {
+        let o = rayproof(&["audit", "--cases", "50", "--class", "random", "--method", "rtg7", "--precision", "f32", "--shard", shard]);
+        let text = String::from_utf8_lossy(&o.stdout);
+        assert!(text.contains("25 cases × 1 methods"), "{text}");
+    }
+}
