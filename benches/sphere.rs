@@ -1,1 +1,170 @@
-fn main() {}
+//! Criterion bench: nanoseconds per ray–sphere test for every method × precision, on three
+//! fixed batches (seed 7) built once from the hard-case classes:
+//! - `sphere/mix`: 512 cases from each of random, inside, far_small, huge, grazing, behind;
+//! - `sphere/hits`: 2048 cases from those classes whose exact verdict is a hit;
+//! - `sphere/misses`: 2048 cases from those classes whose exact verdict is a miss.
+//!
+//! One iteration runs a method over the whole batch; the throughput is the batch length, so
+//! criterion's elements/s is tests/s (and time/iteration ÷ length is ns/test).
+//!
+//! Validation comes first, as in libm-test: every method's answer on every well-posed case is
+//! judged against the exact oracle. A wrong verdict where the tolerance table holds the row
+//! (method, precision, class) to zero — `max_wrong_rate == Some(0.0)`, or a false hit where
+//! `max_false_hits == Some(0)` — refuses to time (panics with the replay line). Other wrong
+//! verdicts are counted and printed, so the timing is honest about what it times.
+
+use criterion::measurement::WallTime;
+use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
+use rayproof::audit::Precision;
+use rayproof::sphere::cases::{generate, Class};
+use rayproof::sphere::methods::{PickPrecision, Ray, Sphere, METHODS};
+use rayproof::sphere::oracle::{truth, Case, Truth};
+use rayproof::sphere::{judge, tolerance, Judgement};
+use std::hint::black_box;
+use std::time::Duration;
+
+const SEED: u64 = 7;
+const MIX: [Class; 6] = [
+    Class::Random,
+    Class::Inside,
+    Class::FarSmall,
+    Class::Huge,
+    Class::Grazing,
+    Class::Behind,
+];
+const PER_CLASS: u64 = 512;
+const SIDE_LEN: usize = 2048;
+
+/// A fixed batch: the cases with their oracle truth, and the pre-built inputs that are timed.
+struct Batch<F: PickPrecision> {
+    name: &'static str,
+    cases: Vec<(Class, Case<F>, Truth)>,
+    rays: Vec<Ray<F>>,
+    spheres: Vec<Sphere<F>>,
+}
+
+impl<F: PickPrecision> Batch<F> {
+    fn new(name: &'static str, cases: Vec<(Class, Case<F>, Truth)>) -> Self {
+        let rays = cases.iter().map(|(_, c, _)| c.ray()).collect();
+        let spheres = cases.iter().map(|(_, c, _)| c.sphere()).collect();
+        Batch {
+            name,
+            cases,
+            rays,
+            spheres,
+        }
+    }
+}
+
+/// Cases of the mix classes, round robin by index, with their truth.
+fn stream<F: PickPrecision>() -> impl Iterator<Item = (Class, Case<F>, Truth)> {
+    (0u64..)
+        .flat_map(|i| MIX.into_iter().map(move |class| (class, i)))
+        .filter_map(|(class, i)| generate::<F>(SEED, class, i).map(|c| (class, c)))
+        .map(|(class, c)| (class, c, truth(&c)))
+}
+
+// Build batches
+fn build<F: PickPrecision>() -> [Batch<F>; 3] {
+    let mix: Vec<_> = MIX
+        .into_iter()
+        .flat_map(|class| {
+            (0..PER_CLASS).filter_map(move |i| generate::<F>(SEED, class, i).map(|c| (class, c)))
+        })
+        .map(|(class, c)| (class, c, truth(&c)))
+        .collect();
+    let hits = stream::<F>().filter(|(_, _, t)| t.verdict.is_hit());
+    let misses = stream::<F>().filter(|(_, _, t)| !t.verdict.is_hit());
+    [
+        Batch::new("mix", mix),
+        Batch::new("hits", hits.take(SIDE_LEN).collect()),
+        Batch::new("misses", misses.take(SIDE_LEN).collect()),
+    ]
+}
+
+// Validate against the oracle before timing
+fn validate<F: PickPrecision>(b: &Batch<F>) {
+    let p = if F::NAME == "f32" {
+        Precision::F32
+    } else {
+        Precision::F64
+    };
+    for m in METHODS {
+        let f = F::pick(m);
+        let (mut wrong, mut posed) = (0usize, 0usize);
+        for (i, (class, case, truth)) in b.cases.iter().enumerate() {
+            if truth.ill_posed {
+                continue; // not a failure by definition
+            }
+            posed += 1;
+            let j = judge(truth, f(&b.rays[i], &b.spheres[i]));
+            if !j.is_wrong() {
+                continue;
+            }
+            wrong += 1;
+            let e = tolerance::entry(m.name, p, *class);
+            let held = e.max_wrong_rate == Some(0.0)
+                || (e.max_false_hits == Some(0) && j == Judgement::FalseHit);
+            assert!(
+                !held,
+                "refusing to time sphere/{}: {}/{} gave {} on a well-posed {} case, which the \
+                 tolerance table holds to zero\n  replay: rayproof probe sphere {}",
+                b.name,
+                m.name,
+                F::NAME,
+                j.verdict_word(),
+                class.name(),
+                case.probe_args()
+            );
+        }
+        eprintln!(
+            "validated sphere/{} {}/{}: {wrong} wrong verdicts of {posed} well-posed cases{}",
+            b.name,
+            m.name,
+            F::NAME,
+            if m.robust { "" } else { " (not robust)" }
+        );
+    }
+}
+
+// Time every method over the whole batch
+fn time<F: PickPrecision>(g: &mut BenchmarkGroup<'_, WallTime>, b: &Batch<F>) {
+    g.throughput(Throughput::Elements(b.cases.len() as u64));
+    for m in METHODS {
+        let f = F::pick(m);
+        g.bench_function(format!("{}/{}", m.name, F::NAME), |bench| {
+            bench.iter(|| {
+                let f = black_box(f);
+                let mut sum = 0.0f64;
+                for (r, s) in black_box(&b.rays).iter().zip(black_box(&b.spheres)) {
+                    if let Some(h) = f(r, s) {
+                        sum += h.t.to_f64();
+                    }
+                }
+                sum
+            })
+        });
+    }
+}
+
+fn sphere(c: &mut Criterion) {
+    let (b32, b64) = (build::<f32>(), build::<f64>());
+    b32.iter().for_each(validate);
+    b64.iter().for_each(validate);
+    for (x, y) in b32.iter().zip(&b64) {
+        let mut g = c.benchmark_group(format!("sphere/{}", x.name));
+        time(&mut g, x);
+        time(&mut g, y);
+        g.finish();
+    }
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default()
+        .sample_size(20)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2));
+    targets = sphere
+}
+criterion_main!(benches);

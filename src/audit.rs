@@ -150,6 +150,9 @@ pub struct Report {
     pub rows: Vec<Row>,
 }
 
+/// CPU time spent in the oracle (all threads), for the terminal summary only (never in JSON).
+pub static ORACLE_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
 /// Everything recorded about one case for one method.
 struct Sample {
     judgement: Judgement,
@@ -183,7 +186,12 @@ fn evaluate<F: PickPrecision>(
             samples: vec![],
         };
     };
+    let clock = std::time::Instant::now();
     let truth = oracle::truth(&case);
+    ORACLE_NANOS.fetch_add(
+        clock.elapsed().as_nanos() as u64,
+        std::sync::atomic::Ordering::Relaxed,
+    );
     let cond = oracle::condition_ulps(&case, &truth);
     let (ray, sphere) = (case.ray(), case.sphere());
     let samples = methods
@@ -439,6 +447,15 @@ impl Row {
     }
 }
 
+/// Formats a ratio: two decimals below 10, else as [`num`].
+fn ratio(x: f64) -> String {
+    if x < 10.0 {
+        format!("{x:.2}")
+    } else {
+        num(x)
+    }
+}
+
 /// Formats a count compactly for the table.
 fn num(x: f64) -> String {
     if x == 0.0 {
@@ -467,7 +484,7 @@ pub fn table(report: &Report) -> String {
         if key != Some((row.precision, row.class)) {
             key = Some((row.precision, row.class));
             out += &format!(
-                "\n{} · {}\n  {:<12} {:>6} {:>5} {:>17} {:>9} {:>8} {:>7} {:>6} {:>9} {:>12} {}\n",
+                "\n{} · {}\n  {:<12} {:>6} {:>5} {:>17} {:>9} {:>8} {:>7} {:>6} {:>8} {:>9} {:>12} {}\n",
                 row.precision.name(),
                 row.class.name(),
                 "method",
@@ -478,6 +495,7 @@ pub fn table(report: &Report) -> String {
                 "max ulp",
                 "p99",
                 "bits99",
+                "err/cond",
                 "resid max",
                 "invalid",
                 "enclosure"
@@ -515,7 +533,7 @@ pub fn table(report: &Report) -> String {
             num(row.ulps.max),
             num(row.ulps.p99),
             row.bits.p99,
-            num(row.err_over_cond.max),
+            ratio(row.err_over_cond.max),
             num(row.residual_ulps.max),
             inv,
             enc
@@ -584,7 +602,7 @@ pub fn markdown(report: &Report) -> String {
             num(r.ulps.p99),
             num(r.ulps.median),
             r.bits.p99,
-            num(r.err_over_cond.max),
+            ratio(r.err_over_cond.max),
             num(r.residual_ulps.max),
             if r.invalid.cases > 0 { format!("{}/{}/{}", r.invalid.rejected, r.invalid.nonfinite_t, r.invalid.hit) } else { "-".into() }
         );

@@ -221,6 +221,7 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         }
     }
     let start = Instant::now();
+    audit::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
     let report = audit::run(&opts);
     let secs = start.elapsed().as_secs_f64();
     print!("{}", audit::table(&report));
@@ -241,6 +242,12 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         secs,
         rayon::current_num_threads(),
         n as f64 / secs
+    );
+    let oracle_secs = audit::ORACLE_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
+    println!(
+        "oracle alone: {:.1} s of CPU time, {:.0} cases/s per core (exact verdict, ill-posedness, Ziv roots)",
+        oracle_secs,
+        n as f64 / oracle_secs.max(1e-9)
     );
     if let Some(p) = &a.json {
         let text = serde_json::to_string_pretty(&report)? + "\n";

@@ -4,7 +4,10 @@ use serde_json::Value;
 use std::process::{Command, Output};
 
 fn rayproof(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rayproof")).args(args).output().expect("binary runs")
+    Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .args(args)
+        .output()
+        .expect("binary runs")
 }
 
 fn rayproof_threads(threads: &str, args: &[&str]) -> Output {
@@ -23,7 +26,11 @@ fn stderr(o: &Output) -> String {
 fn assert_one_line_error(o: &Output, what: &str) {
     let err = stderr(o);
     assert_eq!(o.status.code(), Some(2), "stderr: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "more than one line: {err}");
+    assert_eq!(
+        err.trim_end().lines().count(),
+        1,
+        "more than one line: {err}"
+    );
     assert!(err.contains(what), "'{what}' not named in: {err}");
     assert!(!err.contains("panicked"), "{err}");
 }
@@ -31,7 +38,18 @@ fn assert_one_line_error(o: &Output, what: &str) {
 #[test]
 fn probe_json_has_the_documented_shape() {
     let o = rayproof(&[
-        "probe", "sphere", "--origin", "0,0,-5", "--dir", "0,0,1", "--center", "0,0,0", "--radius", "1", "--precision", "f32",
+        "probe",
+        "sphere",
+        "--origin",
+        "0,0,-5",
+        "--dir",
+        "0,0,1",
+        "--center",
+        "0,0,0",
+        "--radius",
+        "1",
+        "--precision",
+        "f32",
         "--json",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
@@ -46,7 +64,10 @@ fn probe_json_has_the_documented_shape() {
     assert_eq!(roots.len(), 2);
     let digits = |s: &str| s.chars().filter(|c| c.is_ascii_digit()).count();
     assert!(digits(roots[0].as_str().unwrap()) >= 40);
-    assert!(oracle["t"].as_str().unwrap().starts_with("4.000000000000000000000000000000000000000"));
+    assert!(oracle["t"]
+        .as_str()
+        .unwrap()
+        .starts_with("4.000000000000000000000000000000000000000"));
     let results = v["results"].as_array().unwrap();
     assert_eq!(results.len(), rayproof::sphere::methods::METHODS.len());
     for r in results {
@@ -62,14 +83,33 @@ fn probe_json_has_the_documented_shape() {
 fn probe_takes_hex_floats_and_reports_findings() {
     // A far-small sphere that the f32 textbook discriminant misses (from the default audit)
     let o = rayproof(&[
-        "probe", "sphere", "--origin", "0x1p+0,-0x1p+0,0x0p+0", "--dir", "0x1p+0,0,0", "--center", "0x1p+20,-0x1p+0,0",
-        "--radius", "0x1p-3", "--precision", "f32", "--json",
+        "probe",
+        "sphere",
+        "--origin",
+        "0x1p+0,-0x1p+0,0x0p+0",
+        "--dir",
+        "0x1p+0,0,0",
+        "--center",
+        "0x1p+20,-0x1p+0,0",
+        "--radius",
+        "0x1p-3",
+        "--precision",
+        "f32",
+        "--json",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(v["oracle"]["hit"], true);
     let verdict = |m: &str| {
-        v["results"].as_array().unwrap().iter().find(|r| r["method"] == m).unwrap()["verdict"].as_str().unwrap().to_string()
+        v["results"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|r| r["method"] == m)
+            .unwrap()["verdict"]
+            .as_str()
+            .unwrap()
+            .to_string()
     };
     assert_eq!(verdict("promote"), "ok");
     assert_eq!(verdict("rtg7"), "ok");
@@ -80,7 +120,8 @@ fn probe_takes_hex_floats_and_reports_findings() {
 #[test]
 fn probe_reports_invalid_input() {
     let o = rayproof(&[
-        "probe", "sphere", "--origin", "nan,0,0", "--dir", "0,0,1", "--center", "0,0,0", "--radius", "1", "--json",
+        "probe", "sphere", "--origin", "nan,0,0", "--dir", "0,0,1", "--center", "0,0,0",
+        "--radius", "1", "--json",
     ]);
     assert!(o.status.success());
     let v: Value = serde_json::from_slice(&o.stdout).unwrap();
@@ -92,11 +133,20 @@ fn probe_reports_invalid_input() {
 
 #[test]
 fn malformed_arguments_get_one_line_and_exit_2() {
-    let o = rayproof(&["probe", "sphere", "--origin", "1,2", "--dir", "0,0,1", "--center", "0,0,0", "--radius", "1"]);
+    let o = rayproof(&[
+        "probe", "sphere", "--origin", "1,2", "--dir", "0,0,1", "--center", "0,0,0", "--radius",
+        "1",
+    ]);
     assert_one_line_error(&o, "--origin");
-    let o = rayproof(&["probe", "sphere", "--origin", "1,2,x", "--dir", "0,0,1", "--center", "0,0,0", "--radius", "1"]);
+    let o = rayproof(&[
+        "probe", "sphere", "--origin", "1,2,x", "--dir", "0,0,1", "--center", "0,0,0", "--radius",
+        "1",
+    ]);
     assert_one_line_error(&o, "--origin");
-    let o = rayproof(&["probe", "sphere", "--origin", "0,0,0", "--dir", "0,0,1", "--center", "0,0,0", "--radius", "one"]);
+    let o = rayproof(&[
+        "probe", "sphere", "--origin", "0,0,0", "--dir", "0,0,1", "--center", "0,0,0", "--radius",
+        "one",
+    ]);
     assert_one_line_error(&o, "--radius");
     let o = rayproof(&["audit", "--cases", "0"]);
     assert_one_line_error(&o, "--cases");
@@ -121,14 +171,36 @@ fn audit_json_is_byte_identical_for_any_thread_count() {
     let (a, b) = (dir.join("one.json"), dir.join("two.json"));
     let md = dir.join("audit.md");
     let args = |p: &std::path::Path| {
-        vec!["audit".to_string(), "--cases".into(), "300".into(), "--seed".into(), "42".into(), "--json".into(), p.display().to_string()]
+        vec![
+            "audit".to_string(),
+            "--cases".into(),
+            "300".into(),
+            "--seed".into(),
+            "42".into(),
+            "--json".into(),
+            p.display().to_string(),
+        ]
     };
-    let one = rayproof_threads("1", &args(&a).iter().map(|s| s.as_str()).collect::<Vec<_>>());
+    let one = rayproof_threads(
+        "1",
+        &args(&a).iter().map(|s| s.as_str()).collect::<Vec<_>>(),
+    );
     let mut two_args = args(&b);
     two_args.extend(["--markdown".to_string(), md.display().to_string()]);
-    let two = rayproof_threads("2", &two_args.iter().map(|s| s.as_str()).collect::<Vec<_>>());
-    assert!(one.status.code().is_some_and(|c| c <= 1), "{}", stderr(&one));
-    assert!(two.status.code().is_some_and(|c| c <= 1), "{}", stderr(&two));
+    let two = rayproof_threads(
+        "2",
+        &two_args.iter().map(|s| s.as_str()).collect::<Vec<_>>(),
+    );
+    assert!(
+        one.status.code().is_some_and(|c| c <= 1),
+        "{}",
+        stderr(&one)
+    );
+    assert!(
+        two.status.code().is_some_and(|c| c <= 1),
+        "{}",
+        stderr(&two)
+    );
     let (ja, jb) = (std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
     assert!(!ja.is_empty());
     assert_eq!(ja, jb, "JSON differs between 1 and 2 threads");
@@ -145,10 +217,32 @@ fn audit_json_is_byte_identical_for_any_thread_count() {
 
 #[test]
 fn shards_cover_the_case_space() {
-    let full = rayproof(&["audit", "--cases", "50", "--class", "random", "--method", "rtg7", "--precision", "f32"]);
+    let full = rayproof(&[
+        "audit",
+        "--cases",
+        "50",
+        "--class",
+        "random",
+        "--method",
+        "rtg7",
+        "--precision",
+        "f32",
+    ]);
     assert!(full.status.code().is_some_and(|c| c <= 1));
     for shard in ["0/2", "1/2"] {
-        let o = rayproof(&["audit", "--cases", "50", "--class", "random", "--method", "rtg7", "--precision", "f32", "--shard", shard]);
+        let o = rayproof(&[
+            "audit",
+            "--cases",
+            "50",
+            "--class",
+            "random",
+            "--method",
+            "rtg7",
+            "--precision",
+            "f32",
+            "--shard",
+            shard,
+        ]);
         let text = String::from_utf8_lossy(&o.stdout);
         assert!(text.contains("25 cases × 1 methods"), "{text}");
     }
