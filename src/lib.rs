@@ -19,4 +19,5 @@ pub mod dd;
 pub mod interval;
 pub mod probe;
 pub mod real;
+pub mod render;
 pub mod sphere;

@@ -1,0 +1,316 @@
+//! Scene geometry in `f64`, a BVH over every bounded shape, and the ray–shape tests.
+//!
+//! Spheres go through the audited method and precision chosen for the render: the ray and the
+//! sphere are rounded to that precision, the method runs, and its `t` comes back as `f64`.
+//! Discs, planes and triangles (Möller–Trumbore) are intersected in `f64`.
+
+use crate::sphere::methods::{Method, PickPrecision, Ray as MRay, Sphere as MSphere};
+use glam::DVec3;
+
+/// A bounded primitive.
+#[derive(Clone, Copy, Debug)]
+pub enum Prim {
+    Sphere { c: DVec3, r: f64 },
+    Disc { c: DVec3, n: DVec3, r: f64 },
+    Tri { v0: DVec3, e1: DVec3, e2: DVec3 },
+}
+
+/// A primitive with its material index.
+#[derive(Clone, Copy, Debug)]
+pub struct Object {
+    pub prim: Prim,
+    pub material: usize,
+}
+
+/// An infinite plane (kept out of the BVH).
+#[derive(Clone, Copy, Debug)]
+pub struct Plane {
+    pub p: DVec3,
+    pub n: DVec3,
+    pub material: usize,
+}
+
+/// The nearest hit: distance, geometric normal (unit, not yet faced), material.
+#[derive(Clone, Copy, Debug)]
+pub struct Hit {
+    pub t: f64,
+    pub n: DVec3,
+    pub material: usize,
+    pub object: usize,
+}
+
+/// Counters of intersection tests, kept per tile and summed.
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct TestCounts {
+    pub sphere_tests: u64,
+    pub other_tests: u64,
+    pub bvh_nodes: u64,
+}
+
+impl std::ops::AddAssign for TestCounts {
+    fn add_assign(&mut self, o: Self) {
+        self.sphere_tests += o.sphere_tests;
+        self.other_tests += o.other_tests;
+        self.bvh_nodes += o.bvh_nodes;
+    }
+}
+
+type SphereFn<F> = fn(&MRay<F>, &MSphere<F>) -> Option<crate::sphere::methods::SphereHit<F>>;
+
+/// Intersects a sphere through the audited method in precision `F`.
+#[inline]
+fn sphere_t<F: PickPrecision>(f: SphereFn<F>, o: DVec3, d: DVec3, c: DVec3, r: f64) -> Option<f64> {
+    let v = |x: DVec3| F::vec3(F::from_f64(x.x), F::from_f64(x.y), F::from_f64(x.z));
+    f(
+        &MRay {
+            origin: v(o),
+            dir: v(d),
+        },
+        &MSphere {
+            center: v(c),
+            radius: F::from_f64(r),
+        },
+    )
+    .map(|h| h.t.to_f64())
+}
+
+/// Axis-aligned box.
+#[derive(Clone, Copy, Debug)]
+struct Aabb {
+    lo: DVec3,
+    hi: DVec3,
+}
+
+impl Aabb {
+    fn empty() -> Self {
+        Aabb {
+            lo: DVec3::splat(f64::INFINITY),
+            hi: DVec3::splat(f64::NEG_INFINITY),
+        }
+    }
+    fn grow(self, o: Aabb) -> Aabb {
+        Aabb {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+        }
+    }
+    fn centre(self) -> DVec3 {
+        (self.lo + self.hi) * 0.5
+    }
+    /// Slab test with pbrt's far-distance padding (1 + 2γ₃).
+    #[inline]
+    fn hit(&self, o: DVec3, inv_d: DVec3, tmax: f64) -> bool {
+        let t0 = (self.lo - o) * inv_d;
+        let t1 = (self.hi - o) * inv_d;
+        let tn = t0.min(t1).max_element();
+        let tf = t0.max(t1).min_element() * (1.0 + 2.0 * 3.0 * f64::EPSILON);
+        tn <= tf && tf > 0.0 && tn < tmax
+    }
+}
+
+fn bounds(p: &Prim) -> Aabb {
+    match *p {
+        Prim::Sphere { c, r } => Aabb {
+            lo: c - DVec3::splat(r),
+            hi: c + DVec3::splat(r),
+        },
+        Prim::Disc { c, n, r } => {
+            // Extent of a disc along each axis: r·sqrt(1 − n_i²)
+            let e = DVec3::new(
+                (1.0 - n.x * n.x).max(0.0).sqrt(),
+                (1.0 - n.y * n.y).max(0.0).sqrt(),
+                (1.0 - n.z * n.z).max(0.0).sqrt(),
+            ) * r;
+            Aabb {
+                lo: c - e,
+                hi: c + e,
+            }
+        }
+        Prim::Tri { v0, e1, e2 } => {
+            let (v1, v2) = (v0 + e1, v0 + e2);
+            Aabb {
+                lo: v0.min(v1).min(v2),
+                hi: v0.max(v1).max(v2),
+            }
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    b: Aabb,
+    /// Leaf: first object and count; inner: index of the right child (left is next).
+    start: u32,
+    count: u32,
+}
+
+/// The scene's geometry: BVH over objects, plus infinite planes.
+#[derive(Clone, Debug)]
+pub struct Geometry {
+    pub objects: Vec<Object>,
+    pub planes: Vec<Plane>,
+    nodes: Vec<Node>,
+}
+
+impl Geometry {
+    /// Builds the BVH by median splits on the widest centroid axis (leaves of ≤ 4 objects).
+    pub fn new(mut objects: Vec<Object>, planes: Vec<Plane>) -> Geometry {
+        let mut nodes = vec![];
+        if !objects.is_empty() {
+            let n = objects.len();
+            build(&mut objects, 0, n, &mut nodes);
+        }
+        Geometry {
+            objects,
+            planes,
+            nodes,
+        }
+    }
+
+    /// The nearest hit with `t` in (0, tmax), if any.
+    pub fn intersect<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        counts: &mut TestCounts,
+    ) -> Option<Hit> {
+        let f = F::pick(m);
+        let mut best: Option<Hit> = None;
+        let mut limit = tmax;
+        // Planes
+        for (i, pl) in self.planes.iter().enumerate() {
+            counts.other_tests += 1;
+            let dn = d.dot(pl.n);
+            if dn != 0.0 {
+                let t = (pl.p - o).dot(pl.n) / dn;
+                if t > 0.0 && t < limit {
+                    limit = t;
+                    best = Some(Hit {
+                        t,
+                        n: pl.n,
+                        material: pl.material,
+                        object: usize::MAX - i,
+                    });
+                }
+            }
+        }
+        // BVH traversal
+        if self.nodes.is_empty() {
+            return best;
+        }
+        let inv_d = d.recip();
+        let mut stack = [0u32; 64];
+        let mut sp = 1;
+        while sp > 0 {
+            sp -= 1;
+            let idx = stack[sp];
+            let node = &self.nodes[idx as usize];
+            counts.bvh_nodes += 1;
+            if !node.b.hit(o, inv_d, limit) {
+                continue;
+            }
+            if node.count > 0 {
+                for k in node.start..node.start + node.count {
+                    let obj = &self.objects[k as usize];
+                    if let Some((t, n)) = prim_hit::<F>(f, &obj.prim, o, d, counts) {
+                        if t > 0.0 && t < limit {
+                            limit = t;
+                            best = Some(Hit {
+                                t,
+                                n,
+                                material: obj.material,
+                                object: k as usize,
+                            });
+                        }
+                    }
+                }
+            } else if sp + 2 <= stack.len() {
+                // Median splits keep the depth near log2(n); 64 levels cover any real scene
+                stack[sp] = idx + 1;
+                stack[sp + 1] = node.start;
+                sp += 2;
+            }
+        }
+        best
+    }
+}
+
+fn build(objs: &mut [Object], start: usize, end: usize, nodes: &mut Vec<Node>) -> usize {
+    let b = objs[start..end]
+        .iter()
+        .fold(Aabb::empty(), |a, o| a.grow(bounds(&o.prim)));
+    let me = nodes.len();
+    nodes.push(Node {
+        b,
+        start: start as u32,
+        count: (end - start) as u32,
+    });
+    if end - start <= 4 {
+        return me;
+    }
+    // Split at the median along the widest axis of the centroids
+    let cb = objs[start..end].iter().fold(Aabb::empty(), |a, o| {
+        let c = bounds(&o.prim).centre();
+        a.grow(Aabb { lo: c, hi: c })
+    });
+    let axis = (cb.hi - cb.lo).max_position();
+    let mid = (start + end) / 2;
+    objs[start..end].select_nth_unstable_by(mid - start, |a, b| {
+        bounds(&a.prim).centre()[axis].total_cmp(&bounds(&b.prim).centre()[axis])
+    });
+    build(objs, start, mid, nodes);
+    let right = build(objs, mid, end, nodes);
+    nodes[me].start = right as u32;
+    nodes[me].count = 0;
+    me
+}
+
+/// One primitive test: `t` and the unit geometric normal.
+#[inline]
+fn prim_hit<F: PickPrecision>(
+    f: SphereFn<F>,
+    p: &Prim,
+    o: DVec3,
+    d: DVec3,
+    counts: &mut TestCounts,
+) -> Option<(f64, DVec3)> {
+    match *p {
+        Prim::Sphere { c, r } => {
+            counts.sphere_tests += 1;
+            let t = sphere_t::<F>(f, o, d, c, r)?;
+            Some((t, ((o + t * d) - c) / r))
+        }
+        Prim::Disc { c, n, r } => {
+            counts.other_tests += 1;
+            let dn = d.dot(n);
+            if dn == 0.0 {
+                return None;
+            }
+            let t = (c - o).dot(n) / dn;
+            ((o + t * d - c).length_squared() <= r * r).then_some((t, n))
+        }
+        Prim::Tri { v0, e1, e2 } => {
+            // Möller–Trumbore
+            counts.other_tests += 1;
+            let pv = d.cross(e2);
+            let det = e1.dot(pv);
+            if det == 0.0 {
+                return None;
+            }
+            let inv = 1.0 / det;
+            let tv = o - v0;
+            let u = tv.dot(pv) * inv;
+            if !(0.0..=1.0).contains(&u) {
+                return None;
+            }
+            let qv = tv.cross(e1);
+            let v = d.dot(qv) * inv;
+            if v < 0.0 || u + v > 1.0 {
+                return None;
+            }
+            Some((e2.dot(qv) * inv, e1.cross(e2).normalize()))
+        }
+    }
+}

@@ -1,0 +1,101 @@
+//! Render output: a linear float32 EXR (beauty R, G, B, plus optional `depth.Z`, `normal.X/Y/Z`,
+//! `rays.Y` channels), a JSON sidecar with the statistics, and a tone-mapped PNG preview.
+//! Every file is written to a temporary sibling and renamed into place.
+
+use super::Render;
+use anyhow::{Context, Result};
+use exr::prelude::*;
+use std::path::Path;
+
+/// Which extra EXR layers to write.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Layers {
+    pub depth: bool,
+    pub normal: bool,
+    pub rays: bool,
+}
+
+fn tmp_for(path: &Path) -> std::path::PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
+}
+
+/// Writes the EXR.
+pub fn write_exr(r: &Render, path: &Path, layers: Layers) -> Result<()> {
+    let ch = |name: &str, f: &dyn Fn(usize) -> f32| {
+        AnyChannel::new(
+            name,
+            FlatSamples::F32((0..r.width * r.height).map(f).collect()),
+        )
+    };
+    let mut list = vec![
+        ch("R", &|i| r.beauty[i][0]),
+        ch("G", &|i| r.beauty[i][1]),
+        ch("B", &|i| r.beauty[i][2]),
+    ];
+    if layers.depth {
+        list.push(ch("depth.Z", &|i| r.depth[i]));
+    }
+    if layers.normal {
+        for (k, n) in ["normal.X", "normal.Y", "normal.Z"].iter().enumerate() {
+            list.push(ch(n, &|i| r.normal[i][k]));
+        }
+    }
+    if layers.rays {
+        list.push(ch("rays.Y", &|i| r.rays[i]));
+    }
+    let channels = AnyChannels::sort(list.into());
+    let layer = Layer::new(
+        (r.width, r.height),
+        LayerAttributes::default(),
+        Encoding::FAST_LOSSLESS,
+        channels,
+    );
+    let tmp = tmp_for(path);
+    Image::from_layer(layer)
+        .write()
+        .to_file(&tmp)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// sRGB transfer of a linear value clamped to [0, 1].
+fn srgb(x: f32) -> u8 {
+    let x = x.clamp(0.0, 1.0);
+    let v = if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    };
+    (v * 255.0 + 0.5) as u8
+}
+
+/// Writes the PNG preview (clamp, sRGB).
+pub fn write_png(r: &Render, path: &Path) -> Result<()> {
+    let buf: Vec<u8> = r.beauty.iter().flat_map(|p| p.map(srgb)).collect();
+    let img =
+        image::RgbImage::from_raw(r.width as u32, r.height as u32, buf).context("image size")?;
+    let tmp = tmp_for(path);
+    img.save_with_format(&tmp, image::ImageFormat::Png)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// The statistics as JSON (also written beside the EXR as `<file>.json`).
+pub fn stats_json(r: &Render, scene: &str, lights: usize) -> serde_json::Value {
+    serde_json::json!({
+        "scene": scene,
+        "width": r.width,
+        "height": r.height,
+        "method": r.method,
+        "precision": r.precision,
+        "effects": r.effects,
+        "rays": r.counts,
+        "total_rays": r.counts.total(),
+        "seconds": r.seconds,
+        "budget": super::budget_line(r, lights),
+    })
+}

@@ -1,0 +1,329 @@
+//! Scene files (TOML). Right-handed, +y up, as in Mitsuba; the POV-Ray exporter mirrors z.
+//!
+//! ```toml
+//! [camera]
+//! position = [0.0, 1.5, 6.0]
+//! look_at = [0.0, 0.7, 0.0]
+//! up = [0.0, 1.0, 0.0]
+//! fov = 40.0            # horizontal field of view, degrees
+//! width = 320
+//! height = 240
+//! grid = 1              # n×n sub-pixel samples at cell centres, box filter
+//!
+//! [render]
+//! max_depth = 10        # ray segments (POV-Ray's max_trace_level): primary + 9 bounces
+//! glass_shadows = "opaque"   # or "transmissive" (POV-Ray: shadow rays pass through glass)
+//! method = "rtg7"       # any ray–sphere method of the audit
+//! precision = "f64"     # f32 or f64
+//! offset = "auto"       # secondary-ray origin offset: "auto", "none", or a number
+//!
+//! [[lights]]
+//! position = [3.0, 6.0, 4.0]
+//! intensity = [40.0, 40.0, 40.0]   # W/sr; radiance falls off as 1/r²
+//!
+//! [materials.red]
+//! type = "diffuse"      # Lambert, albedo/π
+//! albedo = [0.8, 0.2, 0.2]
+//! [materials.chrome]
+//! type = "mirror"
+//! reflectance = [0.9, 0.9, 0.9]
+//! [materials.glass]
+//! type = "glass"        # exact unpolarised Fresnel, total internal reflection
+//! ior = 1.5
+//!
+//! [[shapes]]
+//! type = "sphere"       # also: disc {center, normal, radius}, plane {point, normal},
+//! center = [0.0, 1.0, 0.0]   #       mesh {file (OBJ, relative to the scene file)}
+//! radius = 1.0
+//! material = "red"
+//! ```
+
+use serde::Deserialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneFile {
+    pub camera: Camera,
+    #[serde(default)]
+    pub render: RenderSettings,
+    #[serde(default)]
+    pub lights: Vec<Light>,
+    #[serde(default)]
+    pub materials: BTreeMap<String, Material>,
+    #[serde(default)]
+    pub shapes: Vec<Shape>,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Camera {
+    pub position: [f64; 3],
+    pub look_at: [f64; 3],
+    #[serde(default = "default_up")]
+    pub up: [f64; 3],
+    /// Horizontal field of view in degrees.
+    pub fov: f64,
+    pub width: Spanned<u32>,
+    pub height: Spanned<u32>,
+    /// n×n stratified sub-pixel grid, sampled at cell centres, box filter.
+    #[serde(default = "one")]
+    pub grid: Spanned<u32>,
+}
+
+fn default_up() -> [f64; 3] {
+    [0.0, 1.0, 0.0]
+}
+fn one() -> Spanned<u32> {
+    Spanned::new(0..0, 1)
+}
+
+/// Shadow rule for glass.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum GlassShadows {
+    /// Glass blocks light like any surface (Mitsuba's visibility test, physical).
+    #[default]
+    Opaque,
+    /// Shadow rays pass straight through glass, unrefracted (POV-Ray's rule for clear glass).
+    Transmissive,
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RenderSettings {
+    /// Ray segments, POV-Ray's `max_trace_level`: 1 = primary rays only.
+    pub max_depth: u32,
+    pub glass_shadows: GlassShadows,
+    pub method: Spanned<String>,
+    pub precision: Spanned<String>,
+    /// Secondary-ray origin offset along the geometric normal: "auto", "none" or a distance.
+    pub offset: toml::Value,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            max_depth: 10,
+            glass_shadows: GlassShadows::Opaque,
+            method: Spanned::new(0..0, "rtg7".into()),
+            precision: Spanned::new(0..0, "f64".into()),
+            offset: toml::Value::String("auto".into()),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Light {
+    pub position: [f64; 3],
+    /// Radiant intensity, W/sr, per RGB channel.
+    pub intensity: [f64; 3],
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Material {
+    Diffuse { albedo: [f64; 3] },
+    Mirror { reflectance: [f64; 3] },
+    Glass { ior: f64 },
+}
+
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
+pub enum Shape {
+    Sphere {
+        center: [f64; 3],
+        radius: f64,
+        material: String,
+    },
+    Disc {
+        center: [f64; 3],
+        normal: [f64; 3],
+        radius: f64,
+        material: String,
+    },
+    Plane {
+        point: [f64; 3],
+        normal: [f64; 3],
+        material: String,
+    },
+    Mesh {
+        file: String,
+        material: String,
+    },
+}
+
+impl Shape {
+    pub fn material(&self) -> &String {
+        match self {
+            Shape::Sphere { material, .. }
+            | Shape::Disc { material, .. }
+            | Shape::Plane { material, .. }
+            | Shape::Mesh { material, .. } => material,
+        }
+    }
+}
+
+/// A scene-file error: file, line and field, one line.
+#[derive(Debug, thiserror::Error)]
+#[error("{file}:{line}: {message}")]
+pub struct SceneError {
+    pub file: String,
+    pub line: usize,
+    pub message: String,
+}
+
+/// A parsed, checked scene with its meshes loaded.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub file: SceneFile,
+    /// Triangles of each mesh shape, by shape index.
+    pub meshes: BTreeMap<usize, Vec<[[f64; 3]; 3]>>,
+    pub path: PathBuf,
+}
+
+fn line_of(text: &str, offset: usize) -> usize {
+    text[..offset.min(text.len())].matches('\n').count() + 1
+}
+
+/// Reads, parses and checks a scene file.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let name = path.display().to_string();
+    let err = |line: usize, message: String| SceneError {
+        file: name.clone(),
+        line,
+        message,
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| err(0, format!("cannot read: {e}")))?;
+    parse(&text, path)
+}
+
+/// Parses and checks scene text (`path` names it in errors and anchors mesh files).
+pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
+    let name = path.display().to_string();
+    let err = |line: usize, message: String| SceneError {
+        file: name.clone(),
+        line,
+        message,
+    };
+    let file: SceneFile = toml::from_str(text).map_err(|e| {
+        let line = e.span().map(|s| line_of(text, s.start)).unwrap_or(0);
+        err(line, e.message().trim().replace('\n', " "))
+    })?;
+    // Field checks
+    let at = |s: &std::ops::Range<usize>| {
+        if s.end == 0 {
+            0
+        } else {
+            line_of(text, s.start)
+        }
+    };
+    let cam = &file.camera;
+    for (field, v) in [
+        ("camera.width", &cam.width),
+        ("camera.height", &cam.height),
+        ("camera.grid", &cam.grid),
+    ] {
+        if *v.get_ref() == 0 {
+            return Err(err(at(&v.span()), format!("{field} must be at least 1")));
+        }
+    }
+    if !(cam.fov > 0.0 && cam.fov < 180.0) {
+        return Err(err(
+            0,
+            format!("camera.fov must be in (0, 180) degrees, got {}", cam.fov),
+        ));
+    }
+    let m = &file.render.method;
+    if crate::sphere::methods::method_by_name(m.get_ref()).is_none() {
+        return Err(err(
+            at(&m.span()),
+            format!("render.method: unknown method '{}'", m.get_ref()),
+        ));
+    }
+    let p = &file.render.precision;
+    if !matches!(p.get_ref().as_str(), "f32" | "f64") {
+        return Err(err(
+            at(&p.span()),
+            format!("render.precision: '{}' is not f32 or f64", p.get_ref()),
+        ));
+    }
+    if file.render.max_depth == 0 {
+        return Err(err(0, "render.max_depth must be at least 1".into()));
+    }
+    offset_value(&file.render.offset).map_err(|e| err(0, format!("render.offset: {e}")))?;
+    // Lines of the [[shapes]] headers (spans are lost inside tagged tables)
+    let shape_lines: Vec<usize> = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| l.trim_start().starts_with("[[shapes]]"))
+        .map(|(i, _)| i + 1)
+        .collect();
+    let mut meshes = BTreeMap::new();
+    for (i, shape) in file.shapes.iter().enumerate() {
+        let line = shape_lines.get(i).copied().unwrap_or(0);
+        let mat = shape.material();
+        if !file.materials.contains_key(mat) {
+            return Err(err(
+                line,
+                format!("shapes[{i}].material: unknown material '{mat}'"),
+            ));
+        }
+        if let Shape::Mesh { file: f, .. } = shape {
+            let mesh_path = path.parent().unwrap_or(Path::new(".")).join(f);
+            let tris =
+                load_obj(&mesh_path).map_err(|e| err(line, format!("shapes[{i}].file: {e}")))?;
+            meshes.insert(i, tris);
+        }
+    }
+    Ok(Scene {
+        file,
+        meshes,
+        path: path.to_path_buf(),
+    })
+}
+
+/// The offset setting as `None` (auto) or a fixed distance (0 for "none").
+pub fn offset_value(v: &toml::Value) -> Result<Option<f64>, String> {
+    match v {
+        toml::Value::String(s) if s == "auto" => Ok(None),
+        toml::Value::String(s) if s == "none" => Ok(Some(0.0)),
+        toml::Value::Float(x) if *x >= 0.0 => Ok(Some(*x)),
+        toml::Value::Integer(x) if *x >= 0 => Ok(Some(*x as f64)),
+        other => Err(format!(
+            "expected \"auto\", \"none\" or a distance ≥ 0, got {other}"
+        )),
+    }
+}
+
+/// Triangles of an OBJ file (polygons are triangulated by tobj).
+fn load_obj(path: &Path) -> Result<Vec<[[f64; 3]; 3]>, String> {
+    let opts = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ..Default::default()
+    };
+    let (models, _) =
+        tobj::load_obj(path, &opts).map_err(|e| format!("cannot load {}: {e}", path.display()))?;
+    let mut tris = vec![];
+    for m in models {
+        let p = &m.mesh.positions;
+        let v = |i: u32| {
+            [
+                p[3 * i as usize] as f64,
+                p[3 * i as usize + 1] as f64,
+                p[3 * i as usize + 2] as f64,
+            ]
+        };
+        for f in m.mesh.indices.chunks_exact(3) {
+            tris.push([v(f[0]), v(f[1]), v(f[2])]);
+        }
+    }
+    if tris.is_empty() {
+        return Err(format!("{} has no triangles", path.display()));
+    }
+    Ok(tris)
+}
