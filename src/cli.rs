@@ -333,6 +333,7 @@ fn run_render(a: RenderArgs) -> Result<u8> {
         method: a.method,
         precision: a.precision.map(|p| p.name()),
         grid: a.spp,
+        size: None,
         force_all_effects: a.all_effects,
         progress: std::io::stderr().is_terminal(),
     };

@@ -162,6 +162,8 @@ pub struct Overrides {
     pub method: Option<&'static Method>,
     pub precision: Option<&'static str>,
     pub grid: Option<u32>,
+    /// Image size (width, height) instead of the camera's.
+    pub size: Option<(u32, u32)>,
     pub force_all_effects: bool,
     pub progress: bool,
 }
@@ -250,6 +252,11 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
                 "f64"
             });
     let grid = ov.grid.unwrap_or(*s.file.camera.grid.get_ref());
+    let size = ov.size.unwrap_or((
+        *s.file.camera.width.get_ref(),
+        *s.file.camera.height.get_ref(),
+    ));
+    let size = (size.0.max(1) as usize, size.1.max(1) as usize);
     let mut effects = effects;
     effects.supersampling = grid > 1;
     let (geo, materials) = build_geometry(s);
@@ -272,8 +279,8 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
         ($($sh:literal, $rf:literal, $rr:literal);*) => {
             match (effects.shadows, effects.reflection, effects.refraction, precision) {
                 $(
-                    ($sh, $rf, $rr, "f32") => run::<f32, $sh, $rf, $rr>(&ctx, s, grid, ov.progress),
-                    ($sh, $rf, $rr, _) => run::<f64, $sh, $rf, $rr>(&ctx, s, grid, ov.progress),
+                    ($sh, $rf, $rr, "f32") => run::<f32, $sh, $rf, $rr>(&ctx, s, size, grid, ov.progress),
+                    ($sh, $rf, $rr, _) => run::<f64, $sh, $rf, $rr>(&ctx, s, size, grid, ov.progress),
                 )*
             }
         };
@@ -308,14 +315,11 @@ type Planes = (Vec<[f32; 3]>, Vec<f32>, Vec<[f32; 3]>, Vec<f32>, RayCounts);
 fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     ctx: &Ctx,
     s: &Scene,
+    (w, h): (usize, usize),
     grid: u32,
     progress: bool,
 ) -> Planes {
     let cam = &s.file.camera;
-    let (w, h) = (
-        *cam.width.get_ref() as usize,
-        *cam.height.get_ref() as usize,
-    );
     // Camera basis: right-handed, horizontal field of view
     let pos = DVec3::from_array(cam.position);
     let fwd = (DVec3::from_array(cam.look_at) - pos).normalize();
