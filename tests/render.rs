@@ -1,0 +1,408 @@
+//! The renderer: analytic radiance checks, effect analysis, ray counts, every reference scene
+//! free of NaN/Inf, and bad scene input.
+
+use rayproof::render::scene::{self, Scene};
+use rayproof::render::{render, Effects, Overrides, Render};
+use rayproof::sphere::methods::METHODS;
+use std::path::Path;
+use std::process::Command;
+
+fn scene(text: &str) -> Scene {
+    scene::parse(text, Path::new("test.toml")).expect("valid scene")
+}
+
+fn draw(s: &Scene) -> Render {
+    render(s, &Overrides::default())
+}
+
+const CAMERA_DOWN: &str = r#"
+[camera]
+position = [0.0, 4.0, 0.0]
+look_at = [0.0, 0.0, 0.0]
+up = [0.0, 0.0, -1.0]
+fov = 60.0
+width = 33
+height = 25
+"#;
+
+#[test]
+fn diffuse_plane_matches_lambert_per_pixel() {
+    // Plane y = 0, albedo ρ, one light I at (1, 2, 0.5): L = ρ/π · I · cosθ / d²
+    let text = format!(
+        "{CAMERA_DOWN}\n[[lights]]\nposition = [1.0, 2.0, 0.5]\nintensity = [10.0, 5.0, 2.5]\n\
+         [materials.m]\ntype = \"diffuse\"\nalbedo = [0.5, 0.25, 0.8]\n\
+         [[shapes]]\ntype = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\nmaterial = \"m\"\n"
+    );
+    let s = scene(&text);
+    let r = draw(&s);
+    // The camera model documented in render/mod.rs
+    let (w, h) = (33.0, 25.0);
+    let half_w = (30f64).to_radians().tan();
+    let half_h = half_w * h / w;
+    let (fwd, right, up) = (
+        glam::DVec3::new(0.0, -1.0, 0.0),
+        glam::DVec3::new(1.0, 0.0, 0.0),
+        glam::DVec3::new(0.0, 0.0, -1.0),
+    );
+    assert_eq!(right, fwd.cross(up).normalize());
+    let light = glam::DVec3::new(1.0, 2.0, 0.5);
+    let mut worst = 0.0f64;
+    for y in 0..25 {
+        for x in 0..33 {
+            let u = (x as f64 + 0.5) / w;
+            let v = (y as f64 + 0.5) / h;
+            let d = (fwd + right * ((2.0 * u - 1.0) * half_w) + up * ((1.0 - 2.0 * v) * half_h))
+                .normalize();
+            let p = glam::DVec3::new(0.0, 4.0, 0.0) + d * (4.0 / -d.y);
+            let to = light - p;
+            let cos = to.y / to.length();
+            for (k, (rho, i)) in [(0.5, 10.0), (0.25, 5.0), (0.8, 2.5)]
+                .into_iter()
+                .enumerate()
+            {
+                let want = rho / std::f64::consts::PI * i * cos / to.length_squared();
+                let got = r.beauty[y * 33 + x][k] as f64;
+                worst = worst.max(((got - want) / want).abs());
+            }
+        }
+    }
+    assert!(worst < 1e-6, "relative error {worst:e}");
+    assert_eq!(
+        r.counts.shadow, 0,
+        "a lone plane cannot shadow itself: no shadow rays"
+    );
+}
+
+fn mirror_scene(with_mirror: bool, camera_z: f64, look_z: f64) -> String {
+    let mirror = if with_mirror {
+        "[materials.mir]\ntype = \"mirror\"\nreflectance = [0.6, 0.6, 0.6]\n[[shapes]]\ntype = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 0.0, 1.0]\nmaterial = \"mir\"\n"
+    } else {
+        ""
+    };
+    format!(
+        "[camera]\nposition = [0.0, 1.0, {camera_z}]\nlook_at = [0.0, 1.0, {look_z}]\nfov = 40.0\nwidth = 40\nheight = 30\n\
+         [render]\nmax_depth = 2\n\
+         [[lights]]\nposition = [2.0, 3.0, 2.0]\nintensity = [20.0, 20.0, 20.0]\n\
+         [materials.red]\ntype = \"diffuse\"\nalbedo = [0.8, 0.3, 0.2]\n\
+         [[shapes]]\ntype = \"sphere\"\ncenter = [0.3, 1.2, 7.0]\nradius = 1.5\nmaterial = \"red\"\n\
+         [[shapes]]\ntype = \"sphere\"\ncenter = [-1.5, 0.4, 8.0]\nradius = 0.8\nmaterial = \"red\"\n{mirror}"
+    )
+}
+
+#[test]
+fn mirror_shows_r_times_the_mirrored_image() {
+    // Camera at z = 5 facing a mirror at z = 0; the mirrored camera at z = −5 faces +z
+    let a = draw(&scene(&mirror_scene(true, 5.0, 0.0)));
+    let b = draw(&scene(&mirror_scene(false, -5.0, 0.0)));
+    let (w, h) = (40, 30);
+    let mut bad = 0;
+    let mut lit = 0;
+    for y in 0..h {
+        for x in 0..w {
+            // The mirror image is flipped left–right
+            let (pa, pb) = (a.beauty[y * w + x], b.beauty[y * w + (w - 1 - x)]);
+            for k in 0..3 {
+                let want = 0.6 * pb[k] as f64;
+                lit += (want > 0.0) as usize;
+                if (pa[k] as f64 - want).abs() > 1e-6 * want.max(1e-3) {
+                    bad += 1;
+                }
+            }
+        }
+    }
+    assert!(
+        lit > 300,
+        "the spheres must be visible ({lit} lit channels)"
+    );
+    assert!(
+        bad == 0,
+        "{bad} channels differ from 0.6 × the mirrored image"
+    );
+}
+
+#[test]
+fn glass_at_normal_incidence_transmits_one_minus_f_squared() {
+    let scene_text = |glass: bool| {
+        let g = if glass {
+            "[materials.g]\ntype = \"glass\"\nior = 1.5\n[[shapes]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"g\"\n"
+        } else {
+            ""
+        };
+        format!(
+            "[camera]\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\nfov = 10.0\nwidth = 5\nheight = 5\n\
+             [render]\nmax_depth = 3\nglass_shadows = \"transmissive\"\n\
+             [[lights]]\nposition = [0.0, 0.0, -2.0]\nintensity = [10.0, 10.0, 10.0]\n\
+             [materials.wall]\ntype = \"diffuse\"\nalbedo = [0.7, 0.7, 0.7]\n\
+             [[shapes]]\ntype = \"plane\"\npoint = [0.0, 0.0, -4.0]\nnormal = [0.0, 0.0, 1.0]\nmaterial = \"wall\"\n{g}"
+        )
+    };
+    let with = draw(&scene(&scene_text(true)));
+    let without = draw(&scene(&scene_text(false)));
+    // The centre pixel's ray runs along the axis: in and out at normal incidence
+    let f = ((1.5f64 - 1.0) / (1.5 + 1.0)).powi(2);
+    let ratio = with.beauty[12][0] as f64 / without.beauty[12][0] as f64;
+    assert!(
+        (ratio - (1.0 - f).powi(2)).abs() < 1e-6,
+        "ratio {ratio} vs (1−F)² = {}",
+        (1.0 - f).powi(2)
+    );
+}
+
+// ---- effect analysis: each effect on exactly when the scene needs it ----
+
+fn effects(shapes: &str, materials: &str, lights: bool, grid: u32) -> (Effects, Render) {
+    let light = if lights {
+        "[[lights]]\nposition = [0.0, 5.0, 0.0]\nintensity = [1.0, 1.0, 1.0]\n"
+    } else {
+        ""
+    };
+    let text = format!(
+        "[camera]\nposition = [0.0, 1.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\nfov = 50.0\nwidth = 8\nheight = 6\ngrid = {grid}\n\
+         [render]\nmax_depth = 4\n{light}{materials}{shapes}"
+    );
+    let s = scene(&text);
+    (Effects::analyse(&s), draw(&s))
+}
+
+const MATS: &str = "[materials.d]\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n[materials.m]\ntype = \"mirror\"\nreflectance = [1.0, 1.0, 1.0]\n[materials.g]\ntype = \"glass\"\nior = 1.5\n";
+
+fn plane(mat: &str) -> String {
+    format!("[[shapes]]\ntype = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\nmaterial = \"{mat}\"\n")
+}
+fn sphere_far(mat: &str) -> String {
+    // Outside the view, but it can occlude in principle
+    format!("[[shapes]]\ntype = \"sphere\"\ncenter = [0.0, 50.0, 50.0]\nradius = 1.0\nmaterial = \"{mat}\"\n")
+}
+fn wall(mat: &str) -> String {
+    // A plane filling the view, facing the camera
+    format!("[[shapes]]\ntype = \"plane\"\npoint = [0.0, 0.0, -1.0]\nnormal = [0.0, 0.0, 1.0]\nmaterial = \"{mat}\"\n")
+}
+
+#[test]
+fn shadows_only_when_a_light_can_be_occluded() {
+    let (e, r) = effects(&plane("d"), MATS, true, 1);
+    assert!(!e.shadows && r.counts.shadow == 0);
+    let (e, r) = effects(&(plane("d") + &sphere_far("d")), MATS, true, 1);
+    assert!(e.shadows);
+    // Every pixel sees the lit plane (light above it): one shadow ray per primary ray
+    let (e2, r2) = effects(&(wall("d") + &sphere_far("d")), MATS, true, 1);
+    assert!(
+        e2.shadows && r2.counts.shadow == r2.counts.primary,
+        "{:?}",
+        r2.counts
+    );
+    assert!(r.counts.shadow > 0);
+    let (e, _) = effects(&(plane("d") + &sphere_far("d")), MATS, false, 1);
+    assert!(!e.shadows, "no light, no shadow rays");
+}
+
+#[test]
+fn reflection_only_when_a_material_reflects() {
+    let (e, r) = effects(&wall("d"), MATS, true, 1);
+    assert!(!e.reflection && !e.refraction && e.depth == 1);
+    assert_eq!((r.counts.reflection, r.counts.refraction), (0, 0));
+    let (e, r) = effects(&wall("m"), MATS, true, 1);
+    assert!(e.reflection && !e.refraction && e.depth == 4);
+    // Every primary ray hits the mirror wall and spawns exactly one reflection ray
+    assert_eq!(r.counts.reflection, r.counts.primary);
+    assert_eq!(r.counts.shadow, 0);
+}
+
+#[test]
+fn refraction_only_when_a_material_transmits() {
+    let (e, r) = effects(&wall("g"), MATS, true, 1);
+    assert!(e.reflection && e.refraction);
+    // Each primary ray splits once at the glass wall (nothing lies behind it)
+    assert_eq!(r.counts.refraction, r.counts.primary);
+    assert_eq!(r.counts.reflection, r.counts.primary);
+}
+
+#[test]
+fn supersampling_only_with_a_larger_grid() {
+    let (e, r) = effects(&wall("d"), MATS, true, 1);
+    assert!(!e.supersampling && r.counts.primary == 48);
+    let (e, r) = effects(&wall("d"), MATS, true, 3);
+    assert!(e.supersampling && r.counts.primary == 48 * 9);
+}
+
+#[test]
+fn explain_names_every_effect() {
+    let (e, _) = effects(&wall("m"), MATS, true, 2);
+    let text = e.reasons.join("\n");
+    for word in [
+        "shadows",
+        "reflection",
+        "refraction",
+        "depth",
+        "supersampling",
+    ] {
+        assert!(text.contains(word), "{text}");
+    }
+}
+
+// ---- every reference scene, every method and precision: finite pixels ----
+
+#[test]
+fn reference_scenes_render_without_nan_or_inf() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference/scenes");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "toml") {
+            continue;
+        }
+        let s = scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        for m in METHODS {
+            for p in ["f32", "f64"] {
+                let ov = Overrides {
+                    method: Some(m),
+                    precision: Some(p),
+                    size: Some((24, 18)),
+                    grid: Some(1),
+                    ..Default::default()
+                };
+                let r = render(&s, &ov);
+                assert!(
+                    r.beauty
+                        .iter()
+                        .flatten()
+                        .all(|v| v.is_finite() && *v >= 0.0),
+                    "{} with {} {p}: a NaN, Inf or negative pixel",
+                    path.display(),
+                    m.name
+                );
+            }
+        }
+        n += 1;
+    }
+    assert!(n >= 6, "expected the six reference scenes, found {n}");
+}
+
+// ---- bad input ----
+
+fn rayproof(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn one_line_error(o: &std::process::Output, what: &[&str]) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    for w in what {
+        assert!(err.contains(w), "'{w}' missing from: {err}");
+    }
+}
+
+#[test]
+fn bad_scenes_get_file_line_field_and_exit_2() {
+    let dir = std::env::temp_dir().join(format!("rayproof-render-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let write = |name: &str, text: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p.display().to_string()
+    };
+    let good = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("reference/scenes/diffuse.toml"),
+    )
+    .unwrap();
+    // Syntax error on line 3
+    let f = write(
+        "syntax.toml",
+        "[camera]\nposition = [0.0, 1.0\nlook_at = 3\n",
+    );
+    one_line_error(&rayproof(&["render", &f]), &["syntax.toml:"]);
+    // Unknown material, named with its shape and line
+    let f = write(
+        "mat.toml",
+        &good.replace("material = \"blue\"", "material = \"gold\""),
+    );
+    one_line_error(
+        &rayproof(&["render", &f]),
+        &["mat.toml:", "unknown material 'gold'", "shapes[2].material"],
+    );
+    // Unknown material type
+    let f = write(
+        "type.toml",
+        &good.replace(
+            "type = \"diffuse\"\nalbedo = [0.8, 0.15, 0.1]",
+            "type = \"velvet\"\nalbedo = [0.8, 0.15, 0.1]",
+        ),
+    );
+    one_line_error(&rayproof(&["render", &f]), &["type.toml:", "velvet"]);
+    // Missing mesh file
+    let f = write(
+        "mesh.toml",
+        &(good.clone()
+            + "\n[[shapes]]\ntype = \"mesh\"\nfile = \"nope.obj\"\nmaterial = \"red\"\n"),
+    );
+    one_line_error(
+        &rayproof(&["render", &f]),
+        &["mesh.toml:", "shapes[3].file", "nope.obj"],
+    );
+    // Zero-size image
+    let f = write("zero.toml", &good.replace("width = 256", "width = 0"));
+    one_line_error(&rayproof(&["render", &f]), &["zero.toml:7", "camera.width"]);
+    // A failed render leaves an existing output untouched
+    let out = dir.join("out.exr");
+    std::fs::write(&out, b"previous").unwrap();
+    let f = write("bad.toml", "nonsense");
+    one_line_error(
+        &rayproof(&["render", &f, "-o", &out.display().to_string()]),
+        &["bad.toml"],
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), b"previous");
+    // Bad flags
+    one_line_error(&rayproof(&["render", "x.toml", "--spp", "3"]), &["--spp"]);
+    one_line_error(
+        &rayproof(&["render", "/no/such/scene.toml"]),
+        &["/no/such/scene.toml"],
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn render_writes_exr_png_and_stats() {
+    let dir = std::env::temp_dir().join(format!("rayproof-out-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (exr, png) = (dir.join("d.exr"), dir.join("d.png"));
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference/scenes/diffuse.toml");
+    let o = rayproof(&[
+        "render",
+        &scene.display().to_string(),
+        "-o",
+        &exr.display().to_string(),
+        "--png",
+        &png.display().to_string(),
+        "--spp",
+        "1",
+        "--layers",
+        "depth,normal,rays",
+        "--explain",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        text.contains("shadows: on") && text.contains("seed budget (m+1)·d·M·N"),
+        "{text}"
+    );
+    // The EXR holds the beauty and the layers asked for
+    let img = exr::prelude::read_all_flat_layers_from_file(&exr).unwrap();
+    let names: Vec<String> = img.layer_data[0]
+        .channel_data
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    for n in ["R", "G", "B", "depth.Z", "normal.X", "rays.Y"] {
+        assert!(names.iter().any(|x| x == n), "{names:?}");
+    }
+    let stats: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("d.exr.json")).unwrap()).unwrap();
+    assert_eq!(stats["rays"]["primary"], 256 * 256);
+    assert!(std::fs::metadata(&png).unwrap().len() > 1000);
+    std::fs::remove_dir_all(&dir).ok();
+}
