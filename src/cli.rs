@@ -17,6 +17,25 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
+/// Writes to stdout; a closed pipe (`rayproof … | head`) ends the process quietly with success.
+fn emit(text: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+    }
+}
+
+macro_rules! say {
+    () => { emit("\n") };
+    ($($t:tt)*) => { emit(&(format!($($t)*) + "\n")) };
+}
+macro_rules! say_raw {
+    ($($t:tt)*) => { emit(&format!($($t)*)) };
+}
+
 /// Proves how accurate ray–sphere intersection methods are, against an exact MPFR oracle.
 #[derive(Parser, Debug)]
 #[command(name = "rayproof", version, about)]
@@ -222,7 +241,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Audit(a) => run_audit(a),
         Command::Render(r) => run_render(r),
         Command::Probe(ProbeCommand::Sphere(p)) => {
-            print!(
+            say_raw!(
                 "{}",
                 probe::sphere(&p.origin, &p.dir, &p.center, &p.radius, p.precision, p.json)?
             );
@@ -270,10 +289,10 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
     audit::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
     let report = audit::run(&opts);
     let secs = start.elapsed().as_secs_f64();
-    print!("{}", audit::table(&report));
+    say_raw!("{}", audit::table(&report));
     if a.worst > 0 {
-        println!("\nWorst cases (replay with the probe line):");
-        print!("{}", audit::worst_cases(&report, a.worst));
+        say!("\nWorst cases (replay with the probe line):");
+        say_raw!("{}", audit::worst_cases(&report, a.worst));
     }
     let n: u64 = report
         .rows
@@ -281,7 +300,7 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         .filter(|r| r.method == opts.methods[0].name)
         .map(|r| r.cases)
         .sum();
-    println!(
+    say!(
         "\n{} cases × {} methods in {:.1} s on {} threads ({:.0} cases/s)",
         n,
         opts.methods.len(),
@@ -290,7 +309,7 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         n as f64 / secs
     );
     let oracle_secs = audit::ORACLE_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
-    println!(
+    say!(
         "oracle alone: {:.1} s of CPU time, {:.0} cases/s per core (exact verdict, ill-posedness, Ziv roots)",
         oracle_secs,
         n as f64 / oracle_secs.max(1e-9)
@@ -305,12 +324,12 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
     // Compare with the tolerance table
     let breaks = tolerance::check(&report);
     if breaks.is_empty() {
-        println!("tolerance table: every row within its entry");
+        say!("tolerance table: every row within its entry");
         Ok(0)
     } else {
-        println!("tolerance table: {} row(s) out of bounds", breaks.len());
+        say!("tolerance table: {} row(s) out of bounds", breaks.len());
         for b in &breaks {
-            println!("  {b}");
+            say!("  {b}");
         }
         Ok(1)
     }
@@ -339,19 +358,19 @@ fn run_render(a: RenderArgs) -> Result<u8> {
     };
     let r = render::render(&sc, &ov);
     if a.explain {
-        println!("effects for {}:", a.scene.display());
+        say!("effects for {}:", a.scene.display());
         for line in &r.effects.reasons {
-            println!("  {line}");
+            say!("  {line}");
         }
     }
     let c = &r.counts;
-    println!(
+    say!(
         "{}×{} with {} in {}: {:.3} s\nrays: primary {}, shadow {}, reflection {}, refraction {} (total {})\ntests: sphere {}, other {}, BVH nodes {}",
         r.width, r.height, r.method, r.precision, r.seconds, c.primary, c.shadow, c.reflection, c.refraction, c.total(),
         c.tests.sphere_tests, c.tests.other_tests, c.tests.bvh_nodes
     );
     let lights = sc.file.lights.len();
-    println!("{}", render::budget_line(&r, lights));
+    say!("{}", render::budget_line(&r, lights));
     if let Some(out) = &a.output {
         let layers = output::Layers {
             depth: a.layers.iter().any(|l| l == "depth"),
