@@ -406,3 +406,52 @@ fn render_writes_exr_png_and_stats() {
     assert!(std::fs::metadata(&png).unwrap().len() > 1000);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn obj_meshes_render_and_block_light() {
+    // A tetrahedron (OBJ) above a plane, lit from the side: seen in the centre, and it shadows
+    let dir = std::env::temp_dir().join(format!("rayproof-mesh-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("tet.obj"),
+        "v -1 0.5 -1\nv 1 0.5 -1\nv 0 0.5 1\nv 0 2 0\nf 1 2 3\nf 1 2 4\nf 2 3 4\nf 3 1 4\n",
+    )
+    .unwrap();
+    let text = |mesh: bool| {
+        let m = if mesh {
+            "[[shapes]]\ntype = \"mesh\"\nfile = \"tet.obj\"\nmaterial = \"m\"\n"
+        } else {
+            ""
+        };
+        format!(
+            "{CAMERA_DOWN}\n[[lights]]\nposition = [6.0, 6.0, 0.0]\nintensity = [100.0, 100.0, 100.0]\n\
+             [materials.m]\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n\
+             [[shapes]]\ntype = \"plane\"\npoint = [0.0, 0.0, 0.0]\nnormal = [0.0, 1.0, 0.0]\nmaterial = \"m\"\n\
+             [[shapes]]\ntype = \"sphere\"\ncenter = [0.0, -50.0, 0.0]\nradius = 1.0\nmaterial = \"m\"\n{m}"
+        )
+    };
+    let path = dir.join("mesh.toml");
+    std::fs::write(&path, text(true)).unwrap();
+    let with = scene::load(&path).unwrap();
+    assert_eq!(with.meshes.values().next().unwrap().len(), 4);
+    std::fs::write(&path, text(false)).unwrap();
+    let without = scene::load(&path).unwrap();
+    let (a, b) = (draw(&with), draw(&without));
+    // Centre pixel: the camera (y = 4) sees the mesh (top at y = 2) before the plane (depth 4)
+    let centre = 12 * 33 + 16;
+    assert!(
+        a.depth[centre] < 2.5 && b.depth[centre] > 3.9,
+        "{} {}",
+        a.depth[centre],
+        b.depth[centre]
+    );
+    // Plane point (−1.96, 0, 0): its path to the light crosses the mesh
+    let shadowed = 12 * 33 + 2;
+    assert!(
+        b.beauty[shadowed][0] > 0.01 && a.beauty[shadowed][0] == 0.0,
+        "{:?} {:?}",
+        a.beauty[shadowed],
+        b.beauty[shadowed]
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
