@@ -235,6 +235,24 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     Ok(())
 }
 
+/// Fails with one line if the directory of any given output path does not exist.
+fn check_output_dirs(paths: &[&Option<PathBuf>]) -> Result<()> {
+    for p in paths.iter().copied().flatten() {
+        let dir = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        if !dir.is_dir() {
+            bail!(
+                "{}: directory {} does not exist",
+                p.display(),
+                dir.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Runs a parsed command; returns the process exit code.
 pub fn run(cli: Cli) -> Result<u8> {
     match cli.command {
@@ -273,18 +291,7 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         progress: std::io::stderr().is_terminal(),
     };
     // Check output paths before the long run
-    for p in [&a.json, &a.markdown].into_iter().flatten() {
-        let dir = p
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        if !dir.is_dir() {
-            bail!(
-                "--json/--markdown: directory {} does not exist",
-                dir.display()
-            );
-        }
-    }
+    check_output_dirs(&[&a.json, &a.markdown])?;
     let start = Instant::now();
     audit::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
     let report = audit::run(&opts);
@@ -339,15 +346,7 @@ fn run_render(a: RenderArgs) -> Result<u8> {
     use crate::render::{self, output, scene};
     let sc = scene::load(&a.scene)?;
     // Refuse before rendering if an output cannot be written
-    for p in [&a.output, &a.png].into_iter().flatten() {
-        let dir = p
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        if !dir.is_dir() {
-            bail!("output directory {} does not exist", dir.display());
-        }
-    }
+    check_output_dirs(&[&a.output, &a.png])?;
     let ov = render::Overrides {
         method: a.method,
         precision: a.precision.map(|p| p.name()),
