@@ -17,13 +17,21 @@ use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// Writes to stdout; a closed pipe (`rayproof … | head`) ends the process quietly with success.
+/// Set once stdout's reader has gone away; later output is dropped.
+static STDOUT_CLOSED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Writes to stdout. A closed pipe (`rayproof … | head`) silences later output but never stops
+/// the command, so the files it was asked to write are still written.
 fn emit(text: &str) {
     use std::io::Write;
+    use std::sync::atomic::Ordering::Relaxed;
+    if STDOUT_CLOSED.load(Relaxed) {
+        return;
+    }
     let mut out = std::io::stdout().lock();
     if let Err(e) = out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
         if e.kind() == std::io::ErrorKind::BrokenPipe {
-            std::process::exit(0);
+            STDOUT_CLOSED.store(true, Relaxed);
         }
     }
 }
@@ -53,6 +61,74 @@ pub enum Command {
     Probe(ProbeCommand),
     /// Render a scene file with the Whitted integrator specialised to the effects it needs.
     Render(RenderArgs),
+    /// Write a scene for a reference renderer (POV-Ray 3.7 or Mitsuba 3) to stdout.
+    Export(ExportArgs),
+    /// Box-average n×n pixel blocks of an EXR (a supersampled POV-Ray render → an n×n grid).
+    Downsample(DownsampleArgs),
+    /// Compare two images as OpenImageIO's idiff does (exit 0 pass, 1 warn, 2 fail, 3 size, 4 file).
+    Diff(crate::imgdiff::DiffArgs),
+    /// Render every reference scene and compare it with the POV-Ray, Mitsuba and golden references.
+    Check(CheckArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct CheckArgs {
+    /// Reference directory: scenes/, NAME/{povray,mitsuba,rayproof}.exr, NAME/manifest.json,
+    /// thresholds.toml.
+    #[arg(long, default_value = "reference")]
+    pub reference: PathBuf,
+    /// Write an HTML report (index.html and PNGs) into this directory.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Rewrite rayproof's own golden render (NAME/rayproof.exr) where it fails or is missing;
+    /// the POV-Ray and Mitsuba references are never rewritten.
+    #[arg(long)]
+    pub update: bool,
+    /// Also render with these methods (compared with POV-Ray and Mitsuba only).
+    #[arg(long, value_delimiter = ',', value_parser = parse_method)]
+    pub method: Vec<&'static Method>,
+    /// Precisions for the extra methods (default: both).
+    #[arg(long, value_delimiter = ',', value_parser = parse_precision)]
+    pub precision: Vec<Precision>,
+    /// Only these scenes (by name).
+    #[arg(long, value_delimiter = ',')]
+    pub scene: Vec<String>,
+    /// Compute HDR-ꟻLIP even without --report.
+    #[arg(long)]
+    pub flip: bool,
+    /// Write every row as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the rows as a Markdown table.
+    #[arg(long)]
+    pub markdown: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// Target renderer: povray or mitsuba.
+    #[arg(long = "to", value_parser = ["povray", "mitsuba"])]
+    pub to: String,
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Image width (the height keeps the scene's aspect ratio); default: the scene's.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub width: Option<u32>,
+    /// n×n sub-pixel grid; default: the scene's camera.grid.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub grid: Option<u32>,
+}
+
+#[derive(Args, Debug)]
+pub struct DownsampleArgs {
+    /// Input EXR (R, G, B; any sample type).
+    pub input: PathBuf,
+    /// Block size n: the output is (W/n)×(H/n), each pixel the mean of an n×n block.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub factor: u32,
+    /// Output EXR (float32 R, G, B).
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
 }
 
 #[derive(Args, Debug)]
@@ -74,6 +150,9 @@ pub struct RenderArgs {
     /// Samples per pixel, a square n² (overrides camera.grid = n).
     #[arg(long, value_parser = parse_spp)]
     pub spp: Option<u32>,
+    /// Image width; the height keeps the scene's aspect ratio (overrides camera.width/height).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub width: Option<u32>,
     /// Print the chosen effects and why, then render.
     #[arg(long)]
     pub explain: bool,
@@ -258,6 +337,27 @@ pub fn run(cli: Cli) -> Result<u8> {
     match cli.command {
         Command::Audit(a) => run_audit(a),
         Command::Render(r) => run_render(r),
+        Command::Diff(d) => Ok(crate::imgdiff::run_diff(d)),
+        Command::Check(c) => run_check(c),
+        Command::Export(e) => {
+            let sc = crate::render::scene::load(&e.scene)?;
+            let fr = crate::export::Frame::of(&sc, e.width, e.grid);
+            say_raw!(
+                "{}",
+                match e.to.as_str() {
+                    "povray" => crate::export::povray(&sc, fr),
+                    _ => crate::export::mitsuba(&sc, fr),
+                }
+            );
+            Ok(0)
+        }
+        Command::Downsample(d) => {
+            check_output_dirs(&[&Some(d.output.clone())])?;
+            let (w, h, px) = crate::export::downsample(&d.input, d.factor as usize)?;
+            crate::export::write_rgb_exr(&d.output, w, h, &px)?;
+            say!("{}: {w}×{h} (mean of {f}×{f} blocks)", d.output.display(), f = d.factor);
+            Ok(0)
+        }
         Command::Probe(ProbeCommand::Sphere(p)) => {
             say_raw!(
                 "{}",
@@ -351,7 +451,10 @@ fn run_render(a: RenderArgs) -> Result<u8> {
         method: a.method,
         precision: a.precision.map(|p| p.name()),
         grid: a.spp,
-        size: None,
+        size: a.width.map(|w| {
+            let fr = crate::export::Frame::of(&sc, Some(w), None);
+            (fr.width, fr.height)
+        }),
         force_all_effects: a.all_effects,
         progress: std::io::stderr().is_terminal(),
     };
@@ -388,4 +491,57 @@ fn run_render(a: RenderArgs) -> Result<u8> {
         output::write_png(&r, png)?;
     }
     Ok(0)
+}
+
+fn run_check(a: CheckArgs) -> Result<u8> {
+    use crate::check;
+    check_output_dirs(&[&a.json, &a.markdown])?;
+    let th = check::ThresholdFile::load(&a.reference.join("thresholds.toml"))?;
+    // Extra configurations: each method × each precision
+    let precisions = if a.precision.is_empty() {
+        Precision::ALL.to_vec()
+    } else {
+        a.precision.clone()
+    };
+    let configs = a
+        .method
+        .iter()
+        .flat_map(|m| {
+            precisions.iter().map(|p| check::Config {
+                method: m,
+                precision: p.name(),
+            })
+        })
+        .collect();
+    let opts = check::Options {
+        reference: a.reference.clone(),
+        report: a.report.clone(),
+        update: a.update,
+        configs,
+        scenes: a.scene.clone(),
+        flip: a.flip,
+    };
+    let start = Instant::now();
+    let rows = check::run(&opts, &th)?;
+    say_raw!("{}", check::table(&rows));
+    let failed = rows.iter().filter(|r| r.status.is_failure()).count();
+    say!(
+        "{} comparisons in {:.1} s: {} failing (gated configuration: {})",
+        rows.len(),
+        start.elapsed().as_secs_f64(),
+        failed,
+        th.gated.label()
+    );
+    if let Some(dir) = &a.report {
+        let html = check::html(&rows, "rayproof check");
+        write_atomic(&dir.join("index.html"), html.as_bytes())?;
+        say!("report: {}", dir.join("index.html").display());
+    }
+    if let Some(p) = &a.json {
+        write_atomic(p, (serde_json::to_string_pretty(&rows)? + "\n").as_bytes())?;
+    }
+    if let Some(p) = &a.markdown {
+        write_atomic(p, check::markdown(&rows).as_bytes())?;
+    }
+    Ok(if failed > 0 { 1 } else { 0 })
 }

@@ -14,8 +14,11 @@
 //!   against one tolerance table ([`sphere::tolerance`]).
 
 pub mod audit;
+pub mod check;
 pub mod cli;
 pub mod dd;
+pub mod export;
+pub mod imgdiff;
 pub mod interval;
 pub mod probe;
 pub mod real;

@@ -290,13 +290,9 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
         false, false, false; true, false, false; false, true, false; true, true, false;
         false, true, true; true, true, true; false, false, true; true, false, true
     );
-    let (w, h) = (
-        *s.file.camera.width.get_ref() as usize,
-        *s.file.camera.height.get_ref() as usize,
-    );
     Render {
-        width: w,
-        height: h,
+        width: size.0,
+        height: size.1,
         beauty,
         depth,
         normal,

@@ -1,0 +1,353 @@
+//! Scene exporters for the reference renderers, following the measured recipe under which
+//! POV-Ray 3.7, Mitsuba 3 and rayproof render the same image (`../shared/notes/reference-matching.md`):
+//!
+//! - **POV-Ray** is left-handed, so every z is negated (geometry, lights, camera). The camera is
+//!   given by explicit `direction`/`right`/`up` vectors so pixel centres map exactly as ours.
+//!   Point lights use the fade trick: colour I/(2π·fd²), `fade_distance fd`, `fade_power 2`
+//!   gives 2/(1+(d/fd)²)·I/(2π·fd²) ≈ I/(π·d²); the 1/π is Lambert's, because POV-Ray's diffuse
+//!   term has none. Glass uses `conserve_energy`; opaque glass shadows get a hidden caster.
+//!   `max_trace_level` = our `max_depth`, `adc_bailout 0`. Sampling is done outside the file:
+//!   render at n·W × n·H without anti-aliasing and box-average n×n blocks (`rayproof downsample`).
+//! - **Mitsuba** is right-handed like rayproof, so nothing is mirrored. The sensor is
+//!   `perspective` with `fov_axis = x`, a `stratified` sampler without jitter (n² samples at the
+//!   cell centres), a `box` filter and a float32 `hdrfilm`. The integrator is `whitted`, which
+//!   `scripts/mitsuba_whitted.py` registers (built from Mitsuba's own parts).
+
+use crate::render::scene::{GlassShadows, Material, Scene, Shape};
+use std::f64::consts::PI;
+use std::fmt::Write;
+use std::path::Path;
+
+/// Image size and sub-pixel grid of an export (the references are made at a fixed size).
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub width: u32,
+    pub height: u32,
+    pub grid: u32,
+}
+
+impl Frame {
+    /// The scene's own frame, or `width` wide with the scene's aspect ratio and an n×n grid.
+    pub fn of(s: &Scene, width: Option<u32>, grid: Option<u32>) -> Frame {
+        let (w, h) = (*s.file.camera.width.get_ref(), *s.file.camera.height.get_ref());
+        let width = width.unwrap_or(w);
+        Frame {
+            width,
+            height: ((width as f64 * h as f64 / w as f64).round() as u32).max(1),
+            grid: grid.unwrap_or(*s.file.camera.grid.get_ref()),
+        }
+    }
+}
+
+/// POV-Ray's fade distance for point lights; the residual relative error is (fd/d)².
+const FADE_DISTANCE: f64 = 0.01;
+
+/// Text safe inside an XML attribute.
+fn xml(s: &str) -> String {
+    s.replace('&', "&amp;").replace('"', "&quot;").replace('<', "&lt;").replace('>', "&gt;")
+}
+
+/// Shortest round-trip decimal of each number, comma-separated.
+fn v3(a: [f64; 3]) -> String {
+    format!("{}, {}, {}", a[0], a[1], a[2])
+}
+
+/// POV-Ray vector of a rayproof point or direction (z mirrored).
+fn pov(a: [f64; 3]) -> String {
+    format!("<{}, {}, {}>", a[0], a[1], -a[2])
+}
+
+/// The scene as POV-Ray 3.7 source.
+pub fn povray(s: &Scene, fr: Frame) -> String {
+    let f = &s.file;
+    let mut o = String::new();
+    let _ = writeln!(
+        o,
+        "// Exported by rayproof {} from {} (right-handed scene; z mirrored for POV-Ray).\n\
+         // Render at {}x{} with -A and box-average {}x{} blocks to get {}x{} with a {}x{} grid.",
+        env!("CARGO_PKG_VERSION"),
+        s.path.display(),
+        fr.width * fr.grid,
+        fr.height * fr.grid,
+        fr.grid,
+        fr.grid,
+        fr.width,
+        fr.height,
+        fr.grid,
+        fr.grid
+    );
+    // Global settings: linear, no ambient, Whitted depth, no adaptive bailout
+    let _ = writeln!(
+        o,
+        "#version 3.7;\nglobal_settings {{ assumed_gamma 1.0 ambient_light 0 max_trace_level {} adc_bailout 0 }}\nbackground {{ rgb 0 }}",
+        f.render.max_depth
+    );
+    // Camera: explicit vectors; pixel (x, y) → direction + ((x+½)/W − ½)·right + (½ − (y+½)/H)·up
+    let cam = &f.camera;
+    let pos = glam::DVec3::from_array(cam.position);
+    let fwd = (glam::DVec3::from_array(cam.look_at) - pos).normalize();
+    let right = fwd.cross(glam::DVec3::from_array(cam.up)).normalize();
+    let up = right.cross(fwd);
+    let aspect = fr.width as f64 / fr.height as f64;
+    let dir = fwd * (0.5 * aspect / (cam.fov.to_radians() * 0.5).tan());
+    let _ = writeln!(
+        o,
+        "camera {{ perspective location {} direction {} right {} up {} }}",
+        pov(cam.position),
+        pov(dir.to_array()),
+        pov((right * aspect).to_array()),
+        pov(up.to_array())
+    );
+    // Lights: the fade trick turns POV-Ray's unattenuated light into I/(π d²)
+    for l in &f.lights {
+        let c = l.intensity.map(|i| i / (2.0 * PI * FADE_DISTANCE * FADE_DISTANCE));
+        let _ = writeln!(
+            o,
+            "light_source {{ {} color rgb <{}> fade_distance {} fade_power 2 }}",
+            pov(l.position),
+            v3(c),
+            FADE_DISTANCE
+        );
+    }
+    // Shapes with their materials
+    for (i, sh) in f.shapes.iter().enumerate() {
+        let mat = &f.materials[sh.material()];
+        let tex = match mat {
+            Material::Diffuse { albedo } => format!(
+                "pigment {{ rgb <{}> }} finish {{ ambient 0 emission 0 diffuse 1 }}",
+                v3(*albedo)
+            ),
+            Material::Mirror { reflectance } => format!(
+                "pigment {{ rgb 0 }} finish {{ ambient 0 emission 0 diffuse 0 reflection {{ rgb <{}> }} }}",
+                v3(*reflectance)
+            ),
+            Material::Glass { ior } => format!(
+                "pigment {{ rgbf <1, 1, 1, 1> }} finish {{ ambient 0 emission 0 diffuse 0 reflection {{ 0, 1 fresnel on }} conserve_energy }} interior {{ ior {ior} }}"
+            ),
+        };
+        let geo = match sh {
+            Shape::Sphere { center, radius, .. } => format!("sphere {{ {}, {radius}", pov(*center)),
+            Shape::Disc {
+                center,
+                normal,
+                radius,
+                ..
+            } => format!("disc {{ {}, {}, {radius}", pov(*center), pov(*normal)),
+            Shape::Plane { point, normal, .. } => {
+                let n = glam::DVec3::from_array(*normal).normalize();
+                let d = n.dot(glam::DVec3::from_array(*point));
+                format!("plane {{ {}, {d}", pov(n.to_array()))
+            }
+            Shape::Mesh { .. } => {
+                let mut m = String::from("mesh {");
+                for t in &s.meshes[&i] {
+                    let _ = write!(
+                        m,
+                        "\n  triangle {{ {}, {}, {} }}",
+                        pov(t[0]),
+                        pov(t[1]),
+                        pov(t[2])
+                    );
+                }
+                m
+            }
+        };
+        let _ = writeln!(o, "{geo}\n  {tex}\n}}");
+        // Opaque glass shadows: a hidden, slightly smaller black caster inside the glass
+        if let (Material::Glass { .. }, GlassShadows::Opaque) = (mat, f.render.glass_shadows) {
+            match sh {
+                Shape::Sphere { center, radius, .. } => {
+                    let _ = writeln!(
+                        o,
+                        "sphere {{ {}, {} no_image no_reflection pigment {{ rgb 0 }} finish {{ ambient 0 diffuse 0 }} }}",
+                        pov(*center),
+                        radius * (1.0 - 1e-5)
+                    );
+                }
+                _ => {
+                    let _ = writeln!(
+                        o,
+                        "// warning: shape {i} is glass but not a sphere; POV-Ray lets its shadow rays through"
+                    );
+                }
+            }
+        }
+    }
+    o
+}
+
+/// A far clipping distance beyond every shape and light: twice the farthest extent, rounded up
+/// to a power of ten (planes count as 1e6, the size of their stand-in rectangle).
+fn far_clip(s: &Scene) -> f64 {
+    let cam = glam::DVec3::from_array(s.file.camera.position);
+    let d = |p: [f64; 3], r: f64| (glam::DVec3::from_array(p) - cam).length() + r;
+    let mut far = s.file.lights.iter().map(|l| d(l.position, 0.0)).fold(1e4, f64::max);
+    for (i, sh) in s.file.shapes.iter().enumerate() {
+        far = far.max(match sh {
+            Shape::Sphere { center, radius, .. } => d(*center, *radius),
+            Shape::Disc { center, radius, .. } => d(*center, *radius),
+            Shape::Plane { point, .. } => d(*point, 1e6),
+            Shape::Mesh { .. } => s.meshes[&i]
+                .iter()
+                .flatten()
+                .map(|p| d(*p, 0.0))
+                .fold(0.0, f64::max),
+        });
+    }
+    10f64.powf((2.0 * far).log10().ceil())
+}
+
+/// The scene as Mitsuba 3 XML (integrator `whitted` from `scripts/mitsuba_whitted.py`).
+pub fn mitsuba(s: &Scene, fr: Frame) -> String {
+    let f = &s.file;
+    let cam = &f.camera;
+    let mut o = String::new();
+    let shadows = match f.render.glass_shadows {
+        GlassShadows::Opaque => "opaque",
+        GlassShadows::Transmissive => "transmissive",
+    };
+    let _ = writeln!(
+        o,
+        "<!-- Exported by rayproof {} from {}; needs the 'whitted' integrator of scripts/mitsuba_whitted.py -->\n\
+         <scene version=\"3.0.0\">\n  <integrator type=\"whitted\">\n    <integer name=\"max_depth\" value=\"{}\"/>\n    <string name=\"glass_shadows\" value=\"{shadows}\"/>\n  </integrator>",
+        env!("CARGO_PKG_VERSION"),
+        s.path.display(),
+        f.render.max_depth
+    );
+    // Sensor: horizontal fov, n×n cell centres (stratified, no jitter), box filter, float32;
+    // far_clip (default 1e4) beyond everything in the scene
+    let _ = writeln!(
+        o,
+        "  <sensor type=\"perspective\">\n    <string name=\"fov_axis\" value=\"x\"/>\n    <float name=\"fov\" value=\"{}\"/>\n    <float name=\"far_clip\" value=\"{:e}\"/>\n    <transform name=\"to_world\">\n      <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    <sampler type=\"stratified\">\n      <integer name=\"sample_count\" value=\"{}\"/>\n      <boolean name=\"jitter\" value=\"false\"/>\n    </sampler>\n    <film type=\"hdrfilm\">\n      <integer name=\"width\" value=\"{}\"/>\n      <integer name=\"height\" value=\"{}\"/>\n      <string name=\"pixel_format\" value=\"rgb\"/>\n      <string name=\"component_format\" value=\"float32\"/>\n      <rfilter type=\"box\"/>\n    </film>\n  </sensor>",
+        cam.fov,
+        far_clip(s),
+        v3(cam.position),
+        v3(cam.look_at),
+        v3(cam.up),
+        fr.grid * fr.grid,
+        fr.width,
+        fr.height
+    );
+    for l in &f.lights {
+        let _ = writeln!(
+            o,
+            "  <emitter type=\"point\">\n    <point name=\"position\" value=\"{}\"/>\n    <rgb name=\"intensity\" value=\"{}\"/>\n  </emitter>",
+            v3(l.position),
+            v3(l.intensity)
+        );
+    }
+    // Materials: diffuse is two-sided (rayproof shades the side the ray sees)
+    for (name, m) in &f.materials {
+        let name = xml(name);
+        let body = match m {
+            Material::Diffuse { albedo } => format!(
+                "<bsdf type=\"twosided\" id=\"{name}\">\n    <bsdf type=\"diffuse\">\n      <rgb name=\"reflectance\" value=\"{}\"/>\n    </bsdf>\n  </bsdf>",
+                v3(*albedo)
+            ),
+            Material::Mirror { reflectance } => format!(
+                "<bsdf type=\"conductor\" id=\"{name}\">\n    <string name=\"material\" value=\"none\"/>\n    <rgb name=\"specular_reflectance\" value=\"{}\"/>\n  </bsdf>",
+                v3(*reflectance)
+            ),
+            Material::Glass { ior } => format!(
+                "<bsdf type=\"dielectric\" id=\"{name}\">\n    <float name=\"int_ior\" value=\"{ior}\"/>\n    <float name=\"ext_ior\" value=\"1.0\"/>\n  </bsdf>"
+            ),
+        };
+        let _ = writeln!(o, "  {body}");
+    }
+    // Shapes
+    let dir = s.path.parent().unwrap_or(std::path::Path::new("."));
+    for sh in &f.shapes {
+        let r = format!("<ref id=\"{}\"/>", xml(sh.material()));
+        let body = match sh {
+            Shape::Sphere { center, radius, .. } => format!(
+                "<shape type=\"sphere\">\n    <point name=\"center\" value=\"{}\"/>\n    <float name=\"radius\" value=\"{radius}\"/>\n    {r}\n  </shape>",
+                v3(*center)
+            ),
+            Shape::Disc {
+                center,
+                normal,
+                radius,
+                ..
+            } => {
+                // The unit disk in z = 0, scaled, then turned so +z becomes the normal
+                let c = glam::DVec3::from_array(*center);
+                let n = glam::DVec3::from_array(*normal).normalize();
+                format!(
+                    "<shape type=\"disk\">\n    <transform name=\"to_world\">\n      <scale value=\"{radius}\"/>\n      <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    {r}\n  </shape>",
+                    v3(*center),
+                    v3((c + n).to_array()),
+                    v3(n.any_orthonormal_vector().to_array())
+                )
+            }
+            Shape::Plane { point, normal, .. } => {
+                // Mitsuba has no infinite plane: a rectangle 1e6 wide stands in for it
+                let c = glam::DVec3::from_array(*point);
+                let n = glam::DVec3::from_array(*normal).normalize();
+                format!(
+                    "<shape type=\"rectangle\">\n    <transform name=\"to_world\">\n      <scale value=\"1e6\"/>\n      <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    {r}\n  </shape>",
+                    v3(*point),
+                    v3((c + n).to_array()),
+                    v3(n.any_orthonormal_vector().to_array())
+                )
+            }
+            Shape::Mesh { file, .. } => {
+                let p = dir.join(file);
+                let p = p.canonicalize().unwrap_or(p);
+                format!(
+                    "<shape type=\"obj\">\n    <string name=\"filename\" value=\"{}\"/>\n    <boolean name=\"face_normals\" value=\"true\"/>\n    {r}\n  </shape>",
+                    xml(&p.display().to_string())
+                )
+            }
+        };
+        let _ = writeln!(o, "  {body}");
+    }
+    o.push_str("</scene>\n");
+    o
+}
+
+/// Reads an EXR's R, G, B and averages n×n blocks (in f64); the size must divide by n.
+pub fn downsample(path: &Path, n: usize) -> anyhow::Result<(usize, usize, Vec<[f32; 3]>)> {
+    use exr::prelude::*;
+    let img = read_first_rgba_layer_from_file(
+        path,
+        |res, _| (res.width(), vec![[0f32; 3]; res.area()]),
+        |(w, px), pos, (r, g, b, _a): (f32, f32, f32, f32)| px[pos.y() * *w + pos.x()] = [r, g, b],
+    )
+    .map_err(|e| anyhow::anyhow!("{}: unreadable EXR: {e}", path.display()))?;
+    let size = img.layer_data.size;
+    let (w, h) = (size.width(), size.height());
+    anyhow::ensure!(
+        w % n == 0 && h % n == 0,
+        "{}: {w}×{h} is not divisible into {n}×{n} blocks",
+        path.display()
+    );
+    let px = &img.layer_data.channel_data.pixels.1;
+    let (ow, oh) = (w / n, h / n);
+    let mut out = vec![[0f32; 3]; ow * oh];
+    for (i, o) in out.iter_mut().enumerate() {
+        let (bx, by) = (i % ow * n, i / ow * n);
+        let mut sum = [0f64; 3];
+        for y in by..by + n {
+            for p in &px[y * w + bx..y * w + bx + n] {
+                for k in 0..3 {
+                    sum[k] += p[k] as f64;
+                }
+            }
+        }
+        *o = sum.map(|s| (s / (n * n) as f64) as f32);
+    }
+    Ok((ow, oh, out))
+}
+
+/// Writes a float32 R, G, B EXR through a temporary sibling and a rename.
+pub fn write_rgb_exr(path: &Path, w: usize, h: usize, px: &[[f32; 3]]) -> anyhow::Result<()> {
+    use exr::prelude::*;
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
+    write_rgb_file(&tmp, w, h, |x, y| {
+        let p = px[y * w + x];
+        (p[0], p[1], p[2])
+    })
+    .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
+    std::fs::rename(&tmp, path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+}
