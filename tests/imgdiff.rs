@@ -1040,3 +1040,99 @@ fn run_diff_checks_outputs_before_work() {
         2
     );
 }
+
+// ---------------------------------------------------------------------------------------------
+// The binary
+// ---------------------------------------------------------------------------------------------
+
+fn rayproof_diff(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .arg("diff")
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+/// Exit `code`, and exactly one line on stderr naming `what`, no panic.
+fn assert_one_line_error(o: &std::process::Output, code: i32, what: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(code), "stderr: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("error") && err.contains(what),
+        "'{what}' not in: {err}"
+    );
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+#[test]
+fn binary_report_note_json_and_errors() {
+    let d = temp_dir("binary");
+    let r = hdr_picture(16, 16);
+    write_exr_rgb(&d.join("r.exr"), &r).unwrap();
+    write_exr_rgb(&d.join("s.exr"), &flat(8, 8, 0.0)).unwrap();
+    write_png_rgb8(&d.join("t.png"), 16, 16, &tonemap_rgb8(&r)).unwrap();
+    std::fs::write(d.join("bad.exr"), b"v/1\x01 not really").unwrap();
+    let (rp, tp) = (
+        s(&d.join("r.exr")).to_string(),
+        s(&d.join("t.png")).to_string(),
+    );
+
+    // identical: the full report, then PASS
+    let o = rayproof_diff(&[&rp, &rp]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(0), "{out}");
+    assert!(
+        out.starts_with(&format!("Comparing \"{rp}\" and \"{rp}\"\n")),
+        "{out}"
+    );
+    assert!(
+        out.contains("  Mean HDR-FLIP = 0\n") && out.ends_with("\nPASS\n"),
+        "{out}"
+    );
+
+    // EXR against PNG: a note, and a failure
+    let o = rayproof_diff(&["--no-flip", &rp, &tp]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert_eq!(o.status.code(), Some(2), "{out}");
+    assert!(
+        out.starts_with("note: ") && out.contains("display-referred (PNG)"),
+        "{out}"
+    );
+    assert!(
+        !out.contains("FLIP") && out.ends_with("\nFAILURE\n"),
+        "{out}"
+    );
+
+    // --json -: only JSON on stdout
+    let o = rayproof_diff(&["--json", "-", &rp, &rp]);
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON only");
+    assert_eq!(
+        (o.status.code(), v["verdict"].as_str()),
+        (Some(0), Some("pass"))
+    );
+
+    // -q: the verdict line alone
+    let o = rayproof_diff(&["-q", "--no-flip", &rp, &tp]);
+    assert_eq!(String::from_utf8_lossy(&o.stdout), "FAILURE\n");
+
+    // errors: one line naming the culprit
+    assert_one_line_error(
+        &rayproof_diff(&[&rp, s(&d.join("s.exr"))]),
+        3,
+        "size mismatch",
+    );
+    assert_one_line_error(&rayproof_diff(&[&rp, s(&d.join("bad.exr"))]), 4, "bad.exr");
+    assert_one_line_error(
+        &rayproof_diff(&[s(&d.join("none.png")), &rp]),
+        4,
+        "none.png",
+    );
+    assert_one_line_error(&rayproof_diff(&[&rp, &rp, "--fail=-1"]), 2, "--fail");
+    let nowhere = d.join("no/dir/h.png");
+    assert_one_line_error(
+        &rayproof_diff(&["--heatmap", s(&nowhere), &rp, &rp]),
+        2,
+        "no/dir",
+    );
+}

@@ -1,0 +1,197 @@
+//! `rayproof check` end to end, on a copy of the `diffuse` scene's references: it passes as
+//! committed, fails when a reference is perturbed, refuses a tampered or stale reference,
+//! `--update` rewrites only rayproof's own golden render, and known failures have teeth.
+
+use rayproof::check::sha256_file;
+use rayproof::imgdiff::{read_image, write_exr_rgb};
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// A fresh copy of reference/{scenes/diffuse.toml, diffuse/, thresholds.toml}.
+fn fixture(tag: &str) -> PathBuf {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference");
+    let dir = std::env::temp_dir().join(format!("rayproof-check-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("scenes")).unwrap();
+    std::fs::create_dir_all(dir.join("diffuse")).unwrap();
+    std::fs::copy(root.join("scenes/diffuse.toml"), dir.join("scenes/diffuse.toml")).unwrap();
+    std::fs::copy(root.join("thresholds.toml"), dir.join("thresholds.toml")).unwrap();
+    for f in ["povray.exr", "mitsuba.exr", "rayproof.exr", "manifest.json"] {
+        std::fs::copy(root.join("diffuse").join(f), dir.join("diffuse").join(f)).unwrap();
+    }
+    dir
+}
+
+fn check(dir: &Path, extra: &[&str]) -> (Option<i32>, String, String) {
+    let o: Output = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .arg("check")
+        .arg("--reference")
+        .arg(dir)
+        .args(extra)
+        .output()
+        .unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// The status word of the row for `reference`.
+fn status(out: &str, reference: &str) -> String {
+    out.lines()
+        .find(|l| l.split_whitespace().nth(1) == Some(reference))
+        .and_then(|l| l.split_whitespace().nth(4))
+        .unwrap_or_else(|| panic!("no {reference} row in:\n{out}"))
+        .to_string()
+}
+
+/// Adds `delta` to every channel of a 40×40 block (2.4 % of the pixels) and re-hashes it in the
+/// manifest, as a re-rendered but different reference would be.
+fn perturb(dir: &Path, file: &str, delta: f32) {
+    let path = dir.join("diffuse").join(file);
+    let mut img = read_image(&path).unwrap();
+    let n = img.channels.len();
+    for y in 100..140 {
+        for x in 100..140 {
+            for c in 0..3 {
+                img.data[(y * img.width + x) * n + c] += delta;
+            }
+        }
+    }
+    write_exr_rgb(&path, &img).unwrap();
+    rehash(dir, file);
+}
+
+fn rehash(dir: &Path, file: &str) {
+    let m = dir.join("diffuse/manifest.json");
+    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
+    v["files"][file]["sha256"] = sha256_file(&dir.join("diffuse").join(file)).unwrap().into();
+    std::fs::write(&m, serde_json::to_string_pretty(&v).unwrap()).unwrap();
+}
+
+#[test]
+fn committed_references_pass() {
+    let dir = fixture("pass");
+    let (code, out, err) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    for r in ["povray", "mitsuba", "rayproof"] {
+        assert_eq!(status(&out, r), "PASS", "{out}");
+    }
+}
+
+#[test]
+fn a_perturbed_reference_fails_and_update_leaves_it_alone() {
+    let dir = fixture("perturbed");
+    perturb(&dir, "povray.exr", 0.2);
+    let before = std::fs::read(dir.join("diffuse/povray.exr")).unwrap();
+    let (code, out, _) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(1), "{out}");
+    assert_eq!(status(&out, "povray"), "FAILURE", "{out}");
+    assert_eq!(status(&out, "mitsuba"), "PASS", "{out}");
+    assert_eq!(
+        std::fs::read(dir.join("diffuse/povray.exr")).unwrap(),
+        before,
+        "--update must never rewrite a POV-Ray reference"
+    );
+    // A perturbation below the thresholds (0.004 < warn 0.01) still passes
+    let dir = fixture("small");
+    perturb(&dir, "mitsuba.exr", 0.004);
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}");
+}
+
+#[test]
+fn a_tampered_hash_is_refused() {
+    let dir = fixture("tampered");
+    // One byte changed, manifest not updated
+    let p = dir.join("diffuse/mitsuba.exr");
+    let mut bytes = std::fs::read(&p).unwrap();
+    let k = bytes.len() - 100;
+    bytes[k] ^= 1;
+    std::fs::write(&p, bytes).unwrap();
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(1), "{out}");
+    assert_eq!(status(&out, "mitsuba"), "REFUSED", "{out}");
+    assert!(out.contains("SHA-256"), "{out}");
+    assert_eq!(status(&out, "povray"), "PASS", "{out}");
+}
+
+#[test]
+fn a_changed_scene_makes_every_reference_stale() {
+    let dir = fixture("stale");
+    let s = dir.join("scenes/diffuse.toml");
+    let text = std::fs::read_to_string(&s).unwrap();
+    std::fs::write(&s, text.replace("albedo = [0.8, 0.15, 0.1]", "albedo = [0.8, 0.15, 0.2]")).unwrap();
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(1), "{out}");
+    for r in ["povray", "mitsuba", "rayproof"] {
+        assert_eq!(status(&out, r), "REFUSED", "{out}");
+    }
+    assert!(out.contains("another version of the scene"), "{out}");
+}
+
+#[test]
+fn update_writes_a_missing_golden_render_and_only_that() {
+    let dir = fixture("update");
+    std::fs::remove_file(dir.join("diffuse/rayproof.exr")).unwrap();
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(1), "{out}");
+    assert_eq!(status(&out, "rayproof"), "NEW", "{out}");
+    let pov = std::fs::read(dir.join("diffuse/povray.exr")).unwrap();
+    let (code, out, _) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(0), "{out}");
+    assert_eq!(std::fs::read(dir.join("diffuse/povray.exr")).unwrap(), pov);
+    // The new golden is hashed in the manifest and passes a plain check
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}");
+    assert_eq!(status(&out, "rayproof"), "PASS", "{out}");
+}
+
+#[test]
+fn known_failures_have_teeth() {
+    // Listed as failing but passing: XPASS, exit 1
+    let dir = fixture("xpass");
+    let t = dir.join("thresholds.toml");
+    let text = std::fs::read_to_string(&t).unwrap();
+    std::fs::write(
+        &t,
+        format!("{text}\n[scenes.diffuse.povray]\nknown_failure = \"test entry\"\n"),
+    )
+    .unwrap();
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(1), "{out}");
+    assert_eq!(status(&out, "povray"), "XPASS", "{out}");
+    // Listed and failing: XFAIL, exit 0
+    perturb(&dir, "povray.exr", 0.2);
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}");
+    assert_eq!(status(&out, "povray"), "XFAIL", "{out}");
+}
+
+#[test]
+fn bad_thresholds_are_one_line_errors() {
+    let dir = fixture("badthresholds");
+    std::fs::write(dir.join("thresholds.toml"), "[default]\nfial = 0.1\n").unwrap();
+    let (code, out, err) = check(&dir, &[]);
+    assert_eq!(code, Some(2), "{out}{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("fial"), "{err}");
+    let (code, _, err) = check(&dir.join("nowhere"), &[]);
+    assert_eq!(code, Some(2));
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+}
+
+#[test]
+fn report_has_one_row_per_comparison_with_images() {
+    let dir = fixture("report");
+    let report = dir.join("html");
+    let (code, out, _) = check(&dir, &["--report", report.to_str().unwrap()]);
+    assert_eq!(code, Some(0), "{out}");
+    let html = std::fs::read_to_string(report.join("index.html")).unwrap();
+    assert_eq!(html.matches("<tr class=").count(), 3, "{html}");
+    assert!(html.contains("onmouseover"));
+    for f in ["diffuse-new-promote-f64.png", "diffuse-povray.png", "diffuse-povray-promote-f64-flip.png"] {
+        assert!(report.join(f).is_file(), "{f} missing");
+    }
+}
