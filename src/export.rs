@@ -39,8 +39,9 @@ impl Frame {
     }
 }
 
-/// POV-Ray's fade distance for point lights; the residual relative error is (fd/d)².
-const FADE_DISTANCE: f64 = 0.01;
+/// POV-Ray's fade distance for point lights; the residual relative error is (fd/d)², ≤ 1e-8
+/// beyond d = 1 (0.01 left 1e-4 at d = 1 and 1 % at d = 0.1, measured with POV-Ray 3.7).
+const FADE_DISTANCE: f64 = 1e-4;
 
 /// Text safe inside an XML attribute.
 fn xml(s: &str) -> String {
