@@ -16,12 +16,16 @@ fn main() -> ExitCode {
         Err(e) => {
             let text = e.render().to_string();
             // One line; a first line ending in ':' ("…not provided:") is joined with its list
+            // and a "[possible values: …]" line is appended
             let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
             let mut line = lines.next().unwrap_or("error: invalid arguments").to_string();
             if line.ends_with(':') {
                 if let Some(next) = lines.next() {
                     line = format!("{line} {next}");
                 }
+            }
+            if let Some(values) = text.lines().map(str::trim).find(|l| l.starts_with("[possible values:")) {
+                line = format!("{line} {values}");
             }
             eprintln!("{line}");
             return ExitCode::from(2);

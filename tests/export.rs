@@ -90,7 +90,10 @@ fn all_scenes() -> Vec<(String, Scene)> {
         .collect();
     names.sort();
     for want in ["diffuse", "fan30", "far", "floor", "glass", "mirror"] {
-        assert!(names.iter().any(|n| n == want), "reference/scenes/{want}.toml missing");
+        assert!(
+            names.iter().any(|n| n == want),
+            "reference/scenes/{want}.toml missing"
+        );
     }
     let mut v: Vec<(String, Scene)> = names.into_iter().map(|n| (n.clone(), load(&n))).collect();
     v.push(("oblique".into(), oblique()));
@@ -118,7 +121,11 @@ fn assert_one_line_error(o: &Output, what: &[&str]) {
         assert!(err.contains(w), "'{w}' not named in: {err}");
     }
     assert!(!err.contains("panicked"), "{err}");
-    assert!(o.stdout.is_empty(), "stdout: {}", String::from_utf8_lossy(&o.stdout));
+    assert!(
+        o.stdout.is_empty(),
+        "stdout: {}",
+        String::from_utf8_lossy(&o.stdout)
+    );
 }
 
 /// A fresh directory under the system temp dir, named after the test and this process;
@@ -139,7 +146,12 @@ impl TempDir {
     fn listing(&self) -> BTreeSet<String> {
         std::fs::read_dir(&self.0)
             .expect("temp dir")
-            .map(|e| e.expect("dir entry").file_name().to_string_lossy().into_owned())
+            .map(|e| {
+                e.expect("dir entry")
+                    .file_name()
+                    .to_string_lossy()
+                    .into_owned()
+            })
             .collect()
     }
 }
@@ -158,7 +170,9 @@ fn set(names: &[&str]) -> BTreeSet<String> {
 
 /// The text right after `key` in `line`.
 fn after<'a>(line: &'a str, key: &str) -> &'a str {
-    let i = line.find(key).unwrap_or_else(|| panic!("'{key}' not in: {line}"));
+    let i = line
+        .find(key)
+        .unwrap_or_else(|| panic!("'{key}' not in: {line}"));
     &line[i + key.len()..]
 }
 
@@ -169,7 +183,11 @@ fn vec_after(line: &str, key: &str) -> [f64; 3] {
     let body = &rest[1..rest.find('>').expect("closing '>'")];
     let v: Vec<f64> = body
         .split(',')
-        .map(|t| t.trim().parse().unwrap_or_else(|_| panic!("bad number '{t}' in: {line}")))
+        .map(|t| {
+            t.trim()
+                .parse()
+                .unwrap_or_else(|_| panic!("bad number '{t}' in: {line}"))
+        })
         .collect();
     assert_eq!(v.len(), 3, "not a 3-vector after '{key}' in: {line}");
     [v[0], v[1], v[2]]
@@ -181,7 +199,8 @@ fn num_after(line: &str, key: &str) -> f64 {
         .split(|c: char| c.is_whitespace() || c == ',' || c == '}')
         .find(|t| !t.is_empty())
         .expect("a number");
-    t.parse().unwrap_or_else(|_| panic!("bad number '{t}' after '{key}' in: {line}"))
+    t.parse()
+        .unwrap_or_else(|_| panic!("bad number '{t}' after '{key}' in: {line}"))
 }
 
 /// POV-Ray (left-handed) to rayproof (right-handed): z back.
@@ -190,14 +209,20 @@ fn mirror(a: [f64; 3]) -> DVec3 {
 }
 
 fn lines_starting<'a>(text: &'a str, prefix: &str) -> Vec<&'a str> {
-    text.lines().filter(|l| l.trim_start().starts_with(prefix)).collect()
+    text.lines()
+        .filter(|l| l.trim_start().starts_with(prefix))
+        .collect()
 }
 
 // ---------------------------------------------------------------- 1. POV-Ray camera
 
 /// rayproof's primary ray for sub-cell (i, j) of pixel (x, y) in a W×H image with an n×n grid
 /// (the camera model of `render::run`, written out independently).
-fn rayproof_ray(s: &Scene, (w, h, n): (u32, u32, u32), (x, y, i, j): (u32, u32, u32, u32)) -> DVec3 {
+fn rayproof_ray(
+    s: &Scene,
+    (w, h, n): (u32, u32, u32),
+    (x, y, i, j): (u32, u32, u32, u32),
+) -> DVec3 {
     let cam = &s.file.camera;
     let pos = DVec3::from_array(cam.position);
     let fwd = (DVec3::from_array(cam.look_at) - pos).normalize();
@@ -217,7 +242,10 @@ fn check_pov_camera(name: &str, s: &Scene, fr: Frame, n: u32) {
     let cams = lines_starting(&text, "camera");
     assert_eq!(cams.len(), 1, "{name}: one camera line expected");
     let line = cams[0];
-    assert!(line.contains("camera { perspective location <"), "{name}: {line}");
+    assert!(
+        line.contains("camera { perspective location <"),
+        "{name}: {line}"
+    );
     // Location maps back to the camera position
     let loc = vec_after(line, "location");
     assert_eq!(
@@ -241,7 +269,11 @@ fn check_pov_camera(name: &str, s: &Scene, fr: Frame, n: u32) {
             let yf = 0.5 - (py as f64 + 0.5) / sh as f64;
             let pov_ray = dir + right * xf + up * yf;
             let theirs = mirror(pov_ray.to_array()).normalize();
-            let ours = rayproof_ray(s, (fr.width, fr.height, n), (px / n, py / n, px % n, py % n));
+            let ours = rayproof_ray(
+                s,
+                (fr.width, fr.height, n),
+                (px / n, py / n, px % n, py % n),
+            );
             let err = (theirs - ours).abs().max_element();
             assert!(
                 err <= 1e-12,
@@ -260,7 +292,10 @@ fn povray_camera_gives_rayproof_primary_rays() {
         let fr = Frame::of(&s, None, None);
         assert_eq!(
             (fr.width, fr.height),
-            (*s.file.camera.width.get_ref(), *s.file.camera.height.get_ref())
+            (
+                *s.file.camera.width.get_ref(),
+                *s.file.camera.height.get_ref()
+            )
         );
         check_pov_camera(&name, &s, fr, 8);
         // The render script's frame: 256 wide with the scene's aspect, 8×8 grid
@@ -276,7 +311,16 @@ fn povray_camera_gives_rayproof_primary_rays() {
 fn povray_cli_matches_the_library_for_width_and_grid() {
     // `rayproof export --to povray SCENE --width 256 --grid 8` is povray(Frame::of(.., 256, 8))
     let p = scene_path("floor");
-    let o = rayproof(&["export", "--to", "povray", p.to_str().unwrap(), "--width", "256", "--grid", "8"]);
+    let o = rayproof(&[
+        "export",
+        "--to",
+        "povray",
+        p.to_str().unwrap(),
+        "--width",
+        "256",
+        "--grid",
+        "8",
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let s = scene::load(&p).expect("floor.toml");
     let want = povray(&s, Frame::of(&s, Some(256), Some(8)));
@@ -288,15 +332,20 @@ fn povray_cli_matches_the_library_for_width_and_grid() {
 
 #[test]
 fn povray_light_fade_gives_inverse_square_over_pi() {
+    let mut mirrored_z = false;
     for (name, s) in all_scenes() {
         let text = povray(&s, Frame::of(&s, None, None));
         let lights = lines_starting(&text, "light_source");
-        assert_eq!(lights.len(), s.file.lights.len(), "{name}: one light_source per light");
+        assert_eq!(
+            lights.len(),
+            s.file.lights.len(),
+            "{name}: one light_source per light"
+        );
         for (line, l) in lights.iter().zip(&s.file.lights) {
             // Position: z mirrored, x and y as they are
             let p = vec_after(line, "light_source {");
             assert_eq!(mirror(p).to_array(), l.position, "{name}: {line}");
-            assert!(l.position[2] == 0.0 || p[2] == -l.position[2] && p[2] != l.position[2]);
+            mirrored_z |= l.position[2] != 0.0;
             // POV-Ray's attenuation 2/(1 + (d/fd)^power) times the colour is I/(π d²)
             let c = vec_after(line, "color rgb");
             let fd = num_after(line, "fade_distance");
@@ -304,9 +353,9 @@ fn povray_light_fade_gives_inverse_square_over_pi() {
             assert_eq!(power, 2.0, "{name}: {line}");
             for d in [1.0, 10.0, 1e3] {
                 let atten = 2.0 / (1.0 + (d / fd).powf(power));
-                for k in 0..3 {
-                    let got = c[k] * atten;
-                    let want = l.intensity[k] / (PI * d * d);
+                for (k, (ck, ik)) in c.iter().zip(l.intensity).enumerate() {
+                    let got = ck * atten;
+                    let want = ik / (PI * d * d);
                     let rel = (got - want).abs() / want.abs();
                     assert!(
                         rel <= 1e-6,
@@ -316,6 +365,10 @@ fn povray_light_fade_gives_inverse_square_over_pi() {
             }
         }
     }
+    assert!(
+        mirrored_z,
+        "no light with z ≠ 0: the mirroring went unchecked"
+    );
 }
 
 // ---------------------------------------------------------------- 3. POV-Ray glass shadows
@@ -325,7 +378,10 @@ fn casters(text: &str) -> Vec<([f64; 3], f64)> {
     text.lines()
         .filter(|l| l.contains("no_image"))
         .map(|l| {
-            assert!(l.starts_with("sphere {") && l.contains("no_image no_reflection"), "{l}");
+            assert!(
+                l.starts_with("sphere {") && l.contains("no_image no_reflection"),
+                "{l}"
+            );
             (vec_after(l, "sphere {"), num_after(after(l, ">"), ","))
         })
         .collect()
@@ -336,9 +392,12 @@ fn glass_spheres(s: &Scene) -> Vec<([f64; 3], f64)> {
         .shapes
         .iter()
         .filter_map(|sh| match sh {
-            Shape::Sphere { center, radius, material } => {
-                matches!(s.file.materials[material], Material::Glass { .. }).then_some((*center, *radius))
-            }
+            Shape::Sphere {
+                center,
+                radius,
+                material,
+            } => matches!(s.file.materials[material], Material::Glass { .. })
+                .then_some((*center, *radius)),
             _ => None,
         })
         .collect()
@@ -352,22 +411,38 @@ fn povray_opaque_glass_shadows_get_hidden_casters() {
         let glass = glass_spheres(&s);
         assert!(!glass.is_empty(), "{name} has glass spheres");
         let got = casters(&povray(&s, Frame::of(&s, None, None)));
-        assert_eq!(got.len(), glass.len(), "{name}: one caster per glass sphere");
+        assert_eq!(
+            got.len(),
+            glass.len(),
+            "{name}: one caster per glass sphere"
+        );
         for ((c, r), (gc, gr)) in got.iter().zip(&glass) {
             assert_eq!(mirror(*c).to_array(), *gc, "{name}: caster centre");
             let want = gr * (1.0 - 1e-5);
-            assert!((r - want).abs() <= 1e-15 * gr && *r < *gr, "{name}: caster radius {r} for r = {gr}");
+            assert!(
+                (r - want).abs() <= 1e-15 * gr && *r < *gr,
+                "{name}: caster radius {r} for r = {gr}"
+            );
         }
     }
     // The same scene text with transmissive shadows: none
     let p = scene_path("glass");
     let text = std::fs::read_to_string(&p).expect("glass.toml");
     assert!(text.contains("glass_shadows = \"opaque\""));
-    let s = scene::parse(&text.replace("glass_shadows = \"opaque\"", "glass_shadows = \"transmissive\""), &p)
-        .expect("valid scene");
+    let s = scene::parse(
+        &text.replace(
+            "glass_shadows = \"opaque\"",
+            "glass_shadows = \"transmissive\"",
+        ),
+        &p,
+    )
+    .expect("valid scene");
     assert!(!glass_spheres(&s).is_empty());
     let out = povray(&s, Frame::of(&s, None, None));
-    assert!(casters(&out).is_empty(), "transmissive glass got a caster:\n{out}");
+    assert!(
+        casters(&out).is_empty(),
+        "transmissive glass got a caster:\n{out}"
+    );
     assert!(!out.contains("no_image"));
 }
 
@@ -379,7 +454,11 @@ fn povray_global_settings_follow_the_recipe() {
         let g = lines_starting(&text, "global_settings");
         assert_eq!(g.len(), 1, "{name}: one global_settings");
         let g = g[0];
-        assert_eq!(num_after(g, "max_trace_level"), s.file.render.max_depth as f64, "{name}: {g}");
+        assert_eq!(
+            num_after(g, "max_trace_level"),
+            s.file.render.max_depth as f64,
+            "{name}: {g}"
+        );
         assert_eq!(num_after(g, "adc_bailout"), 0.0, "{name}: {g}");
         assert_eq!(num_after(g, "assumed_gamma"), 1.0, "{name}: {g}");
         assert!(g.contains("assumed_gamma 1.0"), "{name}: {g}");
@@ -387,7 +466,9 @@ fn povray_global_settings_follow_the_recipe() {
     }
     // max_trace_level follows the scene (7 in the oblique scene, 1 in far.toml)
     assert!(povray(&oblique(), Frame::of(&oblique(), None, None)).contains("max_trace_level 7 "));
-    assert!(povray(&load("far"), Frame::of(&load("far"), None, None)).contains("max_trace_level 1 "));
+    assert!(
+        povray(&load("far"), Frame::of(&load("far"), None, None)).contains("max_trace_level 1 ")
+    );
 }
 
 // ---------------------------------------------------------------- 4. Mitsuba
@@ -402,7 +483,10 @@ struct Elem {
 
 impl Elem {
     fn attr(&self, k: &str) -> Option<&str> {
-        self.attrs.iter().find(|(n, _)| n == k).map(|(_, v)| v.as_str())
+        self.attrs
+            .iter()
+            .find(|(n, _)| n == k)
+            .map(|(_, v)| v.as_str())
     }
 }
 
@@ -411,10 +495,16 @@ fn unescape(v: &str) -> String {
     let mut rest = v;
     while let Some(i) = rest.find('&') {
         out.push_str(&rest[..i]);
-        let ent = [("&amp;", '&'), ("&quot;", '"'), ("&lt;", '<'), ("&gt;", '>'), ("&apos;", '\'')]
-            .into_iter()
-            .find(|(e, _)| rest[i..].starts_with(e))
-            .unwrap_or_else(|| panic!("bare '&' in attribute value: {v}"));
+        let ent = [
+            ("&amp;", '&'),
+            ("&quot;", '"'),
+            ("&lt;", '<'),
+            ("&gt;", '>'),
+            ("&apos;", '\''),
+        ]
+        .into_iter()
+        .find(|(e, _)| rest[i..].starts_with(e))
+        .unwrap_or_else(|| panic!("bare '&' in attribute value: {v}"));
         out.push(ent.1);
         rest = &rest[i + ent.0.len()..];
     }
@@ -427,7 +517,10 @@ fn unescape(v: &str) -> String {
 fn parse_xml(text: &str) -> Vec<Elem> {
     let mut elems: Vec<Elem> = vec![];
     let mut stack: Vec<usize> = vec![];
-    let (mut opened, mut closed) = (std::collections::BTreeMap::new(), std::collections::BTreeMap::new());
+    let (mut opened, mut closed) = (
+        std::collections::BTreeMap::new(),
+        std::collections::BTreeMap::new(),
+    );
     let mut rest = text;
     loop {
         let lt = match rest.find('<') {
@@ -437,7 +530,11 @@ fn parse_xml(text: &str) -> Vec<Elem> {
                 break;
             }
         };
-        assert!(rest[..lt].trim().is_empty(), "text between tags: {:?}", &rest[..lt]);
+        assert!(
+            rest[..lt].trim().is_empty(),
+            "text between tags: {:?}",
+            &rest[..lt]
+        );
         rest = &rest[lt..];
         // Comment
         if rest.starts_with("<!--") {
@@ -450,16 +547,28 @@ fn parse_xml(text: &str) -> Vec<Elem> {
         if let Some(r) = rest.strip_prefix("</") {
             let gt = r.find('>').expect("unterminated closing tag");
             let name = r[..gt].trim();
-            let open = stack.pop().unwrap_or_else(|| panic!("</{name}> closes nothing"));
-            assert_eq!(elems[open].tag, name, "<{}> closed by </{name}>", elems[open].tag);
+            let open = stack
+                .pop()
+                .unwrap_or_else(|| panic!("</{name}> closes nothing"));
+            assert_eq!(
+                elems[open].tag, name,
+                "<{}> closed by </{name}>",
+                elems[open].tag
+            );
             *closed.entry(name.to_string()).or_insert(0) += 1;
             rest = &r[gt + 1..];
             continue;
         }
         // Opening or self-closing tag
         let mut r = &rest[1..];
-        let name_len = r.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).expect("tag name");
-        assert!(name_len > 0, "empty tag name at: {}", &rest[..rest.len().min(40)]);
+        let name_len = r
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .expect("tag name");
+        assert!(
+            name_len > 0,
+            "empty tag name at: {}",
+            &rest[..rest.len().min(40)]
+        );
         let tag = r[..name_len].to_string();
         r = &r[name_len..];
         let mut attrs: Vec<(String, String)> = vec![];
@@ -473,57 +582,119 @@ fn parse_xml(text: &str) -> Vec<Elem> {
                 r = t;
                 break false;
             }
-            assert!(t.len() < r.len(), "<{tag}: attributes must be separated by whitespace: {:?}", &r[..r.len().min(40)]);
-            let eq = t.find('=').unwrap_or_else(|| panic!("<{tag}: attribute without '=': {:?}", &t[..t.len().min(40)]));
+            assert!(
+                t.len() < r.len(),
+                "<{tag}: attributes must be separated by whitespace: {:?}",
+                &r[..r.len().min(40)]
+            );
+            let eq = t.find('=').unwrap_or_else(|| {
+                panic!("<{tag}: attribute without '=': {:?}", &t[..t.len().min(40)])
+            });
             let key = &t[..eq];
-            assert!(!key.is_empty() && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'), "<{tag}: bad attribute name {key:?}");
-            let v = t[eq + 1..].strip_prefix('"').unwrap_or_else(|| panic!("<{tag} {key}=: value not double-quoted"));
+            assert!(
+                !key.is_empty() && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_'),
+                "<{tag}: bad attribute name {key:?}"
+            );
+            let v = t[eq + 1..]
+                .strip_prefix('"')
+                .unwrap_or_else(|| panic!("<{tag} {key}=: value not double-quoted"));
             let q = v.find('"').expect("unterminated attribute value");
             let raw = &v[..q];
-            assert!(!raw.contains('<') && !raw.contains('>'), "<{tag} {key}=: unescaped '<' or '>' in {raw:?}");
-            assert!(attrs.iter().all(|(k, _)| k != key), "<{tag}: duplicate attribute {key}");
+            assert!(
+                !raw.contains('<') && !raw.contains('>'),
+                "<{tag} {key}=: unescaped '<' or '>' in {raw:?}"
+            );
+            assert!(
+                attrs.iter().all(|(k, _)| k != key),
+                "<{tag}: duplicate attribute {key}"
+            );
             attrs.push((key.to_string(), unescape(raw)));
             r = &v[q + 1..];
         };
         let parent = stack.last().copied();
-        assert!(parent.is_some() || elems.is_empty(), "a second top-level element <{tag}>");
-        elems.push(Elem { tag: tag.clone(), attrs, parent });
+        assert!(
+            parent.is_some() || elems.is_empty(),
+            "a second top-level element <{tag}>"
+        );
+        elems.push(Elem {
+            tag: tag.clone(),
+            attrs,
+            parent,
+        });
         if !self_closing {
             stack.push(elems.len() - 1);
             *opened.entry(tag).or_insert(0) += 1;
         }
         rest = r;
     }
-    assert!(stack.is_empty(), "unclosed: {:?}", stack.iter().map(|&i| &elems[i].tag).collect::<Vec<_>>());
-    assert_eq!(elems.first().map(|e| e.tag.as_str()), Some("scene"), "the root is <scene>");
-    for tag in ["scene", "shape", "bsdf", "emitter", "sensor", "film", "sampler", "integrator", "transform"] {
-        assert_eq!(opened.get(tag), closed.get(tag), "<{tag}> opened and closed a different number of times");
+    assert!(
+        stack.is_empty(),
+        "unclosed: {:?}",
+        stack.iter().map(|&i| &elems[i].tag).collect::<Vec<_>>()
+    );
+    assert_eq!(
+        elems.first().map(|e| e.tag.as_str()),
+        Some("scene"),
+        "the root is <scene>"
+    );
+    for tag in [
+        "scene",
+        "shape",
+        "bsdf",
+        "emitter",
+        "sensor",
+        "film",
+        "sampler",
+        "integrator",
+        "transform",
+    ] {
+        assert_eq!(
+            opened.get(tag),
+            closed.get(tag),
+            "<{tag}> opened and closed a different number of times"
+        );
     }
     elems
 }
 
 /// Elements with this tag whose `name` attribute is `name`.
 fn named<'a>(e: &'a [Elem], tag: &str, name: &str) -> Vec<&'a Elem> {
-    e.iter().filter(|x| x.tag == tag && x.attr("name") == Some(name)).collect()
+    e.iter()
+        .filter(|x| x.tag == tag && x.attr("name") == Some(name))
+        .collect()
 }
 
 /// The one element `<tag name="name" value="…"/>`, its value; `within` is its parent's tag.
 fn value(e: &[Elem], tag: &str, name: &str, within: &str) -> String {
     let v = named(e, tag, name);
-    assert_eq!(v.len(), 1, "one <{tag} name=\"{name}\"> expected, got {}", v.len());
+    assert_eq!(
+        v.len(),
+        1,
+        "one <{tag} name=\"{name}\"> expected, got {}",
+        v.len()
+    );
     let parent = v[0].parent.map(|p| e[p].tag.as_str());
-    assert_eq!(parent, Some(within), "<{tag} name=\"{name}\"> is not inside <{within}>");
+    assert_eq!(
+        parent,
+        Some(within),
+        "<{tag} name=\"{name}\"> is not inside <{within}>"
+    );
     v[0].attr("value").expect("value attribute").to_string()
 }
 
 fn f3(s: &str) -> [f64; 3] {
-    let v: Vec<f64> = s.split(',').map(|t| t.trim().parse().expect("number")).collect();
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse().expect("number"))
+        .collect();
     assert_eq!(v.len(), 3, "not a 3-vector: {s}");
     [v[0], v[1], v[2]]
 }
 
 fn of_type<'a>(e: &'a [Elem], tag: &str, ty: &str) -> Vec<&'a Elem> {
-    e.iter().filter(|x| x.tag == tag && x.attr("type") == Some(ty)).collect()
+    e.iter()
+        .filter(|x| x.tag == tag && x.attr("type") == Some(ty))
+        .collect()
 }
 
 /// The farthest sphere or disc point from the camera.
@@ -551,28 +722,102 @@ fn mitsuba_export_is_well_formed_and_follows_the_recipe() {
         // Integrator
         let int = of_type(&e, "integrator", "whitted");
         assert_eq!(int.len(), 1, "{}", ctx("one whitted integrator"));
-        assert_eq!(value(&e, "integer", "max_depth", "integrator"), f.render.max_depth.to_string());
+        assert_eq!(
+            value(&e, "integer", "max_depth", "integrator"),
+            f.render.max_depth.to_string()
+        );
         // Sensor: horizontal fov, far_clip beyond the farthest sphere, not mirrored
-        assert_eq!(of_type(&e, "sensor", "perspective").len(), 1, "{}", ctx("one perspective sensor"));
-        assert_eq!(value(&e, "string", "fov_axis", "sensor"), "x", "{}", ctx("fov_axis"));
-        assert_eq!(value(&e, "float", "fov", "sensor").parse::<f64>().unwrap(), f.camera.fov);
-        let far: f64 = value(&e, "float", "far_clip", "sensor").parse().expect("far_clip");
-        assert!(far > 2.0 * farthest_point(&s), "{}", ctx(&format!("far_clip {far:e} vs farthest {:e}", farthest_point(&s))));
+        assert_eq!(
+            of_type(&e, "sensor", "perspective").len(),
+            1,
+            "{}",
+            ctx("one perspective sensor")
+        );
+        assert_eq!(
+            value(&e, "string", "fov_axis", "sensor"),
+            "x",
+            "{}",
+            ctx("fov_axis")
+        );
+        assert_eq!(
+            value(&e, "float", "fov", "sensor").parse::<f64>().unwrap(),
+            f.camera.fov
+        );
+        let far: f64 = value(&e, "float", "far_clip", "sensor")
+            .parse()
+            .expect("far_clip");
+        assert!(
+            far > 2.0 * farthest_point(&s),
+            "{}",
+            ctx(&format!(
+                "far_clip {far:e} vs farthest {:e}",
+                farthest_point(&s)
+            ))
+        );
         let look: Vec<&Elem> = e.iter().filter(|x| x.tag == "lookat").collect();
-        let cam_look = look.iter().find(|x| x.parent.is_some_and(|p| e[p].parent.is_some_and(|q| e[q].tag == "sensor"))).expect("sensor lookat");
-        assert_eq!(f3(cam_look.attr("origin").unwrap()), f.camera.position, "{}", ctx("lookat origin (not mirrored)"));
-        assert_eq!(f3(cam_look.attr("target").unwrap()), f.camera.look_at, "{}", ctx("lookat target (not mirrored)"));
-        assert_eq!(f3(cam_look.attr("up").unwrap()), f.camera.up, "{}", ctx("lookat up (not mirrored)"));
+        let cam_look = look
+            .iter()
+            .find(|x| {
+                x.parent
+                    .is_some_and(|p| e[p].parent.is_some_and(|q| e[q].tag == "sensor"))
+            })
+            .expect("sensor lookat");
+        assert_eq!(
+            f3(cam_look.attr("origin").unwrap()),
+            f.camera.position,
+            "{}",
+            ctx("lookat origin (not mirrored)")
+        );
+        assert_eq!(
+            f3(cam_look.attr("target").unwrap()),
+            f.camera.look_at,
+            "{}",
+            ctx("lookat target (not mirrored)")
+        );
+        assert_eq!(
+            f3(cam_look.attr("up").unwrap()),
+            f.camera.up,
+            "{}",
+            ctx("lookat up (not mirrored)")
+        );
         // Sampler: n² cell centres, no jitter
-        assert_eq!(of_type(&e, "sampler", "stratified").len(), 1, "{}", ctx("stratified sampler"));
+        assert_eq!(
+            of_type(&e, "sampler", "stratified").len(),
+            1,
+            "{}",
+            ctx("stratified sampler")
+        );
         let g = *f.camera.grid.get_ref();
-        assert_eq!(value(&e, "integer", "sample_count", "sampler"), (g * g).to_string(), "{}", ctx("sample_count"));
-        assert_eq!(value(&e, "boolean", "jitter", "sampler"), "false", "{}", ctx("jitter"));
+        assert_eq!(
+            value(&e, "integer", "sample_count", "sampler"),
+            (g * g).to_string(),
+            "{}",
+            ctx("sample_count")
+        );
+        assert_eq!(
+            value(&e, "boolean", "jitter", "sampler"),
+            "false",
+            "{}",
+            ctx("jitter")
+        );
         // Film: float32, box filter, the scene's size
-        assert_eq!(of_type(&e, "film", "hdrfilm").len(), 1, "{}", ctx("hdrfilm"));
-        assert_eq!(value(&e, "string", "component_format", "film"), "float32", "{}", ctx("component_format"));
+        assert_eq!(
+            of_type(&e, "film", "hdrfilm").len(),
+            1,
+            "{}",
+            ctx("hdrfilm")
+        );
+        assert_eq!(
+            value(&e, "string", "component_format", "film"),
+            "float32",
+            "{}",
+            ctx("component_format")
+        );
         assert_eq!(value(&e, "integer", "width", "film"), fr.width.to_string());
-        assert_eq!(value(&e, "integer", "height", "film"), fr.height.to_string());
+        assert_eq!(
+            value(&e, "integer", "height", "film"),
+            fr.height.to_string()
+        );
         let rf: Vec<&Elem> = e.iter().filter(|x| x.tag == "rfilter").collect();
         assert_eq!(rf.len(), 1, "{}", ctx("one rfilter"));
         assert_eq!(rf[0].attr("type"), Some("box"), "{}", ctx("box rfilter"));
@@ -580,10 +825,26 @@ fn mitsuba_export_is_well_formed_and_follows_the_recipe() {
         // Emitters: one point per light, positions not mirrored
         let em = of_type(&e, "emitter", "point");
         assert_eq!(em.len(), f.lights.len(), "{}", ctx("one emitter per light"));
-        let positions: Vec<[f64; 3]> = named(&e, "point", "position").iter().map(|p| f3(p.attr("value").unwrap())).collect();
-        let intensities: Vec<[f64; 3]> = named(&e, "rgb", "intensity").iter().map(|p| f3(p.attr("value").unwrap())).collect();
-        assert_eq!(positions, f.lights.iter().map(|l| l.position).collect::<Vec<_>>(), "{}", ctx("light positions"));
-        assert_eq!(intensities, f.lights.iter().map(|l| l.intensity).collect::<Vec<_>>(), "{}", ctx("light intensities"));
+        let positions: Vec<[f64; 3]> = named(&e, "point", "position")
+            .iter()
+            .map(|p| f3(p.attr("value").unwrap()))
+            .collect();
+        let intensities: Vec<[f64; 3]> = named(&e, "rgb", "intensity")
+            .iter()
+            .map(|p| f3(p.attr("value").unwrap()))
+            .collect();
+        assert_eq!(
+            positions,
+            f.lights.iter().map(|l| l.position).collect::<Vec<_>>(),
+            "{}",
+            ctx("light positions")
+        );
+        assert_eq!(
+            intensities,
+            f.lights.iter().map(|l| l.intensity).collect::<Vec<_>>(),
+            "{}",
+            ctx("light intensities")
+        );
         // Glass: dielectric with ext_ior 1.0 and the scene's ior
         let glass: Vec<(&String, f64)> = f
             .materials
@@ -594,15 +855,43 @@ fn mitsuba_export_is_well_formed_and_follows_the_recipe() {
             })
             .collect();
         let diel = of_type(&e, "bsdf", "dielectric");
-        assert_eq!(diel.len(), glass.len(), "{}", ctx("one dielectric per glass material"));
+        assert_eq!(
+            diel.len(),
+            glass.len(),
+            "{}",
+            ctx("one dielectric per glass material")
+        );
         for (n, ior) in &glass {
-            let b = diel.iter().position(|b| b.attr("id") == Some(n.as_str())).expect("dielectric by id");
-            let kids = |k: &str| e.iter().filter(|x| x.parent == e.iter().position(|y| std::ptr::eq(y, diel[b])) && x.attr("name") == Some(k)).map(|x| x.attr("value").unwrap().to_string()).collect::<Vec<_>>();
+            let b = e
+                .iter()
+                .position(|x| {
+                    x.tag == "bsdf"
+                        && x.attr("type") == Some("dielectric")
+                        && x.attr("id") == Some(n.as_str())
+                })
+                .unwrap_or_else(|| panic!("{}", ctx(&format!("no dielectric with id {n}"))));
+            let kids = |k: &str| {
+                e.iter()
+                    .filter(|x| x.parent == Some(b) && x.attr("name") == Some(k))
+                    .map(|x| x.attr("value").unwrap().to_string())
+                    .collect::<Vec<_>>()
+            };
             assert_eq!(kids("ext_ior"), ["1.0"], "{}", ctx("ext_ior"));
-            assert_eq!(kids("int_ior").iter().map(|v| v.parse::<f64>().unwrap()).collect::<Vec<_>>(), [*ior], "{}", ctx("int_ior"));
+            assert_eq!(
+                kids("int_ior")
+                    .iter()
+                    .map(|v| v.parse::<f64>().unwrap())
+                    .collect::<Vec<_>>(),
+                [*ior],
+                "{}",
+                ctx("int_ior")
+            );
         }
         // Spheres: centres not mirrored
-        let centres: Vec<[f64; 3]> = named(&e, "point", "center").iter().map(|p| f3(p.attr("value").unwrap())).collect();
+        let centres: Vec<[f64; 3]> = named(&e, "point", "center")
+            .iter()
+            .map(|p| f3(p.attr("value").unwrap()))
+            .collect();
         let want: Vec<[f64; 3]> = f
             .shapes
             .iter()
@@ -621,10 +910,16 @@ fn mitsuba_far_clip_reaches_the_far_spheres() {
     // far.toml has a sphere 1e6 away; Mitsuba's default far_clip (1e4) once hid it
     let s = load("far");
     let far_point = farthest_point(&s);
-    assert!(far_point > 1e6, "far.toml's farthest sphere point is {far_point}");
+    assert!(
+        far_point > 1e6,
+        "far.toml's farthest sphere point is {far_point}"
+    );
     let e = parse_xml(&mitsuba(&s, Frame::of(&s, None, None)));
     let far: f64 = value(&e, "float", "far_clip", "sensor").parse().unwrap();
-    assert!(far.is_finite() && far > 2.0 * far_point, "far_clip {far:e} vs 2 × {far_point:e}");
+    assert!(
+        far.is_finite() && far > 2.0 * far_point,
+        "far_clip {far:e} vs 2 × {far_point:e}"
+    );
 }
 
 #[test]
@@ -642,9 +937,17 @@ fn mitsuba_escapes_material_names() {
     assert!(!xml.contains(name), "raw name in the XML:\n{xml}");
     let e = parse_xml(&xml);
     // The id and the reference both read back as the name
-    let ids: Vec<&str> = e.iter().filter(|x| x.tag == "bsdf").filter_map(|x| x.attr("id")).collect();
+    let ids: Vec<&str> = e
+        .iter()
+        .filter(|x| x.tag == "bsdf")
+        .filter_map(|x| x.attr("id"))
+        .collect();
     assert_eq!(ids, [name]);
-    let refs: Vec<&str> = e.iter().filter(|x| x.tag == "ref").filter_map(|x| x.attr("id")).collect();
+    let refs: Vec<&str> = e
+        .iter()
+        .filter(|x| x.tag == "ref")
+        .filter_map(|x| x.attr("id"))
+        .collect();
     assert_eq!(refs, [name]);
 }
 
@@ -668,10 +971,19 @@ fn mitsuba_cli_width_and_grid() {
         )
     };
     // fan30 is 1024×1024 with grid 1 in the file
-    assert_eq!(size(&mitsuba_cli("fan30", &[])), ("1024".into(), "1024".into(), "1".into()));
-    assert_eq!(size(&mitsuba_cli("fan30", &["--width", "256", "--grid", "8"])), ("256".into(), "256".into(), "64".into()));
+    assert_eq!(
+        size(&mitsuba_cli("fan30", &[])),
+        ("1024".into(), "1024".into(), "1".into())
+    );
+    assert_eq!(
+        size(&mitsuba_cli("fan30", &["--width", "256", "--grid", "8"])),
+        ("256".into(), "256".into(), "64".into())
+    );
     // floor is 256×192: 128 wide keeps the aspect
-    assert_eq!(size(&mitsuba_cli("floor", &["--width", "128"])), ("128".into(), "96".into(), "1".into()));
+    assert_eq!(
+        size(&mitsuba_cli("floor", &["--width", "128"])),
+        ("128".into(), "96".into(), "1".into())
+    );
 }
 
 // ---------------------------------------------------------------- 5. downsample
@@ -682,7 +994,11 @@ fn test_pixels() -> (usize, usize, Vec<[f32; 3]>) {
     let px = (0..w * h)
         .map(|i| {
             let (x, y) = ((i % w) as f32, (i / w) as f32);
-            [x + 4.0 * y, 0.5 * x * x - 3.0 * y, 1000.0 - 7.0 * x * y + 0.25 * y * y]
+            [
+                x + 4.0 * y,
+                0.5 * x * x - 3.0 * y,
+                1000.0 - 7.0 * x * y + 0.25 * y * y,
+            ]
         })
         .collect();
     (w, h, px)
@@ -694,8 +1010,19 @@ fn downsample_averages_blocks() {
     let (input, output) = (dir.join("in.exr"), dir.join("out.exr"));
     let (w, h, px) = test_pixels();
     rayproof::export::write_rgb_exr(&input, w, h, &px).expect("write EXR");
-    assert_eq!(dir.listing(), set(&["in.exr"]), "write_rgb_exr left a temporary file");
-    let o = rayproof(&["downsample", input.to_str().unwrap(), "--factor", "2", "-o", output.to_str().unwrap()]);
+    assert_eq!(
+        dir.listing(),
+        set(&["in.exr"]),
+        "write_rgb_exr left a temporary file"
+    );
+    let o = rayproof(&[
+        "downsample",
+        input.to_str().unwrap(),
+        "--factor",
+        "2",
+        "-o",
+        output.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(dir.listing(), set(&["in.exr", "out.exr"]));
     let img = rayproof::imgdiff::read_image(&output).expect("read the output");
@@ -703,15 +1030,16 @@ fn downsample_averages_blocks() {
     assert_eq!(img.channels, ["R", "G", "B"]);
     for oy in 0..3 {
         for ox in 0..2 {
-            for k in 0..3 {
-                let mean = (0..2)
-                    .flat_map(|j| (0..2).map(move |i| (i, j)))
-                    .map(|(i, j)| px[(2 * oy + j) * w + 2 * ox + i][k] as f64)
-                    .sum::<f64>()
-                    / 4.0;
-                let got = img.data[(oy * 2 + ox) * 3 + k];
-                assert_eq!(got, mean as f32, "pixel ({ox}, {oy}) channel {k}");
+            // The block's mean in f64 (exact for these values), then f32
+            let mut sum = [0f64; 3];
+            for (i, j) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                for (s, v) in sum.iter_mut().zip(px[(2 * oy + j) * w + 2 * ox + i]) {
+                    *s += v as f64;
+                }
             }
+            let want = sum.map(|s| (s / 4.0) as f32);
+            let got = &img.data[(oy * 2 + ox) * 3..][..3];
+            assert_eq!(got, want, "pixel ({ox}, {oy})");
         }
     }
 }
@@ -722,9 +1050,20 @@ fn downsample_factor_must_divide_the_size() {
     let (input, output) = (dir.join("in.exr"), dir.join("out.exr"));
     let (w, h, px) = test_pixels();
     rayproof::export::write_rgb_exr(&input, w, h, &px).expect("write EXR");
-    let o = rayproof(&["downsample", input.to_str().unwrap(), "--factor", "3", "-o", output.to_str().unwrap()]);
+    let o = rayproof(&[
+        "downsample",
+        input.to_str().unwrap(),
+        "--factor",
+        "3",
+        "-o",
+        output.to_str().unwrap(),
+    ]);
     assert_one_line_error(&o, &["in.exr", "3"]);
-    assert_eq!(dir.listing(), set(&["in.exr"]), "output or temporary file left behind");
+    assert_eq!(
+        dir.listing(),
+        set(&["in.exr"]),
+        "output or temporary file left behind"
+    );
 }
 
 #[test]
@@ -740,9 +1079,20 @@ fn downsample_rejects_corrupt_input() {
     std::fs::write(dir.join("text.exr"), b"this is not an OpenEXR file\n").expect("write");
     for bad in ["cut.exr", "text.exr"] {
         let output = dir.join("out.exr");
-        let o = rayproof(&["downsample", dir.join(bad).to_str().unwrap(), "--factor", "2", "-o", output.to_str().unwrap()]);
+        let o = rayproof(&[
+            "downsample",
+            dir.join(bad).to_str().unwrap(),
+            "--factor",
+            "2",
+            "-o",
+            output.to_str().unwrap(),
+        ]);
         assert_one_line_error(&o, &[bad]);
-        assert_eq!(dir.listing(), set(&["cut.exr", "text.exr"]), "{bad}: output or temporary file left behind");
+        assert_eq!(
+            dir.listing(),
+            set(&["cut.exr", "text.exr"]),
+            "{bad}: output or temporary file left behind"
+        );
     }
 }
 
@@ -753,21 +1103,46 @@ fn downsample_missing_output_directory_fails_first() {
     let (w, h, px) = test_pixels();
     rayproof::export::write_rgb_exr(&input, w, h, &px).expect("write EXR");
     let output = dir.join("no-such-dir").join("out.exr");
-    let o = rayproof(&["downsample", input.to_str().unwrap(), "--factor", "2", "-o", output.to_str().unwrap()]);
+    let o = rayproof(&[
+        "downsample",
+        input.to_str().unwrap(),
+        "--factor",
+        "2",
+        "-o",
+        output.to_str().unwrap(),
+    ]);
     assert_one_line_error(&o, &["no-such-dir"]);
     assert_eq!(dir.listing(), set(&["in.exr"]), "something was written");
+    // Checked before the input is read: an unreadable input still gets the directory error
+    std::fs::write(dir.join("bad.exr"), b"not an EXR\n").expect("write");
+    let o = rayproof(&[
+        "downsample",
+        dir.join("bad.exr").to_str().unwrap(),
+        "--factor",
+        "2",
+        "-o",
+        output.to_str().unwrap(),
+    ]);
+    assert_one_line_error(&o, &["no-such-dir", "does not exist"]);
+    assert_eq!(
+        dir.listing(),
+        set(&["bad.exr", "in.exr"]),
+        "something was written"
+    );
 }
 
 // ---------------------------------------------------------------- 6. export errors
 
 #[test]
-fn export_errors_are_one_line() {
+fn export_unknown_target_names_the_possible_values() {
     let p = scene_path("diffuse");
-    // An unknown target names the possible values
     let o = rayproof(&["export", "--to", "blender", p.to_str().unwrap()]);
     assert_one_line_error(&o, &["blender", "povray", "mitsuba"]);
-    // A missing scene file is named
-    let dir = TempDir::new("export_errors_are_one_line");
+}
+
+#[test]
+fn export_missing_scene_is_named() {
+    let dir = TempDir::new("export_missing_scene_is_named");
     let missing = dir.join("missing-scene.toml");
     for to in ["povray", "mitsuba"] {
         let o = rayproof(&["export", "--to", to, missing.to_str().unwrap()]);
