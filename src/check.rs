@@ -101,10 +101,10 @@ pub struct ThresholdFile {
 
 impl ThresholdFile {
     pub fn load(path: &Path) -> Result<ThresholdFile> {
-        let text =
-            std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-        let table: toml::Table =
-            toml::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message()))?;
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let table: toml::Table = toml::from_str(&text)
+            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message()))?;
         let check = table.get("check").and_then(|v| v.as_table());
         let get = |k: &str, d: &str| {
             check
@@ -118,7 +118,10 @@ impl ThresholdFile {
         let precision = match get("precision", "f64").as_str() {
             "f32" => "f32",
             "f64" => "f64",
-            p => bail!("{}: check.precision '{p}' is not f32 or f64", path.display()),
+            p => bail!(
+                "{}: check.precision '{p}' is not f32 or f64",
+                path.display()
+            ),
         };
         let tf = ThresholdFile {
             table,
@@ -133,8 +136,13 @@ impl ThresholdFile {
                 }
             }
         }
-        for (s, r) in names.iter().map(|(s, r)| (s.as_str(), r.as_str())).chain([("", "povray"), ("", "rayproof")]) {
-            tf.rule(s, r).with_context(|| format!("{}", path.display()))?;
+        for (s, r) in names
+            .iter()
+            .map(|(s, r)| (s.as_str(), r.as_str()))
+            .chain([("", "povray"), ("", "rayproof")])
+        {
+            tf.rule(s, r)
+                .with_context(|| format!("{}", path.display()))?;
         }
         Ok(tf)
     }
@@ -142,7 +150,11 @@ impl ThresholdFile {
     /// The rule for `scene` × `reference`: `[default]` (or `[golden]` for rayproof's own render),
     /// overridden by `[scenes.SCENE.REFERENCE]`.
     pub fn rule(&self, scene: &str, reference: &str) -> Result<Rule> {
-        let base = if reference == "rayproof" { "golden" } else { "default" };
+        let base = if reference == "rayproof" {
+            "golden"
+        } else {
+            "default"
+        };
         let mut merged = toml::Table::new();
         let layers = [
             self.table.get(base),
@@ -152,7 +164,9 @@ impl ThresholdFile {
                 .and_then(|s| s.get(reference)),
         ];
         for layer in layers.into_iter().flatten() {
-            let t = layer.as_table().context("a threshold entry is not a table")?;
+            let t = layer
+                .as_table()
+                .context("a threshold entry is not a table")?;
             merged.extend(t.clone());
         }
         let take = |m: &mut toml::Table, k: &str| m.remove(k);
@@ -164,12 +178,16 @@ impl ThresholdFile {
             None => f64::INFINITY,
         };
         let known_failure = match take(&mut merged, "known_failure") {
-            Some(v) => Some(v.as_str().context("known_failure must be a string")?.to_string()),
+            Some(v) => Some(
+                v.as_str()
+                    .context("known_failure must be a string")?
+                    .to_string(),
+            ),
             None => None,
         };
-        let idiff: Thresholds = merged
-            .try_into()
-            .map_err(|e: toml::de::Error| anyhow::anyhow!("[{scene}.{reference}]: {}", e.message()))?;
+        let idiff: Thresholds = merged.try_into().map_err(|e: toml::de::Error| {
+            anyhow::anyhow!("[{scene}.{reference}]: {}", e.message())
+        })?;
         idiff.validate().map_err(anyhow::Error::msg)?;
         Ok(Rule {
             idiff,
@@ -211,12 +229,18 @@ pub struct Options {
 /// The manifest of a scene's references.
 fn manifest(dir: &Path) -> Result<serde_json::Value> {
     let p = dir.join("manifest.json");
-    let text = std::fs::read_to_string(&p).with_context(|| format!("cannot read {}", p.display()))?;
+    let text =
+        std::fs::read_to_string(&p).with_context(|| format!("cannot read {}", p.display()))?;
     serde_json::from_str(&text).with_context(|| format!("{}: malformed JSON", p.display()))
 }
 
 /// Loads a reference and proves it is the one the manifest describes, made from this scene.
-fn verified_reference(dir: &Path, file: &str, m: &serde_json::Value, scene_sha: &str) -> Result<(Image, String)> {
+fn verified_reference(
+    dir: &Path,
+    file: &str,
+    m: &serde_json::Value,
+    scene_sha: &str,
+) -> Result<(Image, String)> {
     let entry = m["files"]
         .get(file)
         .with_context(|| format!("{file} has no entry in the manifest"))?;
@@ -266,7 +290,10 @@ fn judge(c: &Comparison, rule: &Rule) -> (Status, String) {
     let mut failed = c.verdict == Verdict::Failure;
     if c.mean_error > rule.max_mean {
         failed = true;
-        note = format!("mean error {:.3e} > max_mean {:.0e}", c.mean_error, rule.max_mean);
+        note = format!(
+            "mean error {:.3e} > max_mean {:.0e}",
+            c.mean_error, rule.max_mean
+        );
     }
     match (&rule.known_failure, failed) {
         (Some(why), true) => (Status::KnownFailure, why.clone()),
@@ -295,7 +322,11 @@ pub fn run(o: &Options, th: &ThresholdFile) -> Result<Vec<Row>> {
     names.sort();
     for s in &o.scenes {
         if !names.contains(s) {
-            bail!("no scene '{s}' in {} (known: {})", scenes_dir.display(), names.join(", "));
+            bail!(
+                "no scene '{s}' in {} (known: {})",
+                scenes_dir.display(),
+                names.join(", ")
+            );
         }
     }
     if !o.scenes.is_empty() {
@@ -316,7 +347,10 @@ pub fn run(o: &Options, th: &ThresholdFile) -> Result<Vec<Row>> {
         for (_, e) in m["files"].as_object().into_iter().flatten() {
             let (w, g) = (e["width"].as_u64(), e["grid"].as_u64());
             if (width.is_some() && width != w) || (grid.is_some() && grid != g) {
-                bail!("{}: entries disagree on width or grid", dir.join("manifest.json").display());
+                bail!(
+                    "{}: entries disagree on width or grid",
+                    dir.join("manifest.json").display()
+                );
             }
             (width, grid) = (w, g);
         }
@@ -372,7 +406,8 @@ pub fn run(o: &Options, th: &ThresholdFile) -> Result<Vec<Row>> {
                                 };
                                 (row.status, row.note) = judge(&c, &row.rule);
                                 if let (Some(dir), Some(map)) = (&o.report, map) {
-                                    row.images = Some(write_images(dir, &row, &reference, &img, &map)?);
+                                    row.images =
+                                        Some(write_images(dir, &row, &reference, &img, &map)?);
                                 }
                                 row.comparison = Some(c);
                             }
@@ -390,7 +425,13 @@ pub fn run(o: &Options, th: &ThresholdFile) -> Result<Vec<Row>> {
         }
     }
     // Failures first, then by scene
-    rows.sort_by_key(|r| (!r.status.is_failure(), r.status != Status::Warning, r.scene.clone()));
+    rows.sort_by_key(|r| {
+        (
+            !r.status.is_failure(),
+            r.status != Status::Warning,
+            r.scene.clone(),
+        )
+    });
     Ok(rows)
 }
 
@@ -455,8 +496,19 @@ pub fn utc_now() -> String {
 }
 
 /// Tone-mapped PNGs of the new render, the reference and the ꟻLIP heat map.
-fn write_images(dir: &Path, row: &Row, reference: &Image, img: &Image, map: &[f32]) -> Result<[String; 3]> {
-    let stem = format!("{}-{}-{}", row.scene, row.reference, row.config.replace(' ', "-"));
+fn write_images(
+    dir: &Path,
+    row: &Row,
+    reference: &Image,
+    img: &Image,
+    map: &[f32],
+) -> Result<[String; 3]> {
+    let stem = format!(
+        "{}-{}-{}",
+        row.scene,
+        row.reference,
+        row.config.replace(' ', "-")
+    );
     let names = [
         format!("{}-new-{}.png", row.scene, row.config.replace(' ', "-")),
         format!("{}-{}.png", row.scene, row.reference),
@@ -464,8 +516,18 @@ fn write_images(dir: &Path, row: &Row, reference: &Image, img: &Image, map: &[f3
     ];
     let (w, h) = (img.width, img.height);
     imgdiff::write_png_rgb8(&dir.join(&names[0]), w, h, &imgdiff::tonemap_rgb8(img))?;
-    imgdiff::write_png_rgb8(&dir.join(&names[1]), w, h, &imgdiff::tonemap_rgb8(reference))?;
-    imgdiff::write_png_rgb8(&dir.join(&names[2]), w, h, &imgdiff::heatmap_rgb8(map, w, h))?;
+    imgdiff::write_png_rgb8(
+        &dir.join(&names[1]),
+        w,
+        h,
+        &imgdiff::tonemap_rgb8(reference),
+    )?;
+    imgdiff::write_png_rgb8(
+        &dir.join(&names[2]),
+        w,
+        h,
+        &imgdiff::heatmap_rgb8(map, w, h),
+    )?;
     Ok(names)
 }
 
@@ -473,7 +535,17 @@ fn write_images(dir: &Path, row: &Row, reference: &Image, img: &Image, map: &[f3
 pub fn table(rows: &[Row]) -> String {
     let mut s = format!(
         "{:<8} {:<9} {:<12} {:<8} {:>10} {:>10} {:>8} {:>9} {:>9} {:>8}  {}\n",
-        "scene", "reference", "config", "status", "mean", "RMS", "PSNR", "max", ">fail %", "FLIP", "note"
+        "scene",
+        "reference",
+        "config",
+        "status",
+        "mean",
+        "RMS",
+        "PSNR",
+        "max",
+        ">fail %",
+        "FLIP",
+        "note"
     );
     for r in rows {
         let c = r.comparison.as_ref();
@@ -490,7 +562,9 @@ pub fn table(rows: &[Row]) -> String {
             f(c.map(|c| c.max_error), 2),
             c.map(|c| format!("{:.3}", 100.0 * c.n_fail as f64 / c.pixels as f64))
                 .unwrap_or("-".into()),
-            c.and_then(|c| c.flip_mean).map(|v| format!("{v:.4}")).unwrap_or("-".into()),
+            c.and_then(|c| c.flip_mean)
+                .map(|v| format!("{v:.4}"))
+                .unwrap_or("-".into()),
             r.note
         );
     }
@@ -500,13 +574,21 @@ pub fn table(rows: &[Row]) -> String {
 /// A Markdown table (for the README), from the same rows.
 pub fn markdown(rows: &[Row]) -> String {
     let mut rows: Vec<&Row> = rows.iter().collect();
-    rows.sort_by(|a, b| (&a.scene, &a.reference, &a.config).cmp(&(&b.scene, &b.reference, &b.config)));
+    rows.sort_by(|a, b| {
+        (&a.scene, &a.reference, &a.config).cmp(&(&b.scene, &b.reference, &b.config))
+    });
     let mut s = String::from(
         "| scene | reference | method / precision | status | MAE | RMS | PSNR dB | max error | pixels > fail | HDR-FLIP |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let Some(c) = &r.comparison else {
-            s += &format!("| {} | {} | {} | {} | | | | | | |\n", r.scene, r.reference, r.config, r.status.label());
+            s += &format!(
+                "| {} | {} | {} | {} | | | | | | |\n",
+                r.scene,
+                r.reference,
+                r.config,
+                r.status.label()
+            );
             continue;
         };
         s += &format!(
@@ -529,7 +611,12 @@ pub fn markdown(rows: &[Row]) -> String {
 /// The HTML report in the style of Blender's render report: one row per scene × reference,
 /// failures first; hovering over the new render shows the reference and vice versa.
 pub fn html(rows: &[Row], title: &str) -> String {
-    let esc = |s: &str| s.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;");
+    let esc = |s: &str| {
+        s.replace('&', "&amp;")
+            .replace('<', "&lt;")
+            .replace('>', "&gt;")
+            .replace('"', "&quot;")
+    };
     let mut body = String::new();
     for r in rows {
         let class = match r.status {

@@ -353,9 +353,16 @@ pub fn run(cli: Cli) -> Result<u8> {
         }
         Command::Downsample(d) => {
             check_output_dirs(&[&Some(d.output.clone())])?;
-            let (w, h, px) = crate::export::downsample(&d.input, d.factor as usize)?;
-            crate::export::write_rgb_exr(&d.output, w, h, &px)?;
-            say!("{}: {w}×{h} (mean of {f}×{f} blocks)", d.output.display(), f = d.factor);
+            let big = crate::imgdiff::read_image(&d.input)?;
+            let small = crate::export::downsample(&big, d.factor as usize)
+                .with_context(|| d.input.display().to_string())?;
+            crate::imgdiff::write_exr_rgb(&d.output, &small)?;
+            let (w, h) = (small.width, small.height);
+            say!(
+                "{}: {w}×{h} (mean of {f}×{f} blocks)",
+                d.output.display(),
+                f = d.factor
+            );
             Ok(0)
         }
         Command::Probe(ProbeCommand::Sphere(p)) => {

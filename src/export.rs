@@ -16,7 +16,6 @@
 use crate::render::scene::{GlassShadows, Material, Scene, Shape};
 use std::f64::consts::PI;
 use std::fmt::Write;
-use std::path::Path;
 
 /// Image size and sub-pixel grid of an export (the references are made at a fixed size).
 #[derive(Clone, Copy, Debug)]
@@ -29,7 +28,10 @@ pub struct Frame {
 impl Frame {
     /// The scene's own frame, or `width` wide with the scene's aspect ratio and an n×n grid.
     pub fn of(s: &Scene, width: Option<u32>, grid: Option<u32>) -> Frame {
-        let (w, h) = (*s.file.camera.width.get_ref(), *s.file.camera.height.get_ref());
+        let (w, h) = (
+            *s.file.camera.width.get_ref(),
+            *s.file.camera.height.get_ref(),
+        );
         let width = width.unwrap_or(w);
         Frame {
             width,
@@ -45,7 +47,10 @@ const FADE_DISTANCE: f64 = 1e-4;
 
 /// Text safe inside an XML attribute.
 fn xml(s: &str) -> String {
-    s.replace('&', "&amp;").replace('"', "&quot;").replace('<', "&lt;").replace('>', "&gt;")
+    s.replace('&', "&amp;")
+        .replace('"', "&quot;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
 }
 
 /// Shortest round-trip decimal of each number, comma-separated.
@@ -101,7 +106,9 @@ pub fn povray(s: &Scene, fr: Frame) -> String {
     );
     // Lights: the fade trick turns POV-Ray's unattenuated light into I/(π d²)
     for l in &f.lights {
-        let c = l.intensity.map(|i| i / (2.0 * PI * FADE_DISTANCE * FADE_DISTANCE));
+        let c = l
+            .intensity
+            .map(|i| i / (2.0 * PI * FADE_DISTANCE * FADE_DISTANCE));
         let _ = writeln!(
             o,
             "light_source {{ {} color rgb <{}> fade_distance {} fade_power 2 }}",
@@ -182,7 +189,12 @@ pub fn povray(s: &Scene, fr: Frame) -> String {
 fn far_clip(s: &Scene) -> f64 {
     let cam = glam::DVec3::from_array(s.file.camera.position);
     let d = |p: [f64; 3], r: f64| (glam::DVec3::from_array(p) - cam).length() + r;
-    let mut far = s.file.lights.iter().map(|l| d(l.position, 0.0)).fold(1e4, f64::max);
+    let mut far = s
+        .file
+        .lights
+        .iter()
+        .map(|l| d(l.position, 0.0))
+        .fold(1e4, f64::max);
     for (i, sh) in s.file.shapes.iter().enumerate() {
         far = far.max(match sh {
             Shape::Sphere { center, radius, .. } => d(*center, *radius),
@@ -306,49 +318,31 @@ pub fn mitsuba(s: &Scene, fr: Frame) -> String {
     o
 }
 
-/// Reads an EXR's R, G, B and averages n×n blocks (in f64); the size must divide by n.
-pub fn downsample(path: &Path, n: usize) -> anyhow::Result<(usize, usize, Vec<[f32; 3]>)> {
-    use exr::prelude::*;
-    let img = read_first_rgba_layer_from_file(
-        path,
-        |res, _| (res.width(), vec![[0f32; 3]; res.area()]),
-        |(w, px), pos, (r, g, b, _a): (f32, f32, f32, f32)| px[pos.y() * *w + pos.x()] = [r, g, b],
-    )
-    .map_err(|e| anyhow::anyhow!("{}: unreadable EXR: {e}", path.display()))?;
-    let size = img.layer_data.size;
-    let (w, h) = (size.width(), size.height());
+/// Averages n×n blocks of an image's R, G, B (in f64); the size must divide by n.
+pub fn downsample(img: &crate::imgdiff::Image, n: usize) -> anyhow::Result<crate::imgdiff::Image> {
+    let (w, h, nch) = (img.width, img.height, img.channels.len());
     anyhow::ensure!(
         w % n == 0 && h % n == 0,
-        "{}: {w}×{h} is not divisible into {n}×{n} blocks",
-        path.display()
+        "{w}×{h} is not divisible into {n}×{n} blocks"
     );
-    let px = &img.layer_data.channel_data.pixels.1;
+    let rgb = ["R", "G", "B"].map(|c| img.channels.iter().position(|k| k == c));
+    let [Some(r), Some(g), Some(b)] = rgb else {
+        anyhow::bail!("the image has no R, G, B channels");
+    };
     let (ow, oh) = (w / n, h / n);
-    let mut out = vec![[0f32; 3]; ow * oh];
-    for (i, o) in out.iter_mut().enumerate() {
+    let mut out = Vec::with_capacity(ow * oh * 3);
+    for i in 0..ow * oh {
         let (bx, by) = (i % ow * n, i / ow * n);
         let mut sum = [0f64; 3];
         for y in by..by + n {
-            for p in &px[y * w + bx..y * w + bx + n] {
-                for k in 0..3 {
-                    sum[k] += p[k] as f64;
+            for x in bx..bx + n {
+                let p = &img.data[(y * w + x) * nch..];
+                for (k, c) in [r, g, b].into_iter().enumerate() {
+                    sum[k] += p[c] as f64;
                 }
             }
         }
-        *o = sum.map(|s| (s / (n * n) as f64) as f32);
+        out.extend(sum.map(|s| (s / (n * n) as f64) as f32));
     }
-    Ok((ow, oh, out))
-}
-
-/// Writes a float32 R, G, B EXR through a temporary sibling and a rename.
-pub fn write_rgb_exr(path: &Path, w: usize, h: usize, px: &[[f32; 3]]) -> anyhow::Result<()> {
-    use exr::prelude::*;
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{name}.tmp{}", std::process::id()));
-    write_rgb_file(&tmp, w, h, |x, y| {
-        let p = px[y * w + x];
-        (p[0], p[1], p[2])
-    })
-    .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| anyhow::anyhow!("cannot write {}: {e}", path.display()))
+    Ok(crate::imgdiff::Image::rgb(ow, oh, out))
 }

@@ -18,13 +18,20 @@ fn main() -> ExitCode {
             // One line; a first line ending in ':' ("…not provided:") is joined with its list
             // and a "[possible values: …]" line is appended
             let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
-            let mut line = lines.next().unwrap_or("error: invalid arguments").to_string();
+            let mut line = lines
+                .next()
+                .unwrap_or("error: invalid arguments")
+                .to_string();
             if line.ends_with(':') {
                 if let Some(next) = lines.next() {
                     line = format!("{line} {next}");
                 }
             }
-            if let Some(values) = text.lines().map(str::trim).find(|l| l.starts_with("[possible values:")) {
+            if let Some(values) = text
+                .lines()
+                .map(str::trim)
+                .find(|l| l.starts_with("[possible values:"))
+            {
                 line = format!("{line} {values}");
             }
             eprintln!("{line}");

@@ -14,7 +14,11 @@ fn fixture(tag: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(dir.join("scenes")).unwrap();
     std::fs::create_dir_all(dir.join("diffuse")).unwrap();
-    std::fs::copy(root.join("scenes/diffuse.toml"), dir.join("scenes/diffuse.toml")).unwrap();
+    std::fs::copy(
+        root.join("scenes/diffuse.toml"),
+        dir.join("scenes/diffuse.toml"),
+    )
+    .unwrap();
     std::fs::copy(root.join("thresholds.toml"), dir.join("thresholds.toml")).unwrap();
     for f in ["povray.exr", "mitsuba.exr", "rayproof.exr", "manifest.json"] {
         std::fs::copy(root.join("diffuse").join(f), dir.join("diffuse").join(f)).unwrap();
@@ -65,7 +69,8 @@ fn perturb(dir: &Path, file: &str, delta: f32) {
 
 fn rehash(dir: &Path, file: &str) {
     let m = dir.join("diffuse/manifest.json");
-    let mut v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&m).unwrap()).unwrap();
     v["files"][file]["sha256"] = sha256_file(&dir.join("diffuse").join(file)).unwrap().into();
     std::fs::write(&m, serde_json::to_string_pretty(&v).unwrap()).unwrap();
 }
@@ -122,7 +127,11 @@ fn a_changed_scene_makes_every_reference_stale() {
     let dir = fixture("stale");
     let s = dir.join("scenes/diffuse.toml");
     let text = std::fs::read_to_string(&s).unwrap();
-    std::fs::write(&s, text.replace("albedo = [0.8, 0.15, 0.1]", "albedo = [0.8, 0.15, 0.2]")).unwrap();
+    std::fs::write(
+        &s,
+        text.replace("albedo = [0.8, 0.15, 0.1]", "albedo = [0.8, 0.15, 0.2]"),
+    )
+    .unwrap();
     let (code, out, _) = check(&dir, &[]);
     assert_eq!(code, Some(1), "{out}");
     for r in ["povray", "mitsuba", "rayproof"] {
@@ -191,7 +200,11 @@ fn report_has_one_row_per_comparison_with_images() {
     let html = std::fs::read_to_string(report.join("index.html")).unwrap();
     assert_eq!(html.matches("<tr class=").count(), 3, "{html}");
     assert!(html.contains("onmouseover"));
-    for f in ["diffuse-new-promote-f64.png", "diffuse-povray.png", "diffuse-povray-promote-f64-flip.png"] {
+    for f in [
+        "diffuse-new-promote-f64.png",
+        "diffuse-povray.png",
+        "diffuse-povray-promote-f64-flip.png",
+    ] {
         assert!(report.join(f).is_file(), "{f} missing");
     }
 }
