@@ -24,3 +24,4 @@ pub mod probe;
 pub mod real;
 pub mod render;
 pub mod sphere;
+pub mod timing;
