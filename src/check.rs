@@ -278,6 +278,7 @@ fn render_image(sc: &scene::Scene, cfg: Config, width: u32, grid: u32) -> (Image
         size: Some((fr.width, fr.height)),
         force_all_effects: false,
         progress: false,
+        ..Default::default()
     };
     let r = render::render(sc, &ov);
     let data = r.beauty.iter().flatten().copied().collect();

@@ -43,6 +43,8 @@ pub struct Hit {
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct TestCounts {
     pub sphere_tests: u64,
+    /// Sphere tests the method answered with a hit (any `t`, before the nearest-hit choice).
+    pub sphere_hits: u64,
     pub other_tests: u64,
     pub bvh_nodes: u64,
 }
@@ -50,6 +52,7 @@ pub struct TestCounts {
 impl std::ops::AddAssign for TestCounts {
     fn add_assign(&mut self, o: Self) {
         self.sphere_tests += o.sphere_tests;
+        self.sphere_hits += o.sphere_hits;
         self.other_tests += o.other_tests;
         self.bvh_nodes += o.bvh_nodes;
     }
@@ -72,6 +75,17 @@ fn sphere_t<F: PickPrecision>(f: SphereFn<F>, o: DVec3, d: DVec3, c: DVec3, r: f
         },
     )
     .map(|h| h.t.to_f64())
+}
+
+/// Replays recorded sphere tests through a method, exactly as the renderer calls it (the
+/// f64 → F conversion included); returns the number of hits, so the work cannot be skipped.
+pub fn replay<F: PickPrecision>(m: &Method, tests: &[RecordedTest]) -> usize {
+    let f = F::pick(m);
+    let v = |a: &[f64]| DVec3::new(a[0], a[1], a[2]);
+    tests
+        .iter()
+        .filter(|x| sphere_t::<F>(f, v(&x[0..3]), v(&x[3..6]), v(&x[6..9]), x[9]).is_some())
+        .count()
 }
 
 /// Axis-aligned box.
@@ -144,12 +158,19 @@ struct Node {
     count: u32,
 }
 
-/// The scene's geometry: BVH over objects, plus infinite planes.
+/// One recorded ray–sphere test: origin, direction, centre, radius (as given to the method).
+pub type RecordedTest = [f64; 10];
+
+/// The scene's geometry: BVH over objects (or a flat list), plus infinite planes.
 #[derive(Clone, Debug)]
 pub struct Geometry {
     pub objects: Vec<Object>,
     pub planes: Vec<Plane>,
     nodes: Vec<Node>,
+    /// Test every object for every ray, as renderers without acceleration did (seed 000's era).
+    flat: bool,
+    /// Keep every n-th sphere test's inputs (n, store), to replay them in a timing loop.
+    record: Option<(u64, std::sync::Arc<std::sync::Mutex<Vec<RecordedTest>>>)>,
 }
 
 impl Geometry {
@@ -164,6 +185,58 @@ impl Geometry {
             objects,
             planes,
             nodes,
+            flat: false,
+            record: None,
+        }
+    }
+
+    /// The same objects without the BVH: every ray tests every object.
+    pub fn flat(mut self) -> Geometry {
+        self.flat = true;
+        self
+    }
+
+    /// Records the inputs of every `every`-th sphere test (per thread's counter) into `store`.
+    pub fn recording(
+        mut self,
+        every: u64,
+        store: std::sync::Arc<std::sync::Mutex<Vec<RecordedTest>>>,
+    ) -> Geometry {
+        self.record = (every > 0).then_some((every, store));
+        self
+    }
+
+    /// Tests one object, keeps the nearer hit, records the test if asked.
+    #[inline]
+    #[allow(clippy::too_many_arguments)]
+    fn test_object<F: PickPrecision>(
+        &self,
+        f: SphereFn<F>,
+        k: usize,
+        o: DVec3,
+        d: DVec3,
+        limit: &mut f64,
+        best: &mut Option<Hit>,
+        counts: &mut TestCounts,
+    ) {
+        let obj = &self.objects[k];
+        if let (Some((every, store)), Prim::Sphere { c, r }) = (&self.record, obj.prim) {
+            if counts.sphere_tests % every == 0 {
+                if let Ok(mut v) = store.lock() {
+                    v.push([o.x, o.y, o.z, d.x, d.y, d.z, c.x, c.y, c.z, r]);
+                }
+            }
+        }
+        if let Some((t, n)) = prim_hit::<F>(f, &obj.prim, o, d, counts) {
+            if t > 0.0 && t < *limit {
+                *limit = t;
+                *best = Some(Hit {
+                    t,
+                    n,
+                    material: obj.material,
+                    object: k,
+                });
+            }
         }
     }
 
@@ -196,6 +269,13 @@ impl Geometry {
                 }
             }
         }
+        // Flat list: every object
+        if self.flat {
+            for k in 0..self.objects.len() {
+                self.test_object(f, k, o, d, &mut limit, &mut best, counts);
+            }
+            return best;
+        }
         // BVH traversal
         if self.nodes.is_empty() {
             return best;
@@ -213,18 +293,7 @@ impl Geometry {
             }
             if node.count > 0 {
                 for k in node.start..node.start + node.count {
-                    let obj = &self.objects[k as usize];
-                    if let Some((t, n)) = prim_hit::<F>(f, &obj.prim, o, d, counts) {
-                        if t > 0.0 && t < limit {
-                            limit = t;
-                            best = Some(Hit {
-                                t,
-                                n,
-                                material: obj.material,
-                                object: k as usize,
-                            });
-                        }
-                    }
+                    self.test_object(f, k as usize, o, d, &mut limit, &mut best, counts);
                 }
             } else if sp + 2 <= stack.len() {
                 // Median splits keep the depth near log2(n); 64 levels cover any real scene
@@ -280,6 +349,7 @@ fn prim_hit<F: PickPrecision>(
         Prim::Sphere { c, r } => {
             counts.sphere_tests += 1;
             let t = sphere_t::<F>(f, o, d, c, r)?;
+            counts.sphere_hits += 1;
             Some((t, ((o + t * d) - c) / r))
         }
         Prim::Disc { c, n, r } => {

@@ -121,6 +121,11 @@ pub struct RayCounts {
     pub shadow: u64,
     pub reflection: u64,
     pub refraction: u64,
+    /// Rays of each kind that hit nothing (a shadow ray that reaches its light counts here).
+    pub primary_miss: u64,
+    pub shadow_miss: u64,
+    pub reflection_miss: u64,
+    pub refraction_miss: u64,
     #[serde(flatten)]
     pub tests: TestCounts,
 }
@@ -131,6 +136,10 @@ impl std::ops::AddAssign for RayCounts {
         self.shadow += o.shadow;
         self.reflection += o.reflection;
         self.refraction += o.refraction;
+        self.primary_miss += o.primary_miss;
+        self.shadow_miss += o.shadow_miss;
+        self.reflection_miss += o.reflection_miss;
+        self.refraction_miss += o.refraction_miss;
         self.tests += o.tests;
     }
 }
@@ -152,6 +161,8 @@ pub struct Render {
     pub counts: RayCounts,
     pub effects: Effects,
     pub seconds: f64,
+    /// Sampled sphere-test inputs, when [`Overrides::record_every`] asked for them.
+    pub recorded: Vec<geom::RecordedTest>,
     pub method: &'static str,
     pub precision: &'static str,
 }
@@ -166,6 +177,10 @@ pub struct Overrides {
     pub size: Option<(u32, u32)>,
     pub force_all_effects: bool,
     pub progress: bool,
+    /// Test every object for every ray (no BVH), as seed 000's renderer did.
+    pub flat: bool,
+    /// Record the inputs of every n-th sphere test (0: none); costs time, so not for timed runs.
+    pub record_every: u64,
 }
 
 /// Everything the integrator reads.
@@ -260,6 +275,9 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
     let mut effects = effects;
     effects.supersampling = grid > 1;
     let (geo, materials) = build_geometry(s);
+    let store = std::sync::Arc::new(std::sync::Mutex::new(vec![]));
+    let geo = if ov.flat { geo.flat() } else { geo };
+    let geo = geo.recording(ov.record_every, store.clone());
     let ctx = Ctx {
         geo,
         materials,
@@ -290,6 +308,8 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
         false, false, false; true, false, false; false, true, false; true, true, false;
         false, true, true; true, true, true; false, false, true; true, false, true
     );
+    let seconds = start.elapsed().as_secs_f64();
+    let recorded = std::mem::take(&mut *store.lock().unwrap_or_else(|e| e.into_inner()));
     Render {
         width: size.0,
         height: size.1,
@@ -299,7 +319,8 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
         rays,
         counts,
         effects,
-        seconds: start.elapsed().as_secs_f64(),
+        seconds,
+        recorded,
         method: method.name,
         precision,
     }
@@ -352,6 +373,7 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                             .normalize();
                         counts.primary += 1;
                         let (l, first) = radiance::<F, SH, RF, RR>(ctx, pos, d, 1, &mut counts);
+                        counts.primary_miss += first.is_none() as u64;
                         sum += l;
                         if let Some((t, n)) = first {
                             dsum += t;
@@ -433,6 +455,7 @@ fn radiance<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                     if occluded::<F>(ctx, p + nf * eps, wl, dist2.sqrt(), counts) {
                         continue;
                     }
+                    counts.shadow_miss += 1;
                 }
                 sum += DVec3::from_array(light.intensity) * (cos / dist2);
             }
@@ -443,7 +466,7 @@ fn radiance<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                 counts.reflection += 1;
                 let r = d - 2.0 * d.dot(nf) * nf;
                 DVec3::from_array(reflectance)
-                    * radiance::<F, SH, RF, RR>(ctx, p + nf * eps, r, depth + 1, counts).0
+                    * secondary::<F, SH, RF, RR>(ctx, p + nf * eps, r, depth, false, counts)
             } else {
                 DVec3::ZERO
             }
@@ -457,16 +480,16 @@ fn radiance<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                 if sin2_t >= 1.0 || !RR {
                     // Total internal reflection
                     counts.reflection += 1;
-                    radiance::<F, SH, RF, RR>(ctx, p + nf * eps, r, depth + 1, counts).0
+                    secondary::<F, SH, RF, RR>(ctx, p + nf * eps, r, depth, false, counts)
                 } else {
                     let cos_t = (1.0 - sin2_t).sqrt();
                     let f = fresnel(eta, cos_i, cos_t);
                     counts.reflection += 1;
                     counts.refraction += 1;
                     let t_dir = eta * d + (eta * cos_i - cos_t) * nf;
-                    let lr = radiance::<F, SH, RF, RR>(ctx, p + nf * eps, r, depth + 1, counts).0;
+                    let lr = secondary::<F, SH, RF, RR>(ctx, p + nf * eps, r, depth, false, counts);
                     let lt =
-                        radiance::<F, SH, RF, RR>(ctx, p - nf * eps, t_dir, depth + 1, counts).0;
+                        secondary::<F, SH, RF, RR>(ctx, p - nf * eps, t_dir, depth, true, counts);
                     f * lr + (1.0 - f) * lt
                 }
             } else {
@@ -475,6 +498,26 @@ fn radiance<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
         }
     };
     (l, Some((hit.t, hit.n)))
+}
+
+/// A reflected or refracted ray from segment `depth`: its radiance, its miss counted by kind.
+fn secondary<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
+    ctx: &Ctx,
+    o: DVec3,
+    d: DVec3,
+    depth: u32,
+    refracted: bool,
+    counts: &mut RayCounts,
+) -> DVec3 {
+    let (l, first) = radiance::<F, SH, RF, RR>(ctx, o, d, depth + 1, counts);
+    if first.is_none() {
+        if refracted {
+            counts.refraction_miss += 1;
+        } else {
+            counts.reflection_miss += 1;
+        }
+    }
+    l
 }
 
 /// Exact unpolarised Fresnel reflectance for relative index `eta` = n_i/n_t.
