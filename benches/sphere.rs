@@ -3,6 +3,10 @@
 //! - `sphere/mix`: 512 cases from each of random, inside, far_small, huge, grazing, behind;
 //! - `sphere/hits`: 2048 cases from those classes whose exact verdict is a hit;
 //! - `sphere/misses`: 2048 cases from those classes whose exact verdict is a miss.
+//! - `sphere/fan30`: the fan30 mix, 4096 sphere tests recorded while rendering
+//!   `reference/scenes/fan30.toml` (every n-th test of a 256-wide render with the scene's own
+//!   method), as the renderer passes them: what a real frame asks of the test. These cases have
+//!   no class, so only a method held to zero in every class refuses to time on them.
 //!
 //! One iteration runs a method over the whole batch; the throughput is the batch length, so
 //! criterion's elements/s is tests/s (and time/iteration ÷ length is ns/test).
@@ -16,6 +20,7 @@
 use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
 use rayproof::audit::Precision;
+use rayproof::render::{render, scene, Overrides};
 use rayproof::sphere::cases::{generate, Class};
 use rayproof::sphere::methods::{PickPrecision, Ray, Sphere, METHODS};
 use rayproof::sphere::oracle::{truth, Case, Truth};
@@ -34,17 +39,19 @@ const MIX: [Class; 6] = [
 ];
 const PER_CLASS: u64 = 512;
 const SIDE_LEN: usize = 2048;
+const FAN30_LEN: usize = 4096;
 
 /// A fixed batch: the cases with their oracle truth, and the pre-built inputs that are timed.
+/// Cases recorded from a render have no class (`None`).
 struct Batch<F: PickPrecision> {
     name: &'static str,
-    cases: Vec<(Class, Case<F>, Truth)>,
+    cases: Vec<(Option<Class>, Case<F>, Truth)>,
     rays: Vec<Ray<F>>,
     spheres: Vec<Sphere<F>>,
 }
 
 impl<F: PickPrecision> Batch<F> {
-    fn new(name: &'static str, cases: Vec<(Class, Case<F>, Truth)>) -> Self {
+    fn new(name: &'static str, cases: Vec<(Option<Class>, Case<F>, Truth)>) -> Self {
         let rays = cases.iter().map(|(_, c, _)| c.ray()).collect();
         let spheres = cases.iter().map(|(_, c, _)| c.sphere()).collect();
         Batch {
@@ -57,21 +64,45 @@ impl<F: PickPrecision> Batch<F> {
 }
 
 /// Cases of the mix classes, round robin by index, with their truth.
-fn stream<F: PickPrecision>() -> impl Iterator<Item = (Class, Case<F>, Truth)> {
+fn stream<F: PickPrecision>() -> impl Iterator<Item = (Option<Class>, Case<F>, Truth)> {
     (0u64..)
         .flat_map(|i| MIX.into_iter().map(move |class| (class, i)))
         .filter_map(|(class, i)| generate::<F>(SEED, class, i).map(|c| (class, c)))
-        .map(|(class, c)| (class, c, truth(&c)))
+        .map(|(class, c)| (Some(class), c, truth(&c)))
+}
+
+/// Sphere tests recorded while rendering fan30, rounded to `F` as the renderer rounds them.
+fn fan30<F: PickPrecision>() -> Vec<(Option<Class>, Case<F>, Truth)> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("reference/scenes/fan30.toml");
+    let sc = scene::load(&path).expect("reference/scenes/fan30.toml loads");
+    let ov = |every| Overrides {
+        size: Some((256, 256)),
+        grid: Some(1),
+        record_every: every,
+        ..Default::default()
+    };
+    // Pick the stride that yields about FAN30_LEN recorded tests
+    let tests = render(&sc, &ov(0)).counts.tests.sphere_tests;
+    let every = (tests / FAN30_LEN as u64).max(1);
+    render(&sc, &ov(every))
+        .recorded
+        .into_iter()
+        .take(FAN30_LEN)
+        .map(|x| {
+            let c = Case::from_scalars(x.map(F::from_f64));
+            (None, c, truth(&c))
+        })
+        .collect()
 }
 
 // Build batches
-fn build<F: PickPrecision>() -> [Batch<F>; 3] {
+fn build<F: PickPrecision>() -> [Batch<F>; 4] {
     let mix: Vec<_> = MIX
         .into_iter()
         .flat_map(|class| {
             (0..PER_CLASS).filter_map(move |i| generate::<F>(SEED, class, i).map(|c| (class, c)))
         })
-        .map(|(class, c)| (class, c, truth(&c)))
+        .map(|(class, c)| (Some(class), c, truth(&c)))
         .collect();
     let hits = stream::<F>().filter(|(_, _, t)| t.verdict.is_hit());
     let misses = stream::<F>().filter(|(_, _, t)| !t.verdict.is_hit());
@@ -79,6 +110,7 @@ fn build<F: PickPrecision>() -> [Batch<F>; 3] {
         Batch::new("mix", mix),
         Batch::new("hits", hits.take(SIDE_LEN).collect()),
         Batch::new("misses", misses.take(SIDE_LEN).collect()),
+        Batch::new("fan30", fan30()),
     ]
 }
 
@@ -102,9 +134,17 @@ fn validate<F: PickPrecision>(b: &Batch<F>) {
                 continue;
             }
             wrong += 1;
-            let e = tolerance::entry(m.name, p, *class);
-            let held = e.max_wrong_rate == Some(0.0)
-                || (e.max_false_hits == Some(0) && j == Judgement::FalseHit);
+            // The class's tolerance row; a recorded render case has no class, so it is held
+            // to zero only for methods whose every row is zero
+            let holds = |class: Class| {
+                let e = tolerance::entry(m.name, p, class);
+                e.max_wrong_rate == Some(0.0)
+                    || (e.max_false_hits == Some(0) && j == Judgement::FalseHit)
+            };
+            let held = match class {
+                Some(class) => holds(*class),
+                None => Class::ALL.into_iter().all(holds),
+            };
             assert!(
                 !held,
                 "refusing to time sphere/{}: {}/{} gave {} on a well-posed {} case, which the \
@@ -113,7 +153,7 @@ fn validate<F: PickPrecision>(b: &Batch<F>) {
                 m.name,
                 F::NAME,
                 j.verdict_word(),
-                class.name(),
+                class.map_or("recorded render", |c| c.name()),
                 case.probe_args()
             );
         }
