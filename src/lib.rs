@@ -20,6 +20,7 @@ pub mod dd;
 pub mod export;
 pub mod imgdiff;
 pub mod interval;
+pub mod newton;
 pub mod probe;
 pub mod real;
 pub mod render;
