@@ -3,18 +3,28 @@
 //! Cases are generated and judged in parallel, collected in index order and aggregated
 //! sequentially, so the report depends only on the seed and the selection, never on the number
 //! of threads. Nothing time-dependent goes into the JSON.
+//!
+//! The run has two steps: evaluation (one `CaseResult` per case, with one `Sample` per
+//! method) and aggregation (`group_rows`: the case results of a precision × class, in index
+//! order, become its rows). Aggregation sees nothing else, which is what makes sharding exact.
+//! Shard `K/N` evaluates the cases whose index ≡ K (mod N); with `--shard-out` its raw case
+//! results go to a [`Shard`] file (format [`SHARD_FORMAT`], version [`SHARD_FORMAT_VERSION`];
+//! floats as hex text, see `Exact`). [`merge`] checks that the files are the shards 0/N …
+//! N−1/N of one audit (same tool version, seed, cases, selection and N; each shard once),
+//! interleaves their case results back into index order and aggregates them as the unsharded
+//! run does: its report is the unsharded report, byte for byte, with `shard` "0/1".
 
-use crate::real::Real;
+use crate::real::{hex_float, parse_f64, Real};
 use crate::sphere::cases::{self, Class};
-use crate::sphere::methods::{Method, PickPrecision};
-use crate::sphere::oracle::{self, Case, Truth};
+use crate::sphere::methods::{method_by_name, Method, PickPrecision};
+use crate::sphere::oracle::{self, Case, Verdict};
 use crate::sphere::{enclosure_holds, judge, Judgement};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Which arithmetic a row is about.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, PartialOrd, Ord)]
 #[serde(rename_all = "snake_case")]
 pub enum Precision {
     F32,
@@ -153,22 +163,143 @@ pub struct Report {
 /// CPU time spent in the oracle (all threads), for the terminal summary only (never in JSON).
 pub static ORACLE_NANOS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
-/// Everything recorded about one case for one method.
-struct Sample {
-    judgement: Judgement,
-    cond: Option<f64>,
-    residual: Option<f64>,
-    enclosure: Option<(bool, u64)>,
-    t_hex: Option<String>,
+/// The `tool` field of reports and shard files.
+pub const TOOL: &str = concat!("rayproof ", env!("CARGO_PKG_VERSION"));
+
+/// The oracle's findings about one case that aggregation uses.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CaseTruth {
+    verdict: Verdict,
+    ill_posed: bool,
+    cap_reached: bool,
 }
 
-/// One case with its truth and every method's sample.
+/// Everything recorded about one case for one method. In a shard file it is the array
+/// `[judgement, t, residual, enclosure]`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(from = "SampleWire", into = "SampleWire")]
+struct Sample {
+    judgement: Judgement,
+    /// The method's `t`, exactly (an `f32` widened to `f64`).
+    t: Option<f64>,
+    residual: Option<f64>,
+    /// Whether the enclosure holds, and its width in ulps.
+    enclosure: Option<(bool, u64)>,
+}
+
+#[derive(Clone, Copy, Serialize, Deserialize)]
+struct SampleWire(Judgement, Option<Exact>, Option<Exact>, Option<(bool, u64)>);
+
+impl From<Sample> for SampleWire {
+    fn from(s: Sample) -> Self {
+        let x = |v: Option<f64>| v.map(Exact);
+        SampleWire(s.judgement, x(s.t), x(s.residual), s.enclosure)
+    }
+}
+
+impl From<SampleWire> for Sample {
+    fn from(w: SampleWire) -> Self {
+        let x = |v: Option<Exact>| v.map(|e| e.0);
+        Sample {
+            judgement: w.0,
+            t: x(w.1),
+            residual: x(w.2),
+            enclosure: w.3,
+        }
+    }
+}
+
+/// An `f64` that survives JSON exactly: a C99 hex float (`0x1.8p+1`, `-0x0p+0`, `inf`), and a
+/// NaN as its bit pattern (`nan:0x7ff8000000000000`). Decimal JSON numbers are not used because
+/// a JSON reader need not parse them exactly.
+#[derive(Clone, Copy, Debug)]
+struct Exact(f64);
+
+impl Exact {
+    fn text(self) -> String {
+        if self.0.is_nan() {
+            format!("nan:{:#018x}", self.0.to_bits())
+        } else {
+            hex_float(self.0)
+        }
+    }
+    fn parse(s: &str) -> Option<f64> {
+        match s.strip_prefix("nan:0x") {
+            Some(bits) => u64::from_str_radix(bits, 16)
+                .ok()
+                .map(f64::from_bits)
+                .filter(|x| x.is_nan()),
+            None => parse_f64(s).filter(|x| !x.is_nan()),
+        }
+    }
+}
+
+impl Serialize for Exact {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&self.text())
+    }
+}
+
+impl<'de> Deserialize<'de> for Exact {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = <std::borrow::Cow<str>>::deserialize(d)?;
+        Exact::parse(&s)
+            .map(Exact)
+            .ok_or_else(|| serde::de::Error::custom(format!("'{s}' is not an exact float")))
+    }
+}
+
+/// `Option<f64>` fields written as [`Exact`].
+mod exact_opt {
+    use super::Exact;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+    pub fn serialize<S: Serializer>(v: &Option<f64>, s: S) -> Result<S::Ok, S::Error> {
+        v.map(Exact).serialize(s)
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Option<f64>, D::Error> {
+        Ok(Option::<Exact>::deserialize(d)?.map(|e| e.0))
+    }
+}
+
+/// One case with its truth and every method's sample (`truth` is `None`, and there are no
+/// samples, when the generator found no member).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 struct CaseResult {
     index: u64,
     probe: String,
-    truth: Option<Truth>,
-    oracle_t_hex: Option<String>,
+    truth: Option<CaseTruth>,
+    /// The correctly rounded root in the case's precision, exactly.
+    #[serde(with = "exact_opt")]
+    oracle_t: Option<f64>,
+    /// The case's sensitivity in ulps of `t` (see [`oracle::condition_ulps`]).
+    #[serde(with = "exact_opt")]
+    cond: Option<f64>,
     samples: Vec<Sample>,
+}
+
+/// The results of one precision × class, in index order.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Group {
+    precision: Precision,
+    #[serde(with = "class_name")]
+    class: Class,
+    cases: Vec<CaseResult>,
+}
+
+/// A [`Class`] by its name.
+mod class_name {
+    use crate::sphere::cases::Class;
+    use serde::{Deserialize, Deserializer, Serializer};
+    pub fn serialize<S: Serializer>(c: &Class, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(c.name())
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Class, D::Error> {
+        let s = <std::borrow::Cow<str>>::deserialize(d)?;
+        Class::from_name(&s).ok_or_else(|| serde::de::Error::custom(format!("unknown class '{s}'")))
+    }
 }
 
 fn evaluate<F: PickPrecision>(
@@ -182,7 +313,8 @@ fn evaluate<F: PickPrecision>(
             index,
             probe: String::new(),
             truth: None,
-            oracle_t_hex: None,
+            oracle_t: None,
+            cond: None,
             samples: vec![],
         };
     };
@@ -213,18 +345,22 @@ fn evaluate<F: PickPrecision>(
             };
             Sample {
                 judgement,
-                cond,
+                t: hit.map(|h| h.t.to_f64()),
                 residual,
                 enclosure,
-                t_hex: hit.map(|h| h.t.hex()),
             }
         })
         .collect();
     CaseResult {
         index,
         probe: probe_line(&case),
-        oracle_t_hex: truth.t_in::<F>().map(|t| t.hex()),
-        truth: Some(truth),
+        oracle_t: truth.t_in::<F>().map(|t| t.to_f64()),
+        cond,
+        truth: Some(CaseTruth {
+            verdict: truth.verdict,
+            ill_posed: truth.ill_posed,
+            cap_reached: truth.cap_reached,
+        }),
         samples,
     }
 }
@@ -234,11 +370,47 @@ pub fn probe_line<F: Real>(case: &Case<F>) -> String {
     format!("rayproof probe sphere {}", case.probe_args())
 }
 
-/// Runs the audit. `tick` is called once per finished case (for a progress bar).
+/// The indices of shard `(k, n)` among `0..cases`: `k, k + n, k + 2n, …`.
+fn shard_indices(cases: u64, (k, n): (u64, u64)) -> impl Iterator<Item = u64> {
+    (k..cases).step_by(usize::try_from(n.max(1)).unwrap_or(usize::MAX))
+}
+
+/// How many indices shard `(k, n)` has among `0..cases`.
+fn shard_len(cases: u64, (k, n): (u64, u64)) -> u64 {
+    if k >= cases {
+        0
+    } else {
+        (cases - k - 1) / n.max(1) + 1
+    }
+}
+
+/// Runs the audit.
 pub fn run(opts: &AuditOptions) -> Report {
-    let per_combo = opts.cases;
-    let total =
-        per_combo * opts.classes.len() as u64 * opts.precisions.len() as u64 / opts.shard.1.max(1);
+    run_inner(opts, false).0
+}
+
+/// Runs the audit and also returns its raw results, for `--shard-out` and [`merge`].
+pub fn run_shard(opts: &AuditOptions) -> (Report, Shard) {
+    let (report, groups) = run_inner(opts, true);
+    let shard = Shard {
+        tool: TOOL.to_string(),
+        seed: opts.seed,
+        cases: opts.cases,
+        methods: opts.methods.clone(),
+        precisions: opts.precisions.clone(),
+        classes: opts.classes.clone(),
+        shard: opts.shard,
+        groups,
+    };
+    (report, shard)
+}
+
+/// Evaluates every precision × class in turn and aggregates it at once; the case results are
+/// kept only when `keep` (otherwise one group's results are in memory at a time).
+fn run_inner(opts: &AuditOptions, keep: bool) -> (Report, Vec<Group>) {
+    // Progress bar over this shard's cases
+    let per_group = shard_len(opts.cases, opts.shard);
+    let total = per_group * opts.classes.len() as u64 * opts.precisions.len() as u64;
     let bar = if opts.progress {
         ProgressBar::new(total)
     } else {
@@ -250,16 +422,15 @@ pub fn run(opts: &AuditOptions) -> Report {
         )
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let mut rows = Vec::new();
-    for &prec in &opts.precisions {
+    let (mut rows, mut kept) = (Vec::new(), Vec::new());
+    for &precision in &opts.precisions {
         for &class in &opts.classes {
-            let indices: Vec<u64> = (0..opts.cases)
-                .filter(|i| i % opts.shard.1 == opts.shard.0)
-                .collect();
-            let results: Vec<CaseResult> = indices
+            // Evaluate in parallel, collect in index order
+            let indices: Vec<u64> = shard_indices(opts.cases, opts.shard).collect();
+            let cases: Vec<CaseResult> = indices
                 .par_iter()
                 .map(|&i| {
-                    let r = match prec {
+                    let r = match precision {
                         Precision::F32 => evaluate::<f32>(opts.seed, class, i, &opts.methods),
                         Precision::F64 => evaluate::<f64>(opts.seed, class, i, &opts.methods),
                     };
@@ -267,20 +438,334 @@ pub fn run(opts: &AuditOptions) -> Report {
                     r
                 })
                 .collect();
-            for (k, m) in opts.methods.iter().enumerate() {
-                rows.push(aggregate(m, prec, class, &results, k));
+            let group = Group {
+                precision,
+                class,
+                cases,
+            };
+            // Aggregate sequentially
+            rows.extend(group_rows(&opts.methods, &group));
+            if keep {
+                kept.push(group);
             }
         }
     }
     bar.finish_and_clear();
-    let shard = format!("{}/{}", opts.shard.0, opts.shard.1);
-    Report {
-        tool: concat!("rayproof ", env!("CARGO_PKG_VERSION")),
+    let report = Report {
+        tool: TOOL,
         seed: opts.seed,
         cases_per_class: opts.cases,
-        shard,
+        shard: format!("{}/{}", opts.shard.0, opts.shard.1),
         rows,
+    };
+    (report, kept)
+}
+
+/// The rows of one precision × class, one per method. Depends only on the case results (in
+/// index order): an unsharded run and a merge of its shards give the same rows.
+fn group_rows(methods: &[&'static Method], group: &Group) -> Vec<Row> {
+    methods
+        .iter()
+        .enumerate()
+        .map(|(k, m)| aggregate(m, group.precision, group.class, &group.cases, k))
+        .collect()
+}
+
+/// The tag in the `format` field of a shard file.
+pub const SHARD_FORMAT: &str = "rayproof-audit-shard";
+/// The version in the `format_version` field; a reader refuses any other.
+pub const SHARD_FORMAT_VERSION: u32 = 1;
+
+/// One shard's raw case results, as written by `rayproof audit --shard K/N --shard-out FILE`
+/// and read by `rayproof merge`.
+#[derive(Debug)]
+pub struct Shard {
+    pub tool: String,
+    pub seed: u64,
+    pub cases: u64,
+    pub methods: Vec<&'static Method>,
+    pub precisions: Vec<Precision>,
+    pub classes: Vec<Class>,
+    /// `(k, n)`.
+    pub shard: (u64, u64),
+    groups: Vec<Group>,
+}
+
+/// `k` and `n` of a shard file.
+#[derive(Clone, Copy, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShardId {
+    k: u64,
+    n: u64,
+}
+
+/// The shard file's JSON object (field order is the file's).
+#[derive(Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShardFile<G> {
+    format: String,
+    format_version: u32,
+    tool: String,
+    seed: u64,
+    cases_per_class: u64,
+    methods: Vec<String>,
+    precisions: Vec<Precision>,
+    classes: Vec<String>,
+    shard: ShardId,
+    groups: G,
+}
+
+/// Just the tag of a file, to tell "not a shard" from "a corrupt shard".
+#[derive(Deserialize)]
+struct FormatTag {
+    format: Option<serde_json::Value>,
+    format_version: Option<serde_json::Value>,
+}
+
+impl Shard {
+    /// The shard file: one line of JSON, every float exact (hex text; a NaN by its bits).
+    pub fn to_json(&self) -> String {
+        let file = ShardFile {
+            format: SHARD_FORMAT.into(),
+            format_version: SHARD_FORMAT_VERSION,
+            tool: self.tool.clone(),
+            seed: self.seed,
+            cases_per_class: self.cases,
+            methods: self.methods.iter().map(|m| m.name.to_string()).collect(),
+            precisions: self.precisions.clone(),
+            classes: self.classes.iter().map(|c| c.name().to_string()).collect(),
+            shard: ShardId {
+                k: self.shard.0,
+                n: self.shard.1,
+            },
+            groups: &self.groups,
+        };
+        serde_json::to_string(&file).expect("a shard serialises") + "\n"
     }
+
+    /// Reads a shard file, checking that it is complete and consistent in itself: every
+    /// precision × class of its selection, every index of its shard, one sample per method.
+    /// The error is one line.
+    pub fn from_json(bytes: &[u8]) -> Result<Shard, String> {
+        let file: ShardFile<Vec<Group>> = match serde_json::from_slice(bytes) {
+            Ok(f) => f,
+            Err(e) => {
+                // Tell a file of another kind from a damaged shard
+                let tag = serde_json::from_slice::<FormatTag>(bytes).ok();
+                let json = serde_json::from_slice::<serde::de::IgnoredAny>(bytes).is_ok();
+                return Err(match tag {
+                    Some(t) if t.format != Some(SHARD_FORMAT.into()) => {
+                        format!("not a rayproof audit shard (no \"format\": \"{SHARD_FORMAT}\")")
+                    }
+                    Some(t) if t.format_version != Some(SHARD_FORMAT_VERSION.into()) => {
+                        format!(
+                            "shard format version {}, but this rayproof reads version {SHARD_FORMAT_VERSION}",
+                            t.format_version.map(|v| v.to_string()).unwrap_or("(none)".into())
+                        )
+                    }
+                    None if json => {
+                        format!("not a rayproof audit shard (no \"format\": \"{SHARD_FORMAT}\")")
+                    }
+                    _ if e.is_eof() => format!("truncated shard ({e})"),
+                    _ => format!("corrupt shard ({e})"),
+                });
+            }
+        };
+        if file.format != SHARD_FORMAT {
+            return Err(format!(
+                "not a rayproof audit shard (no \"format\": \"{SHARD_FORMAT}\")"
+            ));
+        }
+        if file.format_version != SHARD_FORMAT_VERSION {
+            return Err(format!(
+                "shard format version {}, but this rayproof reads version {SHARD_FORMAT_VERSION}",
+                file.format_version
+            ));
+        }
+        let corrupt = |what: String| Err(format!("corrupt shard: {what}"));
+        let ShardId { k, n } = file.shard;
+        if n == 0 || k >= n {
+            return corrupt(format!("shard {k}/{n} is not K/N with 0 ≤ K < N"));
+        }
+        let mut methods = vec![];
+        for name in &file.methods {
+            match method_by_name(name) {
+                Some(m) => methods.push(m),
+                None => return corrupt(format!("unknown method '{name}'")),
+            }
+        }
+        let mut classes = vec![];
+        for name in &file.classes {
+            match Class::from_name(name) {
+                Some(c) => classes.push(c),
+                None => return corrupt(format!("unknown class '{name}'")),
+            }
+        }
+        if methods.is_empty() || classes.is_empty() || file.precisions.is_empty() {
+            return corrupt("empty selection".into());
+        }
+        // Every precision × class in selection order, every index of the shard, in order
+        let expected: Vec<(Precision, Class)> = file
+            .precisions
+            .iter()
+            .flat_map(|&p| classes.iter().map(move |&c| (p, c)))
+            .collect();
+        let got: Vec<(Precision, Class)> =
+            file.groups.iter().map(|g| (g.precision, g.class)).collect();
+        if got != expected {
+            return corrupt(format!(
+                "{} precision × class groups where the selection has {}",
+                got.len(),
+                expected.len()
+            ));
+        }
+        let per_group = shard_len(file.cases_per_class, (k, n));
+        for g in &file.groups {
+            let at = format!("{} {}", g.precision.name(), g.class.name());
+            if g.cases.len() as u64 != per_group {
+                return corrupt(format!(
+                    "{at}: {} cases where shard {k}/{n} of {} has {per_group}",
+                    g.cases.len(),
+                    file.cases_per_class
+                ));
+            }
+            for (c, i) in g
+                .cases
+                .iter()
+                .zip(shard_indices(file.cases_per_class, (k, n)))
+            {
+                if c.index != i {
+                    return corrupt(format!("{at}: case {} where {i} belongs", c.index));
+                }
+                let want = if c.truth.is_some() { methods.len() } else { 0 };
+                if c.samples.len() != want {
+                    return corrupt(format!(
+                        "{at} case {i}: {} samples for {want} methods",
+                        c.samples.len()
+                    ));
+                }
+            }
+        }
+        Ok(Shard {
+            tool: file.tool,
+            seed: file.seed,
+            cases: file.cases_per_class,
+            methods,
+            precisions: file.precisions,
+            classes,
+            shard: (k, n),
+            groups: file.groups,
+        })
+    }
+}
+
+/// Shards that are each sound but do not make up one audit: different tool version, seed,
+/// cases or selection, or a shard missing or given twice. The CLI exits 3 on it.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct IncompatibleShards(pub String);
+
+/// Combines the shards `0/N … N−1/N` of one audit (each given once, in any order, with a name
+/// for messages) into exactly the report the unsharded audit gives.
+pub fn merge(shards: Vec<(String, Shard)>) -> Result<Report, IncompatibleShards> {
+    let fail = |s: String| Err(IncompatibleShards(s));
+    let Some((first_name, first)) = shards.first() else {
+        return fail("no shard given".into());
+    };
+    // Same tool, seed, cases, selection and N everywhere
+    for (name, s) in &shards {
+        if s.tool != TOOL {
+            return fail(format!(
+                "{name} was written by {}, but this is {TOOL}",
+                s.tool
+            ));
+        }
+    }
+    let names = |ms: &[&'static Method]| ms.iter().map(|m| m.name).collect::<Vec<_>>().join(",");
+    let classes = |cs: &[Class]| cs.iter().map(|c| c.name()).collect::<Vec<_>>().join(",");
+    let precisions = |ps: &[Precision]| ps.iter().map(|p| p.name()).collect::<Vec<_>>().join(",");
+    let key = |s: &Shard| {
+        [
+            ("seed", s.seed.to_string()),
+            ("cases per class", s.cases.to_string()),
+            ("methods", names(&s.methods)),
+            ("precisions", precisions(&s.precisions)),
+            ("classes", classes(&s.classes)),
+            ("shard count N", s.shard.1.to_string()),
+        ]
+    };
+    let want = key(first);
+    for (name, s) in &shards[1..] {
+        for ((what, a), (_, b)) in want.iter().zip(key(s)) {
+            if *a != b {
+                return fail(format!(
+                    "{first_name} and {name} are not shards of one audit: {what} {a} vs {b}"
+                ));
+            }
+        }
+    }
+    // Each of 0/N … N−1/N exactly once
+    let n = first.shard.1;
+    let mut by_k = std::collections::BTreeMap::new();
+    for (name, s) in &shards {
+        let k = s.shard.0;
+        if let Some(other) = by_k.insert(k, name) {
+            return fail(format!("shard {k}/{n} given twice: {other} and {name}"));
+        }
+    }
+    if (by_k.len() as u64) < n {
+        let missing: Vec<String> = (0..n)
+            .filter(|k| !by_k.contains_key(k))
+            .take(4)
+            .map(|k| format!("{k}/{n}"))
+            .collect();
+        let more = if n - by_k.len() as u64 > missing.len() as u64 {
+            ", …"
+        } else {
+            ""
+        };
+        return fail(format!(
+            "missing shard {}{more}: a merge needs each of 0/{n} … {}/{n} once",
+            missing.join(", "),
+            n - 1
+        ));
+    }
+    // Interleave by index, group by group, and aggregate as an unsharded run does
+    let (seed, cases, methods) = (first.seed, first.cases, first.methods.clone());
+    let mut parts: Vec<Shard> = shards.into_iter().map(|(_, s)| s).collect();
+    parts.sort_by_key(|s| s.shard.0);
+    let mut groups: Vec<std::vec::IntoIter<Group>> =
+        parts.into_iter().map(|s| s.groups.into_iter()).collect();
+    let mut rows = vec![];
+    while let Some(first_group) = groups[0].next() {
+        let (precision, class) = (first_group.precision, first_group.class);
+        let mut streams = vec![first_group.cases.into_iter()];
+        for g in &mut groups[1..] {
+            streams.push(g.next().expect("validated: same groups").cases.into_iter());
+        }
+        let cases: Vec<CaseResult> = (0..cases)
+            .map(|i| {
+                streams[(i % n) as usize]
+                    .next()
+                    .expect("validated: every index")
+            })
+            .collect();
+        rows.extend(group_rows(
+            &methods,
+            &Group {
+                precision,
+                class,
+                cases,
+            },
+        ));
+    }
+    Ok(Report {
+        tool: TOOL,
+        seed,
+        cases_per_class: cases,
+        shard: "0/1".into(),
+        rows,
+    })
 }
 
 /// How many examples of each kind a row keeps.
@@ -331,8 +816,8 @@ fn aggregate(
                     kind,
                     index: r.index,
                     probe: r.probe.clone(),
-                    method_t: r.samples[k].t_hex.clone(),
-                    oracle_t: r.oracle_t_hex.clone(),
+                    method_t: r.samples[k].t.map(hex_float),
+                    oracle_t: r.oracle_t.map(hex_float),
                     ulps,
                 });
             }
@@ -392,7 +877,7 @@ fn aggregate(
             }
             Judgement::Ok { ulps: Some(u) } => {
                 ulps.push(u as f64);
-                if let Some(c) = s.cond {
+                if let Some(c) = r.cond {
                     relc.push(u as f64 / c.max(1.0));
                 }
                 if worst_ulps.is_none_or(|(w, _)| u > w) {
@@ -608,4 +1093,75 @@ pub fn markdown(report: &Report) -> String {
         );
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sphere::methods::METHODS;
+
+    fn round_trip(x: f64) -> f64 {
+        let text = serde_json::to_string(&Exact(x)).unwrap();
+        serde_json::from_str::<Exact>(&text).unwrap().0
+    }
+
+    #[test]
+    fn floats_round_trip_exactly_through_shard_json() {
+        let specials = [
+            0.0,
+            -0.0,
+            0.1,
+            -3.5,
+            f64::MIN_POSITIVE,
+            f64::from_bits(1),
+            -f64::from_bits(0x000f_ffff_ffff_ffff),
+            f64::MAX,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            -f64::NAN,
+            f64::from_bits(0x7ff0_0000_0000_0001),
+            0.1f32 as f64,
+        ];
+        for x in specials {
+            assert_eq!(round_trip(x).to_bits(), x.to_bits(), "{}", Exact(x).text());
+        }
+        // A sweep of bit patterns over every exponent
+        let mut h = 0x243f_6a88_85a3_08d3u64;
+        for _ in 0..20_000 {
+            h = h
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            let x = f64::from_bits(h);
+            assert_eq!(round_trip(x).to_bits(), h, "{}", Exact(x).text());
+        }
+        assert_eq!(Exact(f64::NAN).text(), "nan:0x7ff8000000000000");
+        for bad in ["\"0x1.zzp+1\"", "\"nan:0x0\"", "\"\"", "1.5", "null"] {
+            assert!(serde_json::from_str::<Exact>(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_shard_survives_its_file_and_merges_into_the_run() {
+        let opts = |shard| AuditOptions {
+            cases: 25,
+            seed: 9,
+            methods: METHODS.iter().collect(),
+            precisions: Precision::ALL.to_vec(),
+            classes: vec![Class::Tangent, Class::Invalid],
+            shard,
+            progress: false,
+        };
+        let full = run(&opts((0, 1)));
+        let mut shards = vec![];
+        for k in [1, 0] {
+            let (report, shard) = run_shard(&opts((k, 2)));
+            assert_eq!(report.shard, format!("{k}/2"));
+            let text = shard.to_json();
+            let back = Shard::from_json(text.as_bytes()).unwrap();
+            assert_eq!(back.to_json(), text);
+            shards.push((format!("s{k}"), back));
+        }
+        assert_eq!(merge(shards).unwrap(), full);
+    }
 }

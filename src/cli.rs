@@ -2,16 +2,20 @@
 //! commands they run.
 //!
 //! Exit codes, for every command:
-//! - 0: success (for `audit`: every row within the tolerance table)
-//! - 1: `audit` ran, and some row broke its tolerance-table entry (a regression)
-//! - 2: bad usage or input (a malformed argument, an unknown method or class, an unwritable file)
+//! - 0: success (for `audit` and `merge`: every row within the tolerance table; `audit
+//!   --shard-out` leaves that check to the merge)
+//! - 1: `audit` or `merge` ran, and some row broke its tolerance-table entry (a regression)
+//! - 2: bad usage or input (a malformed argument, an unknown method or class, an unwritable file,
+//!   and for `merge` a shard file that is unreadable, truncated, corrupt or not a shard)
+//! - 3: `merge` only: the shard files are sound but are not one audit's shards 0/N … N−1/N
+//!   (a shard missing or given twice; a different seed, case count, selection, N or version)
 
 use crate::audit::{self, AuditOptions, Precision};
 use crate::probe;
 use crate::sphere::cases::Class;
 use crate::sphere::methods::{method_by_name, Method, METHODS};
 use crate::sphere::tolerance;
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::{Args, Parser, Subcommand};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -56,6 +60,8 @@ pub struct Cli {
 pub enum Command {
     /// Audit every method × precision × case class against the oracle and print a table.
     Audit(AuditArgs),
+    /// Merge the shard files of `audit --shard K/N --shard-out FILE` into the unsharded report.
+    Merge(MergeArgs),
     /// Run the oracle and every method on one ray and one shape.
     #[command(subcommand)]
     Probe(ProbeCommand),
@@ -197,7 +203,28 @@ pub struct AuditArgs {
     /// Run only shard K of N (cases whose index ≡ K mod N), written as K/N.
     #[arg(long, value_parser = parse_shard, default_value = "0/1")]
     pub shard: (u64, u64),
+    /// Write this shard's raw per-case results for `rayproof merge` (the tolerance table is then
+    /// checked by the merge, not here).
+    #[arg(long, value_name = "FILE")]
+    pub shard_out: Option<PathBuf>,
     /// Write the full report as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Write the table as Markdown.
+    #[arg(long)]
+    pub markdown: Option<PathBuf>,
+    /// Replayable worst cases to print per row (0 for none).
+    #[arg(long, default_value_t = 1)]
+    pub worst: usize,
+}
+
+#[derive(Args, Debug)]
+pub struct MergeArgs {
+    /// Shard files from `rayproof audit --shard K/N --shard-out FILE`: each K of 0 … N−1 once,
+    /// in any order.
+    #[arg(required = true, value_name = "SHARD")]
+    pub shards: Vec<PathBuf>,
+    /// Write the full report as JSON (byte-identical to the unsharded audit's).
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write the table as Markdown.
@@ -332,10 +359,20 @@ fn check_output_dirs(paths: &[&Option<PathBuf>]) -> Result<()> {
     Ok(())
 }
 
+/// The exit code of a command that failed with `e` (see the module documentation).
+pub fn error_exit_code(e: &anyhow::Error) -> u8 {
+    if e.downcast_ref::<audit::IncompatibleShards>().is_some() {
+        3
+    } else {
+        2
+    }
+}
+
 /// Runs a parsed command; returns the process exit code.
 pub fn run(cli: Cli) -> Result<u8> {
     match cli.command {
         Command::Audit(a) => run_audit(a),
+        Command::Merge(m) => run_merge(m),
         Command::Render(r) => run_render(r),
         Command::Diff(d) => Ok(crate::imgdiff::run_diff(d)),
         Command::Check(c) => run_check(c),
@@ -398,22 +435,19 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         progress: std::io::stderr().is_terminal(),
     };
     // Check output paths before the long run
-    check_output_dirs(&[&a.json, &a.markdown])?;
+    check_output_dirs(&[&a.json, &a.markdown, &a.shard_out])?;
     let start = Instant::now();
     audit::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
-    let report = audit::run(&opts);
+    let (report, shard) = match &a.shard_out {
+        Some(_) => {
+            let (report, shard) = audit::run_shard(&opts);
+            (report, Some(shard))
+        }
+        None => (audit::run(&opts), None),
+    };
     let secs = start.elapsed().as_secs_f64();
-    say_raw!("{}", audit::table(&report));
-    if a.worst > 0 {
-        say!("\nWorst cases (replay with the probe line):");
-        say_raw!("{}", audit::worst_cases(&report, a.worst));
-    }
-    let n: u64 = report
-        .rows
-        .iter()
-        .filter(|r| r.method == opts.methods[0].name)
-        .map(|r| r.cases)
-        .sum();
+    print_report(&report, a.worst);
+    let n = cases_per_method(&report);
     say!(
         "\n{} cases × {} methods in {:.1} s on {} threads ({:.0} cases/s)",
         n,
@@ -428,24 +462,92 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         oracle_secs,
         n as f64 / oracle_secs.max(1e-9)
     );
-    if let Some(p) = &a.json {
-        let text = serde_json::to_string_pretty(&report)? + "\n";
+    write_report_files(&report, &a.json, &a.markdown)?;
+    // A shard for merging: the merge checks the tolerance table on the whole run
+    if let (Some(p), Some(shard)) = (&a.shard_out, &shard) {
+        write_atomic(p, shard.to_json().as_bytes())?;
+        say!(
+            "shard {}/{} written to {}; the tolerance table is checked by `rayproof merge`",
+            opts.shard.0,
+            opts.shard.1,
+            p.display()
+        );
+        return Ok(0);
+    }
+    Ok(tolerance_verdict(&report))
+}
+
+fn run_merge(m: MergeArgs) -> Result<u8> {
+    check_output_dirs(&[&m.json, &m.markdown])?;
+    // Read and check each shard on its own (exit 2 on a bad file)
+    let mut shards = vec![];
+    for p in &m.shards {
+        let bytes = std::fs::read(p).with_context(|| format!("cannot read {}", p.display()))?;
+        let shard = audit::Shard::from_json(&bytes).map_err(|e| anyhow!("{}: {e}", p.display()))?;
+        shards.push((p.display().to_string(), shard));
+    }
+    // Check that they make up one audit (exit 3), interleave and aggregate
+    let (count, methods) = (shards.len(), shards[0].1.methods.len());
+    let report = audit::merge(shards)?;
+    print_report(&report, m.worst);
+    say!(
+        "\n{} cases × {} methods merged from {} shards",
+        cases_per_method(&report),
+        methods,
+        count
+    );
+    write_report_files(&report, &m.json, &m.markdown)?;
+    Ok(tolerance_verdict(&report))
+}
+
+/// Cases per method: the cases of every precision × class of the first method's rows.
+fn cases_per_method(report: &audit::Report) -> u64 {
+    let first = report.rows.first().map(|r| r.method);
+    report
+        .rows
+        .iter()
+        .filter(|r| Some(r.method) == first)
+        .map(|r| r.cases)
+        .sum()
+}
+
+/// Prints the table and the worst cases (the same for `audit` and `merge`).
+fn print_report(report: &audit::Report, worst: usize) {
+    say_raw!("{}", audit::table(report));
+    if worst > 0 {
+        say!("\nWorst cases (replay with the probe line):");
+        say_raw!("{}", audit::worst_cases(report, worst));
+    }
+}
+
+/// Writes `--json` and `--markdown` (the same for `audit` and `merge`).
+fn write_report_files(
+    report: &audit::Report,
+    json: &Option<PathBuf>,
+    markdown: &Option<PathBuf>,
+) -> Result<()> {
+    if let Some(p) = json {
+        let text = serde_json::to_string_pretty(report)? + "\n";
         write_atomic(p, text.as_bytes())?;
     }
-    if let Some(p) = &a.markdown {
-        write_atomic(p, audit::markdown(&report).as_bytes())?;
+    if let Some(p) = markdown {
+        write_atomic(p, audit::markdown(report).as_bytes())?;
     }
-    // Compare with the tolerance table
-    let breaks = tolerance::check(&report);
+    Ok(())
+}
+
+/// Compares with the tolerance table, prints the verdict and returns the exit code.
+fn tolerance_verdict(report: &audit::Report) -> u8 {
+    let breaks = tolerance::check(report);
     if breaks.is_empty() {
         say!("tolerance table: every row within its entry");
-        Ok(0)
+        0
     } else {
         say!("tolerance table: {} row(s) out of bounds", breaks.len());
         for b in &breaks {
             say!("  {b}");
         }
-        Ok(1)
+        1
     }
 }
 

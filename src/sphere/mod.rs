@@ -9,10 +9,10 @@ pub mod tolerance;
 use crate::real::Real;
 use methods::SphereHit;
 use oracle::{Case, Truth, Verdict};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// How one method's answer compares with the oracle on one case.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Judgement {
     /// Right verdict; for a hit, `ulps` from the correctly rounded root.

@@ -23,7 +23,7 @@ use crate::real::Real;
 use rug::float::Round;
 use rug::ops::{AddAssignRound, DivAssignRound, MulAssignRound};
 use rug::{Float, Integer};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::cmp::Ordering;
 
 /// Precision, in bits, at which the root search gives up.
@@ -85,7 +85,7 @@ impl<F: Real> Case<F> {
 }
 
 /// The exact outcome for valid input.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Verdict {
     /// No root with `t > 0`.

@@ -1,0 +1,422 @@
+//! `rayproof audit --shard K/N --shard-out FILE` and `rayproof merge`: the merge of a run's
+//! shards is the unsharded run, byte for byte (JSON, Markdown, table, exit status), and a shard
+//! set that is incomplete, inconsistent or corrupt is refused with one line and an exit code.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn rayproof(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// A fresh scratch directory for one test.
+fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("rayproof-shard-{}-{name}", std::process::id()));
+    std::fs::remove_dir_all(&dir).ok();
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+fn s(p: &Path) -> String {
+    p.display().to_string()
+}
+
+/// Runs `rayproof` with string arguments.
+fn run(args: &[String]) -> Output {
+    rayproof(&args.iter().map(String::as_str).collect::<Vec<_>>())
+}
+
+/// An audit selection: small, several methods, precisions and classes.
+fn selection(seed: u64, cases: u64) -> Vec<String> {
+    [
+        "--cases",
+        &cases.to_string(),
+        "--seed",
+        &seed.to_string(),
+        "--method",
+        "algebraic,rtg7,hearn_baker,interval",
+        "--precision",
+        "f32,f64",
+        "--class",
+        "far_small,tangent,on_surface,invalid",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+/// Writes shard `k/n` of a selection to `path`; the shard run itself must succeed.
+fn write_shard(sel: &[String], k: u64, n: u64, path: &Path) {
+    let mut args = vec!["audit".to_string()];
+    args.extend_from_slice(sel);
+    args.extend([
+        "--shard".into(),
+        format!("{k}/{n}"),
+        "--shard-out".into(),
+        s(path),
+    ]);
+    let o = run(&args);
+    // A shard leaves the tolerance table to the merge, so it exits 0 even where the run breaks it
+    assert_eq!(o.status.code(), Some(0), "shard {k}/{n}: {}", stderr(&o));
+    assert!(
+        stdout(&o).contains("checked by `rayproof merge`"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+/// Removes the lines of `text` containing `marker` (timings and the like), checking that there
+/// are exactly `count` of them.
+fn without(text: &str, marker: &str, count: usize) -> String {
+    let found = text.lines().filter(|l| l.contains(marker)).count();
+    assert_eq!(found, count, "'{marker}' lines in:\n{text}");
+    text.lines()
+        .filter(|l| !l.contains(marker))
+        .map(|l| format!("{l}\n"))
+        .collect()
+}
+
+/// What an audit or a merge produced.
+struct Outputs {
+    code: Option<i32>,
+    json: Vec<u8>,
+    markdown: Vec<u8>,
+    /// stdout without the lines that differ by design (timings; the merge's summary line).
+    table: String,
+}
+
+fn unsharded(sel: &[String], dir: &Path, extra: &[&str]) -> Outputs {
+    let (json, md) = (dir.join("audit.json"), dir.join("audit.md"));
+    let mut args = vec!["audit".to_string()];
+    args.extend_from_slice(sel);
+    args.extend(["--json".into(), s(&json), "--markdown".into(), s(&md)]);
+    args.extend(extra.iter().map(|e| e.to_string()));
+    let o = run(&args);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", stderr(&o));
+    let table = without(&stdout(&o), " methods in ", 1);
+    Outputs {
+        code: o.status.code(),
+        json: std::fs::read(&json).unwrap(),
+        markdown: std::fs::read(&md).unwrap(),
+        table: without(&table, "oracle alone:", 1),
+    }
+}
+
+fn merged(shards: &[&Path], dir: &Path, extra: &[&str]) -> Outputs {
+    let (json, md) = (dir.join("merged.json"), dir.join("merged.md"));
+    let mut args = vec!["merge".to_string()];
+    args.extend(shards.iter().map(|p| s(p)));
+    args.extend(["--json".into(), s(&json), "--markdown".into(), s(&md)]);
+    args.extend(extra.iter().map(|e| e.to_string()));
+    let o = run(&args);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", stderr(&o));
+    Outputs {
+        code: o.status.code(),
+        json: std::fs::read(&json).unwrap(),
+        markdown: std::fs::read(&md).unwrap(),
+        table: without(&stdout(&o), " methods merged from ", 1),
+    }
+}
+
+/// The two runs give the same bytes, and what they give is not trivially equal: every row is
+/// there, cases were judged, wrong verdicts were found and worst cases were printed.
+fn assert_same(full: &Outputs, merge: &Outputs, sel_rows: usize) {
+    assert_eq!(
+        String::from_utf8_lossy(&full.json),
+        String::from_utf8_lossy(&merge.json),
+        "JSON differs"
+    );
+    assert!(full.json == merge.json, "JSON bytes differ");
+    assert!(full.markdown == merge.markdown, "Markdown differs");
+    assert_eq!(full.table, merge.table, "terminal table differs");
+    assert_eq!(full.code, merge.code, "exit status differs");
+    let v: Value = serde_json::from_slice(&merge.json).unwrap();
+    assert_eq!(v["shard"], "0/1");
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), sel_rows);
+    let n = |r: &Value, k: &str| r[k].as_u64().unwrap();
+    assert!(rows.iter().all(|r| n(r, "well_posed") > 0));
+    let wrong: u64 = rows
+        .iter()
+        .map(|r| n(r, "false_hit") + n(r, "false_miss") + n(r, "wrong_root"))
+        .sum();
+    assert!(wrong > 0, "no wrong verdict at all: a weak comparison");
+    assert!(rows
+        .iter()
+        .any(|r| r["ulps"]["max"].as_f64().unwrap() > 0.0));
+    assert!(rows
+        .iter()
+        .any(|r| !r["examples"].as_array().unwrap().is_empty()));
+    assert!(merge.table.contains("rayproof probe sphere --origin"));
+    let md = String::from_utf8_lossy(&merge.markdown);
+    assert!(md.contains("| f32 | far_small | algebraic |"), "{md}");
+}
+
+const ROWS: usize = 4 * 2 * 4;
+
+#[test]
+fn merge_of_three_shards_in_any_order_is_the_unsharded_audit() {
+    // Seed 1 passes the tolerance table; seed 2 breaks it (exit 1) at this size
+    for (seed, want_code) in [(1, 0), (2, 1)] {
+        let dir = scratch(&format!("three-{seed}"));
+        let sel = selection(seed, 90);
+        let full = unsharded(&sel, &dir, &[]);
+        assert_eq!(
+            full.code,
+            Some(want_code),
+            "seed {seed}: the tolerance table changed? pick a seed that gives exit {want_code}"
+        );
+        let shards: Vec<PathBuf> = (0..3).map(|k| dir.join(format!("s{k}.json"))).collect();
+        for (k, p) in shards.iter().enumerate() {
+            write_shard(&sel, k as u64, 3, p);
+        }
+        let merge = merged(&[&shards[2], &shards[0], &shards[1]], &dir, &[]);
+        assert_same(&full, &merge, ROWS);
+        // and in order
+        let merge = merged(&[&shards[0], &shards[1], &shards[2]], &dir, &[]);
+        assert_same(&full, &merge, ROWS);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
+
+#[test]
+fn merge_of_one_shard_is_the_unsharded_audit() {
+    let dir = scratch("one");
+    let sel = selection(3, 70);
+    let full = unsharded(&sel, &dir, &["--worst", "3"]);
+    let shard = dir.join("all.json");
+    write_shard(&sel, 0, 1, &shard);
+    let merge = merged(&[&shard], &dir, &["--worst", "3"]);
+    assert_same(&full, &merge, ROWS);
+    // --worst reaches the merge: with the default the table differs
+    let default = merged(&[&shard], &dir, &[]);
+    assert_ne!(default.table, full.table);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn shard_files_hold_no_decimal_floats() {
+    let dir = scratch("floats");
+    let shard = dir.join("s.json");
+    write_shard(&selection(1, 40), 1, 2, &shard);
+    let v: Value = serde_json::from_slice(&std::fs::read(&shard).unwrap()).unwrap();
+    assert_eq!(v["format"], "rayproof-audit-shard");
+    assert_eq!(v["format_version"], 1);
+    assert_eq!(v["shard"]["k"], 1);
+    assert_eq!(v["shard"]["n"], 2);
+    // Every number is an integer; floats are hex text, so they round-trip exactly
+    fn walk(v: &Value, numbers: &mut usize, hex: &mut usize) {
+        match v {
+            Value::Number(n) => {
+                assert!(n.is_u64(), "a non-integer number {n} in a shard");
+                *numbers += 1;
+            }
+            Value::String(s) if s.starts_with("0x") || s.starts_with("-0x") => *hex += 1,
+            Value::Array(a) => a.iter().for_each(|x| walk(x, numbers, hex)),
+            Value::Object(o) => o.values().for_each(|x| walk(x, numbers, hex)),
+            _ => {}
+        }
+    }
+    let (mut numbers, mut hex) = (0, 0);
+    walk(&v, &mut numbers, &mut hex);
+    assert!(
+        numbers > 100 && hex > 100,
+        "{numbers} numbers, {hex} hex floats"
+    );
+    // Every case of shard 1/2: indices 1, 3, 5, …
+    let g = &v["groups"][0]["cases"];
+    let idx: Vec<u64> = g
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["index"].as_u64().unwrap())
+        .collect();
+    assert_eq!(idx, (1..40).step_by(2).collect::<Vec<u64>>());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A refusal: exit `code`, exactly one line on stderr containing `what`, no panic, and no
+/// report written.
+fn assert_refused(dir: &Path, shards: &[&Path], code: i32, what: &str) {
+    let out = dir.join("refused.json");
+    let mut args = vec!["merge".to_string()];
+    args.extend(shards.iter().map(|p| s(p)));
+    args.extend(["--json".into(), s(&out)]);
+    let o = run(&args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(code), "{shards:?}: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
+    assert!(err.starts_with("error: "), "{err}");
+    assert!(err.contains(what), "'{what}' not in: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    assert!(!out.exists(), "a refused merge wrote {}", out.display());
+}
+
+#[test]
+fn merge_refuses_a_shard_set_that_is_not_one_audit() {
+    let dir = scratch("sets");
+    let sel = selection(1, 30);
+    let p = |name: &str| dir.join(name);
+    for k in 0..3 {
+        write_shard(&sel, k, 3, &p(&format!("s{k}.json")));
+    }
+    let (s0, s1, s2) = (p("s0.json"), p("s1.json"), p("s2.json"));
+    // The complete set merges (so each refusal below is about what was changed)
+    let o = run(&["merge".into(), s(&s0), s(&s1), s(&s2)]);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", stderr(&o));
+
+    // Missing and duplicate shards
+    assert_refused(&dir, &[&s0, &s1], 3, "missing shard 2/3");
+    assert_refused(&dir, &[&s2], 3, "missing shard 0/3, 1/3");
+    assert_refused(&dir, &[&s0, &s1, &s1], 3, "shard 1/3 given twice");
+    assert_refused(&dir, &[&s0, &s1, &s2, &s0], 3, "shard 0/3 given twice");
+
+    // Shards of another audit: seed, cases, selection, N
+    write_shard(&selection(2, 30), 1, 3, &p("seed2.json"));
+    assert_refused(&dir, &[&s0, &p("seed2.json"), &s2], 3, "seed 1 vs 2");
+    write_shard(&selection(1, 31), 1, 3, &p("cases31.json"));
+    assert_refused(&dir, &[&s0, &p("cases31.json"), &s2], 3, "cases per class");
+    let mut other = selection(1, 30);
+    other[5] = "algebraic,rtg7".into();
+    write_shard(&other, 1, 3, &p("methods.json"));
+    assert_refused(&dir, &[&s0, &p("methods.json"), &s2], 3, "methods");
+    let mut other = selection(1, 30);
+    other[9] = "tangent,far_small,on_surface,invalid".into();
+    write_shard(&other, 1, 3, &p("order.json"));
+    assert_refused(&dir, &[&s0, &p("order.json"), &s2], 3, "classes");
+    write_shard(&sel, 1, 2, &p("n2.json"));
+    assert_refused(&dir, &[&s0, &p("n2.json"), &s2], 3, "shard count N");
+
+    // A shard from another rayproof version
+    let mut v: Value = serde_json::from_slice(&std::fs::read(&s1).unwrap()).unwrap();
+    v["tool"] = "rayproof 0.0.1".into();
+    std::fs::write(p("old.json"), serde_json::to_vec(&v).unwrap()).unwrap();
+    assert_refused(
+        &dir,
+        &[&s0, &p("old.json"), &s2],
+        3,
+        "written by rayproof 0.0.1",
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn merge_refuses_corrupt_files_with_one_line() {
+    let dir = scratch("corrupt");
+    let sel = selection(1, 30);
+    let p = |name: &str| dir.join(name);
+    write_shard(&sel, 0, 2, &p("s0.json"));
+    write_shard(&sel, 1, 2, &p("s1.json"));
+    let s0 = p("s0.json");
+    let good = std::fs::read(p("s1.json")).unwrap();
+    let o = run(&["merge".into(), s(&s0), s(&p("s1.json"))]);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", stderr(&o));
+
+    let put = |name: &str, bytes: &[u8]| {
+        std::fs::write(p(name), bytes).unwrap();
+        p(name)
+    };
+    let tampered = |name: &str, edit: &dyn Fn(&mut Value)| {
+        let mut v: Value = serde_json::from_slice(&good).unwrap();
+        edit(&mut v);
+        put(name, &serde_json::to_vec(&v).unwrap())
+    };
+    let cases = |v: &mut Value| v["groups"][3]["cases"].as_array_mut().unwrap().clone();
+
+    // Unreadable, truncated, empty, binary, and JSON that is not a shard
+    assert_refused(&dir, &[&s0, &p("absent.json")], 2, "cannot read");
+    let half = put("half.json", &good[..good.len() / 2]);
+    assert_refused(&dir, &[&s0, &half], 2, "truncated shard");
+    assert_refused(&dir, &[&s0, &put("empty.json", b"")], 2, "empty.json");
+    assert_refused(
+        &dir,
+        &[&s0, &put("bin.json", &[0xff, 0xfe, 0, 7])],
+        2,
+        "bin.json",
+    );
+    assert_refused(
+        &dir,
+        &[&s0, &put("arr.json", b"[1, 2]")],
+        2,
+        "not a rayproof audit shard",
+    );
+    // the audit's own report JSON is not a shard
+    let mut args = vec!["audit".to_string()];
+    args.extend_from_slice(&sel);
+    args.extend(["--json".into(), s(&p("report.json"))]);
+    run(&args);
+    assert_refused(
+        &dir,
+        &[&s0, &p("report.json")],
+        2,
+        "not a rayproof audit shard",
+    );
+
+    // A shard damaged inside: format version, a case removed, an index changed, a sample
+    // missing, a float that is not exact text, an unknown method, an unknown field
+    let f = tampered("version.json", &|v| v["format_version"] = 99.into());
+    assert_refused(&dir, &[&s0, &f], 2, "format version 99");
+    let f = tampered("dropped.json", &|v| {
+        let mut c = cases(v);
+        c.pop();
+        v["groups"][3]["cases"] = c.into();
+    });
+    assert_refused(&dir, &[&s0, &f], 2, "corrupt shard");
+    let f = tampered("index.json", &|v| {
+        v["groups"][3]["cases"][2]["index"] = 4.into()
+    });
+    assert_refused(&dir, &[&s0, &f], 2, "case 4 where 5 belongs");
+    let f = tampered("sample.json", &|v| {
+        let c = &mut v["groups"][3]["cases"][0];
+        c["samples"].as_array_mut().unwrap().pop();
+    });
+    assert_refused(&dir, &[&s0, &f], 2, "samples for 4 methods");
+    let f = tampered("float.json", &|v| {
+        v["groups"][3]["cases"][0]["oracle_t"] = "0x1.zzp+3".into();
+    });
+    assert_refused(&dir, &[&s0, &f], 2, "not an exact float");
+    let f = tampered("number.json", &|v| {
+        v["groups"][3]["cases"][0]["oracle_t"] = 1.5.into();
+    });
+    assert_refused(&dir, &[&s0, &f], 2, "corrupt shard");
+    let f = tampered("method.json", &|v| v["methods"][1] = "magic".into());
+    assert_refused(&dir, &[&s0, &f], 2, "unknown method 'magic'");
+    let f = tampered("field.json", &|v| v["extra"] = 1.into());
+    assert_refused(&dir, &[&s0, &f], 2, "unknown field");
+    let f = tampered("kn.json", &|v| v["shard"]["k"] = 7.into());
+    assert_refused(&dir, &[&s0, &f], 2, "shard 7/2");
+    let f = tampered("cases.json", &|v| v["cases_per_class"] = u64::MAX.into());
+    assert_refused(&dir, &[&s0, &f], 2, "corrupt shard");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn merge_usage_errors_get_one_line_and_exit_2() {
+    let o = rayproof(&["merge"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(stderr(&o).trim_end().lines().count(), 1, "{}", stderr(&o));
+    assert!(stderr(&o).contains("SHARD"), "{}", stderr(&o));
+    let o = rayproof(&["merge", "x.json", "--json", "/no/such/dir/out.json"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("/no/such/dir"), "{}", stderr(&o));
+    let o = rayproof(&[
+        "audit",
+        "--cases",
+        "5",
+        "--shard-out",
+        "/no/such/dir/s.json",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("/no/such/dir"), "{}", stderr(&o));
+}
