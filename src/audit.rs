@@ -491,6 +491,26 @@ pub struct Shard {
     groups: Vec<Group>,
 }
 
+impl Shard {
+    /// The ulps of every right-verdict hit on a well-posed case of one row, in index order:
+    /// the sample that row's `ulps` summarises (for histograms and pooled quantiles).
+    pub fn ulps(&self, method: &str, precision: Precision, class: Class) -> Vec<u64> {
+        let Some(k) = self.methods.iter().position(|m| m.name == method) else {
+            return vec![];
+        };
+        self.groups
+            .iter()
+            .filter(|g| g.precision == precision && g.class == class)
+            .flat_map(|g| &g.cases)
+            .filter(|c| c.truth.as_ref().is_some_and(|t| !t.ill_posed))
+            .filter_map(|c| match c.samples.get(k)?.judgement {
+                Judgement::Ok { ulps: Some(u) } => Some(u),
+                _ => None,
+            })
+            .collect()
+    }
+}
+
 /// `k` and `n` of a shard file.
 #[derive(Clone, Copy, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

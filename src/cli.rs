@@ -75,6 +75,26 @@ pub enum Command {
     Diff(crate::imgdiff::DiffArgs),
     /// Render every reference scene and compare it with the POV-Ray, Mitsuba and golden references.
     Check(CheckArgs),
+    /// Measure what accuracy costs in time: write DIR/index.html, report.md, report.json and figures.
+    Report(ReportArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct ReportArgs {
+    /// Output directory (replaced as a whole when the report is complete).
+    #[arg(long, default_value = "target/report")]
+    pub out: PathBuf,
+    /// Reference directory (scenes/ and POV-Ray references).
+    #[arg(long, default_value = "reference")]
+    pub reference: PathBuf,
+    /// Cases per class for the audit part (the audit's default).
+    #[arg(long, default_value_t = 20_000, value_parser = clap::value_parser!(u64).range(1..))]
+    pub cases: u64,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Small renders, few repeats, strided Newton inputs: a smoke run in seconds.
+    #[arg(long)]
+    pub quick: bool,
 }
 
 #[derive(Args, Debug)]
@@ -165,6 +185,9 @@ pub struct RenderArgs {
     /// Turn every effect on (to measure what specialisation saves).
     #[arg(long)]
     pub all_effects: bool,
+    /// Test every object for every ray (no BVH), as seed 000's 1996 renderer did.
+    #[arg(long)]
+    pub flat: bool,
     /// Extra EXR layers: depth, normal, rays (comma-separated).
     #[arg(long, value_delimiter = ',', value_parser = ["depth", "normal", "rays"])]
     pub layers: Vec<String>,
@@ -376,6 +399,18 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Render(r) => run_render(r),
         Command::Diff(d) => Ok(crate::imgdiff::run_diff(d)),
         Command::Check(c) => run_check(c),
+        Command::Report(r) => {
+            crate::report::run(&crate::report::ReportOptions {
+                out: r.out.clone(),
+                reference: r.reference.clone(),
+                seed: r.seed,
+                cases: r.cases,
+                quick: r.quick,
+                progress: std::io::stderr().is_terminal(),
+            })?;
+            say!("report written to {}/index.html", r.out.display());
+            Ok(0)
+        }
         Command::Export(e) => {
             let sc = crate::render::scene::load(&e.scene)?;
             let fr = crate::export::Frame::of(&sc, e.width, e.grid);
@@ -566,6 +601,8 @@ fn run_render(a: RenderArgs) -> Result<u8> {
         }),
         force_all_effects: a.all_effects,
         progress: std::io::stderr().is_terminal(),
+        flat: a.flat,
+        ..Default::default()
     };
     let r = render::render(&sc, &ov);
     if a.explain {
@@ -576,9 +613,12 @@ fn run_render(a: RenderArgs) -> Result<u8> {
     }
     let c = &r.counts;
     say!(
-        "{}×{} with {} in {}: {:.3} s\nrays: primary {}, shadow {}, reflection {}, refraction {} (total {})\ntests: sphere {}, other {}, BVH nodes {}",
+        "{}×{} with {} in {}: {:.3} s\nrays: primary {}, shadow {}, reflection {}, refraction {} (total {})\n\
+         missing every shape: primary {}, shadow (light reached) {}, reflection {}, refraction {}\n\
+         tests: sphere {} ({} hits), other {}, BVH nodes {}",
         r.width, r.height, r.method, r.precision, r.seconds, c.primary, c.shadow, c.reflection, c.refraction, c.total(),
-        c.tests.sphere_tests, c.tests.other_tests, c.tests.bvh_nodes
+        c.primary_miss, c.shadow_miss, c.reflection_miss, c.refraction_miss,
+        c.tests.sphere_tests, c.tests.sphere_hits, c.tests.other_tests, c.tests.bvh_nodes
     );
     let lights = sc.file.lights.len();
     say!("{}", render::budget_line(&r, lights));

@@ -24,5 +24,6 @@ pub mod newton;
 pub mod probe;
 pub mod real;
 pub mod render;
+pub mod report;
 pub mod sphere;
 pub mod timing;

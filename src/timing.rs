@@ -73,7 +73,10 @@ mod tests {
     #[test]
     fn median_and_spread() {
         let t = Timing::of(vec![3.0, 1.0, 2.0, 10.0]);
-        assert_eq!((t.median_ns, t.min_ns, t.max_ns, t.runs), (2.5, 1.0, 10.0, 4));
+        assert_eq!(
+            (t.median_ns, t.min_ns, t.max_ns, t.runs),
+            (2.5, 1.0, 10.0, 4)
+        );
         assert!((t.spread() - 3.6).abs() < 1e-12);
         assert_eq!(Timing::of(vec![5.0]).median_ns, 5.0);
     }

@@ -1,0 +1,420 @@
+//! Seed 000's speed claim, reproduced: the algebraic and the geometric ray–sphere test timed
+//! side by side on the paper's scene (30 spheres, 1024×1024, d ≈ 5, m = 2).
+//!
+//! 1. Every configuration (method × precision × flat list or BVH) is rendered `runs` times,
+//!    interleaved, so slow phases of a shared machine hit every configuration alike.
+//! 2. The inputs of every 1024th sphere test are recorded in one untimed render per precision
+//!    and replayed through each method in a tight loop: ns per test on the frame's own inputs.
+//!    Tests × ns/test estimates the intersection CPU time; the rest of the frame's CPU time
+//!    (from /proc/self/stat) is ray generation, traversal, shading and bookkeeping.
+//! 3. The two methods' images are compared (idiff metrics), per precision.
+
+use crate::imgdiff::{compare, Image, Thresholds};
+use crate::render::{self, geom, scene::Scene, Overrides, RayCounts};
+use crate::sphere::methods::{method_by_name, Method};
+use crate::timing::Timing;
+use serde::Serialize;
+
+/// The paper's figures (seed 000, §3).
+pub const PAPER_RAYS: f64 = 15e6;
+pub const PAPER_ALGEBRAIC_S: f64 = 2.0 * 3600.0;
+pub const PAPER_GEOMETRIC_S: f64 = 35.0 * 60.0;
+pub const PAPER_D: f64 = 5.0;
+/// Seed 000 §3: "a square root takes 15 to 30 times a multiplication".
+pub const PAPER_SQRT_OVER_MUL: (f64, f64) = (15.0, 30.0);
+
+/// One configuration's measurements.
+#[derive(Clone, Debug, Serialize)]
+pub struct SeedRun {
+    pub method: &'static str,
+    pub precision: &'static str,
+    /// Every ray tests all 30 spheres (as in 1996), or the BVH prunes them.
+    pub flat: bool,
+    /// Wall seconds per frame (Timing's fields in seconds here, not ns).
+    pub wall_s: Timing,
+    /// Process CPU seconds per frame (median), all threads.
+    pub cpu_s: f64,
+    pub counts: RayCounts,
+    /// ns per sphere test replaying the frame's recorded test inputs in a loop.
+    pub replay_ns: Timing,
+    /// sphere tests × replay ns, in CPU seconds.
+    pub intersect_cpu_s: f64,
+}
+
+/// The image difference between the two methods in one precision.
+#[derive(Clone, Debug, Serialize)]
+pub struct MethodDiff {
+    pub precision: &'static str,
+    pub mean_error: f64,
+    pub max_error: f64,
+    /// Pixels with a channel differing by more than 0.05.
+    pub pixels_over_005: u64,
+    pub pixels: u64,
+}
+
+#[derive(Clone, Debug, Serialize)]
+pub struct SeedRepro {
+    pub width: usize,
+    pub height: usize,
+    pub lights: usize,
+    pub runs: Vec<SeedRun>,
+    pub diffs: Vec<MethodDiff>,
+    /// ns per f64 square root and per f64 multiply, in independent streams (throughput).
+    pub sqrt_ns: Timing,
+    pub mul_ns: Timing,
+    /// Images of the flat renders, for the report's side-by-side view.
+    #[serde(skip)]
+    pub images: Vec<(String, Image)>,
+}
+
+/// Process CPU time (user + system) in seconds, from /proc/self/stat; None off Linux.
+pub fn cpu_seconds() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name, which is in parentheses and may contain spaces
+    let rest = &s[s.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+    Some(ticks / 100.0) // USER_HZ is 100 on Linux
+}
+
+/// Runs the reproduction. `size` overrides the 1024×1024 (for quick runs).
+pub fn run(sc: &Scene, size: Option<u32>, runs: usize) -> SeedRepro {
+    let methods: Vec<&'static Method> = ["algebraic", "geometric"]
+        .iter()
+        .filter_map(|n| method_by_name(n))
+        .collect();
+    let configs: Vec<(&'static Method, &'static str, bool)> = [true, false]
+        .into_iter()
+        .flat_map(|flat| {
+            ["f32", "f64"].into_iter().flat_map({
+                let methods = &methods;
+                move |p| methods.iter().map(move |&m| (m, p, flat))
+            })
+        })
+        .collect();
+    let ov = |m: &'static Method, p: &'static str, flat: bool, record: u64| Overrides {
+        method: Some(m),
+        precision: Some(p),
+        size: size.map(|w| (w, w)),
+        flat,
+        record_every: record,
+        ..Default::default()
+    };
+    // Timed renders, interleaved
+    let mut wall = vec![vec![]; configs.len()];
+    let mut cpu = vec![vec![]; configs.len()];
+    let mut last: Vec<Option<render::Render>> = (0..configs.len()).map(|_| None).collect();
+    for _ in 0..runs.max(1) {
+        for (k, &(m, p, flat)) in configs.iter().enumerate() {
+            let c0 = cpu_seconds();
+            let r = render::render(sc, &ov(m, p, flat, 0));
+            if let (Some(a), Some(b)) = (c0, cpu_seconds()) {
+                cpu[k].push(b - a);
+            }
+            wall[k].push(r.seconds);
+            last[k] = Some(r);
+        }
+    }
+    // Recorded test inputs, one untimed flat render per precision
+    let geometric = methods[1];
+    let recorded: Vec<(&str, Vec<geom::RecordedTest>)> = ["f32", "f64"]
+        .into_iter()
+        .map(|p| {
+            (
+                p,
+                render::render(sc, &ov(geometric, p, true, 1024)).recorded,
+            )
+        })
+        .collect();
+    let replay = |m: &'static Method, p: &str| {
+        let tests = &recorded
+            .iter()
+            .find(|r| r.0 == p)
+            .expect("both precisions")
+            .1;
+        crate::timing::measure(tests.len(), 5, 2e7, || match p {
+            "f32" => geom::replay::<f32>(m, tests),
+            _ => geom::replay::<f64>(m, tests),
+        })
+    };
+    // Assemble
+    let mut out = vec![];
+    let mut images = vec![];
+    for (k, &(m, p, flat)) in configs.iter().enumerate() {
+        let r = last[k].take().expect("rendered at least once");
+        let replay_ns = replay(m, p);
+        let cpu_s = median(&cpu[k]).unwrap_or(f64::NAN);
+        if flat {
+            images.push((format!("{}/{p}", m.name), to_image(&r)));
+        }
+        out.push(SeedRun {
+            method: m.name,
+            precision: p,
+            flat,
+            wall_s: Timing::of(wall[k].clone()),
+            cpu_s,
+            counts: r.counts,
+            intersect_cpu_s: r.counts.tests.sphere_tests as f64 * replay_ns.median_ns * 1e-9,
+            replay_ns,
+        });
+    }
+    // The two methods' images, per precision
+    let t = Thresholds {
+        fail: 0.05,
+        warn: 0.01,
+        ..Default::default()
+    };
+    let diffs = ["f32", "f64"]
+        .into_iter()
+        .filter_map(|p| {
+            let get = |n: &str| images.iter().find(|(l, _)| *l == format!("{n}/{p}"));
+            let (a, b) = (get("algebraic")?, get("geometric")?);
+            let c = compare(&a.1, &b.1, &t).ok()?;
+            Some(MethodDiff {
+                precision: p,
+                mean_error: c.mean_error,
+                max_error: c.max_error,
+                pixels_over_005: c.n_fail,
+                pixels: c.pixels,
+            })
+        })
+        .collect();
+    // What a square root costs today, against a multiply (independent operations)
+    let xs: Vec<f64> = (0..4096).map(|i| 1.0 + i as f64 * 0.37).collect();
+    let sqrt_ns = crate::timing::measure(xs.len(), 7, 1e7, || {
+        std::hint::black_box(&xs)
+            .iter()
+            .map(|x| x.sqrt())
+            .sum::<f64>()
+    });
+    let mul_ns = crate::timing::measure(xs.len(), 7, 1e7, || {
+        std::hint::black_box(&xs)
+            .iter()
+            .map(|x| x * 1.0000001)
+            .sum::<f64>()
+    });
+    let (width, height) = images
+        .first()
+        .map(|(_, i)| (i.width, i.height))
+        .unwrap_or((0, 0));
+    SeedRepro {
+        width,
+        height,
+        lights: sc.file.lights.len(),
+        runs: out,
+        diffs,
+        sqrt_ns,
+        mul_ns,
+        images,
+    }
+}
+
+fn median(v: &[f64]) -> Option<f64> {
+    (!v.is_empty()).then(|| Timing::of(v.to_vec()).median_ns)
+}
+
+/// The render's beauty pass as an RGB image.
+pub fn to_image(r: &render::Render) -> Image {
+    Image::rgb(
+        r.width,
+        r.height,
+        r.beauty.iter().flatten().copied().collect(),
+    )
+}
+
+impl SeedRepro {
+    /// The run of a configuration.
+    pub fn get(&self, method: &str, precision: &str, flat: bool) -> Option<&SeedRun> {
+        self.runs
+            .iter()
+            .find(|r| r.method == method && r.precision == precision && r.flat == flat)
+    }
+
+    /// The paper-beside-ours table, Markdown.
+    pub fn markdown(&self) -> String {
+        let mut s = String::new();
+        let Some(base) = self.get("geometric", "f64", true) else {
+            return "(no runs)\n".into();
+        };
+        let c = &base.counts;
+        let mn = c.primary as f64;
+        let eye = (c.primary + c.reflection + c.refraction) as f64;
+        let d = eye / mn.max(1.0);
+        let m = self.lights as f64;
+        // Ray budget by kind
+        s += &format!(
+            "**Rays** ({}×{}, 1 sample per pixel, counted by kind in the geometric f64 render):\n\n\
+             | kind | paper's budget | measured | measured ÷ M·N |\n|---|---:|---:|---:|\n",
+            self.width, self.height
+        );
+        let row = |k: &str, paper: f64, ours: u64| {
+            format!(
+                "| {k} | {} | {ours} | {:.2} |\n",
+                if paper > 0.0 {
+                    format!("{paper:.0}")
+                } else {
+                    "—".into()
+                },
+                ours as f64 / mn.max(1.0)
+            )
+        };
+        s += &row("primary (M·N)", mn, c.primary);
+        s += &row(
+            "reflection + refraction ((d−1)·M·N)",
+            (PAPER_D - 1.0) * mn,
+            c.reflection + c.refraction,
+        );
+        s += &row("shadow (m·d·M·N)", m * PAPER_D * mn, c.shadow);
+        s += &row("total ((m+1)·d·M·N)", (m + 1.0) * PAPER_D * mn, c.total());
+        s += &format!(
+            "\nMeasured d = {d:.3} derived rays per primary (paper: 5), m = {} lights (paper: 2). \
+             The paper's formula (m+1)·d·M·N sends m shadow rays from *every* one of the d·M·N \
+             rays; a Whitted tracer sends them only from diffuse hits facing a light \
+             ({:.2} per eye ray here), so the measured total is {:.2}× the formula's {:.1} M \
+             (the paper rounds it to 15 M).\n\n",
+            self.lights,
+            c.shadow as f64 / eye.max(1.0),
+            c.total() as f64 / ((m + 1.0) * d * mn).max(1.0),
+            (m + 1.0) * d * mn / 1e6
+        );
+        // Times
+        s += "**Time per frame** (median wall seconds of interleaved runs, ± half the spread; \
+              intersection = sphere tests × replayed ns/test, as a share of the frame's CPU time):\n\n\
+              | method | precision | spheres per ray | wall s | sphere tests | ns/test (replay) | intersection share |\n\
+              |---|---|---|---:|---:|---:|---:|\n";
+        for r in &self.runs {
+            s += &format!(
+                "| {} | {} | {} | {:.3} (±{:.0}%) | {} | {:.2} | {:.0}% |\n",
+                r.method,
+                r.precision,
+                if r.flat { "all 30 (flat)" } else { "BVH" },
+                r.wall_s.median_ns,
+                50.0 * r.wall_s.spread(),
+                r.counts.tests.sphere_tests,
+                r.replay_ns.median_ns,
+                100.0 * r.intersect_cpu_s / r.cpu_s
+            );
+        }
+        // Ratios
+        s += "\n| | paper (SGI, 1996) | ours: flat f32 | flat f64 | BVH f32 | BVH f64 |\n|---|---:|---:|---:|---:|---:|\n";
+        let ratio = |p: &str, flat: bool| {
+            let (a, g) = (
+                self.get("algebraic", p, flat),
+                self.get("geometric", p, flat),
+            );
+            a.zip(g)
+                .map(|(a, g)| a.wall_s.median_ns / g.wall_s.median_ns)
+        };
+        let iratio = |p: &str, flat: bool| {
+            let (a, g) = (
+                self.get("algebraic", p, flat),
+                self.get("geometric", p, flat),
+            );
+            a.zip(g)
+                .map(|(a, g)| a.replay_ns.median_ns / g.replay_ns.median_ns)
+        };
+        let f = |x: Option<f64>| x.map_or("—".into(), |v| format!("{v:.2}×"));
+        s += &format!(
+            "| algebraic ÷ geometric, frame time | {:.2}× (2 h ÷ 35 min) | {} | {} | {} | {} |\n",
+            PAPER_ALGEBRAIC_S / PAPER_GEOMETRIC_S,
+            f(ratio("f32", true)),
+            f(ratio("f64", true)),
+            f(ratio("f32", false)),
+            f(ratio("f64", false))
+        );
+        s += &format!(
+            "| algebraic ÷ geometric, per sphere test | — | {} | {} | {} | {} |\n",
+            f(iratio("f32", true)),
+            f(iratio("f64", true)),
+            f(iratio("f32", false)),
+            f(iratio("f64", false))
+        );
+        if let (Some(a), Some(g)) = (
+            self.get("algebraic", "f64", true),
+            self.get("geometric", "f64", true),
+        ) {
+            s += &format!(
+                "| frame time | 2 h / 35 min | | {:.2} s / {:.2} s | | |\n",
+                a.wall_s.median_ns, g.wall_s.median_ns
+            );
+        }
+        // Misses by kind
+        let share = |miss: u64, all: u64| 100.0 * miss as f64 / all.max(1) as f64;
+        s += &format!(
+            "\n**Rays that miss every sphere and plane**, by kind: primary {:.1}%, reflection {:.1}%, \
+             refraction {:.1}%, shadow (reaches its light) {:.1}%. **Sphere tests that miss** \
+             (flat: each ray tests all 30): {:.1}% — the paper's \"more than half of the rays do \
+             not meet the sphere\", the case the geometric test rejects before any square root.\n",
+            share(c.primary_miss, c.primary),
+            share(c.reflection_miss, c.reflection),
+            share(c.refraction_miss, c.refraction),
+            share(c.shadow_miss, c.shadow),
+            share(c.tests.sphere_tests - c.tests.sphere_hits, c.tests.sphere_tests)
+        );
+        // Image difference
+        s += "\n**Image difference, algebraic vs geometric** (same scene, same precision):\n\n\
+              | precision | mean error | max error | pixels > 0.05 |\n|---|---:|---:|---:|\n";
+        for d in &self.diffs {
+            s += &format!(
+                "| {} | {:.2e} | {:.2e} | {} of {} |\n",
+                d.precision, d.mean_error, d.max_error, d.pixels_over_005, d.pixels
+            );
+        }
+        s
+    }
+}
+
+/// Why the modern ratio differs from the paper's, from this run's numbers.
+pub fn explanation(r: &SeedRepro) -> String {
+    let (Some(a), Some(g)) = (
+        r.get("algebraic", "f64", true),
+        r.get("geometric", "f64", true),
+    ) else {
+        return String::new();
+    };
+    let c = &g.counts;
+    let miss = 1.0 - c.tests.sphere_hits as f64 / c.tests.sphere_tests.max(1) as f64;
+    let share_a = a.intersect_cpu_s / a.cpu_s;
+    let share_g = g.intersect_cpu_s / g.cpu_s;
+    let test_ratio = a.replay_ns.median_ns / g.replay_ns.median_ns;
+    let frame_ratio = a.wall_s.median_ns / g.wall_s.median_ns;
+    // Amdahl: the frame ratio the per-test ratio allows at this intersection share
+    let amdahl = 1.0 / ((1.0 - share_a) + share_a / test_ratio);
+    format!(
+        "**Why the ratio is not 3.4× today.** (f64, flat, numbers from this run.)\n\n\
+         - *A cheap square root.* Here a square root costs {:.1} ns against {:.2} ns for a \
+           multiply in independent streams, {:.0}× (the paper: {}–{}×). Both methods take one \
+           square root per hit only; on a miss the algebraic test stops at the discriminant's \
+           sign and the geometric one at its first or second comparison, so neither pays it \
+           on the {:.1}% of tests that miss.\n\
+         - *Per test,* the algebraic method costs {:.2} ns and the geometric {:.2} ns on the \
+           frame's own recorded inputs: {:.2}×. Its early exit saves a few multiplies, not a \
+           square root. Branch prediction makes the early exit nearly free: with {:.1}% misses \
+           the branch is almost always taken the same way.\n\
+         - *Intersection is a share of the frame.* Sphere tests take about {:.0}% (algebraic) \
+           and {:.0}% (geometric) of the frame's CPU time here; the rest is ray generation, \
+           shading, shadow-ray set-up and bookkeeping. At a {:.0}% share, a {:.2}× faster \
+           test can make the frame at most {:.2}× faster (Amdahl); we measured {:.2}×. With a \
+           BVH the share, and so the gain, is smaller still.\n\
+         - The paper's 3.4× therefore says more about 1996 hardware (a square root of 15–30 \
+           multiplies, no branch prediction to speak of, intersection dominating the frame) \
+           than about the methods; today the two are within a few per cent of each other, \
+           and the accuracy differences of section 1 matter more than their speed.\n",
+        r.sqrt_ns.median_ns,
+        r.mul_ns.median_ns,
+        r.sqrt_ns.median_ns / r.mul_ns.median_ns,
+        PAPER_SQRT_OVER_MUL.0,
+        PAPER_SQRT_OVER_MUL.1,
+        100.0 * miss,
+        a.replay_ns.median_ns,
+        g.replay_ns.median_ns,
+        test_ratio,
+        100.0 * miss,
+        100.0 * share_a,
+        100.0 * share_g,
+        100.0 * share_a,
+        test_ratio,
+        amdahl,
+        frame_ratio
+    )
+}

@@ -1,0 +1,144 @@
+//! `rayproof report`: a quick run writes every part with measured (non-trivial) numbers, and a
+//! failing run leaves the previous report untouched.
+
+use serde_json::Value;
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn rayproof(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(env!("CARGO_MANIFEST_DIR"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn tmp(name: &str) -> std::path::PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+#[test]
+fn quick_report_has_every_part_with_measured_numbers() {
+    let out = tmp("report-quick");
+    let o = rayproof(&[
+        "report",
+        "--quick",
+        "--cases",
+        "300",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    // Files
+    for f in [
+        "index.html",
+        "report.md",
+        "report.json",
+        "pareto-wrong-rate.svg",
+        "pareto-max-ulps.svg",
+        "pareto-p99-bits.svg",
+        "bits-geometric-f32.svg",
+        "render-fan30.svg",
+        "img/seed1996-geometric-f64.png",
+        "img/floor-rtg7-f32.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    let json: Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    // Accuracy vs cost: 7 methods × 2 precisions, each timed, the naive ones caught
+    let cost = json["cost"].as_array().unwrap();
+    assert_eq!(cost.len(), 14);
+    assert!(cost
+        .iter()
+        .all(|r| r["ns"]["median_ns"].as_f64().unwrap() > 0.0));
+    let row = |m: &str, p: &str| {
+        cost.iter()
+            .find(|r| r["method"] == m && r["precision"] == p)
+            .unwrap()
+            .clone()
+    };
+    assert!(
+        row("geometric", "f32")["wrong"].as_u64().unwrap() > 0,
+        "teeth: naive f32 fails"
+    );
+    assert_eq!(row("promote", "f64")["wrong"].as_u64(), Some(0));
+    assert!(row("algebraic", "f32")["max_ulps"].as_f64().unwrap() > 1e3);
+    // Render trade-off: 3 scenes × 14 configurations, the baseline has zero error to itself
+    let renders = json["renders"].as_array().unwrap();
+    assert_eq!(renders.len(), 42);
+    let base = renders
+        .iter()
+        .find(|r| r["scene"] == "fan30" && r["method"] == "promote" && r["precision"] == "f64")
+        .unwrap();
+    assert_eq!(base["vs_baseline_mean"].as_f64(), Some(0.0));
+    // Seed 000: 8 configurations, d measured, the flat render tests all 30 spheres per ray
+    let seed = &json["seed1996"];
+    let runs = seed["runs"].as_array().unwrap();
+    assert_eq!(runs.len(), 8);
+    let flat = runs
+        .iter()
+        .find(|r| r["flat"] == true && r["method"] == "geometric" && r["precision"] == "f64")
+        .unwrap();
+    let c = &flat["counts"];
+    let rays = c["primary"].as_u64().unwrap()
+        + c["shadow"].as_u64().unwrap()
+        + c["reflection"].as_u64().unwrap()
+        + c["refraction"].as_u64().unwrap();
+    assert_eq!(c["sphere_tests"].as_u64().unwrap(), 30 * rays);
+    let d = (c["primary"].as_u64().unwrap()
+        + c["reflection"].as_u64().unwrap()
+        + c["refraction"].as_u64().unwrap()) as f64
+        / c["primary"].as_u64().unwrap() as f64;
+    assert!((4.0..6.0).contains(&d), "d = {d}");
+    // Newton: rows with measured max ulps
+    assert!(!json["newton"].as_array().unwrap().is_empty());
+    // The Markdown and HTML carry the paper's figures and the plots
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("3.43× (2 h ÷ 35 min)") && md.contains("pareto-max-ulps.svg"));
+    let html = std::fs::read_to_string(out.join("index.html")).unwrap();
+    assert!(html.contains("<table") && html.contains("<img"));
+}
+
+#[test]
+fn failed_report_leaves_the_previous_one_and_says_why_in_one_line() {
+    let out = tmp("report-keep");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("index.html"), "previous").unwrap();
+    let o = rayproof(&[
+        "report",
+        "--quick",
+        "--cases",
+        "50",
+        "--reference",
+        "no/such/reference",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("no/such/reference") && !err.contains("panicked"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("index.html")).unwrap(),
+        "previous"
+    );
+    // No partial directory left beside it
+    let parent = out.parent().unwrap();
+    let leftovers: Vec<_> = std::fs::read_dir(parent)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().starts_with(".report-keep."))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
