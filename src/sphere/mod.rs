@@ -1,6 +1,7 @@
 //! Ray–sphere: the methods, their exact oracle, the hard-case classes, and how a method's answer
 //! is judged against the oracle.
 
+pub mod batch;
 pub mod cases;
 pub mod methods;
 pub mod oracle;
