@@ -40,9 +40,15 @@ impl Timing {
         (self.max_ns - self.min_ns) / self.median_ns.max(f64::MIN_POSITIVE)
     }
 
-    /// "12.3 ns (±4%)", the form reports print.
+    /// "12.3 ns (±4%)", the form reports print (three significant digits below 1 ns).
     pub fn label(&self) -> String {
-        format!("{:.1} ns (±{:.0}%)", self.median_ns, 50.0 * self.spread())
+        let digits = if self.median_ns < 1.0 { 3 } else { 1 };
+        format!(
+            "{:.*} ns (±{:.0}%)",
+            digits,
+            self.median_ns,
+            50.0 * self.spread()
+        )
     }
 }
 
