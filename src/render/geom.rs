@@ -77,17 +77,6 @@ fn sphere_t<F: PickPrecision>(f: SphereFn<F>, o: DVec3, d: DVec3, c: DVec3, r: f
     .map(|h| h.t.to_f64())
 }
 
-/// Replays recorded sphere tests through a method, exactly as the renderer calls it (the
-/// f64 → F conversion included); returns the number of hits, so the work cannot be skipped.
-pub fn replay<F: PickPrecision>(m: &Method, tests: &[RecordedTest]) -> usize {
-    let f = F::pick(m);
-    let v = |a: &[f64]| DVec3::new(a[0], a[1], a[2]);
-    tests
-        .iter()
-        .filter(|x| sphere_t::<F>(f, v(&x[0..3]), v(&x[3..6]), v(&x[6..9]), x[9]).is_some())
-        .count()
-}
-
 /// Axis-aligned box.
 #[derive(Clone, Copy, Debug)]
 struct Aabb {
@@ -167,8 +156,10 @@ pub struct Geometry {
     pub objects: Vec<Object>,
     pub planes: Vec<Plane>,
     nodes: Vec<Node>,
-    /// Test every object for every ray, as renderers without acceleration did (seed 000's era).
+    /// Test every object for every ray, as renderers without acceleration did (seed 000's era),
+    /// `passes` times over (a second pass changes no hit: it measures the tests' own cost).
     flat: bool,
+    passes: u32,
     /// Keep every n-th sphere test's inputs (n, store), to replay them in a timing loop.
     record: Option<(u64, std::sync::Arc<std::sync::Mutex<Vec<RecordedTest>>>)>,
 }
@@ -186,13 +177,15 @@ impl Geometry {
             planes,
             nodes,
             flat: false,
+            passes: 1,
             record: None,
         }
     }
 
-    /// The same objects without the BVH: every ray tests every object.
-    pub fn flat(mut self) -> Geometry {
+    /// The same objects without the BVH: every ray tests every object, `passes` (≥ 1) times.
+    pub fn flat(mut self, passes: u32) -> Geometry {
         self.flat = true;
+        self.passes = passes.max(1);
         self
     }
 
@@ -271,8 +264,10 @@ impl Geometry {
         }
         // Flat list: every object
         if self.flat {
-            for k in 0..self.objects.len() {
-                self.test_object(f, k, o, d, &mut limit, &mut best, counts);
+            for _ in 0..self.passes {
+                for k in 0..self.objects.len() {
+                    self.test_object(f, k, o, d, &mut limit, &mut best, counts);
+                }
             }
             return best;
         }

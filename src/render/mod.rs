@@ -179,6 +179,9 @@ pub struct Overrides {
     pub progress: bool,
     /// Test every object for every ray (no BVH), as seed 000's renderer did.
     pub flat: bool,
+    /// With `flat`: test every object this many times (0 or 1: once). The extra passes change
+    /// no hit, so the time they add is the sphere tests' own in-frame cost.
+    pub flat_passes: u32,
     /// Record the inputs of every n-th sphere test (0: none); costs time, so not for timed runs.
     pub record_every: u64,
 }
@@ -276,7 +279,11 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
     effects.supersampling = grid > 1;
     let (geo, materials) = build_geometry(s);
     let store = std::sync::Arc::new(std::sync::Mutex::new(vec![]));
-    let geo = if ov.flat { geo.flat() } else { geo };
+    let geo = if ov.flat {
+        geo.flat(ov.flat_passes)
+    } else {
+        geo
+    };
     let geo = geo.recording(ov.record_every, store.clone());
     let ctx = Ctx {
         geo,

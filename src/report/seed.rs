@@ -3,20 +3,19 @@
 //!
 //! 1. Every configuration (method × precision × flat list or BVH) is rendered `runs` times,
 //!    interleaved, so slow phases of a shared machine hit every configuration alike.
-//! 2. The inputs of every 1024th sphere test are recorded in one untimed render per precision
-//!    and replayed through each method in a tight loop: ns per test on the frame's own inputs.
-//!    Tests × ns/test estimates the intersection CPU time; the rest of the frame's CPU time
-//!    (from /proc/self/stat) is ray generation, traversal, shading and bookkeeping.
+//! 2. Each flat configuration is also rendered with every sphere tested twice per ray. The
+//!    second pass changes no hit, so the CPU time it adds (from /proc/self/stat), divided by
+//!    its tests, is the in-frame cost of one test, call and conversion included. Tests × that
+//!    cost is the intersection time; the rest of the frame is ray generation, traversal,
+//!    shading and bookkeeping. (A replay of recorded tests in a tight loop was tried first: it
+//!    disagreed with the frame, timing more than the frame's whole CPU time.)
 //! 3. The two methods' images are compared (idiff metrics), per precision.
 
 use crate::imgdiff::{compare, Image, Thresholds};
-use crate::render::{self, geom, scene::Scene, Overrides, RayCounts};
+use crate::render::{self, scene::Scene, Overrides, RayCounts};
 use crate::sphere::methods::{method_by_name, Method};
 use crate::timing::Timing;
 use serde::Serialize;
-
-/// Recorded sphere tests replayed per method (evenly spaced over the frame).
-const REPLAY_LEN: usize = 4096;
 
 /// The paper's figures (seed 000, §3).
 pub const PAPER_RAYS: f64 = 15e6;
@@ -38,9 +37,10 @@ pub struct SeedRun {
     /// Process CPU seconds per frame (median), all threads.
     pub cpu_s: f64,
     pub counts: RayCounts,
-    /// ns per sphere test replaying the frame's recorded test inputs in a loop.
-    pub replay_ns: Timing,
-    /// sphere tests × replay ns, in CPU seconds.
+    /// In-frame ns per sphere test: (CPU time with two passes over the spheres − with one) ÷
+    /// the tests of one pass, medians; a BVH row takes its flat twin's figure.
+    pub test_ns: f64,
+    /// sphere tests × test_ns, in CPU seconds.
     pub intersect_cpu_s: f64,
 }
 
@@ -95,66 +95,52 @@ pub fn run(sc: &Scene, size: Option<u32>, runs: usize) -> SeedRepro {
             })
         })
         .collect();
-    let ov = |m: &'static Method, p: &'static str, flat: bool, record: u64| Overrides {
+    let ov = |m: &'static Method, p: &'static str, flat: bool, passes: u32| Overrides {
         method: Some(m),
         precision: Some(p),
         size: size.map(|w| (w, w)),
         flat,
-        record_every: record,
+        flat_passes: passes,
         ..Default::default()
     };
-    // Timed renders, interleaved
-    let mut wall = vec![vec![]; configs.len()];
-    let mut cpu = vec![vec![]; configs.len()];
-    let mut last: Vec<Option<render::Render>> = (0..configs.len()).map(|_| None).collect();
+    let timed = |o: &Overrides| {
+        let c0 = cpu_seconds();
+        let r = render::render(sc, o);
+        let cpu = c0.zip(cpu_seconds()).map(|(a, b)| b - a);
+        (r, cpu)
+    };
+    // Timed renders, interleaved; flat ones also with a second pass over the spheres
+    let n = configs.len();
+    let (mut wall, mut cpu, mut cpu2) = (vec![vec![]; n], vec![vec![]; n], vec![vec![]; n]);
+    let mut last: Vec<Option<render::Render>> = (0..n).map(|_| None).collect();
     for _ in 0..runs.max(1) {
         for (k, &(m, p, flat)) in configs.iter().enumerate() {
-            let c0 = cpu_seconds();
-            let r = render::render(sc, &ov(m, p, flat, 0));
-            if let (Some(a), Some(b)) = (c0, cpu_seconds()) {
-                cpu[k].push(b - a);
-            }
+            let (r, c) = timed(&ov(m, p, flat, 1));
+            cpu[k].extend(c);
             wall[k].push(r.seconds);
             last[k] = Some(r);
+            if flat {
+                cpu2[k].extend(timed(&ov(m, p, true, 2)).1);
+            }
         }
     }
-    // Recorded test inputs, one untimed flat render per precision
-    let geometric = methods[1];
-    let recorded: Vec<(&str, Vec<geom::RecordedTest>)> = ["f32", "f64"]
-        .into_iter()
-        .map(|p| {
-            (
-                p,
-                render::render(sc, &ov(geometric, p, true, 1024)).recorded,
-            )
+    // In-frame ns per sphere test: the second pass's extra CPU time over its extra tests
+    let per_test: Vec<Option<f64>> = (0..n)
+        .map(|k| {
+            let tests = last[k].as_ref()?.counts.tests.sphere_tests as f64;
+            Some((median(&cpu2[k])? - median(&cpu[k])?) / tests * 1e9)
         })
         .collect();
-    // A cache-resident sample (4096 tests, 320 KiB): the whole recording would make the loop
-    // time memory bandwidth, not the test
-    let recorded: Vec<(&str, Vec<geom::RecordedTest>)> = recorded
-        .into_iter()
-        .map(|(p, v)| {
-            let step = (v.len() / REPLAY_LEN).max(1);
-            (p, v.into_iter().step_by(step).take(REPLAY_LEN).collect())
-        })
-        .collect();
-    let replay = |m: &'static Method, p: &str| {
-        let tests = &recorded
-            .iter()
-            .find(|r| r.0 == p)
-            .expect("both precisions")
-            .1;
-        crate::timing::measure(tests.len(), 5, 2e7, || match p {
-            "f32" => geom::replay::<f32>(m, tests),
-            _ => geom::replay::<f64>(m, tests),
-        })
-    };
-    // Assemble
+    // Assemble; a BVH configuration takes its flat twin's in-frame ns per test
     let mut out = vec![];
     let mut images = vec![];
     for (k, &(m, p, flat)) in configs.iter().enumerate() {
         let r = last[k].take().expect("rendered at least once");
-        let replay_ns = replay(m, p);
+        let twin = configs
+            .iter()
+            .position(|&(m2, p2, f2)| m2.name == m.name && p2 == p && f2)
+            .unwrap_or(k);
+        let ns = per_test[twin].unwrap_or(f64::NAN);
         let cpu_s = median(&cpu[k]).unwrap_or(f64::NAN);
         if flat {
             images.push((format!("{}/{p}", m.name), to_image(&r)));
@@ -166,8 +152,8 @@ pub fn run(sc: &Scene, size: Option<u32>, runs: usize) -> SeedRepro {
             wall_s: Timing::of(wall[k].clone()),
             cpu_s,
             counts: r.counts,
-            intersect_cpu_s: r.counts.tests.sphere_tests as f64 * replay_ns.median_ns * 1e-9,
-            replay_ns,
+            test_ns: ns,
+            intersect_cpu_s: r.counts.tests.sphere_tests as f64 * ns * 1e-9,
         });
     }
     // The two methods' images, per precision
@@ -290,8 +276,9 @@ impl SeedRepro {
         );
         // Times
         s += "**Time per frame** (median wall seconds of interleaved runs, ± half the spread; \
-              intersection = sphere tests × replayed ns/test, as a share of the frame's CPU time):\n\n\
-              | method | precision | spheres per ray | wall s | sphere tests | ns/test (replay) | intersection share |\n\
+              ns/test in the frame = the CPU time a second pass over the spheres adds ÷ its tests; \
+              intersection share = tests × that ÷ the frame's CPU time):\n\n\
+              | method | precision | spheres per ray | wall s | sphere tests | ns/test (in frame) | intersection share |\n\
               |---|---|---|---:|---:|---:|---:|\n";
         for r in &self.runs {
             s += &format!(
@@ -302,7 +289,7 @@ impl SeedRepro {
                 r.wall_s.median_ns,
                 50.0 * r.wall_s.spread(),
                 r.counts.tests.sphere_tests,
-                r.replay_ns.median_ns,
+                r.test_ns,
                 100.0 * r.intersect_cpu_s / r.cpu_s
             );
         }
@@ -321,8 +308,7 @@ impl SeedRepro {
                 self.get("algebraic", p, flat),
                 self.get("geometric", p, flat),
             );
-            a.zip(g)
-                .map(|(a, g)| a.replay_ns.median_ns / g.replay_ns.median_ns)
+            a.zip(g).map(|(a, g)| a.test_ns / g.test_ns)
         };
         let f = |x: Option<f64>| x.map_or("—".into(), |v| format!("{v:.2}×"));
         s += &format!(
@@ -387,7 +373,7 @@ pub fn explanation(r: &SeedRepro) -> String {
     let miss = 1.0 - c.tests.sphere_hits as f64 / c.tests.sphere_tests.max(1) as f64;
     let share_a = a.intersect_cpu_s / a.cpu_s;
     let share_g = g.intersect_cpu_s / g.cpu_s;
-    let test_ratio = a.replay_ns.median_ns / g.replay_ns.median_ns;
+    let test_ratio = a.test_ns / g.test_ns;
     let frame_ratio = a.wall_s.median_ns / g.wall_s.median_ns;
     let bvh = r
         .get("algebraic", "f64", false)
@@ -407,15 +393,15 @@ pub fn explanation(r: &SeedRepro) -> String {
         )
     };
     // Amdahl: the frame ratio the per-test ratio allows at the geometric frame's share
-    let amdahl = 1.0 / ((1.0 - share_g) + share_g * test_ratio);
+    let amdahl = (1.0 - share_g) + share_g * test_ratio;
     format!(
         "**Why the ratio is not 3.4× today** (f64, flat; every figure from this run):\n\n\
          - *A square root is cheap.* In a dependent chain, √x + 1 takes {:.2} ns per step here \
            and x·0.5 + 1 takes {:.2} ns: {:.1}×, where the paper counts 15–30×. And neither method \
            takes one on a miss: the algebraic test stops at the discriminant's sign, the \
            geometric one at its first or second comparison. {:.1}% of the sphere tests miss.\n\
-         - *Per test,* on the frame's own recorded inputs, the algebraic method costs {:.2} ns \
-           and the geometric {:.2} ns: {:.2}×. The early exit saves arithmetic, not a square \
+         - *Per test,* measured inside the frame, the algebraic method costs {:.2} ns and \
+           the geometric {:.2} ns: {:.2}×. The early exit saves arithmetic, not a square \
            root. Its branch goes the same way in {:.1}% of tests, which a branch predictor \
            rarely gets wrong.\n\
          - *Intersection is only part of the frame.* Sphere tests are {:.0}% (algebraic) and \
@@ -428,8 +414,8 @@ pub fn explanation(r: &SeedRepro) -> String {
         r.mul_ns.median_ns,
         r.sqrt_ns.median_ns / r.mul_ns.median_ns,
         100.0 * miss,
-        a.replay_ns.median_ns,
-        g.replay_ns.median_ns,
+        a.test_ns,
+        g.test_ns,
         test_ratio,
         100.0 * miss,
         100.0 * share_a,
