@@ -29,14 +29,7 @@ use std::hint::black_box;
 use std::time::Duration;
 
 const SEED: u64 = 7;
-const MIX: [Class; 6] = [
-    Class::Random,
-    Class::Inside,
-    Class::FarSmall,
-    Class::Huge,
-    Class::Grazing,
-    Class::Behind,
-];
+use rayproof::sphere::batch::MIX;
 const PER_CLASS: u64 = 512;
 const SIDE_LEN: usize = 2048;
 const FAN30_LEN: usize = 4096;

@@ -214,7 +214,7 @@ impl Geometry {
     ) {
         let obj = &self.objects[k];
         if let (Some((every, store)), Prim::Sphere { c, r }) = (&self.record, obj.prim) {
-            if counts.sphere_tests % every == 0 {
+            if counts.sphere_tests.is_multiple_of(*every) {
                 if let Ok(mut v) = store.lock() {
                     v.push([o.x, o.y, o.z, d.x, d.y, d.z, c.x, c.y, c.z, r]);
                 }

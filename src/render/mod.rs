@@ -356,7 +356,7 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     } else {
         ProgressBar::hidden()
     };
-    let rows: Vec<(Vec<[f32; 3]>, Vec<f32>, Vec<[f32; 3]>, Vec<f32>, RayCounts)> = (0..h)
+    let rows: Vec<Planes> = (0..h)
         .into_par_iter()
         .map(|y| {
             let mut counts = RayCounts::default();

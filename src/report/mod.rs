@@ -40,15 +40,8 @@ pub struct ReportOptions {
     pub progress: bool,
 }
 
-/// The classes of the timing batch: the bench's mix (every class with valid, posed inputs).
-const MIX: [Class; 6] = [
-    Class::Random,
-    Class::Inside,
-    Class::FarSmall,
-    Class::Huge,
-    Class::Grazing,
-    Class::Behind,
-];
+/// The classes of the timing batch: the bench's mix.
+use crate::sphere::batch::MIX;
 
 /// One method × precision: the audit's errors beside the in-run cost.
 #[derive(Clone, Debug, Serialize)]
@@ -623,7 +616,7 @@ fn markdown(
     s += &seed::explanation(repro);
     // 6. Newton
     s += "\n## 6. Accuracy cost of Newton refinement (seed 002 §1.5)\n\n";
-    s += &newton_markdown(newton, &starts);
+    s += &newton_markdown(newton, starts);
     Ok(s)
 }
 
