@@ -145,15 +145,8 @@ pub fn to_output<F: Real>(hit: Option<SphereHit<F>>) -> F {
 
 type V<F> = [F; 3];
 
-// Vector helpers, associating exactly as those of `methods`.
-#[inline(always)]
-fn sub<F: Real>(a: V<F>, b: V<F>) -> V<F> {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline(always)]
-fn dot<F: Real>(a: V<F>, b: V<F>) -> F {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
+// The vector helpers of `methods`, so the lanes associate exactly as the scalar methods do
+use super::methods::{dot, sub};
 
 /// [`methods::geometric`] for one element, branch-free; `t` or NaN for a miss.
 ///

@@ -45,11 +45,11 @@ type V<S> = [S; 3];
 
 // Vector helpers over plain arrays, so that the same body runs on f32, f64 and double-double.
 #[inline(always)]
-fn sub<S: Scalar>(a: V<S>, b: V<S>) -> V<S> {
+pub(super) fn sub<S: Scalar>(a: V<S>, b: V<S>) -> V<S> {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 #[inline(always)]
-fn dot<S: Scalar>(a: V<S>, b: V<S>) -> S {
+pub(super) fn dot<S: Scalar>(a: V<S>, b: V<S>) -> S {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 #[inline(always)]
