@@ -24,6 +24,7 @@ pub mod newton;
 pub mod probe;
 pub mod real;
 pub mod render;
+pub mod routines;
 pub mod report;
 pub mod sphere;
 pub mod timing;
