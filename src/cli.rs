@@ -214,15 +214,21 @@ pub struct AuditArgs {
     /// Seed of every case generator; the same seed gives byte-identical JSON.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Methods to audit (repeat or comma-separate); default: all.
-    #[arg(long, value_delimiter = ',', value_parser = parse_method)]
-    pub method: Vec<&'static Method>,
+    /// Shapes (routine families) to audit: sphere, the game-math chapter's routines (see
+    /// `rayproof probe --help`), or all (repeat or comma-separate). Default: all, or only the
+    /// sphere when --method, --class or sharding is given.
+    #[arg(long, value_delimiter = ',', value_parser = parse_shape)]
+    pub shape: Vec<String>,
+    /// Methods to audit (repeat or comma-separate); default: all. Names are the selected
+    /// shape's (a single shape).
+    #[arg(long, value_delimiter = ',')]
+    pub method: Vec<String>,
     /// Precisions: f32, f64 (repeat or comma-separate); default: both.
     #[arg(long, value_delimiter = ',', value_parser = parse_precision)]
     pub precision: Vec<Precision>,
-    /// Case classes (repeat or comma-separate); default: all.
-    #[arg(long, value_delimiter = ',', value_parser = parse_class)]
-    pub class: Vec<Class>,
+    /// Case classes (repeat or comma-separate); default: all. Names are the selected shape's.
+    #[arg(long, value_delimiter = ',')]
+    pub class: Vec<String>,
     /// Run only shard K of N (cases whose index ≡ K mod N), written as K/N.
     #[arg(long, value_parser = parse_shard, default_value = "0/1")]
     pub shard: (u64, u64),
@@ -262,6 +268,111 @@ pub struct MergeArgs {
 pub enum ProbeCommand {
     /// One ray against one sphere.
     Sphere(ProbeSphereArgs),
+    /// A routine of the game-math chapter: `probe SHAPE [--precision P] [--json] -- VALUES…`
+    /// (`probe SHAPE --help` names the values).
+    #[command(external_subcommand)]
+    Routine(Vec<String>),
+}
+
+/// The arguments of `rayproof probe SHAPE` for a routine (parsed after the shape is known, so
+/// the help names its values).
+#[derive(Parser, Debug)]
+pub struct ProbeShapeArgs {
+    /// f32 or f64.
+    #[arg(long, value_parser = parse_precision, default_value = "f64")]
+    pub precision: Precision,
+    /// Print the JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// The input values in the shape's order (decimal or hex floats, each rounded once to the
+    /// precision); put them after `--` when the first is negative.
+    #[arg(allow_hyphen_values = true)]
+    pub values: Vec<String>,
+}
+
+/// Parses the command line; `probe --help` lists the routines.
+pub fn parse() -> Result<Cli, clap::Error> {
+    use clap::{CommandFactory, FromArgMatches};
+    let list: Vec<String> = crate::routines::registry()
+        .iter()
+        .map(|s| format!("  {:<16} {}", s.name(), s.about()))
+        .collect();
+    let cmd = Cli::command().mut_subcommand("probe", |c| {
+        c.after_help(format!(
+            "Routines (probe NAME --help for their values):\n{}",
+            list.join("\n")
+        ))
+    });
+    Cli::from_arg_matches(&cmd.try_get_matches()?)
+}
+
+/// A clap error as one line (a first line ending in ':' is joined with its list, and a
+/// "[possible values: …]" line is appended).
+pub fn one_line(e: &clap::Error) -> String {
+    let text = e.render().to_string();
+    let mut lines = text.lines().map(str::trim).filter(|l| !l.is_empty());
+    let mut line = lines
+        .next()
+        .unwrap_or("error: invalid arguments")
+        .to_string();
+    if line.ends_with(':') {
+        if let Some(next) = lines.next() {
+            line = format!("{line} {next}");
+        }
+    }
+    if let Some(values) = text
+        .lines()
+        .map(str::trim)
+        .find(|l| l.starts_with("[possible values:"))
+    {
+        line = format!("{line} {values}");
+    }
+    line
+}
+
+/// `rayproof probe SHAPE …` for a routine.
+fn run_probe_routine(argv: &[String]) -> Result<u8> {
+    use clap::{CommandFactory, FromArgMatches};
+    let name = argv.first().map(String::as_str).unwrap_or("");
+    let Some(shape) = crate::routines::shape_by_name(name) else {
+        bail!(
+            "probe: unknown shape '{name}' (known: {})",
+            shape_names().join(", ")
+        );
+    };
+    let cmd = ProbeShapeArgs::command()
+        .name(shape.name())
+        .bin_name(format!("rayproof probe {name}"))
+        .about(shape.about())
+        .after_help(format!(
+            "Values: {}\nOutputs: {}\nMethods: {}",
+            shape.args().join(" "),
+            shape.values().join(" "),
+            shape
+                .methods()
+                .iter()
+                .map(|m| m.name)
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    let parsed = cmd
+        .try_get_matches_from(argv)
+        .and_then(|m| ProbeShapeArgs::from_arg_matches(&m));
+    let p = match parsed {
+        Ok(p) => p,
+        Err(e) if e.kind() == clap::error::ErrorKind::DisplayHelp => {
+            say_raw!("{e}");
+            return Ok(0);
+        }
+        Err(e) => bail!("{}", one_line(&e).trim_start_matches("error: ")),
+    };
+    let input =
+        crate::routines::parse_values(shape, p.precision, &p.values).map_err(|e| anyhow!("{e}"))?;
+    say_raw!(
+        "{}",
+        crate::routines::audit::probe(shape, p.precision, &input, p.json)
+    );
+    Ok(0)
 }
 
 #[derive(Args, Debug)]
@@ -297,6 +408,24 @@ fn parse_method(s: &str) -> Result<&'static Method, String> {
                 .join(", ")
         )
     })
+}
+
+fn parse_shape(s: &str) -> Result<String, String> {
+    if s == "all" || s == "sphere" || crate::routines::shape_by_name(s).is_some() {
+        Ok(s.to_string())
+    } else {
+        Err(format!(
+            "unknown shape '{s}' (known: all, {})",
+            shape_names().join(", ")
+        ))
+    }
+}
+
+/// Every auditable shape: the sphere, then the routines' registry.
+fn shape_names() -> Vec<&'static str> {
+    std::iter::once("sphere")
+        .chain(crate::routines::registry().iter().map(|s| s.name()))
+        .collect()
 }
 
 fn parse_precision(s: &str) -> Result<Precision, String> {
@@ -437,6 +566,7 @@ pub fn run(cli: Cli) -> Result<u8> {
             );
             Ok(0)
         }
+        Command::Probe(ProbeCommand::Routine(argv)) => run_probe_routine(&argv),
         Command::Probe(ProbeCommand::Sphere(p)) => {
             say_raw!(
                 "{}",
@@ -448,29 +578,130 @@ pub fn run(cli: Cli) -> Result<u8> {
 }
 
 fn run_audit(a: AuditArgs) -> Result<u8> {
+    // Which shapes: sharding, --method and --class keep the sphere-only audit they always meant
+    let sharded = a.shard != (0, 1) || a.shard_out.is_some();
+    let narrowed = !a.method.is_empty() || !a.class.is_empty();
+    let all = shape_names();
+    let names: Vec<&'static str> = if a.shape.is_empty() {
+        if sharded || narrowed {
+            vec!["sphere"]
+        } else {
+            all
+        }
+    } else if a.shape.iter().any(|s| s == "all") {
+        all
+    } else {
+        all.into_iter()
+            .filter(|n| a.shape.iter().any(|s| s == n))
+            .collect()
+    };
+    if narrowed && names.len() != 1 {
+        bail!("--method and --class name one shape's methods and classes: give a single --shape");
+    }
+    if sharded && names != ["sphere"] {
+        bail!("--shard and --shard-out cover the sphere only: give --shape sphere");
+    }
+    let precisions = if a.precision.is_empty() {
+        Precision::ALL.to_vec()
+    } else {
+        a.precision.clone()
+    };
+    let others: Vec<&'static dyn crate::routines::Shape> = names
+        .iter()
+        .filter_map(|n| crate::routines::shape_by_name(n))
+        .collect();
+    let shape_opts = crate::routines::audit::Options {
+        cases: a.cases,
+        seed: a.seed,
+        precisions: precisions.clone(),
+        methods: a.method.clone(),
+        classes: a.class.clone(),
+    };
+    for s in &others {
+        crate::routines::audit::validate(*s, &shape_opts).map_err(|e| anyhow!("{e}"))?;
+    }
+    // Check output paths before the long run
+    check_output_dirs(&[&a.json, &a.markdown, &a.shard_out])?;
+    let sphere = if names.contains(&"sphere") {
+        match audit_sphere(&a, precisions)? {
+            SphereAudit::Shard => return Ok(0),
+            SphereAudit::Done(r) => Some(r),
+        }
+    } else {
+        None
+    };
+    // The game-math chapter's routines
+    let mut shapes = vec![];
+    for s in others {
+        let start = Instant::now();
+        let r = crate::routines::audit::run(s, &shape_opts).map_err(|e| anyhow!("{e}"))?;
+        say_raw!("{}", crate::routines::audit::table(&r));
+        if a.worst > 0 {
+            say_raw!("{}", crate::routines::audit::worst_cases(&r, a.worst));
+        }
+        say!(
+            "{}: {} cases × {} methods in {:.1} s",
+            s.name(),
+            r.cases_per_class * (r.rows.len() / s.methods().len().max(1)) as u64,
+            s.methods().len(),
+            start.elapsed().as_secs_f64()
+        );
+        shapes.push(r);
+    }
+    write_audit_files(sphere.as_ref(), &shapes, &a.json, &a.markdown)?;
+    // Verdict: the sphere's tolerance table and every shape's
+    let mut code = sphere.as_ref().map_or(0, tolerance_verdict);
+    for r in &shapes {
+        let shape = crate::routines::shape_by_name(r.shape).expect("audited shape");
+        let breaks = crate::routines::audit::check(shape, r);
+        if breaks.is_empty() {
+            say!("{}: every row within its tolerance", r.shape);
+        } else {
+            say!("{}: {} row(s) out of tolerance", r.shape, breaks.len());
+            for b in &breaks {
+                say!("  {b}");
+            }
+            code = 1;
+        }
+    }
+    Ok(code)
+}
+
+enum SphereAudit {
+    Done(audit::Report),
+    /// A shard file was written; the merge checks the tolerance table.
+    Shard,
+}
+
+/// The sphere's audit: prints its table and, for `--shard-out`, writes the shard file.
+fn audit_sphere(a: &AuditArgs, precisions: Vec<Precision>) -> Result<SphereAudit> {
+    let methods = a
+        .method
+        .iter()
+        .map(|m| parse_method(m).map_err(|e| anyhow!("--method: {e}")))
+        .collect::<Result<Vec<_>>>()?;
+    let classes = a
+        .class
+        .iter()
+        .map(|c| parse_class(c).map_err(|e| anyhow!("--class: {e}")))
+        .collect::<Result<Vec<_>>>()?;
     let opts = AuditOptions {
         cases: a.cases,
         seed: a.seed,
-        methods: if a.method.is_empty() {
+        methods: if methods.is_empty() {
             METHODS.iter().collect()
         } else {
-            a.method
+            methods
         },
-        precisions: if a.precision.is_empty() {
-            Precision::ALL.to_vec()
-        } else {
-            a.precision
-        },
-        classes: if a.class.is_empty() {
+        precisions,
+        classes: if classes.is_empty() {
             Class::ALL.to_vec()
         } else {
-            a.class
+            classes
         },
         shard: a.shard,
         progress: std::io::stderr().is_terminal(),
     };
-    // Check output paths before the long run
-    check_output_dirs(&[&a.json, &a.markdown, &a.shard_out])?;
     let start = Instant::now();
     audit::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
     let (report, shard) = match &a.shard_out {
@@ -497,9 +728,9 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         oracle_secs,
         n as f64 / oracle_secs.max(1e-9)
     );
-    write_report_files(&report, &a.json, &a.markdown)?;
     // A shard for merging: the merge checks the tolerance table on the whole run
     if let (Some(p), Some(shard)) = (&a.shard_out, &shard) {
+        write_report_files(&report, &a.json, &a.markdown)?;
         write_atomic(p, shard.to_json().as_bytes())?;
         say!(
             "shard {}/{} written to {}; the tolerance table is checked by `rayproof merge`",
@@ -507,9 +738,51 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
             opts.shard.1,
             p.display()
         );
-        return Ok(0);
+        return Ok(SphereAudit::Shard);
     }
-    Ok(tolerance_verdict(&report))
+    Ok(SphereAudit::Done(report))
+}
+
+/// The JSON of an audit with routines: the sphere's report fields (when audited), then
+/// `shapes`, one report per routine family with rows shaped like the sphere's.
+#[derive(serde::Serialize)]
+struct AuditJson<'a> {
+    #[serde(flatten)]
+    sphere: Option<&'a audit::Report>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    tool: Option<&'static str>,
+    shapes: &'a [crate::routines::audit::ShapeReport],
+}
+
+/// Writes `--json` and `--markdown` of an audit: the sphere-only report is unchanged.
+fn write_audit_files(
+    sphere: Option<&audit::Report>,
+    shapes: &[crate::routines::audit::ShapeReport],
+    json: &Option<PathBuf>,
+    markdown: &Option<PathBuf>,
+) -> Result<()> {
+    if shapes.is_empty() {
+        if let Some(r) = sphere {
+            return write_report_files(r, json, markdown);
+        }
+    }
+    if let Some(p) = json {
+        let v = AuditJson {
+            sphere,
+            tool: sphere.is_none().then_some(audit::TOOL),
+            shapes,
+        };
+        write_atomic(p, (serde_json::to_string_pretty(&v)? + "\n").as_bytes())?;
+    }
+    if let Some(p) = markdown {
+        let mut text = sphere.map(audit::markdown).unwrap_or_default();
+        for r in shapes {
+            text += "\n";
+            text += &crate::routines::audit::markdown(r);
+        }
+        write_atomic(p, text.as_bytes())?;
+    }
+    Ok(())
 }
 
 fn run_merge(m: MergeArgs) -> Result<u8> {
