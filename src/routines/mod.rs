@@ -14,6 +14,7 @@
 pub mod audit;
 pub mod exact;
 pub mod offset;
+pub mod optics;
 pub mod triangle;
 
 use crate::audit::Precision;
@@ -149,7 +150,7 @@ pub trait Shape: Sync {
 
 /// Every routine family, in the order of the seed chapter.
 pub fn registry() -> Vec<&'static dyn Shape> {
-    vec![&triangle::Triangle]
+    vec![&triangle::Triangle, &optics::Reflect, &optics::Refract]
 }
 
 /// A shape by name.
