@@ -14,8 +14,10 @@
 pub mod audit;
 pub mod exact;
 pub mod offset;
+pub mod optics;
 pub mod poly;
 pub mod sturm;
+pub mod triangle;
 
 use crate::audit::Precision;
 use crate::sphere::Judgement;
@@ -150,7 +152,7 @@ pub trait Shape: Sync {
 
 /// Every routine family, in the order of the seed chapter.
 pub fn registry() -> Vec<&'static dyn Shape> {
-    vec![]
+    vec![&triangle::Triangle, &optics::Reflect, &optics::Refract]
 }
 
 /// A shape by name.
