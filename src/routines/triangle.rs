@@ -188,14 +188,16 @@ fn gamma_of<S: Scalar>(eps: f64, n: u32) -> S {
 
 /// Woop–Benthin–Wald in pbrt-v4's form (`IntersectTriangle`, shapes.cpp), over any scalar:
 /// `eps` is the unit roundoff of `S` (for its `gamma`), `dop` evaluates `a·b − c·d`, `refine`
-/// re-evaluates the three edge functions when one is exactly 0; `conservative` applies pbrt's
-/// `t > Δt` test (otherwise only `t > 0`).
+/// re-evaluates the three edge functions when one is exactly 0. `pbrt_units`: pbrt's `Δt`
+/// bound as written, whose `δx, δy` add the largest *sheared* `z` (scaled by `1/d_z`) to the
+/// unscaled `x, y`; otherwise the unscaled `z`, which is what the error of `x + S_x·z` depends
+/// on (the two agree for unit `d`; for `|d| ≪ 1` pbrt's bound is huge and rejects real hits).
 fn woop<S: Scalar>(
     o: V<S>,
     d: V<S>,
     p: [V<S>; 3],
     eps: f64,
-    conservative: bool,
+    pbrt_units: bool,
     dop: impl Fn(S, S, S, S) -> S,
     refine: impl Fn(S, S, S, S) -> S,
 ) -> Option<TriHit<S>> {
@@ -261,18 +263,19 @@ fn woop<S: Scalar>(
     let inv_det = S::ONE / det;
     let bary = e.map(|x| x * inv_det);
     let t = t_scaled * inv_det;
-    if !conservative {
-        return (t > zero).then_some(TriHit { t, b: bary });
-    }
-    // Conservative t > 0: pbrt's delta_t bound (its x, y terms mix the sheared z, scaled by
-    // 1/d_z, with unscaled x, y: for |d| far from 1 the bound is far from tight)
+    // Conservative t > 0: pbrt's delta_t bound
     let max_z = vmax(vabs(z));
     let max_x = vmax(vabs([a[0], b[0], c[0]]));
     let max_y = vmax(vabs([a[1], b[1], c[1]]));
+    let max_zxy = if pbrt_units {
+        max_z
+    } else {
+        vmax(vabs([a[2], b[2], c[2]]))
+    };
     let g = |n| gamma_of::<S>(eps, n);
     let delta_z = g(3) * max_z;
-    let delta_x = g(5) * (max_x + max_z);
-    let delta_y = g(5) * (max_y + max_z);
+    let delta_x = g(5) * (max_x + max_zxy);
+    let delta_y = g(5) * (max_y + max_zxy);
     let two = S::from_f64(2.0);
     let delta_e = two * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
     let max_e = vmax(vabs(e));
@@ -317,9 +320,9 @@ fn wide_eps<F: Real>() -> f64 {
 /// **Watertight, promoted**: the same algorithm run entirely in the wider type (`f64` for `f32`
 /// inputs, double-double for `f64`), `t` and the barycentrics rounded once. The audit's robust
 /// anchor: its rounding errors are ~2⁻²⁹ (f32) or ~2⁻⁴⁷ (f64) of what a one-ulp move of an input
-/// does, so only ill-posed cases can flip; its range covers the huge and tiny classes. For the
-/// same reason it tests `t > 0` on the wide `t` instead of pbrt's `Δt` bound (whose units are
-/// off for `|d|` far from 1).
+/// does, so only ill-posed cases can flip; its range covers the huge and tiny classes. Its `Δt`
+/// uses consistent units (see [`woop`]), so tiny directions keep their hits, while rays in the
+/// plane, whose `det` is rounding noise, are still rejected.
 pub fn watertight_wide_hit<F: Real>(o: V<F>, d: V<F>, p: [V<F>; 3]) -> Option<TriHit<F>> {
     if !all_finite(o, d, &p) {
         return None;
@@ -793,12 +796,36 @@ impl Shape for Triangle {
     }
 }
 
-/// The tolerance table (measured at seed 1 with 2,000 cases per class; see the module tests).
+/// The tolerance table, measured at seed 1 (300 and 2,000 cases per class). `watertight_wide`
+/// is held to no wrong verdict and 1 ulp (measured: 0). The others are reported, and held to
+/// fail (XFAIL) where they are known to:
+/// - every native method on `vertex`: a ray a few ulps outside a vertex is a well-posed miss,
+///   but the rounding of the translation/shear (watertight), of `d×e2` (Möller–Trumbore) or of
+///   `R` (chapter) is larger than that: 10–35 % wrong;
+/// - `tiny`: Möller–Trumbore's absolute `|det| < 1e-6` rejects everything small; watertight's
+///   `Δt` (unscaled x, y mixed with z scaled by 1/d_z) rejects hits when |d| ≪ 1; in f32 the
+///   chapter's and watertight's products underflow;
+/// - `huge` in f32: products of coordinates ≥ 1e19 overflow (all three methods);
+/// - `far`: the chapter's `N·S − N·P0` cancels (errors of 1e5 ulps in f32, 1e8 in f64), and
+///   Möller–Trumbore's `det` of a small far triangle falls under its epsilon in f64.
 pub fn expect(method: &str, prec: Precision, class: &str) -> Expect {
-    let _ = (method, prec, class);
-    match method {
-        "watertight_wide" => Expect::pass(1),
-        _ => Expect::ANY,
+    let f32 = prec == Precision::F32;
+    let known = match (method, class) {
+        ("watertight_wide", _) => return Expect::pass(1),
+        (_, "vertex") => true,
+        ("moller_trumbore", "tiny") | ("watertight", "tiny") => true,
+        ("chapter", "tiny") | (_, "huge") => f32,
+        ("chapter", "far") => true,
+        ("moller_trumbore", "far") => !f32,
+        _ => false,
+    };
+    if known {
+        Expect {
+            max_ulps: 1000,
+            ..Expect::xfail()
+        }
+    } else {
+        Expect::ANY
     }
 }
 
@@ -1082,3 +1109,40 @@ pub fn cases(seed: u64, class: &str, prec: Precision, n: u64) -> Vec<Vec<f64>> {
 }
 
 
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::Rng;
+
+    /// The wide fallback's sign of `a·b − c·d` is exact, on products that nearly cancel.
+    #[test]
+    fn wide_difference_of_products_has_the_exact_sign() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for _ in 0..20_000 {
+            let (a, b): (f64, f64) = (rng.random_range(-4.0..4.0), rng.random_range(-4.0..4.0));
+            let c: f64 = rng.random_range(0.5..2.0);
+            // d such that c·d ≈ a·b, moved by a few ulps
+            let k: i32 = rng.random_range(-3..=3);
+            let d = move_ulps(a * b / c, k, Precision::F64);
+            let exact = q(a) * q(b) - q(c) * q(d);
+            let got = dop_wide(a, b, c, d);
+            assert_eq!(got.partial_cmp(&0.0), exact.cmp0().into(), "{a} {b} {c} {d}");
+            let (a, b, c, d) = (a as f32, b as f32, c as f32, (a as f32 * b as f32) / c as f32);
+            let exact = q(a as f64) * q(b as f64) - q(c as f64) * q(d as f64);
+            assert_eq!(dop_wide(a, b, c, d).partial_cmp(&0.0), exact.cmp0().into());
+        }
+    }
+
+    #[test]
+    fn generators_fill_every_class_with_representable_values() {
+        for prec in Precision::ALL {
+            for class in CLASSES {
+                for v in cases(2, class, prec, 20) {
+                    assert_eq!(v.len(), 15);
+                    assert!(v.iter().all(|&x| exact::representable(x, prec)), "{class}");
+                }
+            }
+        }
+    }
+}
