@@ -41,7 +41,12 @@ fn oracle_interior_hit_is_exact_and_well_posed() {
 
 #[test]
 fn oracle_edges_and_vertices_are_closed_and_ill_posed() {
-    for o in [[0.5, 0.0, 1.0], [0.5, 0.5, 1.0], [0.0, 0.0, 1.0], [1.0, 0.0, 2.0]] {
+    for o in [
+        [0.5, 0.0, 1.0],
+        [0.5, 0.5, 1.0],
+        [0.0, 0.0, 1.0],
+        [1.0, 0.0, 2.0],
+    ] {
         let (count, _, ill) = answer(&case(o, [0.0, 0.0, -1.0]), Precision::F32);
         assert_eq!((count, ill), (1, true), "{o:?}");
         assert!(matches!(
@@ -54,8 +59,14 @@ fn oracle_edges_and_vertices_are_closed_and_ill_posed() {
 #[test]
 fn oracle_misses() {
     // Outside, behind, and pointing away
-    assert_eq!(answer(&case([1.0, 1.0, 1.0], [0.0, 0.0, -1.0]), Precision::F64).0, 0);
-    assert_eq!(answer(&case([0.25, 0.25, -1.0], [0.0, 0.0, -1.0]), Precision::F64).0, 0);
+    assert_eq!(
+        answer(&case([1.0, 1.0, 1.0], [0.0, 0.0, -1.0]), Precision::F64).0,
+        0
+    );
+    assert_eq!(
+        answer(&case([0.25, 0.25, -1.0], [0.0, 0.0, -1.0]), Precision::F64).0,
+        0
+    );
     // In the plane: a miss (N·d = 0), ill-posed since tilting d by one ulp makes it a hit
     let (count, _, ill) = answer(&case([-1.0, 0.25, 0.0], [1.0, 0.0, 0.0]), Precision::F64);
     assert_eq!((count, ill), (0, true));
@@ -66,7 +77,9 @@ fn oracle_misses() {
 
 #[test]
 fn oracle_rejects_invalid_input() {
-    let collinear = [0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 3.0, 3.0, 0.0];
+    let collinear = [
+        0.0, 0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 3.0, 3.0, 0.0,
+    ];
     assert_eq!(triangle::truth(&collinear, Precision::F64), Truth::Invalid);
     let zero_dir = case([0.25, 0.25, 1.0], [0.0; 3]);
     assert_eq!(triangle::truth(&zero_dir, Precision::F64), Truth::Invalid);
@@ -124,7 +137,11 @@ fn check_class(class: &str) {
             assert_eq!(r.invalid.rejected, r.invalid.cases);
         }
         if !matches!(class, "degenerate" | "invalid") {
-            assert!(r.well_posed >= 50, "{class} has {} well-posed", r.well_posed);
+            assert!(
+                r.well_posed >= 50,
+                "{class} has {} well-posed",
+                r.well_posed
+            );
         } else {
             assert_eq!(r.invalid.cases, r.cases, "every {class} case is invalid");
         }
@@ -205,14 +222,26 @@ fn closed_far_mesh_watertight_method_never_leaks() {
                 r.method, r.precision, r.kind, r.rays, r.escaped, 100.0 * r.rate,
                 r.oracle_checked, r.oracle_violations
             );
-            assert_eq!(r.oracle_violations, 0, "the oracle disagrees: origin not inside?");
+            assert_eq!(
+                r.oracle_violations, 0,
+                "the oracle disagrees: origin not inside?"
+            );
             if r.method.starts_with("watertight") {
-                assert_eq!(r.escaped, 0, "{} {} {} leaked", r.method, r.precision, r.kind);
+                assert_eq!(
+                    r.escaped, 0,
+                    "{} {} {} leaked",
+                    r.method, r.precision, r.kind
+                );
             }
         }
         // Teeth: the chapter's method leaks in f32, and Möller–Trumbore through edges/vertices
         if prec == Precision::F32 {
-            let esc = |m, k| rows.iter().find(|r| r.method == m && r.kind == k).unwrap().escaped;
+            let esc = |m, k| {
+                rows.iter()
+                    .find(|r| r.method == m && r.kind == k)
+                    .unwrap()
+                    .escaped
+            };
             assert!(esc("chapter", "random") > 0);
             assert!(esc("chapter", "aimed") > 0);
             assert!(esc("moller_trumbore", "aimed") > 0);
@@ -243,7 +272,14 @@ fn public_watertight_matches_its_hit_record() {
     assert_eq!(watertight(o, d, p), Some(0.5));
     let h = watertight_hit(o, d, p).unwrap();
     assert!((h.b.iter().sum::<f32>() - 1.0).abs() < 1e-6);
-    assert_eq!(watertight([0.25f64, 0.25, 1.0], [0.0, 0.0, 1.0], p.map(|v| v.map(f64::from))), None);
+    assert_eq!(
+        watertight(
+            [0.25f64, 0.25, 1.0],
+            [0.0, 0.0, 1.0],
+            p.map(|v| v.map(f64::from))
+        ),
+        None
+    );
 }
 
 // ---- proptest suites ----

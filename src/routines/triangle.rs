@@ -279,8 +279,9 @@ fn woop<S: Scalar>(
     let two = S::from_f64(2.0);
     let delta_e = two * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
     let max_e = vmax(vabs(e));
-    let delta_t =
-        S::from_f64(3.0) * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e) * inv_det.abs();
+    let delta_t = S::from_f64(3.0)
+        * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
+        * inv_det.abs();
     // NaN-safe form of pbrt's `t <= deltaT` rejection
     if !(t > delta_t) {
         return None;
@@ -383,7 +384,10 @@ fn decompose(x: f64) -> (i64, i32) {
         return (0, 0);
     }
     let bits = x.to_bits();
-    let (eb, frac) = (((bits >> 52) & 0x7ff) as i32, (bits & ((1u64 << 52) - 1)) as i64);
+    let (eb, frac) = (
+        ((bits >> 52) & 0x7ff) as i32,
+        (bits & ((1u64 << 52) - 1)) as i64,
+    );
     let (mut m, mut e) = if eb == 0 {
         (frac, -1074)
     } else {
@@ -481,7 +485,9 @@ pub fn exact_tri(v: &[f64]) -> ExactTri {
         .map(|i| idot(&d, &icross(&r[(i + 1) % 3], &r[(i + 2) % 3])))
         .collect();
     let s = den.cmp0();
-    if e.iter().any(|x| x.cmp0() != s && x.cmp0() != Ordering::Equal) {
+    if e.iter()
+        .any(|x| x.cmp0() != s && x.cmp0() != Ordering::Equal)
+    {
         return ExactTri::Miss;
     }
     let boundary = e.iter().any(|x| *x == 0);
@@ -571,7 +577,13 @@ fn nondegenerate(p: &[V<f64>; 3]) -> bool {
 
 /// A triangle around `c` of size `s`, and a ray from distance `s·10^[0,2]` aimed at the
 /// barycentric point `(u, v)` drawn from `[lo, hi]` (hits and misses).
-fn general(rng: &mut ChaCha8Rng, c: V<f64>, s: f64, lo: f64, hi: f64) -> (V<f64>, V<f64>, [V<f64>; 3]) {
+fn general(
+    rng: &mut ChaCha8Rng,
+    c: V<f64>,
+    s: f64,
+    lo: f64,
+    hi: f64,
+) -> (V<f64>, V<f64>, [V<f64>; 3]) {
     loop {
         let p: [V<f64>; 3] = std::array::from_fn(|_| add(c, scale(ball(rng), s)));
         if !nondegenerate(&p) {
@@ -610,7 +622,11 @@ fn edge_or_vertex(rng: &mut ChaCha8Rng, prec: Precision, vertex: bool) -> Vec<f6
     if pick < 2 {
         let (o, p) = grid_case(rng);
         // An exact point of the edge: p_i + (k/8)(p_j − p_i)
-        let k = if vertex { 0.0 } else { rng.random_range(1..8) as f64 / 8.0 };
+        let k = if vertex {
+            0.0
+        } else {
+            rng.random_range(1..8) as f64 / 8.0
+        };
         let target = add(p[i], scale(sub(p[j], p[i]), k));
         let mut d = sub(target, o);
         if pick == 1 {
@@ -661,7 +677,10 @@ fn degenerate(rng: &mut ChaCha8Rng) -> Vec<f64> {
 /// A general case with NaN/inf injected, or a zero direction.
 fn invalid(rng: &mut ChaCha8Rng, prec: Precision) -> Vec<f64> {
     let (o, d, p) = general(rng, [0.0; 3], 1.0, 0.0, 1.0);
-    let mut v = flat(o, d, p).into_iter().map(|x| rnd(x, prec)).collect::<Vec<_>>();
+    let mut v = flat(o, d, p)
+        .into_iter()
+        .map(|x| rnd(x, prec))
+        .collect::<Vec<_>>();
     match rng.random_range(0..4) {
         0 => v[3..6].fill(0.0),
         k => {
@@ -874,9 +893,26 @@ pub fn icosphere(level: u32, center: V<f64>, radius: f64, prec: Precision) -> Me
     ]
     .to_vec();
     let mut faces: Vec<[usize; 3]> = vec![
-        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-        [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-        [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
     ];
     let norm = |v: V<f64>| scale(v, 1.0 / dot(v, v).sqrt());
     vs = vs.into_iter().map(norm).collect();
@@ -964,7 +1000,11 @@ fn watertight_in<F: Real>(seed: u64, rays: u64, prec: Precision) -> Vec<Watertig
                 } else {
                     let f = mesh.faces[rng.random_range(0..mesh.faces.len())];
                     let (a, b) = (mesh.vertices[f[0]], mesh.vertices[f[1]]);
-                    let u = if rng.random_bool(0.25) { 0.0 } else { rng.random::<f64>() };
+                    let u = if rng.random_bool(0.25) {
+                        0.0
+                    } else {
+                        rng.random::<f64>()
+                    };
                     sub(add(a, scale(sub(b, a), u)), o)
                 };
                 (o, rv(d, prec))
@@ -1023,7 +1063,11 @@ fn hit_point<F: Real>(m: usize, o: V<F>, d: V<F>, p: &[V<F>; 3], h: &TriHit<F>) 
         let err = std::array::from_fn(|i| g * (o[i].abs() + td[i].abs()));
         return (add(o, td), err);
     }
-    let terms = [scale(p[0], h.b[0]), scale(p[1], h.b[1]), scale(p[2], h.b[2])];
+    let terms = [
+        scale(p[0], h.b[0]),
+        scale(p[1], h.b[1]),
+        scale(p[2], h.b[2]),
+    ];
     let pt = add(add(terms[0], terms[1]), terms[2]);
     let sum_abs = add(add(vabs(terms[0]), vabs(terms[1])), vabs(terms[2]));
     let g = gamma::<F>(7);
@@ -1069,7 +1113,11 @@ fn reintersect_in<F: Real>(seed: u64, per_scale: u64) -> Vec<ReintersectRow> {
             let c = std::array::from_fn(|_| s * 100.0 * rng.random_range(-1.0..1.0));
             let (o, _, p) = general(&mut rng, c, s, 0.0, 1.0);
             let (u, v) = (rng.random::<f64>(), rng.random::<f64>());
-            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
             let (o, p) = (rv(o, prec), p.map(|x| rv(x, prec)));
             let d = rv(sub(bary(&p, u, v), o), prec);
             let dirs: Vec<V<f64>> = (0..SPAWNS_PER_HIT).map(|_| unit(&mut rng)).collect();
@@ -1084,7 +1132,11 @@ fn reintersect_in<F: Real>(seed: u64, per_scale: u64) -> Vec<ReintersectRow> {
                     // Half to the incoming side, half through the surface
                     let w = w.map(F::from_f64);
                     let into = (dot(w, n) > F::ZERO) == back;
-                    let w = if into == (k % 2 == 0) { w } else { scale(w, -F::ONE) };
+                    let w = if into == (k % 2 == 0) {
+                        w
+                    } else {
+                        scale(w, -F::ONE)
+                    };
                     let po = spawn_origin(pt, err, n, w);
                     row.rays += 1;
                     let Some(h2) = pf(po, w, tri) else { continue };
@@ -1102,13 +1154,14 @@ fn reintersect_in<F: Real>(seed: u64, per_scale: u64) -> Vec<ReintersectRow> {
 
 /// Cases of a class for tests and benches (the audit's own generator, seeded per case).
 pub fn cases(seed: u64, class: &str, prec: Precision, n: u64) -> Vec<Vec<f64>> {
-    let k = CLASSES.iter().position(|c| *c == class).expect("known class");
+    let k = CLASSES
+        .iter()
+        .position(|c| *c == class)
+        .expect("known class");
     (0..n)
         .filter_map(|i| gen_case(&Triangle, seed, k, prec, i))
         .collect()
 }
-
-
 
 #[cfg(test)]
 mod tests {
@@ -1127,8 +1180,17 @@ mod tests {
             let d = move_ulps(a * b / c, k, Precision::F64);
             let exact = q(a) * q(b) - q(c) * q(d);
             let got = dop_wide(a, b, c, d);
-            assert_eq!(got.partial_cmp(&0.0), exact.cmp0().into(), "{a} {b} {c} {d}");
-            let (a, b, c, d) = (a as f32, b as f32, c as f32, (a as f32 * b as f32) / c as f32);
+            assert_eq!(
+                got.partial_cmp(&0.0),
+                exact.cmp0().into(),
+                "{a} {b} {c} {d}"
+            );
+            let (a, b, c, d) = (
+                a as f32,
+                b as f32,
+                c as f32,
+                (a as f32 * b as f32) / c as f32,
+            );
             let exact = q(a as f64) * q(b as f64) - q(c as f64) * q(d as f64);
             assert_eq!(dop_wide(a, b, c, d).partial_cmp(&0.0), exact.cmp0().into());
         }
