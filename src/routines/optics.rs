@@ -20,7 +20,7 @@
 //! ill-posed (its count is always 1).
 
 use super::exact::{self, nudge, q, round_q, sqrt_encl, ziv, ZIV_CAP};
-use super::{Answer, Expect, Expected, Metric, MethodInfo, Shape, Truth};
+use super::{Answer, Expect, Expected, MethodInfo, Metric, Shape, Truth};
 use crate::audit::Precision;
 use crate::real::{Real, Scalar};
 use rand::Rng;
@@ -355,7 +355,11 @@ fn propose(class: &str, prec: Precision, with_eta: bool, rng: &mut ChaCha8Rng) -
         }
         "normal_incidence" => {
             let nn = r(n);
-            let l = if rng.random() { nn } else { unnormalise(rng, nn, prec) };
+            let l = if rng.random() {
+                nn
+            } else {
+                unnormalise(rng, nn, prec)
+            };
             (l, nn)
         }
         "eta_one" => {
@@ -392,7 +396,9 @@ pub struct Reflect;
 pub struct Refract;
 
 fn vec_answer<F: Real>(r: Option<V<F>>) -> Answer {
-    r.map_or_else(Answer::miss, |v| Answer::hit(v.iter().map(|x| x.to_f64()).collect()))
+    r.map_or_else(Answer::miss, |v| {
+        Answer::hit(v.iter().map(|x| x.to_f64()).collect())
+    })
 }
 
 fn reflect_in<F: Real>(m: usize, v: &[f64]) -> Answer {

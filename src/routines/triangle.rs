@@ -188,14 +188,16 @@ fn gamma_of<S: Scalar>(eps: f64, n: u32) -> S {
 
 /// Woop–Benthin–Wald in pbrt-v4's form (`IntersectTriangle`, shapes.cpp), over any scalar:
 /// `eps` is the unit roundoff of `S` (for its `gamma`), `dop` evaluates `a·b − c·d`, `refine`
-/// re-evaluates the three edge functions when one is exactly 0; `conservative` applies pbrt's
-/// `t > Δt` test (otherwise only `t > 0`).
+/// re-evaluates the three edge functions when one is exactly 0. `pbrt_units`: pbrt's `Δt`
+/// bound as written, whose `δx, δy` add the largest *sheared* `z` (scaled by `1/d_z`) to the
+/// unscaled `x, y`; otherwise the unscaled `z`, which is what the error of `x + S_x·z` depends
+/// on (the two agree for unit `d`; for `|d| ≪ 1` pbrt's bound is huge and rejects real hits).
 fn woop<S: Scalar>(
     o: V<S>,
     d: V<S>,
     p: [V<S>; 3],
     eps: f64,
-    conservative: bool,
+    pbrt_units: bool,
     dop: impl Fn(S, S, S, S) -> S,
     refine: impl Fn(S, S, S, S) -> S,
 ) -> Option<TriHit<S>> {
@@ -261,23 +263,25 @@ fn woop<S: Scalar>(
     let inv_det = S::ONE / det;
     let bary = e.map(|x| x * inv_det);
     let t = t_scaled * inv_det;
-    if !conservative {
-        return (t > zero).then_some(TriHit { t, b: bary });
-    }
-    // Conservative t > 0: pbrt's delta_t bound (its x, y terms mix the sheared z, scaled by
-    // 1/d_z, with unscaled x, y: for |d| far from 1 the bound is far from tight)
+    // Conservative t > 0: pbrt's delta_t bound
     let max_z = vmax(vabs(z));
     let max_x = vmax(vabs([a[0], b[0], c[0]]));
     let max_y = vmax(vabs([a[1], b[1], c[1]]));
+    let max_zxy = if pbrt_units {
+        max_z
+    } else {
+        vmax(vabs([a[2], b[2], c[2]]))
+    };
     let g = |n| gamma_of::<S>(eps, n);
     let delta_z = g(3) * max_z;
-    let delta_x = g(5) * (max_x + max_z);
-    let delta_y = g(5) * (max_y + max_z);
+    let delta_x = g(5) * (max_x + max_zxy);
+    let delta_y = g(5) * (max_y + max_zxy);
     let two = S::from_f64(2.0);
     let delta_e = two * (g(2) * max_x * max_y + delta_y * max_x + delta_x * max_y);
     let max_e = vmax(vabs(e));
-    let delta_t =
-        S::from_f64(3.0) * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e) * inv_det.abs();
+    let delta_t = S::from_f64(3.0)
+        * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
+        * inv_det.abs();
     // NaN-safe form of pbrt's `t <= deltaT` rejection
     if !(t > delta_t) {
         return None;
@@ -317,9 +321,9 @@ fn wide_eps<F: Real>() -> f64 {
 /// **Watertight, promoted**: the same algorithm run entirely in the wider type (`f64` for `f32`
 /// inputs, double-double for `f64`), `t` and the barycentrics rounded once. The audit's robust
 /// anchor: its rounding errors are ~2⁻²⁹ (f32) or ~2⁻⁴⁷ (f64) of what a one-ulp move of an input
-/// does, so only ill-posed cases can flip; its range covers the huge and tiny classes. For the
-/// same reason it tests `t > 0` on the wide `t` instead of pbrt's `Δt` bound (whose units are
-/// off for `|d|` far from 1).
+/// does, so only ill-posed cases can flip; its range covers the huge and tiny classes. Its `Δt`
+/// uses consistent units (see [`woop`]), so tiny directions keep their hits, while rays in the
+/// plane, whose `det` is rounding noise, are still rejected.
 pub fn watertight_wide_hit<F: Real>(o: V<F>, d: V<F>, p: [V<F>; 3]) -> Option<TriHit<F>> {
     if !all_finite(o, d, &p) {
         return None;
@@ -380,7 +384,10 @@ fn decompose(x: f64) -> (i64, i32) {
         return (0, 0);
     }
     let bits = x.to_bits();
-    let (eb, frac) = (((bits >> 52) & 0x7ff) as i32, (bits & ((1u64 << 52) - 1)) as i64);
+    let (eb, frac) = (
+        ((bits >> 52) & 0x7ff) as i32,
+        (bits & ((1u64 << 52) - 1)) as i64,
+    );
     let (mut m, mut e) = if eb == 0 {
         (frac, -1074)
     } else {
@@ -478,7 +485,9 @@ pub fn exact_tri(v: &[f64]) -> ExactTri {
         .map(|i| idot(&d, &icross(&r[(i + 1) % 3], &r[(i + 2) % 3])))
         .collect();
     let s = den.cmp0();
-    if e.iter().any(|x| x.cmp0() != s && x.cmp0() != Ordering::Equal) {
+    if e.iter()
+        .any(|x| x.cmp0() != s && x.cmp0() != Ordering::Equal)
+    {
         return ExactTri::Miss;
     }
     let boundary = e.iter().any(|x| *x == 0);
@@ -568,7 +577,13 @@ fn nondegenerate(p: &[V<f64>; 3]) -> bool {
 
 /// A triangle around `c` of size `s`, and a ray from distance `s·10^[0,2]` aimed at the
 /// barycentric point `(u, v)` drawn from `[lo, hi]` (hits and misses).
-fn general(rng: &mut ChaCha8Rng, c: V<f64>, s: f64, lo: f64, hi: f64) -> (V<f64>, V<f64>, [V<f64>; 3]) {
+fn general(
+    rng: &mut ChaCha8Rng,
+    c: V<f64>,
+    s: f64,
+    lo: f64,
+    hi: f64,
+) -> (V<f64>, V<f64>, [V<f64>; 3]) {
     loop {
         let p: [V<f64>; 3] = std::array::from_fn(|_| add(c, scale(ball(rng), s)));
         if !nondegenerate(&p) {
@@ -607,7 +622,11 @@ fn edge_or_vertex(rng: &mut ChaCha8Rng, prec: Precision, vertex: bool) -> Vec<f6
     if pick < 2 {
         let (o, p) = grid_case(rng);
         // An exact point of the edge: p_i + (k/8)(p_j − p_i)
-        let k = if vertex { 0.0 } else { rng.random_range(1..8) as f64 / 8.0 };
+        let k = if vertex {
+            0.0
+        } else {
+            rng.random_range(1..8) as f64 / 8.0
+        };
         let target = add(p[i], scale(sub(p[j], p[i]), k));
         let mut d = sub(target, o);
         if pick == 1 {
@@ -658,7 +677,10 @@ fn degenerate(rng: &mut ChaCha8Rng) -> Vec<f64> {
 /// A general case with NaN/inf injected, or a zero direction.
 fn invalid(rng: &mut ChaCha8Rng, prec: Precision) -> Vec<f64> {
     let (o, d, p) = general(rng, [0.0; 3], 1.0, 0.0, 1.0);
-    let mut v = flat(o, d, p).into_iter().map(|x| rnd(x, prec)).collect::<Vec<_>>();
+    let mut v = flat(o, d, p)
+        .into_iter()
+        .map(|x| rnd(x, prec))
+        .collect::<Vec<_>>();
     match rng.random_range(0..4) {
         0 => v[3..6].fill(0.0),
         k => {
@@ -793,12 +815,36 @@ impl Shape for Triangle {
     }
 }
 
-/// The tolerance table (measured at seed 1 with 2,000 cases per class; see the module tests).
+/// The tolerance table, measured at seed 1 (300 and 2,000 cases per class). `watertight_wide`
+/// is held to no wrong verdict and 1 ulp (measured: 0). The others are reported, and held to
+/// fail (XFAIL) where they are known to:
+/// - every native method on `vertex`: a ray a few ulps outside a vertex is a well-posed miss,
+///   but the rounding of the translation/shear (watertight), of `d×e2` (Möller–Trumbore) or of
+///   `R` (chapter) is larger than that: 10–35 % wrong;
+/// - `tiny`: Möller–Trumbore's absolute `|det| < 1e-6` rejects everything small; watertight's
+///   `Δt` (unscaled x, y mixed with z scaled by 1/d_z) rejects hits when |d| ≪ 1; in f32 the
+///   chapter's and watertight's products underflow;
+/// - `huge` in f32: products of coordinates ≥ 1e19 overflow (all three methods);
+/// - `far`: the chapter's `N·S − N·P0` cancels (errors of 1e5 ulps in f32, 1e8 in f64), and
+///   Möller–Trumbore's `det` of a small far triangle falls under its epsilon in f64.
 pub fn expect(method: &str, prec: Precision, class: &str) -> Expect {
-    let _ = (method, prec, class);
-    match method {
-        "watertight_wide" => Expect::pass(1),
-        _ => Expect::ANY,
+    let f32 = prec == Precision::F32;
+    let known = match (method, class) {
+        ("watertight_wide", _) => return Expect::pass(1),
+        (_, "vertex") => true,
+        ("moller_trumbore", "tiny") | ("watertight", "tiny") => true,
+        ("chapter", "tiny") | (_, "huge") => f32,
+        ("chapter", "far") => true,
+        ("moller_trumbore", "far") => !f32,
+        _ => false,
+    };
+    if known {
+        Expect {
+            max_ulps: 1000,
+            ..Expect::xfail()
+        }
+    } else {
+        Expect::ANY
     }
 }
 
@@ -847,9 +893,26 @@ pub fn icosphere(level: u32, center: V<f64>, radius: f64, prec: Precision) -> Me
     ]
     .to_vec();
     let mut faces: Vec<[usize; 3]> = vec![
-        [0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9], [5, 11, 4],
-        [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2], [3, 2, 6], [3, 6, 8],
-        [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10], [8, 6, 7], [9, 8, 1],
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
     ];
     let norm = |v: V<f64>| scale(v, 1.0 / dot(v, v).sqrt());
     vs = vs.into_iter().map(norm).collect();
@@ -937,7 +1000,11 @@ fn watertight_in<F: Real>(seed: u64, rays: u64, prec: Precision) -> Vec<Watertig
                 } else {
                     let f = mesh.faces[rng.random_range(0..mesh.faces.len())];
                     let (a, b) = (mesh.vertices[f[0]], mesh.vertices[f[1]]);
-                    let u = if rng.random_bool(0.25) { 0.0 } else { rng.random::<f64>() };
+                    let u = if rng.random_bool(0.25) {
+                        0.0
+                    } else {
+                        rng.random::<f64>()
+                    };
                     sub(add(a, scale(sub(b, a), u)), o)
                 };
                 (o, rv(d, prec))
@@ -996,7 +1063,11 @@ fn hit_point<F: Real>(m: usize, o: V<F>, d: V<F>, p: &[V<F>; 3], h: &TriHit<F>) 
         let err = std::array::from_fn(|i| g * (o[i].abs() + td[i].abs()));
         return (add(o, td), err);
     }
-    let terms = [scale(p[0], h.b[0]), scale(p[1], h.b[1]), scale(p[2], h.b[2])];
+    let terms = [
+        scale(p[0], h.b[0]),
+        scale(p[1], h.b[1]),
+        scale(p[2], h.b[2]),
+    ];
     let pt = add(add(terms[0], terms[1]), terms[2]);
     let sum_abs = add(add(vabs(terms[0]), vabs(terms[1])), vabs(terms[2]));
     let g = gamma::<F>(7);
@@ -1042,7 +1113,11 @@ fn reintersect_in<F: Real>(seed: u64, per_scale: u64) -> Vec<ReintersectRow> {
             let c = std::array::from_fn(|_| s * 100.0 * rng.random_range(-1.0..1.0));
             let (o, _, p) = general(&mut rng, c, s, 0.0, 1.0);
             let (u, v) = (rng.random::<f64>(), rng.random::<f64>());
-            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
             let (o, p) = (rv(o, prec), p.map(|x| rv(x, prec)));
             let d = rv(sub(bary(&p, u, v), o), prec);
             let dirs: Vec<V<f64>> = (0..SPAWNS_PER_HIT).map(|_| unit(&mut rng)).collect();
@@ -1057,7 +1132,11 @@ fn reintersect_in<F: Real>(seed: u64, per_scale: u64) -> Vec<ReintersectRow> {
                     // Half to the incoming side, half through the surface
                     let w = w.map(F::from_f64);
                     let into = (dot(w, n) > F::ZERO) == back;
-                    let w = if into == (k % 2 == 0) { w } else { scale(w, -F::ONE) };
+                    let w = if into == (k % 2 == 0) {
+                        w
+                    } else {
+                        scale(w, -F::ONE)
+                    };
                     let po = spawn_origin(pt, err, n, w);
                     row.rays += 1;
                     let Some(h2) = pf(po, w, tri) else { continue };
@@ -1075,10 +1154,57 @@ fn reintersect_in<F: Real>(seed: u64, per_scale: u64) -> Vec<ReintersectRow> {
 
 /// Cases of a class for tests and benches (the audit's own generator, seeded per case).
 pub fn cases(seed: u64, class: &str, prec: Precision, n: u64) -> Vec<Vec<f64>> {
-    let k = CLASSES.iter().position(|c| *c == class).expect("known class");
+    let k = CLASSES
+        .iter()
+        .position(|c| *c == class)
+        .expect("known class");
     (0..n)
         .filter_map(|i| gen_case(&Triangle, seed, k, prec, i))
         .collect()
 }
 
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::Rng;
 
+    /// The wide fallback's sign of `a·b − c·d` is exact, on products that nearly cancel.
+    #[test]
+    fn wide_difference_of_products_has_the_exact_sign() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        for _ in 0..20_000 {
+            let (a, b): (f64, f64) = (rng.random_range(-4.0..4.0), rng.random_range(-4.0..4.0));
+            let c: f64 = rng.random_range(0.5..2.0);
+            // d such that c·d ≈ a·b, moved by a few ulps
+            let k: i32 = rng.random_range(-3..=3);
+            let d = move_ulps(a * b / c, k, Precision::F64);
+            let exact = q(a) * q(b) - q(c) * q(d);
+            let got = dop_wide(a, b, c, d);
+            assert_eq!(
+                got.partial_cmp(&0.0),
+                exact.cmp0().into(),
+                "{a} {b} {c} {d}"
+            );
+            let (a, b, c, d) = (
+                a as f32,
+                b as f32,
+                c as f32,
+                (a as f32 * b as f32) / c as f32,
+            );
+            let exact = q(a as f64) * q(b as f64) - q(c as f64) * q(d as f64);
+            assert_eq!(dop_wide(a, b, c, d).partial_cmp(&0.0), exact.cmp0().into());
+        }
+    }
+
+    #[test]
+    fn generators_fill_every_class_with_representable_values() {
+        for prec in Precision::ALL {
+            for class in CLASSES {
+                for v in cases(2, class, prec, 20) {
+                    assert_eq!(v.len(), 15);
+                    assert!(v.iter().all(|&x| exact::representable(x, prec)), "{class}");
+                }
+            }
+        }
+    }
+}
