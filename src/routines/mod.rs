@@ -14,6 +14,7 @@
 pub mod audit;
 pub mod exact;
 pub mod offset;
+pub mod torus;
 
 use crate::audit::Precision;
 use crate::sphere::Judgement;
@@ -148,7 +149,7 @@ pub trait Shape: Sync {
 
 /// Every routine family, in the order of the seed chapter.
 pub fn registry() -> Vec<&'static dyn Shape> {
-    vec![]
+    vec![&torus::Torus, &torus::TorusNormal]
 }
 
 /// A shape by name.
