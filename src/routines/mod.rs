@@ -14,6 +14,8 @@
 pub mod audit;
 pub mod exact;
 pub mod offset;
+pub mod poly;
+pub mod sturm;
 pub mod torus;
 
 use crate::audit::Precision;
