@@ -17,6 +17,7 @@ pub mod offset;
 pub mod optics;
 pub mod poly;
 pub mod sturm;
+pub mod torus;
 pub mod triangle;
 
 use crate::audit::Precision;
@@ -152,7 +153,13 @@ pub trait Shape: Sync {
 
 /// Every routine family, in the order of the seed chapter.
 pub fn registry() -> Vec<&'static dyn Shape> {
-    vec![&triangle::Triangle, &optics::Reflect, &optics::Refract]
+    vec![
+        &triangle::Triangle,
+        &torus::Torus,
+        &torus::TorusNormal,
+        &optics::Reflect,
+        &optics::Refract,
+    ]
 }
 
 /// A shape by name.
