@@ -11,9 +11,12 @@
 //! by the oracle. [`judge`] compares the two the same way for every routine; [`audit`]
 //! aggregates judgements into rows shaped like the sphere's.
 
+pub mod aabb;
 pub mod audit;
 pub mod exact;
 pub mod offset;
+pub mod quadric;
+pub mod reintersect;
 
 use crate::audit::Precision;
 use crate::sphere::Judgement;
@@ -148,7 +151,12 @@ pub trait Shape: Sync {
 
 /// Every routine family, in the order of the seed chapter.
 pub fn registry() -> Vec<&'static dyn Shape> {
-    vec![]
+    vec![
+        &aabb::BoxShape,
+        &quadric::EllipsoidShape,
+        &quadric::CylinderShape,
+        &quadric::EllipsoidNormalShape,
+    ]
 }
 
 /// A shape by name.
