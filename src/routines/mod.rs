@@ -11,11 +11,14 @@
 //! by the oracle. [`judge`] compares the two the same way for every routine; [`audit`]
 //! aggregates judgements into rows shaped like the sphere's.
 
+pub mod aabb;
 pub mod audit;
 pub mod exact;
 pub mod offset;
 pub mod optics;
 pub mod poly;
+pub mod quadric;
+pub mod reintersect;
 pub mod sturm;
 pub mod torus;
 pub mod triangle;
@@ -155,7 +158,11 @@ pub trait Shape: Sync {
 pub fn registry() -> Vec<&'static dyn Shape> {
     vec![
         &triangle::Triangle,
+        &aabb::BoxShape,
+        &quadric::EllipsoidShape,
+        &quadric::CylinderShape,
         &torus::Torus,
+        &quadric::EllipsoidNormalShape,
         &torus::TorusNormal,
         &optics::Reflect,
         &optics::Refract,

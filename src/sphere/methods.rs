@@ -68,7 +68,7 @@ fn parts<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> (V<F>, V<F>, V<F>, F) {
 
 /// The smaller strictly positive of two roots, as the seed's "偏小的正根" (smaller positive root).
 #[inline(always)]
-fn nearest_positive<S: Scalar>(t0: S, t1: S) -> Option<S> {
+pub(crate) fn nearest_positive<S: Scalar>(t0: S, t1: S) -> Option<S> {
     let (a, b) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
     if a > S::ZERO {
         Some(a)
@@ -203,6 +203,14 @@ pub fn hearn_baker<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>>
 /// The body of [`rtg7`], over any [`Scalar`] so that [`promote`] can run it in a wider type.
 #[inline(always)]
 fn rtg7_core<S: Scalar>(o: V<S>, d: V<S>, c: V<S>, r: S) -> Option<S> {
+    let (t0, t1) = rtg7_roots(o, d, c, r)?;
+    nearest_positive(t0, t1)
+}
+
+/// Both roots of [`rtg7`] (`c/q`, `q/a`, unordered), or `None` when there is no real pair: also
+/// used by the quadrics (`routines::quadric`), which map their surface onto a sphere.
+#[inline(always)]
+pub(crate) fn rtg7_roots<S: Scalar>(o: V<S>, d: V<S>, c: V<S>, r: S) -> Option<(S, S)> {
     // Input guard: a radius that is not > 0 (negative, zero, NaN) is no sphere
     if !(r > S::ZERO) {
         return None;
@@ -225,7 +233,7 @@ fn rtg7_core<S: Scalar>(o: V<S>, d: V<S>, c: V<S>, r: S) -> Option<S> {
     if !(q != S::ZERO) || !(a > S::ZERO) {
         return None;
     }
-    nearest_positive(cc / q, q / a)
+    Some((cc / q, q / a))
 }
 
 /// **RTG7**: Haines, Günther & Akenine-Möller, Ray Tracing Gems ch. 7, "method 5": the
@@ -271,7 +279,7 @@ pub fn promote<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
 }
 
 /// ⌊log₂|x|⌋ for finite non-zero `x` (subnormals included); 0 otherwise.
-fn ilogb(x: f64) -> i32 {
+pub(crate) fn ilogb(x: f64) -> i32 {
     if x == 0.0 || !x.is_finite() {
         return 0;
     }
@@ -285,7 +293,7 @@ fn ilogb(x: f64) -> i32 {
 }
 
 /// `x·2^k`, exact unless the result over- or underflows; for types with `f64`'s exponent range.
-fn mul_pow2<S: Scalar>(mut x: S, mut k: i32) -> S {
+pub(crate) fn mul_pow2<S: Scalar>(mut x: S, mut k: i32) -> S {
     while k.abs() > 512 {
         let step = 512 * k.signum();
         x = x * S::from_f64(2f64.powi(step));
