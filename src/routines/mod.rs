@@ -15,8 +15,11 @@ pub mod aabb;
 pub mod audit;
 pub mod exact;
 pub mod offset;
+pub mod poly;
 pub mod quadric;
 pub mod reintersect;
+pub mod sturm;
+pub mod torus;
 
 use crate::audit::Precision;
 use crate::sphere::Judgement;
@@ -156,6 +159,8 @@ pub fn registry() -> Vec<&'static dyn Shape> {
         &quadric::EllipsoidShape,
         &quadric::CylinderShape,
         &quadric::EllipsoidNormalShape,
+        &torus::Torus,
+        &torus::TorusNormal,
     ]
 }
 
