@@ -38,7 +38,12 @@ report_fn!(cylinder_report, quadric::CylinderShape);
 report_fn!(normal_report, quadric::EllipsoidNormalShape);
 
 fn reports() -> [&'static ShapeReport; 4] {
-    [box_report(), ellipsoid_report(), cylinder_report(), normal_report()]
+    [
+        box_report(),
+        ellipsoid_report(),
+        cylinder_report(),
+        normal_report(),
+    ]
 }
 
 #[test]

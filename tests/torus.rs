@@ -19,7 +19,16 @@ fn opts(cases: u64) -> Options {
 #[test]
 fn print_audit_tables() {
     for shape in [&Torus as &dyn Shape, &TorusNormal] {
-        let r = audit::run(shape, &opts(std::env::var("TORUS_CASES").ok().and_then(|s| s.parse().ok()).unwrap_or(100))).unwrap();
+        let r = audit::run(
+            shape,
+            &opts(
+                std::env::var("TORUS_CASES")
+                    .ok()
+                    .and_then(|s| s.parse().ok())
+                    .unwrap_or(100),
+            ),
+        )
+        .unwrap();
         println!("{}", audit::table(&r));
         println!("{}", audit::worst_cases(&r, 2));
     }

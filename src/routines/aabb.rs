@@ -276,7 +276,8 @@ const METHODS: &[MethodInfo] = &[
     MethodInfo {
         name: "robust_slab",
         robust: true,
-        about: "conservative slab: far distance × (1 + 2γ₃), NaN-safe comparisons (Ize 2013, pbrt-v4)",
+        about:
+            "conservative slab: far distance × (1 + 2γ₃), NaN-safe comparisons (Ize 2013, pbrt-v4)",
     },
 ];
 
@@ -471,7 +472,15 @@ fn propose(class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f64> {
             case(o, d, lo, hi, prec)
         }
         "huge" => generic(rng, if f32 { (20.0, 30.0) } else { (100.0, 250.0) }, prec),
-        "tiny" => generic(rng, if f32 { (-30.0, -20.0) } else { (-250.0, -100.0) }, prec),
+        "tiny" => generic(
+            rng,
+            if f32 {
+                (-30.0, -20.0)
+            } else {
+                (-250.0, -100.0)
+            },
+            prec,
+        ),
         "invalid" => {
             let mut v = generic(rng, SCALES, prec);
             match rng.random_range(0..4) {

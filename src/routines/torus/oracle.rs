@@ -64,8 +64,7 @@ pub fn quartic_q(c: &ExactCase) -> [Rational; 5] {
     let oz2 = Rational::from(&c.o[2] * &c.o[2]);
     [
         Rational::from(&k * &k) - Rational::from(&four_r1s * (r2s - oz2)),
-        Rational::from(&sv * &k) * 4u32
-            + Rational::from(&four_r1s * &c.o[2]) * &c.d[2] * 2u32,
+        Rational::from(&sv * &k) * 4u32 + Rational::from(&four_r1s * &c.o[2]) * &c.d[2] * 2u32,
         Rational::from(&vv * &k) * 2u32
             + Rational::from(&sv * &sv) * 4u32
             + Rational::from(&four_r1s * &c.d[2]) * &c.d[2],
@@ -287,7 +286,10 @@ pub fn truth(x: &[f64], prec: Precision) -> Truth {
     let p = quartic_q(&ExactCase::new(x));
     let (roots, _) = positive_roots(&p);
     let ill = ill_posed(x, prec, roots.len());
-    let rounded: Vec<f64> = roots.iter().map(|r| sturm::round_root(&p, r, prec)).collect();
+    let rounded: Vec<f64> = roots
+        .iter()
+        .map(|r| sturm::round_root(&p, r, prec))
+        .collect();
     Truth::Answer(Expected {
         count: (!roots.is_empty()) as u32,
         values: rounded.first().copied().into_iter().collect(),
@@ -364,8 +366,14 @@ impl Iv {
                 Float::with_val_round(bits, &self.1 * &o.1, r).0,
             ]
         };
-        let lo = prods(Round::Down).into_iter().reduce(|a, b| a.min(&b)).expect("4");
-        let hi = prods(Round::Up).into_iter().reduce(|a, b| a.max(&b)).expect("4");
+        let lo = prods(Round::Down)
+            .into_iter()
+            .reduce(|a, b| a.min(&b))
+            .expect("4");
+        let hi = prods(Round::Up)
+            .into_iter()
+            .reduce(|a, b| a.max(&b))
+            .expect("4");
         Iv(lo, hi)
     }
     /// Divided by an exact positive rational.
@@ -379,10 +387,7 @@ impl Iv {
 
 /// The exact interval of `a + t·b` for `t ∈ [lo, hi]`.
 fn affine(a: &Rational, b: &Rational, lo: &Rational, hi: &Rational) -> (Rational, Rational) {
-    let (u, v) = (
-        Rational::from(b * lo) + a,
-        Rational::from(b * hi) + a,
-    );
+    let (u, v) = (Rational::from(b * lo) + a, Rational::from(b * hi) + a);
     if u <= v {
         (u, v)
     } else {
@@ -424,7 +429,10 @@ fn normal_encl(h: &FirstHit, bits: u32) -> [Iv; 3] {
             let ratio = Float::with_val_round(bits, &c.r1 / rho, flip(r)).0;
             Float::with_val_round(bits, 1 - ratio, r).0
         };
-        Iv(one_minus(&rho_lo, Round::Down), one_minus(&rho_hi, Round::Up))
+        Iv(
+            one_minus(&rho_lo, Round::Down),
+            one_minus(&rho_hi, Round::Up),
+        )
     };
     let pi = |i: usize| Iv::of_q(&p[i].0, &p[i].1, bits);
     [
