@@ -208,9 +208,10 @@ fn parse_spp(s: &str) -> Result<u32, String> {
 
 #[derive(Args, Debug)]
 pub struct AuditArgs {
-    /// Cases per class and precision.
-    #[arg(long, default_value_t = 20_000, value_parser = clap::value_parser!(u64).range(1..))]
-    pub cases: u64,
+    /// Cases per class and precision (default 20000; for routines whose oracle is slow, such as
+    /// the torus, their own smaller default).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub cases: Option<u64>,
     /// Seed of every case generator; the same seed gives byte-identical JSON.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -610,8 +611,8 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         .iter()
         .filter_map(|n| crate::routines::shape_by_name(n))
         .collect();
-    let shape_opts = crate::routines::audit::Options {
-        cases: a.cases,
+    let mut shape_opts = crate::routines::audit::Options {
+        cases: a.cases.unwrap_or(20_000),
         seed: a.seed,
         precisions: precisions.clone(),
         methods: a.method.clone(),
@@ -634,6 +635,7 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
     let mut shapes = vec![];
     for s in others {
         let start = Instant::now();
+        shape_opts.cases = a.cases.unwrap_or(s.default_cases());
         let r = crate::routines::audit::run(s, &shape_opts).map_err(|e| anyhow!("{e}"))?;
         say_raw!("{}", crate::routines::audit::table(&r));
         if a.worst > 0 {
@@ -686,7 +688,7 @@ fn audit_sphere(a: &AuditArgs, precisions: Vec<Precision>) -> Result<SphereAudit
         .map(|c| parse_class(c).map_err(|e| anyhow!("--class: {e}")))
         .collect::<Result<Vec<_>>>()?;
     let opts = AuditOptions {
-        cases: a.cases,
+        cases: a.cases.unwrap_or(20_000),
         seed: a.seed,
         methods: if methods.is_empty() {
             METHODS.iter().collect()

@@ -57,7 +57,10 @@ fn every_shape_audits_deterministically_and_its_examples_replay() {
             std::fs::read(&path).unwrap()
         };
         // Same seed, different thread counts: the same bytes
-        let (a, b) = (run(&format!("{name}-1.json"), "1"), run(&format!("{name}-2.json"), "2"));
+        let (a, b) = (
+            run(&format!("{name}-1.json"), "1"),
+            run(&format!("{name}-2.json"), "2"),
+        );
         assert!(a == b, "{name}: the JSON depends on the thread count");
         let v: Value = serde_json::from_slice(&a).unwrap();
         let report = &v["shapes"][0];
@@ -72,7 +75,11 @@ fn every_shape_audits_deterministically_and_its_examples_replay() {
         for r in rows {
             assert_eq!(r["cases"], 40, "{name}");
             let gen_fail = r["generator_failures"].as_u64().unwrap();
-            assert!(gen_fail < 40, "{name} {}: generator never succeeds", r["class"]);
+            assert!(
+                gen_fail < 40,
+                "{name} {}: generator never succeeds",
+                r["class"]
+            );
         }
         // Each example's probe line replays to the judgement it was filed under
         let mut replayed = 0;
@@ -127,7 +134,12 @@ fn probe_refuses_bad_input_with_one_line() {
         let mut args = vec!["probe", name, "--json", "--"];
         args.extend(std::iter::repeat_n("nan", shape.args().len()));
         let o = rayproof(&args);
-        assert_eq!(o.status.code(), Some(0), "{name}: {}", String::from_utf8_lossy(&o.stderr));
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         let p: Value = serde_json::from_str(&text(&o)).unwrap();
         assert_eq!(p["oracle"]["verdict"], "invalid", "{name}");
     }

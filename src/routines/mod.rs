@@ -143,6 +143,11 @@ pub trait Shape: Sync {
     fn oracle(&self, input: &[f64], prec: Precision) -> Truth;
     /// Runs method `m` in `prec` on the input (converted exactly to the precision).
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer;
+    /// Cases per class when `--cases` is not given (an oracle that costs milliseconds per
+    /// case, as the torus's does, audits fewer).
+    fn default_cases(&self) -> u64 {
+        20_000
+    }
     /// The tolerance of method `m` in `prec` on `class`. Default: robust methods pass with no
     /// wrong verdict and at most 64 ulps; others are only reported.
     fn expect(&self, m: usize, _prec: Precision, _class: usize) -> Expect {
