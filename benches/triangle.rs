@@ -18,6 +18,9 @@ use std::hint::black_box;
 use std::time::Duration;
 
 const SEED: u64 = 7;
+/// A ray and a triangle: origin, direction, vertices.
+type Ray<F> = ([F; 3], [F; 3], [[F; 3]; 3]);
+
 const MIX: [&str; 5] = ["generic", "edge", "vertex", "far", "huge"];
 
 /// Cases of the named classes of a shape, generated as the audit does.
@@ -66,7 +69,7 @@ fn validate(shape: &dyn Shape, cases: &[Vec<f64>], prec: Precision) {
 fn triangles<F: rayproof::real::Real>(c: &mut Criterion, prec: Precision) {
     let cases = batch(&Triangle, &MIX, 512, prec);
     validate(&Triangle, &cases, prec);
-    let rays: Vec<([F; 3], [F; 3], [[F; 3]; 3])> = cases
+    let rays: Vec<Ray<F>> = cases
         .iter()
         .map(|v| {
             let x = |i: usize| [v[i], v[i + 1], v[i + 2]].map(F::from_f64);

@@ -347,9 +347,9 @@ proptest! {
         }).collect();
         let prec = if small { Precision::F32 } else { Precision::F64 };
         let truth = Triangle.oracle(&v, prec);
-        for m in 0..METHODS.len() {
+        for (m, info) in METHODS.iter().enumerate() {
             let a = Triangle.run(m, &v, prec);
-            if METHODS[m].robust && truth == Truth::Invalid {
+            if info.robust && truth == Truth::Invalid {
                 prop_assert_eq!(a.count, 0);
             }
         }

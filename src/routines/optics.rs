@@ -27,6 +27,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::float::Round;
 use rug::{Float, Rational};
+use std::cmp::Ordering;
 
 type V<S> = [S; 3];
 
@@ -116,7 +117,11 @@ pub fn refract_pbrt<F: Real>(l: V<F>, n: V<F>, eta: F) -> Option<V<F>> {
 /// input. Its radicand's error (~2⁻⁵⁰ or ~2⁻¹⁰⁰ of `η²`) is far below the change a one-ulp
 /// move of `η` makes near the critical angle (~2⁻²³ or ~2⁻⁵²), so only ill-posed cases flip.
 pub fn refract_wide<F: Real>(l: V<F>, n: V<F>, eta: F) -> Option<V<F>> {
-    if !usable(l) || !usable(n) || !eta.is_finite() || !(eta > F::ZERO) {
+    if !usable(l)
+        || !usable(n)
+        || !eta.is_finite()
+        || eta.partial_cmp(&F::ZERO) != Some(Ordering::Greater)
+    {
         return None;
     }
     let (lw, nw, ew) = (l.map(|x| x.widen()), n.map(|x| x.widen()), eta.widen());
@@ -182,7 +187,11 @@ pub fn reflect_truth(v: &[f64], prec: Precision) -> Truth {
 
 /// The exact radicand `1 − η²(1 − (N·L)²)` and `N·L`, or `None` for invalid input.
 fn radicand(v: &[f64]) -> Option<(Rational, Rational)> {
-    if !exact::all_finite(v) || !nonzero(&v[0..3]) || !nonzero(&v[3..6]) || !(v[6] > 0.0) {
+    if !exact::all_finite(v)
+        || !nonzero(&v[0..3])
+        || !nonzero(&v[3..6])
+        || v[6].partial_cmp(&0.0) != Some(Ordering::Greater)
+    {
         return None;
     }
     let (l, n, eta) = (qv(&v[0..3]), qv(&v[3..6]), q(v[6]));

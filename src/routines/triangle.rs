@@ -103,7 +103,7 @@ pub fn chapter_hit<F: Real>(o: V<F>, d: V<F>, p: [V<F>; 3]) -> Option<TriHit<F>>
         return None;
     }
     let t = -(dot(n, o) + lw) / lv;
-    if !(t > F::ZERO) {
+    if t.partial_cmp(&F::ZERO) != Some(Ordering::Greater) {
         return None;
     }
     // Barycentrics of R = S + tV by the 2×2 system
@@ -153,7 +153,7 @@ pub fn moller_trumbore_hit<F: Real>(o: V<F>, d: V<F>, p: [V<F>; 3]) -> Option<Tr
         return None;
     }
     let t = dot(e2, qv) * inv;
-    if !(t > F::ZERO) {
+    if t.partial_cmp(&F::ZERO) != Some(Ordering::Greater) {
         return None;
     }
     Some(TriHit {
@@ -283,7 +283,7 @@ fn woop<S: Scalar>(
         * (g(3) * max_e * max_z + delta_e * max_z + delta_z * max_e)
         * inv_det.abs();
     // NaN-safe form of pbrt's `t <= deltaT` rejection
-    if !(t > delta_t) {
+    if t.partial_cmp(&delta_t) != Some(Ordering::Greater) {
         return None;
     }
     Some(TriHit { t, b: bary })
