@@ -583,6 +583,7 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
     let sharded = a.shard != (0, 1) || a.shard_out.is_some();
     let narrowed = !a.method.is_empty() || !a.class.is_empty();
     let all = shape_names();
+    let every = a.shape.iter().any(|s| s == "all") || (a.shape.is_empty() && !sharded && !narrowed);
     let names: Vec<&'static str> = if a.shape.is_empty() {
         if sharded || narrowed {
             vec!["sphere"]
@@ -650,7 +651,15 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         );
         shapes.push(r);
     }
-    write_audit_files(sphere.as_ref(), &shapes, &a.json, &a.markdown)?;
+    // Reintersection and watertightness, with every shape
+    let robust = every.then(|| {
+        let start = Instant::now();
+        let r = crate::routines::robustness::run(a.seed, &shape_opts.precisions);
+        say_raw!("{}", crate::routines::robustness::table(&r, false));
+        say!("reintersection and watertightness in {:.1} s", start.elapsed().as_secs_f64());
+        r
+    });
+    write_audit_files(sphere.as_ref(), &shapes, robust.as_ref(), &a.json, &a.markdown)?;
     // Verdict: the sphere's tolerance table and every shape's
     let mut code = sphere.as_ref().map_or(0, tolerance_verdict);
     for r in &shapes {
@@ -660,6 +669,17 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
             say!("{}: every row within its tolerance", r.shape);
         } else {
             say!("{}: {} row(s) out of tolerance", r.shape, breaks.len());
+            for b in &breaks {
+                say!("  {b}");
+            }
+            code = 1;
+        }
+    }
+    if let Some(r) = &robust {
+        let breaks = crate::routines::robustness::check(r);
+        if breaks.is_empty() {
+            say!("reintersection and watertightness: the robust methods reach 0");
+        } else {
             for b in &breaks {
                 say!("  {b}");
             }
@@ -754,12 +774,15 @@ struct AuditJson<'a> {
     #[serde(skip_serializing_if = "Option::is_none")]
     tool: Option<&'static str>,
     shapes: &'a [crate::routines::audit::ShapeReport],
+    #[serde(skip_serializing_if = "Option::is_none")]
+    robustness: Option<&'a crate::routines::robustness::Robustness>,
 }
 
 /// Writes `--json` and `--markdown` of an audit: the sphere-only report is unchanged.
 fn write_audit_files(
     sphere: Option<&audit::Report>,
     shapes: &[crate::routines::audit::ShapeReport],
+    robustness: Option<&crate::routines::robustness::Robustness>,
     json: &Option<PathBuf>,
     markdown: &Option<PathBuf>,
 ) -> Result<()> {
@@ -773,6 +796,7 @@ fn write_audit_files(
             sphere,
             tool: sphere.is_none().then_some(audit::TOOL),
             shapes,
+            robustness,
         };
         write_atomic(p, (serde_json::to_string_pretty(&v)? + "\n").as_bytes())?;
     }
@@ -781,6 +805,10 @@ fn write_audit_files(
         for r in shapes {
             text += "\n";
             text += &crate::routines::audit::markdown(r);
+        }
+        if let Some(r) = robustness {
+            text += "\n";
+            text += &crate::routines::robustness::table(r, true);
         }
         write_atomic(p, text.as_bytes())?;
     }

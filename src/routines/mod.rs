@@ -19,6 +19,7 @@ pub mod optics;
 pub mod poly;
 pub mod quadric;
 pub mod reintersect;
+pub mod robustness;
 pub mod sturm;
 pub mod torus;
 pub mod triangle;
