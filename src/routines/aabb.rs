@@ -158,6 +158,16 @@ fn valid<F: Real>(o: V<F>, d: V<F>, lo: V<F>, hi: V<F>) -> bool {
         && (0..3).all(|i| lo[i] < hi[i])
 }
 
+/// Reintersection rows of the box's methods (issue 6 item 8; see [`super::reintersect`] for the
+/// test and how each method's error bound was chosen).
+pub fn reintersection(
+    seed: u64,
+    per_scale: u64,
+    prec: Precision,
+) -> Vec<super::offset::ReintersectRow> {
+    super::reintersect::box_rows(seed, per_scale, prec)
+}
+
 // ---- the exact oracle ----
 
 /// Which surface crossing the exact answer is.
@@ -276,7 +286,8 @@ const METHODS: &[MethodInfo] = &[
     MethodInfo {
         name: "robust_slab",
         robust: true,
-        about: "conservative slab: far distance × (1 + 2γ₃), NaN-safe comparisons (Ize 2013, pbrt-v4)",
+        about:
+            "conservative slab: far distance × (1 + 2γ₃), NaN-safe comparisons (Ize 2013, pbrt-v4)",
     },
 ];
 
@@ -471,7 +482,15 @@ fn propose(class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f64> {
             case(o, d, lo, hi, prec)
         }
         "huge" => generic(rng, if f32 { (20.0, 30.0) } else { (100.0, 250.0) }, prec),
-        "tiny" => generic(rng, if f32 { (-30.0, -20.0) } else { (-250.0, -100.0) }, prec),
+        "tiny" => generic(
+            rng,
+            if f32 {
+                (-30.0, -20.0)
+            } else {
+                (-250.0, -100.0)
+            },
+            prec,
+        ),
         "invalid" => {
             let mut v = generic(rng, SCALES, prec);
             match rng.random_range(0..4) {
