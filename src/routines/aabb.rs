@@ -42,15 +42,13 @@ pub fn faces<F: Real>(o: V<F>, d: V<F>, lo: V<F>, hi: V<F>) -> Option<F> {
             continue;
         };
         let t = (plane - o[i]) / d[i];
-        if !(t > F::ZERO) {
-            continue;
-        }
-        // In-face check of the two other coordinates
-        let inside = (1..3).all(|k| {
-            let j = (i + k) % 3;
-            let p = o[j] + t * d[j];
-            lo[j] <= p && p <= hi[j]
-        });
+        // In-face check of the two other coordinates (NaN t fails t > 0)
+        let inside = t > F::ZERO
+            && (1..3).all(|k| {
+                let j = (i + k) % 3;
+                let p = o[j] + t * d[j];
+                lo[j] <= p && p <= hi[j]
+            });
         if inside {
             return Some(t);
         }
@@ -504,8 +502,8 @@ fn propose(class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f64> {
                     v[9 + k] = v[6 + k];
                 }
                 _ => {
-                    for k in 3..6 {
-                        v[k] = 0.0 * sample::sign(rng);
+                    for x in &mut v[3..6] {
+                        *x = 0.0 * sample::sign(rng);
                     }
                 }
             }
