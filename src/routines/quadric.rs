@@ -287,6 +287,16 @@ pub fn normal_robust<F: Real>(o: V<F>, d: V<F>, r: F, m: F, n: F) -> Option<V<F>
     Some(g.map(|x| F::narrow(x / len)))
 }
 
+/// Reintersection rows of the ellipsoid's and the cylinder's methods (issue 6 item 8; see
+/// [`super::reintersect`] for the test and the reprojection that bounds the error).
+pub fn reintersection(
+    seed: u64,
+    per_scale: u64,
+    prec: Precision,
+) -> Vec<super::offset::ReintersectRow> {
+    super::reintersect::quadric_rows(seed, per_scale, prec)
+}
+
 // ---- exact arithmetic ----
 
 /// A closed MPFR interval with outward rounding.
