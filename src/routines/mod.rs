@@ -15,6 +15,7 @@ pub mod audit;
 pub mod exact;
 pub mod offset;
 pub mod poly;
+pub mod roots;
 pub mod sturm;
 
 use crate::audit::Precision;
@@ -150,7 +151,7 @@ pub trait Shape: Sync {
 
 /// Every routine family, in the order of the seed chapter.
 pub fn registry() -> Vec<&'static dyn Shape> {
-    vec![]
+    vec![&roots::QUADRATIC, &roots::CUBIC, &roots::QUARTIC, &roots::NEWTON]
 }
 
 /// A shape by name.
