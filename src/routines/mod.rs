@@ -20,6 +20,7 @@ pub mod poly;
 pub mod quadric;
 pub mod reintersect;
 pub mod robustness;
+pub mod roots;
 pub mod sturm;
 pub mod torus;
 pub mod triangle;
@@ -163,6 +164,10 @@ pub trait Shape: Sync {
 /// Every routine family, in the order of the seed chapter.
 pub fn registry() -> Vec<&'static dyn Shape> {
     vec![
+        &roots::QUADRATIC,
+        &roots::CUBIC,
+        &roots::QUARTIC,
+        &roots::NEWTON,
         &triangle::Triangle,
         &aabb::BoxShape,
         &quadric::EllipsoidShape,

@@ -317,7 +317,7 @@ pub fn round_root(c: &[Rational], r: &RealRoot, prec: Precision) -> f64 {
             return a;
         }
         // Adjacent floats: the sign at the rounding boundary decides
-        if ob - oa == 1 {
+        if ob as i128 - oa as i128 == 1 {
             let m = boundary(a, b, prec);
             return match sign_at(&s, &m) {
                 Ordering::Equal => round_q(&m, prec),
@@ -326,7 +326,7 @@ pub fn round_root(c: &[Rational], r: &RealRoot, prec: Precision) -> f64 {
             };
         }
         // Otherwise halve the floats between the ends
-        let f = from_ordinal(oa + (ob - oa) / 2, prec);
+        let f = from_ordinal(((oa as i128 + ob as i128) / 2) as i64, prec);
         let fq = q(f);
         match sign_at(&s, &fq) {
             Ordering::Equal => return f,
