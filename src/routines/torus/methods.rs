@@ -23,7 +23,11 @@ pub(super) fn dot<F: Real>(a: V<F>, b: V<F>) -> F {
 /// `o + t·d` with one rounding per component (fused multiply–add).
 #[inline(always)]
 pub(super) fn point_at<F: Real>(o: V<F>, d: V<F>, t: F) -> V<F> {
-    [t.mul_add(d[0], o[0]), t.mul_add(d[1], o[1]), t.mul_add(d[2], o[2])]
+    [
+        t.mul_add(d[0], o[0]),
+        t.mul_add(d[1], o[1]),
+        t.mul_add(d[2], o[2]),
+    ]
 }
 
 #[inline(always)]
@@ -155,10 +159,7 @@ pub fn newton_bbox<F: Real>(o: V<F>, d: V<F>, r1: F, r2: F) -> Option<F> {
 /// (`r2 ≥ r1` is a horn or spindle torus, whose surface self-intersects: rejected as degenerate.)
 pub fn is_valid<F: Real>(o: V<F>, d: V<F>, r1: F, r2: F) -> bool {
     let all = [o[0], o[1], o[2], d[0], d[1], d[2], r1, r2];
-    all.iter().all(|x| x.is_finite())
-        && d.iter().any(|&x| x != F::ZERO)
-        && r2 > F::ZERO
-        && r2 < r1
+    all.iter().all(|x| x.is_finite()) && d.iter().any(|&x| x != F::ZERO) && r2 > F::ZERO && r2 < r1
 }
 
 /// The torus as a signed distance: `√((ρ − r1)² + z²) − r2`, with `ρ = √(x² + y²)` (exact
@@ -237,7 +238,11 @@ pub fn torus_robust_hit<F: Real>(o: V<F>, d: V<F>, r1: F, r2: F) -> Option<(F, V
     let g3 = two::<F>() * gamma::<F>(3);
     let t_out = t_out * (F::ONE + g3);
     // (2) Origin shifted to the box entry
-    let t_s = if t_in > F::ZERO { t_in * (F::ONE - g3) } else { F::ZERO };
+    let t_s = if t_in > F::ZERO {
+        t_in * (F::ONE - g3)
+    } else {
+        F::ZERO
+    };
     let os = point_at(o, d, t_s);
     // (3) The robust solver on the shifted quartic
     let roots = poly::poly_roots_robust(&quartic(os, d, r1, r2));
