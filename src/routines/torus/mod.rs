@@ -103,6 +103,11 @@ pub struct Torus;
 pub struct TorusNormal;
 
 impl Shape for Torus {
+    /// The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
+    /// milliseconds per case.
+    fn default_cases(&self) -> u64 {
+        2_000
+    }
     fn name(&self) -> &'static str {
         "torus"
     }
@@ -139,6 +144,11 @@ impl Shape for Torus {
 }
 
 impl Shape for TorusNormal {
+    /// The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
+    /// milliseconds per case.
+    fn default_cases(&self) -> u64 {
+        2_000
+    }
     fn name(&self) -> &'static str {
         "torus_normal"
     }
