@@ -18,6 +18,7 @@ pub mod offset;
 pub mod optics;
 pub mod poly;
 pub mod quadric;
+pub mod recip;
 pub mod reintersect;
 pub mod robustness;
 pub mod roots;
@@ -168,6 +169,8 @@ pub fn registry() -> Vec<&'static dyn Shape> {
         &roots::CUBIC,
         &roots::QUARTIC,
         &roots::NEWTON,
+        &recip::RCP,
+        &recip::RSQRT,
         &triangle::Triangle,
         &aabb::BoxShape,
         &quadric::EllipsoidShape,

@@ -155,14 +155,35 @@ pub const KAHAN: &str = "kahan";
 pub const INVALID: &str = "invalid";
 
 const QUADRATIC_CLASSES: &[&str] = &[
-    GENERIC, DOUBLE_ROOT, CLUSTERED, NEAR_ZERO, HUGE_RANGE, NO_REAL, TINY_LEADING, KAHAN, INVALID,
+    GENERIC,
+    DOUBLE_ROOT,
+    CLUSTERED,
+    NEAR_ZERO,
+    HUGE_RANGE,
+    NO_REAL,
+    TINY_LEADING,
+    KAHAN,
+    INVALID,
 ];
 /// A cubic always has a real root: no `no_real`.
 const CUBIC_CLASSES: &[&str] = &[
-    GENERIC, DOUBLE_ROOT, CLUSTERED, NEAR_ZERO, HUGE_RANGE, TINY_LEADING, INVALID,
+    GENERIC,
+    DOUBLE_ROOT,
+    CLUSTERED,
+    NEAR_ZERO,
+    HUGE_RANGE,
+    TINY_LEADING,
+    INVALID,
 ];
 const QUARTIC_CLASSES: &[&str] = &[
-    GENERIC, DOUBLE_ROOT, CLUSTERED, NEAR_ZERO, HUGE_RANGE, NO_REAL, TINY_LEADING, INVALID,
+    GENERIC,
+    DOUBLE_ROOT,
+    CLUSTERED,
+    NEAR_ZERO,
+    HUGE_RANGE,
+    NO_REAL,
+    TINY_LEADING,
+    INVALID,
 ];
 
 impl Roots {
@@ -170,10 +191,14 @@ impl Roots {
     fn coefficients(&self, class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f64> {
         let n = self.degree;
         let lead = fit(magnitude(rng, -1.0, 1.0), prec);
-        let others = |rng: &mut ChaCha8Rng, k: usize| -> Vec<f64> { (0..k).map(|_| root(rng, prec)).collect() };
+        let others = |rng: &mut ChaCha8Rng, k: usize| -> Vec<f64> {
+            (0..k).map(|_| root(rng, prec)).collect()
+        };
         match class {
             // Random coefficients over two decades
-            GENERIC => (0..=n).map(|_| fit(magnitude(rng, -1.0, 1.0), prec)).collect(),
+            GENERIC => (0..=n)
+                .map(|_| fit(magnitude(rng, -1.0, 1.0), prec))
+                .collect(),
             // A repeated root: a small dyadic (exact coefficients) or a random one
             DOUBLE_ROOT => {
                 let r = if rng.random_bool(0.5) {
@@ -270,7 +295,9 @@ fn kahan(prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f64> {
 
 /// NaN/±inf in one coefficient, or the zero polynomial (ascending).
 fn invalid(n: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f64> {
-    let mut c: Vec<f64> = (0..=n).map(|_| fit(magnitude(rng, -1.0, 1.0), prec)).collect();
+    let mut c: Vec<f64> = (0..=n)
+        .map(|_| fit(magnitude(rng, -1.0, 1.0), prec))
+        .collect();
     match rng.random_range(0..4) {
         0 => c.iter_mut().for_each(|x| *x = 0.0),
         k => c[rng.random_range(0..=n)] = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY][k - 1],
@@ -343,8 +370,16 @@ impl Shape for Roots {
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
         let c: Vec<f64> = input.iter().rev().copied().collect();
         let values: Vec<f64> = match prec {
-            Precision::F32 => self.solve::<f32>(m, &c).iter().map(|x| x.to_f64()).collect(),
-            Precision::F64 => self.solve::<f64>(m, &c).iter().map(|x| x.to_f64()).collect(),
+            Precision::F32 => self
+                .solve::<f32>(m, &c)
+                .iter()
+                .map(|x| x.to_f64())
+                .collect(),
+            Precision::F64 => self
+                .solve::<f64>(m, &c)
+                .iter()
+                .map(|x| x.to_f64())
+                .collect(),
         };
         Answer {
             count: values.len() as u32,
@@ -356,11 +391,40 @@ impl Shape for Roots {
     }
 }
 
-/// The reviewed tolerance table of the polynomial shapes (measured at seed 1; see the tests).
+/// A known failure: a wrong verdict, or a value error beyond `ulps`.
+pub fn xfail_beyond(ulps: u64) -> Expect {
+    Expect {
+        max_ulps: ulps,
+        ..Expect::xfail()
+    }
+}
+
+/// The reviewed tolerance table of the polynomial shapes, measured at seed 1 with 2,000 cases
+/// per class (tests/poly.rs re-runs 300): the robust methods were within 2 ulps everywhere
+/// (Yuksel's within 0), held to 4; the chapter's formulas are known failures (more than 4
+/// ulps, or wrong counts) on the classes listed, and only reported on the others.
 fn tolerance(degree: usize, m: usize, prec: Precision, class: &str) -> Expect {
-    let _ = (degree, prec, class);
     if m == 1 {
-        Expect::pass(64)
+        return Expect::pass(4);
+    }
+    let known = match degree {
+        2 => matches!(
+            class,
+            KAHAN | NEAR_ZERO | HUGE_RANGE | TINY_LEADING | CLUSTERED
+        ),
+        3 => matches!(
+            class,
+            CLUSTERED | NEAR_ZERO | HUGE_RANGE | TINY_LEADING | GENERIC
+        ),
+        _ => {
+            matches!(
+                class,
+                GENERIC | CLUSTERED | NEAR_ZERO | HUGE_RANGE | TINY_LEADING
+            ) || (class == NO_REAL && prec == Precision::F32)
+        }
+    };
+    if known {
+        xfail_beyond(4)
     } else {
         Expect::ANY
     }
@@ -403,7 +467,12 @@ fn bracket_state(c: &[Rational], lo: f64, hi: f64) -> Option<u32> {
 
 impl Newton {
     /// `(ascending cubic, lo, hi, x0)` of a case of `class`, before rounding checks.
-    fn case(&self, class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> (Vec<f64>, f64, f64, f64) {
+    fn case(
+        &self,
+        class: &str,
+        prec: Precision,
+        rng: &mut ChaCha8Rng,
+    ) -> (Vec<f64>, f64, f64, f64) {
         let lead = fit(magnitude(rng, -1.0, 1.0), prec);
         match class {
             // Three real roots; a bracket around one, well inside its gaps; x0 near the root
@@ -418,7 +487,12 @@ impl Newton {
                 let r = rs[k];
                 let x0 = r + gap * magnitude(rng, -6.0, -1.5);
                 let c = from_factors(lead, &rs, &[], prec);
-                (c, fit(r - 0.4 * gap, prec), fit(r + 0.4 * gap, prec), fit(x0, prec))
+                (
+                    c,
+                    fit(r - 0.4 * gap, prec),
+                    fit(r + 0.4 * gap, prec),
+                    fit(x0, prec),
+                )
             }
             // Three real roots r1 < r2 < r3; x0 at the critical point between r1 and r2
             // (f′(x0) ≈ 0), the bracket from there to the middle of r2 and r3
@@ -427,7 +501,10 @@ impl Newton {
                 rs.sort_by(f64::total_cmp);
                 let c = from_factors(lead, &rs, &[], prec);
                 // The critical point of the exact cubic through the roots
-                let (s1, s2) = (rs.iter().sum::<f64>(), rs[0] * rs[1] + rs[0] * rs[2] + rs[1] * rs[2]);
+                let (s1, s2) = (
+                    rs.iter().sum::<f64>(),
+                    rs[0] * rs[1] + rs[0] * rs[2] + rs[1] * rs[2],
+                );
                 let xc = (s1 - (s1 * s1 - 3.0 * s2).max(0.0).sqrt()) / 3.0;
                 let x0 = fit(xc, prec);
                 let lo = fit(x0 - 0.1 * (x0 - rs[0]).abs(), prec);
@@ -438,7 +515,10 @@ impl Newton {
                 let r = root(rng, prec);
                 let c = from_factors(lead, &[r], &[complex_pair(rng)], prec);
                 let w = r.abs().max(1.0) * 10f64.powf(rng.random_range(0.5..3.0));
-                let (lo, hi) = (fit(r - w * rng.random_range(0.1..1.0), prec), fit(r + w, prec));
+                let (lo, hi) = (
+                    fit(r - w * rng.random_range(0.1..1.0), prec),
+                    fit(r + w, prec),
+                );
                 let x0 = if rng.random_bool(0.5) { lo } else { hi };
                 (c, lo, hi, x0)
             }
@@ -491,11 +571,20 @@ impl Shape for Newton {
     fn methods(&self) -> &'static [MethodInfo] {
         NEWTON_METHODS
     }
+    /// A proposal whose rounded cubic does not have exactly one root in the bracket (the
+    /// rounding can add or remove one) is redrawn, up to 16 times.
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
-        let (c, lo, hi, x0) = self.case(self.classes()[class], prec, rng);
-        let mut v = leading_first(c);
-        v.extend([lo, hi, x0]);
-        Some(v)
+        let name = self.classes()[class];
+        (0..16).find_map(|_| {
+            let (c, lo, hi, x0) = self.case(name, prec, rng);
+            let member = name == INVALID || {
+                let exact: Vec<Rational> = c.iter().map(|&x| q(x)).collect();
+                bracket_state(&exact, lo, hi) == Some(1)
+            };
+            let mut v = leading_first(c);
+            v.extend([lo, hi, x0]);
+            member.then_some(v)
+        })
     }
     fn oracle(&self, input: &[f64], prec: Precision) -> Truth {
         if !all_finite(input) {
@@ -530,7 +619,10 @@ impl Shape for Newton {
             vec![]
         };
         let mut others = all;
-        if let Some(p) = values.first().and_then(|v| others.iter().position(|o| o == v)) {
+        if let Some(p) = values
+            .first()
+            .and_then(|v| others.iter().position(|o| o == v))
+        {
             others.remove(p);
         }
         Truth::Answer(Expected {
@@ -547,12 +639,16 @@ impl Shape for Newton {
             Precision::F64 => run_newton::<f64>(m, input),
         }
     }
-    fn expect(&self, m: usize, _prec: Precision, class: usize) -> Expect {
-        let _ = class;
-        if m == 1 {
-            Expect::pass(64)
-        } else {
-            Expect::ANY
+    /// Bracketed: 0 ulps measured (seed 1, 2,000 cases per class), held to 4. Plain Newton:
+    /// within a few hundred ulps near the root (where the rounding of its own residual stops
+    /// it; measured at most 369 in f32 and 887 in f64), a known failure from flat, far and
+    /// multiple-root starts.
+    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
+        match (m, NEWTON_CLASSES[class]) {
+            (1, _) => Expect::pass(4),
+            (_, NEAR_ROOT) => Expect::pass(if prec == Precision::F32 { 1024 } else { 2048 }),
+            (_, INVALID) => Expect::ANY,
+            _ => xfail_beyond(1024),
         }
     }
 }
