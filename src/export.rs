@@ -133,55 +133,108 @@ pub fn povray(s: &Scene, fr: Frame) -> String {
                 "pigment {{ rgbf <1, 1, 1, 1> }} finish {{ ambient 0 emission 0 diffuse 0 reflection {{ 0, 1 fresnel on }} conserve_energy }} interior {{ ior {ior} }}"
             ),
         };
-        let geo = match sh {
-            Shape::Sphere { center, radius, .. } => format!("sphere {{ {}, {radius}", pov(*center)),
-            Shape::Disc {
-                center,
-                normal,
-                radius,
-                ..
-            } => format!("disc {{ {}, {}, {radius}", pov(*center), pov(*normal)),
-            Shape::Plane { point, normal, .. } => {
-                let n = glam::DVec3::from_array(*normal).normalize();
-                let d = n.dot(glam::DVec3::from_array(*point));
-                format!("plane {{ {}, {d}", pov(n.to_array()))
-            }
-            Shape::Mesh { .. } => {
-                let mut m = String::from("mesh {");
-                for t in &s.meshes[&i] {
-                    let _ = write!(
-                        m,
-                        "\n  triangle {{ {}, {}, {} }}",
-                        pov(t[0]),
-                        pov(t[1]),
-                        pov(t[2])
-                    );
-                }
-                m
-            }
+        let Some(geo) = pov_object(s, i, sh, 0.0) else {
+            continue;
         };
         let _ = writeln!(o, "{geo}\n  {tex}\n}}");
         // Opaque glass shadows: a hidden, slightly smaller black caster inside the glass
         if let (Material::Glass { .. }, GlassShadows::Opaque) = (mat, f.render.glass_shadows) {
-            match sh {
-                Shape::Sphere { center, radius, .. } => {
+            match pov_object(s, i, sh, CASTER_SHRINK) {
+                Some(inner) if sh.is_solid() => {
                     let _ = writeln!(
                         o,
-                        "sphere {{ {}, {} no_image no_reflection pigment {{ rgb 0 }} finish {{ ambient 0 diffuse 0 }} }}",
-                        pov(*center),
-                        radius * (1.0 - 1e-5)
+                        "{inner} no_image no_reflection pigment {{ rgb 0 }} finish {{ ambient 0 diffuse 0 }} }}"
                     );
                 }
                 _ => {
                     let _ = writeln!(
                         o,
-                        "// warning: shape {i} is glass but not a sphere; POV-Ray lets its shadow rays through"
+                        "// warning: shape {i} is glass but has no hidden caster; POV-Ray lets its shadow rays through"
                     );
                 }
             }
         }
     }
     o
+}
+
+/// Relative size by which a hidden shadow caster is smaller than its glass shape.
+const CASTER_SHRINK: f64 = 1e-5;
+
+/// The opening of a shape's POV-Ray object (the caller adds the texture and the closing brace),
+/// shrunk by the relative amount `shrink` about its centre (0 = as is; discs, planes and meshes
+/// are never shrunk). `None` for a mesh that was not loaded.
+fn pov_object(s: &Scene, i: usize, sh: &Shape, shrink: f64) -> Option<String> {
+    let k = 1.0 - shrink;
+    let dv = glam::DVec3::from_array;
+    Some(match sh {
+        Shape::Sphere { center, radius, .. } => {
+            format!("sphere {{ {}, {}", pov(*center), radius * k)
+        }
+        Shape::Disc {
+            center,
+            normal,
+            radius,
+            ..
+        } => format!("disc {{ {}, {}, {radius}", pov(*center), pov(*normal)),
+        Shape::Plane { point, normal, .. } => {
+            let n = dv(*normal).normalize();
+            let d = n.dot(dv(*point));
+            format!("plane {{ {}, {d}", pov(n.to_array()))
+        }
+        Shape::Mesh { .. } => {
+            let mut m = String::from("mesh {");
+            for t in s.meshes.get(&i)? {
+                let _ = write!(
+                    m,
+                    "\n  triangle {{ {}, {}, {} }}",
+                    pov(t[0]),
+                    pov(t[1]),
+                    pov(t[2])
+                );
+            }
+            m
+        }
+        // Corners: z mirroring swaps which corner has the smaller z
+        Shape::Box { min, max, .. } => {
+            let (lo, hi) = (dv(*min), dv(*max));
+            let inset = (hi - lo) * (shrink * 0.5);
+            format!(
+                "box {{ {}, {}",
+                pov((lo + inset).to_array()),
+                pov((hi - inset).to_array())
+            )
+        }
+        // POV-Ray's cylinder is closed (caps included) unless `open` is given
+        Shape::Cylinder {
+            base,
+            radius,
+            height,
+            ..
+        } => {
+            let b = dv(*base) + glam::DVec3::Y * (height * shrink * 0.5);
+            let top = b + glam::DVec3::Y * (height * k);
+            format!(
+                "cylinder {{ {}, {}, {}",
+                pov(b.to_array()),
+                pov(top.to_array()),
+                radius * k
+            )
+        }
+        // The unit sphere scaled to the semi-axes (signs are not mirrored: radii are lengths)
+        Shape::Ellipsoid { center, radii, .. } => format!(
+            "sphere {{ <0, 0, 0>, 1 scale <{}> translate {}",
+            v3(radii.map(|r| r * k)),
+            pov(*center)
+        ),
+        // POV-Ray's torus lies in its xz plane around +y, as ours (mirroring z keeps it)
+        Shape::Torus {
+            center,
+            major,
+            minor,
+            ..
+        } => format!("torus {{ {major}, {} translate {}", minor * k, pov(*center)),
+    })
 }
 
 /// A far clipping distance beyond every shape and light: twice the farthest extent, rounded up
@@ -205,6 +258,25 @@ fn far_clip(s: &Scene) -> f64 {
                 .flatten()
                 .map(|p| d(*p, 0.0))
                 .fold(0.0, f64::max),
+            Shape::Box { min, max, .. } => {
+                let (lo, hi) = (glam::DVec3::from_array(*min), glam::DVec3::from_array(*max));
+                d(((lo + hi) * 0.5).to_array(), (hi - lo).length() * 0.5)
+            }
+            Shape::Cylinder {
+                base,
+                radius,
+                height,
+                ..
+            } => d(*base, radius + height),
+            Shape::Ellipsoid { center, radii, .. } => {
+                d(*center, radii[0].max(radii[1]).max(radii[2]))
+            }
+            Shape::Torus {
+                center,
+                major,
+                minor,
+                ..
+            } => d(*center, major + minor),
         });
     }
     10f64.powf((2.0 * far).log10().ceil())
@@ -311,11 +383,230 @@ pub fn mitsuba(s: &Scene, fr: Frame) -> String {
                     xml(&p.display().to_string())
                 )
             }
+            // Mitsuba's cube is the exact [-1, 1]³ (12 triangles, face normals)
+            Shape::Box { min, max, .. } => {
+                let (lo, hi) = (glam::DVec3::from_array(*min), glam::DVec3::from_array(*max));
+                format!(
+                    "<shape type=\"cube\">\n    <transform name=\"to_world\">\n      <scale value=\"{}\"/>\n      <translate value=\"{}\"/>\n    </transform>\n    {r}\n  </shape>",
+                    v3(((hi - lo) * 0.5).to_array()),
+                    v3(((lo + hi) * 0.5).to_array())
+                )
+            }
+            // Mitsuba's cylinder is open: the caps are two disks, normals outward (±y)
+            Shape::Cylinder {
+                base,
+                radius,
+                height,
+                ..
+            } => {
+                let b = glam::DVec3::from_array(*base);
+                let top = b + glam::DVec3::Y * *height;
+                let disk = |c: glam::DVec3, n: glam::DVec3| {
+                    format!(
+                        "<shape type=\"disk\">\n    <transform name=\"to_world\">\n      <scale value=\"{radius}\"/>\n      <lookat origin=\"{}\" target=\"{}\" up=\"1, 0, 0\"/>\n    </transform>\n    {r}\n  </shape>",
+                        v3(c.to_array()),
+                        v3((c + n).to_array())
+                    )
+                };
+                format!(
+                    "<shape type=\"cylinder\">\n    <point name=\"p0\" value=\"{}\"/>\n    <point name=\"p1\" value=\"{}\"/>\n    <float name=\"radius\" value=\"{radius}\"/>\n    {r}\n  </shape>\n  {}\n  {}",
+                    v3(*base),
+                    v3(top.to_array()),
+                    disk(b, -glam::DVec3::Y),
+                    disk(top, glam::DVec3::Y)
+                )
+            }
+            // No analytic ellipsoid or torus in Mitsuba: fine tessellations as PLY files
+            Shape::Ellipsoid { .. } | Shape::Torus { .. } => {
+                let (path, note) = match tessellate(sh).map(|m| m.write_ply(&mesh_dir())) {
+                    Some(Ok(p)) => (p, String::new()),
+                    Some(Err((p, e))) => (p, format!("<!-- error: cannot write the mesh: {} -->\n  ", xml(&e))),
+                    None => continue,
+                };
+                format!(
+                    "{note}<shape type=\"ply\">\n    <string name=\"filename\" value=\"{}\"/>\n    {r}\n  </shape>",
+                    xml(&path.display().to_string())
+                )
+            }
         };
         let _ = writeln!(o, "  {body}");
     }
     o.push_str("</scene>\n");
     o
+}
+
+/// Tessellations for Mitsuba are made so that every vertex lies on the exact surface and no
+/// point of a triangle is farther than `TESS_TOL` × the shape's size (largest radius) from it:
+/// along each parameter the chord sagitta ρ(1 − cos(Δ/2)) of the largest curvature radius ρ
+/// per angular step Δ is held to half of it, and a diagonal edge sags by at most the sum.
+pub const TESS_TOL: f64 = 2e-5;
+
+/// An indexed triangle mesh with per-vertex unit normals (outward, counter-clockwise faces).
+#[derive(Clone, Debug, Default)]
+pub struct Tessellation {
+    pub positions: Vec<[f64; 3]>,
+    pub normals: Vec<[f64; 3]>,
+    pub faces: Vec<[u32; 3]>,
+}
+
+/// Angular steps over `span` radians for a curve of curvature radius ≤ `rho` such that the
+/// chord sagitta stays below `tol`: a multiple of 4, at least 8.
+fn steps(span: f64, rho: f64, tol: f64) -> u32 {
+    let max_step = 2.0 * (1.0 - (tol / rho).min(1.0)).acos();
+    let n = (span / max_step).ceil().max(8.0) as u32;
+    n.div_ceil(4) * 4
+}
+
+/// The tessellation of an ellipsoid or torus at [`TESS_TOL`] (world space); `None` for other
+/// shapes.
+pub fn tessellate(sh: &Shape) -> Option<Tessellation> {
+    match sh {
+        Shape::Ellipsoid { center, radii, .. } => {
+            let a = radii[0].max(radii[1]).max(radii[2]);
+            let tol = 0.5 * TESS_TOL * a;
+            Some(ellipsoid_mesh(
+                *center,
+                *radii,
+                steps(2.0 * PI, a, tol),
+                steps(PI, a, tol),
+            ))
+        }
+        Shape::Torus {
+            center,
+            major,
+            minor,
+            ..
+        } => {
+            let tol = 0.5 * TESS_TOL * (major + minor);
+            Some(torus_mesh(
+                *center,
+                *major,
+                *minor,
+                steps(2.0 * PI, major + minor, tol),
+                steps(2.0 * PI, *minor, tol),
+            ))
+        }
+        _ => None,
+    }
+}
+
+/// A UV ellipsoid: `nu` steps around +y, `nv` from pole to pole (poles as single vertices).
+pub fn ellipsoid_mesh(c: [f64; 3], radii: [f64; 3], nu: u32, nv: u32) -> Tessellation {
+    let mut m = Tessellation::default();
+    let mut vertex = |u: [f64; 3]| {
+        // Point on the unit sphere → ellipsoid; the normal is the gradient u/r, normalised
+        let p = glam::DVec3::from_array(u) * glam::DVec3::from_array(radii);
+        let n = (glam::DVec3::from_array(u) / glam::DVec3::from_array(radii)).normalize();
+        m.positions
+            .push((p + glam::DVec3::from_array(c)).to_array());
+        m.normals.push(n.to_array());
+    };
+    vertex([0.0, 1.0, 0.0]);
+    for j in 1..nv {
+        let th = PI * j as f64 / nv as f64;
+        for i in 0..nu {
+            let ph = 2.0 * PI * i as f64 / nu as f64;
+            vertex([th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin()]);
+        }
+    }
+    vertex([0.0, -1.0, 0.0]);
+    let ring = |j: u32, i: u32| 1 + (j - 1) * nu + i % nu;
+    let bottom = 1 + (nv - 1) * nu;
+    for i in 0..nu {
+        m.faces.push([0, ring(1, i + 1), ring(1, i)]);
+        for j in 1..nv - 1 {
+            let (a, b, c, d) = (
+                ring(j, i),
+                ring(j, i + 1),
+                ring(j + 1, i + 1),
+                ring(j + 1, i),
+            );
+            m.faces.push([a, b, c]);
+            m.faces.push([a, c, d]);
+        }
+        m.faces.push([ring(nv - 1, i), ring(nv - 1, i + 1), bottom]);
+    }
+    m
+}
+
+/// A torus in the xz plane around +y: `nu` steps around the major circle, `nv` around the minor.
+pub fn torus_mesh(c: [f64; 3], major: f64, minor: f64, nu: u32, nv: u32) -> Tessellation {
+    let mut m = Tessellation::default();
+    for i in 0..nu {
+        let (sp, cp) = (2.0 * PI * i as f64 / nu as f64).sin_cos();
+        for j in 0..nv {
+            let (st, ct) = (2.0 * PI * j as f64 / nv as f64).sin_cos();
+            let rho = major + minor * ct;
+            m.positions
+                .push([c[0] + rho * cp, c[1] + minor * st, c[2] + rho * sp]);
+            m.normals.push([ct * cp, st, ct * sp]);
+        }
+    }
+    let at = |i: u32, j: u32| (i % nu) * nv + j % nv;
+    for i in 0..nu {
+        for j in 0..nv {
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i + 1, j + 1), at(i, j + 1));
+            m.faces.push([a, d, c]);
+            m.faces.push([a, c, b]);
+        }
+    }
+    m
+}
+
+/// Where the Mitsuba exporter writes its PLY files: `$RAYPROOF_MESH_DIR`, or
+/// `<temp>/rayproof-meshes`. Files are named by the SHA-256 of their bytes, so a file that is
+/// there already is the same mesh.
+pub fn mesh_dir() -> std::path::PathBuf {
+    std::env::var_os("RAYPROOF_MESH_DIR")
+        .map(std::path::PathBuf::from)
+        .unwrap_or_else(|| std::env::temp_dir().join("rayproof-meshes"))
+}
+
+impl Tessellation {
+    /// Binary little-endian PLY with float32 positions and normals.
+    pub fn ply(&self) -> Vec<u8> {
+        let mut b = format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nproperty float nx\nproperty float ny\nproperty float nz\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+            self.positions.len(),
+            self.faces.len()
+        )
+        .into_bytes();
+        for (p, n) in self.positions.iter().zip(&self.normals) {
+            for x in p.iter().chain(n) {
+                b.extend((*x as f32).to_le_bytes());
+            }
+        }
+        for f in &self.faces {
+            b.push(3);
+            for i in f {
+                b.extend((*i as i32).to_le_bytes());
+            }
+        }
+        b
+    }
+
+    /// Writes the PLY into `dir` (atomically, named by its hash); the path, or it with the error.
+    pub fn write_ply(
+        &self,
+        dir: &std::path::Path,
+    ) -> Result<std::path::PathBuf, (std::path::PathBuf, String)> {
+        use sha2::{Digest, Sha256};
+        let bytes = self.ply();
+        let hash: String = Sha256::digest(&bytes)[..12]
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        let path = dir.join(format!("mesh-{hash}.ply"));
+        if std::fs::metadata(&path).is_ok_and(|m| m.len() == bytes.len() as u64) {
+            return Ok(path);
+        }
+        let tmp = dir.join(format!("mesh-{hash}.ply.tmp{}", std::process::id()));
+        std::fs::create_dir_all(dir)
+            .and_then(|_| std::fs::write(&tmp, &bytes))
+            .and_then(|_| std::fs::rename(&tmp, &path))
+            .map_err(|e| (path.clone(), e.to_string()))?;
+        Ok(path)
+    }
 }
 
 /// Averages n×n blocks of an image's R, G, B (in f64); the size must divide by n.

@@ -208,3 +208,20 @@ fn report_has_one_row_per_comparison_with_images() {
         assert!(report.join(f).is_file(), "{f} missing");
     }
 }
+
+#[test]
+fn shapes_scene_passes_against_povray_mitsuba_and_its_golden_render() {
+    // The committed references of the box/cylinder/torus/ellipsoid scene, read in place (no
+    // --update: nothing is written)
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference");
+    let (code, out, err) = check(&dir, &["--scene", "shapes"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let rows: Vec<&str> = out
+        .lines()
+        .filter(|l| l.split_whitespace().next() == Some("shapes"))
+        .collect();
+    assert_eq!(rows.len(), 3, "{out}");
+    for r in ["povray", "mitsuba", "rayproof"] {
+        assert_eq!(status(&out, r), "PASS", "{out}");
+    }
+}

@@ -1155,3 +1155,279 @@ fn export_missing_scene_is_named() {
         assert_one_line_error(&o, &["missing-scene.toml"]);
     }
 }
+
+// ---------------------------------------------------------------- 7. boxes, cylinders, ellipsoids, tori
+
+/// A scene with one shape of each new kind, off-centre in every axis, in `material`.
+fn solids(material: &str, shadows: &str) -> Scene {
+    let text = format!(
+        "[camera]\nposition = [0.0, 2.0, 8.0]\nlook_at = [0.0, 0.0, 0.0]\nfov = 40.0\nwidth = 64\nheight = 48\n\
+         [render]\nglass_shadows = \"{shadows}\"\n\
+         [[lights]]\nposition = [1.0, 5.0, 2.0]\nintensity = [9.0, 9.0, 9.0]\n\
+         [materials.m]\n{material}\n\
+         [[shapes]]\ntype = \"box\"\nmin = [-3.0, 0.25, -2.0]\nmax = [-1.5, 1.0, -0.75]\nmaterial = \"m\"\n\
+         [[shapes]]\ntype = \"cylinder\"\nbase = [2.0, -0.5, 1.25]\nradius = 0.75\nheight = 1.5\nmaterial = \"m\"\n\
+         [[shapes]]\ntype = \"ellipsoid\"\ncenter = [0.5, 1.5, -2.5]\nradii = [1.0, 0.5, 0.25]\nmaterial = \"m\"\n\
+         [[shapes]]\ntype = \"torus\"\ncenter = [-0.5, 0.25, 2.0]\nmajor = 1.0\nminor = 0.375\nmaterial = \"m\"\n"
+    );
+    scene::parse(&text, &root().join("reference/scenes/solids.toml")).expect("valid scene")
+}
+
+const DIFFUSE: &str = "type = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]";
+
+#[test]
+fn povray_writes_native_primitives_mirrored_in_z() {
+    let s = solids(DIFFUSE, "opaque");
+    let out = povray(&s, Frame::of(&s, None, None));
+    let objects: Vec<&str> = out
+        .lines()
+        .filter(|l| {
+            ["box", "cylinder", "sphere", "torus"]
+                .iter()
+                .any(|k| l.starts_with(&format!("{k} {{")))
+        })
+        .collect();
+    assert_eq!(
+        objects,
+        [
+            // z ∈ [−2, −0.75] becomes [0.75, 2]: the corners keep x, y and negate z
+            "box { <-3, 0.25, 2>, <-1.5, 1, 0.75>",
+            // POV-Ray's cylinder is closed unless `open`: base and top along +y
+            "cylinder { <2, -0.5, -1.25>, <2, 1, -1.25>, 0.75",
+            // Radii are lengths (not mirrored); the centre is
+            "sphere { <0, 0, 0>, 1 scale <1, 0.5, 0.25> translate <0.5, 1.5, 2.5>",
+            // POV-Ray's torus is in its xz plane around +y, like ours
+            "torus { 1, 0.375 translate <-0.5, 0.25, -2>",
+        ],
+        "{out}"
+    );
+    assert!(!out.contains(" open"), "{out}");
+    // Diffuse: no hidden casters
+    assert!(!out.contains("no_image"));
+}
+
+#[test]
+fn povray_glass_solids_get_hidden_casters_inside_them() {
+    let glass = "type = \"glass\"\nior = 1.5";
+    let out = povray(
+        &solids(glass, "opaque"),
+        Frame::of(&solids(glass, "opaque"), None, None),
+    );
+    let casters: Vec<&str> = out.lines().filter(|l| l.contains("no_image")).collect();
+    let k = 1.0 - 1e-5;
+    let want = [
+        format!(
+            "box {{ <{}, {}, {}>, <{}, {}, {}>",
+            -3.0 + 1.5 * 0.5e-5,
+            0.25 + 0.75 * 0.5e-5,
+            -(-2.0 + 1.25 * 0.5e-5),
+            -1.5 - 1.5 * 0.5e-5,
+            1.0 - 0.75 * 0.5e-5,
+            -(-0.75 - 1.25 * 0.5e-5)
+        ),
+        format!(
+            "cylinder {{ <2, {}, -1.25>, <2, {}, -1.25>, {}",
+            -0.5 + 1.5 * 0.5e-5,
+            -0.5 + 1.5 * 0.5e-5 + 1.5 * k,
+            0.75 * k
+        ),
+        format!(
+            "sphere {{ <0, 0, 0>, 1 scale <{}, {}, {}> translate <0.5, 1.5, 2.5>",
+            k,
+            0.5 * k,
+            0.25 * k
+        ),
+        format!("torus {{ 1, {} translate <-0.5, 0.25, -2>", 0.375 * k),
+    ];
+    assert_eq!(casters.len(), 4, "{out}");
+    for (c, w) in casters.iter().zip(&want) {
+        assert!(
+            c.starts_with(w.as_str()) && c.contains("no_image no_reflection"),
+            "{c}\nexpected {w}"
+        );
+    }
+    // Transmissive glass shadows: none
+    let t = solids(glass, "transmissive");
+    assert!(!povray(&t, Frame::of(&t, None, None)).contains("no_image"));
+}
+
+/// The PLY files a Mitsuba export refers to, read back: (vertex count, face count, positions,
+/// normals, faces).
+type Ply = (Vec<[f32; 3]>, Vec<[f32; 3]>, Vec<[i32; 3]>);
+
+fn read_ply(path: &Path) -> Ply {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .expect("PLY header")
+        + 11;
+    let header = std::str::from_utf8(&bytes[..end]).unwrap();
+    assert!(header.starts_with("ply\nformat binary_little_endian 1.0\n"));
+    let count = |el: &str| -> usize {
+        header
+            .lines()
+            .find_map(|l| l.strip_prefix(&format!("element {el} ")))
+            .unwrap()
+            .parse()
+            .unwrap()
+    };
+    let (nv, nf) = (count("vertex"), count("face"));
+    assert_eq!(bytes.len(), end + nv * 24 + nf * 13, "PLY size");
+    let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().unwrap());
+    let (mut pos, mut nrm, mut faces) = (vec![], vec![], vec![]);
+    for v in 0..nv {
+        let o = end + v * 24;
+        pos.push([f32_at(o), f32_at(o + 4), f32_at(o + 8)]);
+        nrm.push([f32_at(o + 12), f32_at(o + 16), f32_at(o + 20)]);
+    }
+    for f in 0..nf {
+        let o = end + nv * 24 + f * 13;
+        assert_eq!(bytes[o], 3);
+        let i =
+            |k: usize| i32::from_le_bytes(bytes[o + 1 + 4 * k..o + 5 + 4 * k].try_into().unwrap());
+        faces.push([i(0), i(1), i(2)]);
+    }
+    (pos, nrm, faces)
+}
+
+#[test]
+fn mitsuba_uses_cube_cylinder_disks_and_closed_ply_meshes() {
+    let s = solids(DIFFUSE, "opaque");
+    let e = parse_xml(&mitsuba(&s, Frame::of(&s, None, None)));
+    // Box: the cube [-1, 1]³ scaled to the half extents and moved to the centre
+    assert_eq!(of_type(&e, "shape", "cube").len(), 1);
+    let cube = e
+        .iter()
+        .position(|x| x.tag == "shape" && x.attr("type") == Some("cube"))
+        .unwrap();
+    let in_cube = |tag: &str| {
+        let x = e
+            .iter()
+            .find(|x| x.tag == tag && x.parent.is_some_and(|p| e[p].parent == Some(cube)))
+            .unwrap_or_else(|| panic!("no <{tag}> in the cube's transform"));
+        f3(x.attr("value").unwrap())
+    };
+    assert_eq!(in_cube("scale"), [0.75, 0.375, 0.625]);
+    assert_eq!(in_cube("translate"), [-2.25, 0.625, -1.375]);
+    // Cylinder: p0, p1 along +y, radius, plus two disks (the caps)
+    assert_eq!(of_type(&e, "shape", "cylinder").len(), 1);
+    assert_eq!(f3(&value(&e, "point", "p0", "shape")), [2.0, -0.5, 1.25]);
+    assert_eq!(f3(&value(&e, "point", "p1", "shape")), [2.0, 1.0, 1.25]);
+    assert_eq!(of_type(&e, "shape", "disk").len(), 2);
+    // Ellipsoid and torus: PLY files that exist, closed (every edge in exactly two faces),
+    // vertices on the exact surface, outward normals
+    let files: Vec<String> = named(&e, "string", "filename")
+        .iter()
+        .map(|x| x.attr("value").unwrap().to_string())
+        .collect();
+    assert_eq!(files.len(), 2);
+    let on_surface: [&dyn Fn([f64; 3]) -> f64; 2] = [
+        &|p| {
+            // Ellipsoid: |(p − c)/r| − 1
+            ((p[0] - 0.5) / 1.0)
+                .hypot((p[1] - 1.5) / 0.5)
+                .hypot((p[2] + 2.5) / 0.25)
+                - 1.0
+        },
+        &|p| {
+            // Torus: distance to the tube's centre circle − minor
+            let (x, y, z) = (p[0] + 0.5, p[1] - 0.25, p[2] - 2.0);
+            (x.hypot(z) - 1.0).hypot(y) - 0.375
+        },
+    ];
+    for (file, f) in files.iter().zip(on_surface) {
+        let (pos, nrm, faces) = read_ply(Path::new(file));
+        let mut edges = std::collections::HashMap::new();
+        for t in &faces {
+            for k in 0..3 {
+                let (a, b) = (t[k], t[(k + 1) % 3]);
+                *edges.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+                // Each directed edge once: consistent winding
+                assert!(a != b, "degenerate face {t:?}");
+            }
+            let p = |i: i32| DVec3::from_array(pos[i as usize].map(|x| x as f64));
+            let g = (p(t[1]) - p(t[0])).cross(p(t[2]) - p(t[0]));
+            let n = DVec3::from_array(nrm[t[0] as usize].map(|x| x as f64));
+            assert!(g.dot(n) > 0.0, "{file}: face {t:?} winds inward");
+        }
+        assert!(edges.values().all(|&c| c == 2), "{file}: not closed");
+        let worst = pos
+            .iter()
+            .map(|p| f(p.map(|x| x as f64)).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 1e-6, "{file}: a vertex is {worst} off the surface");
+        for n in &nrm {
+            let l = DVec3::from_array(n.map(|x| x as f64)).length();
+            assert!((l - 1.0).abs() < 1e-6, "{file}: normal length {l}");
+        }
+    }
+}
+
+#[test]
+fn tessellations_stay_within_their_tolerance_of_the_exact_surface() {
+    use rayproof::export::{tessellate, TESS_TOL};
+    // Exact distance to the torus; for the ellipsoid an upper bound on it: the distance to the
+    // radial projection p/|p/r| onto the surface
+    let s = solids(DIFFUSE, "opaque");
+    for sh in &s.file.shapes {
+        let (size, dist): (f64, Box<dyn Fn(DVec3) -> f64>) = match sh {
+            Shape::Ellipsoid { center, radii, .. } => {
+                let (c, r) = (DVec3::from_array(*center), DVec3::from_array(*radii));
+                (
+                    r.max_element(),
+                    Box::new(move |p: DVec3| {
+                        let q = p - c;
+                        let k = (q / r).length();
+                        (q - q / k).length()
+                    }),
+                )
+            }
+            Shape::Torus {
+                center,
+                major,
+                minor,
+                ..
+            } => {
+                let (c, big, small) = (DVec3::from_array(*center), *major, *minor);
+                (
+                    big + small,
+                    Box::new(move |p: DVec3| {
+                        let q = p - c;
+                        ((q.x.hypot(q.z) - big).hypot(q.y) - small).abs()
+                    }),
+                )
+            }
+            _ => {
+                assert!(tessellate(sh).is_none());
+                continue;
+            }
+        };
+        let m = tessellate(sh).expect("a tessellation");
+        // Worst deviation over each face's edge midpoints and centroid
+        let mut worst = 0f64;
+        for f in &m.faces {
+            let v = f.map(|i| DVec3::from_array(m.positions[i as usize]));
+            for p in [
+                (v[0] + v[1]) * 0.5,
+                (v[1] + v[2]) * 0.5,
+                (v[2] + v[0]) * 0.5,
+                (v[0] + v[1] + v[2]) / 3.0,
+            ] {
+                worst = worst.max(dist(p));
+            }
+        }
+        let rel = worst / size;
+        println!(
+            "{}: {} vertices, {} faces, worst deviation {worst:.3e} = {rel:.3e} of its size (tolerance {TESS_TOL:e})",
+            match sh {
+                Shape::Torus { .. } => "torus",
+                _ => "ellipsoid",
+            },
+            m.positions.len(),
+            m.faces.len()
+        );
+        assert!(rel <= TESS_TOL, "deviation {rel:e} of the size");
+        assert!(rel > 0.05 * TESS_TOL, "suspiciously exact: {rel:e}");
+    }
+}

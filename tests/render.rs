@@ -455,3 +455,272 @@ fn obj_meshes_render_and_block_light() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+// ---- boxes, cylinders, ellipsoids, tori ----
+
+/// A 5×5 view along −z from `c` + (0, 0, 5) (or down −y from `c` + (0, 5, 0)) at a shape; the
+/// centre pixel's ray passes exactly through `c`.
+fn solo(shape: &str, c: [f64; 3], from_above: bool) -> Render {
+    let (pos, up) = if from_above {
+        ([c[0], c[1] + 5.0, c[2]], "[0.0, 0.0, -1.0]")
+    } else {
+        ([c[0], c[1], c[2] + 5.0], "[0.0, 1.0, 0.0]")
+    };
+    let text = format!(
+        "[camera]\nposition = {pos:?}\nlook_at = {c:?}\nup = {up}\nfov = 30.0\nwidth = 5\nheight = 5\n\
+         [[lights]]\nposition = [2.0, 9.0, 9.0]\nintensity = [50.0, 50.0, 50.0]\n\
+         [materials.m]\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n\
+         [[shapes]]\n{shape}\nmaterial = \"m\"\n"
+    );
+    draw(&scene(&text))
+}
+
+/// Depth and normal of the centre pixel.
+fn centre(r: &Render) -> (f32, [f32; 3]) {
+    let k = 2 * r.width + 2;
+    (r.depth[k], r.normal[k])
+}
+
+#[test]
+fn new_shapes_are_hit_where_expected_with_their_normals() {
+    let c = [0.3, -0.2, 0.1];
+    let f = |v: [f64; 3]| format!("[{}, {}, {}]", v[0], v[1], v[2]);
+    let off = |d: [f64; 3]| f([c[0] + d[0], c[1] + d[1], c[2] + d[2]]);
+    // (shape, from above, expected depth (0 = miss), expected normal)
+    let cases = [
+        (
+            format!(
+                "type = \"box\"\nmin = {}\nmax = {}",
+                off([-1.0, -0.5, -0.25]),
+                off([1.0, 0.5, 0.25])
+            ),
+            false,
+            4.75,
+            [0.0, 0.0, 1.0],
+        ),
+        (
+            format!(
+                "type = \"box\"\nmin = {}\nmax = {}",
+                off([-1.0, -0.5, -0.25]),
+                off([1.0, 0.5, 0.25])
+            ),
+            true,
+            4.5,
+            [0.0, 1.0, 0.0],
+        ),
+        // Side view: the lateral surface at radius 1 from the axis
+        (
+            format!(
+                "type = \"cylinder\"\nbase = {}\nradius = 1.0\nheight = 2.0",
+                off([0.0, -1.0, 0.0])
+            ),
+            false,
+            4.0,
+            [0.0, 0.0, 1.0],
+        ),
+        // Top view: the top cap 1 above the centre
+        (
+            format!(
+                "type = \"cylinder\"\nbase = {}\nradius = 1.0\nheight = 2.0",
+                off([0.0, -1.0, 0.0])
+            ),
+            true,
+            4.0,
+            [0.0, 1.0, 0.0],
+        ),
+        (
+            format!(
+                "type = \"ellipsoid\"\ncenter = {}\nradii = [2.0, 1.0, 0.5]",
+                f(c)
+            ),
+            false,
+            4.5,
+            [0.0, 0.0, 1.0],
+        ),
+        (
+            format!(
+                "type = \"ellipsoid\"\ncenter = {}\nradii = [2.0, 1.0, 0.5]",
+                f(c)
+            ),
+            true,
+            4.0,
+            [0.0, 1.0, 0.0],
+        ),
+        // The torus lies in the xz plane: seen from the side the centre ray meets the tube at
+        // z = major + minor; seen from above it passes through the hole
+        (
+            format!(
+                "type = \"torus\"\ncenter = {}\nmajor = 1.0\nminor = 0.25",
+                f(c)
+            ),
+            false,
+            3.75,
+            [0.0, 0.0, 1.0],
+        ),
+        (
+            format!(
+                "type = \"torus\"\ncenter = {}\nmajor = 1.0\nminor = 0.25",
+                f(c)
+            ),
+            true,
+            0.0,
+            [0.0, 0.0, 0.0],
+        ),
+    ];
+    for (shape, above, depth, normal) in cases {
+        let r = solo(&shape, c, above);
+        let (d, n) = centre(&r);
+        assert!(
+            (d as f64 - depth).abs() < 1e-5,
+            "{shape} (above: {above}): depth {d}, expected {depth}"
+        );
+        for k in 0..3 {
+            assert!(
+                (n[k] as f64 - normal[k]).abs() < 1e-5,
+                "{shape} (above: {above}): normal {n:?}, expected {normal:?}"
+            );
+        }
+        // Lit from above and in front: a hit is not black
+        assert_eq!(r.beauty[2 * r.width + 2][0] > 0.0, depth > 0.0, "{shape}");
+    }
+}
+
+#[test]
+fn the_torus_hole_and_rim_from_above() {
+    // A row of pixels from 5 above a torus (major 1, minor 0.5) at the origin. A ray whose
+    // distance ρ₀ from the axis at y = 0 is within the tube's half-width hits it; one that stays
+    // outside ρ ∈ [0.5, 1.5] over the tube's height (ρ = ρ₀(5 − y)/5, |y| ≤ 0.5) misses.
+    let text = "[camera]\nposition = [0.0, 5.0, 0.0]\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 0.0, -1.0]\n\
+                fov = 60.0\nwidth = 101\nheight = 1\n\
+                [[lights]]\nposition = [0.0, 9.0, 0.0]\nintensity = [50.0, 50.0, 50.0]\n\
+                [materials.m]\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n\
+                [[shapes]]\ntype = \"torus\"\ncenter = [0.0, 0.0, 0.0]\nmajor = 1.0\nminor = 0.5\nmaterial = \"m\"\n";
+    let r = draw(&scene(text));
+    let half = 30f64.to_radians().tan();
+    let (mut hits, mut misses) = (0, 0);
+    for x in 0..101 {
+        let rho0 = (((x as f64 + 0.5) / 101.0 * 2.0 - 1.0) * half * 5.0).abs();
+        let d = r.depth[x] as f64;
+        if (rho0 - 1.0).abs() < 0.45 {
+            assert!(d > 4.0 && d < 5.5, "pixel {x} (ρ₀ = {rho0}): depth {d}");
+            hits += 1;
+        } else if rho0 * 0.9 > 1.5 || rho0 * 1.1 < 0.5 {
+            assert_eq!(d, 0.0, "pixel {x} (ρ₀ = {rho0}) should miss, depth {d}");
+            misses += 1;
+        }
+    }
+    assert!(hits >= 20 && misses >= 10, "{hits} hits, {misses} misses");
+}
+
+#[test]
+fn a_lone_torus_can_shadow_itself() {
+    let text = format!(
+        "{CAMERA_DOWN}\n[[lights]]\nposition = [3.0, 1.0, 0.0]\nintensity = [10.0, 10.0, 10.0]\n\
+         [materials.m]\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n\
+         [[shapes]]\ntype = \"torus\"\ncenter = [0.0, 0.0, 0.0]\nmajor = 1.0\nminor = 0.3\nmaterial = \"m\"\n"
+    );
+    let e = Effects::analyse(&scene(&text));
+    assert!(e.shadows, "{:?}", e.reasons);
+    let text = text.replace(
+        "type = \"torus\"\ncenter = [0.0, 0.0, 0.0]\nmajor = 1.0\nminor = 0.3",
+        "type = \"ellipsoid\"\ncenter = [0.0, 0.0, 0.0]\nradii = [1.0, 0.5, 2.0]",
+    );
+    assert!(!Effects::analyse(&scene(&text)).shadows);
+}
+
+#[test]
+fn new_shapes_parse_and_bad_values_name_their_line() {
+    let head = "[camera]\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\nfov = 40.0\nwidth = 8\nheight = 8\n\
+                [materials.m]\ntype = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]\n";
+    // Line 11 is the [[shapes]] header, 12 the type, 13 and on the fields
+    let good = [
+        "type = \"box\"\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 2.0, 3.0]",
+        "type = \"cylinder\"\nbase = [0.0, 0.0, 0.0]\nradius = 1.0\nheight = 2.0",
+        "type = \"ellipsoid\"\ncenter = [0.0, 0.0, 0.0]\nradii = [1.0, 2.0, 3.0]",
+        "type = \"torus\"\ncenter = [0.0, 0.0, 0.0]\nmajor = 1.0\nminor = 0.25",
+    ];
+    let text = |body: &str| format!("{head}\n[[shapes]]\n{body}\nmaterial = \"m\"\n");
+    for g in good {
+        let s = scene::parse(&text(g), Path::new("t.toml")).unwrap_or_else(|e| panic!("{g}: {e}"));
+        assert_eq!(s.file.shapes.len(), 1);
+    }
+    // (body, expected error text with its line)
+    let bad = [
+        (
+            "type = \"box\"\nmin = [1.0, -1.0, -1.0]\nmax = [1.0, 2.0, 3.0]",
+            "t.toml:14: shapes[0].max: must exceed min",
+        ),
+        (
+            "type = \"box\"\nmin = [nan, -1.0, -1.0]\nmax = [1.0, 2.0, 3.0]",
+            "t.toml:13: shapes[0].min: must be finite",
+        ),
+        (
+            "type = \"cylinder\"\nbase = [0.0, 0.0, 0.0]\nradius = -1.0\nheight = 2.0",
+            "t.toml:14: shapes[0].radius: must be a finite number > 0, got -1",
+        ),
+        (
+            "type = \"cylinder\"\nbase = [0.0, 0.0, 0.0]\nradius = 1.0\nheight = 0.0",
+            "t.toml:15: shapes[0].height",
+        ),
+        (
+            "type = \"cylinder\"\nbase = [0.0, inf, 0.0]\nradius = 1.0\nheight = 1.0",
+            "t.toml:13: shapes[0].base: must be finite",
+        ),
+        (
+            "type = \"ellipsoid\"\ncenter = [0.0, 0.0, 0.0]\nradii = [1.0, 0.0, 3.0]",
+            "t.toml:14: shapes[0].radii: must be a finite number > 0, got 0",
+        ),
+        (
+            "type = \"ellipsoid\"\ncenter = [0.0, 0.0, 0.0]\nradii = [1.0, 2.0, inf]",
+            "t.toml:14: shapes[0].radii",
+        ),
+        (
+            "type = \"torus\"\ncenter = [0.0, 0.0, 0.0]\nmajor = 1.0\nminor = 1.5",
+            "t.toml:15: shapes[0].minor: must be below major",
+        ),
+        (
+            "type = \"torus\"\ncenter = [0.0, 0.0, 0.0]\nmajor = nan\nminor = 0.5",
+            "t.toml:14: shapes[0].major",
+        ),
+        // Missing and unknown fields come from the TOML layer, still with a line
+        (
+            "type = \"torus\"\ncenter = [0.0, 0.0, 0.0]\nmajor = 1.0",
+            "missing field `minor`",
+        ),
+        (
+            "type = \"box\"\nmin = [0.0, 0.0, 0.0]\nmax = [1.0, 1.0, 1.0]\nradius = 2.0",
+            "unknown field `radius`",
+        ),
+        (
+            "type = \"cylinder\"\nbase = [0.0, 0.0]\nradius = 1.0\nheight = 1.0",
+            "t.toml:",
+        ),
+    ];
+    for (body, want) in bad {
+        let e = scene::parse(&text(body), Path::new("t.toml"))
+            .err()
+            .unwrap_or_else(|| panic!("{body} was accepted"))
+            .to_string();
+        assert!(e.contains(want), "{body}: got '{e}', expected '{want}'");
+        assert_eq!(e.lines().count(), 1, "{e}");
+        assert!(!e.starts_with("t.toml:0:"), "no line: {e}");
+    }
+}
+
+#[test]
+fn rays_from_inside_and_degenerate_directions_never_panic() {
+    // The camera inside each solid: the exit surface is hit (or nothing, never NaN)
+    for shape in [
+        "type = \"box\"\nmin = [-1.0, -1.0, -1.0]\nmax = [1.0, 1.0, 7.0]",
+        "type = \"cylinder\"\nbase = [0.0, -1.0, 0.0]\nradius = 7.0\nheight = 2.0",
+        "type = \"ellipsoid\"\ncenter = [0.0, 0.0, 0.0]\nradii = [1.0, 1.0, 7.0]",
+        "type = \"torus\"\ncenter = [0.0, 0.0, 0.0]\nmajor = 5.0\nminor = 0.5",
+    ] {
+        let r = solo(shape, [0.0, 0.0, 0.0], false);
+        assert!(
+            r.beauty.iter().flatten().all(|v| v.is_finite())
+                && r.depth.iter().all(|v| v.is_finite()),
+            "{shape}"
+        );
+    }
+}

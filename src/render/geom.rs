@@ -2,7 +2,11 @@
 //!
 //! Spheres go through the audited method and precision chosen for the render: the ray and the
 //! sphere are rounded to that precision, the method runs, and its `t` comes back as `f64`.
-//! Discs, planes and triangles (Möller–Trumbore) are intersected in `f64`.
+//! Discs, planes and triangles (Möller–Trumbore) are intersected in `f64`. Boxes, cylinder
+//! sides, ellipsoids and tori go through the audited robust routines of [`crate::routines`] in
+//! `f64`, with the ray moved into each routine's object space: translated by the shape's
+//! centre (or base), and for the cylinder and torus, whose routines are around z, with y and z
+//! swapped (a reflection: `t` is unchanged, and normals are swapped back).
 
 use crate::sphere::methods::{Method, PickPrecision, Ray as MRay, Sphere as MSphere};
 use glam::DVec3;
@@ -10,9 +14,42 @@ use glam::DVec3;
 /// A bounded primitive.
 #[derive(Clone, Copy, Debug)]
 pub enum Prim {
-    Sphere { c: DVec3, r: f64 },
-    Disc { c: DVec3, n: DVec3, r: f64 },
-    Tri { v0: DVec3, e1: DVec3, e2: DVec3 },
+    Sphere {
+        c: DVec3,
+        r: f64,
+    },
+    Disc {
+        c: DVec3,
+        n: DVec3,
+        r: f64,
+    },
+    Tri {
+        v0: DVec3,
+        e1: DVec3,
+        e2: DVec3,
+    },
+    /// Axis-aligned box.
+    Box {
+        lo: DVec3,
+        hi: DVec3,
+    },
+    /// The lateral surface of a cylinder from `base` up `h` along +y (caps are discs).
+    CylinderSide {
+        base: DVec3,
+        r: f64,
+        h: f64,
+    },
+    /// Ellipsoid with semi-axes `radii` along x, y, z.
+    Ellipsoid {
+        c: DVec3,
+        radii: DVec3,
+    },
+    /// Torus in the xz plane around +y through `c`.
+    Torus {
+        c: DVec3,
+        major: f64,
+        minor: f64,
+    },
 }
 
 /// A primitive with its material index.
@@ -136,6 +173,85 @@ fn bounds(p: &Prim) -> Aabb {
                 hi: v0.max(v1).max(v2),
             }
         }
+        Prim::Box { lo, hi } => Aabb { lo, hi },
+        Prim::CylinderSide { base, r, h } => Aabb {
+            lo: base - DVec3::new(r, 0.0, r),
+            hi: base + DVec3::new(r, h, r),
+        },
+        Prim::Ellipsoid { c, radii } => Aabb {
+            lo: c - radii,
+            hi: c + radii,
+        },
+        Prim::Torus { c, major, minor } => {
+            let e = DVec3::new(major + minor, minor, major + minor);
+            Aabb {
+                lo: c - e,
+                hi: c + e,
+            }
+        }
+    }
+}
+
+/// World (x, y, z) → the object space of a routine around z: (x, z, y). Its own inverse.
+#[inline]
+fn swap_yz(v: DVec3) -> [f64; 3] {
+    [v.x, v.z, v.y]
+}
+
+/// A unit normal from a gradient, or `None` if it is zero or not finite.
+#[inline]
+fn unit(g: DVec3) -> Option<DVec3> {
+    let n = g.normalize_or_zero();
+    (n != DVec3::ZERO).then_some(n)
+}
+
+/// The outward normal of the box face nearest to `p` (relative to each axis' extent).
+fn box_normal(p: DVec3, lo: DVec3, hi: DVec3) -> DVec3 {
+    let ext = hi - lo;
+    let (mut best, mut n) = (f64::INFINITY, DVec3::X);
+    for k in 0..3 {
+        for (face, sign) in [(lo[k], -1.0), (hi[k], 1.0)] {
+            let gap = (p[k] - face).abs() / ext[k];
+            if gap < best {
+                best = gap;
+                n = DVec3::ZERO;
+                n[k] = sign;
+            }
+        }
+    }
+    n
+}
+
+/// The robust routines' hits, in world space: `t` and the unit outward normal.
+#[inline]
+fn solid_hit(p: &Prim, o: DVec3, d: DVec3) -> Option<(f64, DVec3)> {
+    use crate::routines::{aabb, quadric, torus};
+    match *p {
+        Prim::Box { lo, hi } => {
+            let t = aabb::box_robust(o.to_array(), d.to_array(), lo.to_array(), hi.to_array())?;
+            Some((t, box_normal(o + t * d, lo, hi)))
+        }
+        Prim::CylinderSide { base, r, h } => {
+            let (ob, db) = (swap_yz(o - base), swap_yz(d));
+            let t = quadric::cylinder_robust(ob, db, r, h)?;
+            // Radial direction of the hit point (object x, y = world x, z)
+            let q = DVec3::from_array(ob) + t * DVec3::from_array(db);
+            Some((t, unit(DVec3::new(q.x, 0.0, q.y))?))
+        }
+        Prim::Ellipsoid { c, radii } => {
+            let oc = o - c;
+            let t = quadric::ellipsoid_robust(oc.to_array(), d.to_array(), radii.to_array())?;
+            let g = quadric::ellipsoid_normal((oc + t * d).to_array(), radii.to_array());
+            Some((t, unit(DVec3::from_array(g))?))
+        }
+        Prim::Torus { c, major, minor } => {
+            let (oc, dc) = (swap_yz(o - c), swap_yz(d));
+            // The routine's own hit point is accurate near the torus even for far origins
+            let (t, q) = torus::torus_robust_hit(oc, dc, major, minor)?;
+            let g = torus::torus_normal(q, major, minor);
+            Some((t, unit(DVec3::from_array(swap_yz(DVec3::from_array(g))))?))
+        }
+        _ => None,
     }
 }
 
@@ -376,6 +492,13 @@ fn prim_hit<F: PickPrecision>(
                 return None;
             }
             Some((e2.dot(qv) * inv, e1.cross(e2).normalize()))
+        }
+        Prim::Box { .. }
+        | Prim::CylinderSide { .. }
+        | Prim::Ellipsoid { .. }
+        | Prim::Torus { .. } => {
+            counts.other_tests += 1;
+            solid_hit(p, o, d)
         }
     }
 }

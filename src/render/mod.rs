@@ -49,9 +49,12 @@ impl Effects {
         let mats = || f.shapes.iter().map(|sh| &f.materials[sh.material()]);
         let diffuse_lit =
             !f.lights.is_empty() && mats().any(|m| matches!(m, Material::Diffuse { .. }));
-        // A lone convex shape or plane cannot shadow itself: occlusion needs two shapes or a mesh
-        let occluders =
-            f.shapes.len() >= 2 || f.shapes.iter().any(|s| matches!(s, Shape::Mesh { .. }));
+        // A lone convex shape or plane cannot shadow itself: occlusion needs two shapes, a mesh
+        // or a torus (not convex)
+        let occluders = f.shapes.len() >= 2
+            || f.shapes
+                .iter()
+                .any(|s| matches!(s, Shape::Mesh { .. } | Shape::Torus { .. }));
         let shadows = diffuse_lit && occluders;
         reasons.push(match (diffuse_lit, occluders) {
             (true, true) => format!(
@@ -246,6 +249,53 @@ fn build_geometry(s: &Scene) -> (Geometry, Vec<Material>) {
                     });
                 }
             }
+            Shape::Box { min, max, .. } => objects.push(Object {
+                prim: Prim::Box {
+                    lo: v(*min),
+                    hi: v(*max),
+                },
+                material,
+            }),
+            Shape::Cylinder {
+                base,
+                radius,
+                height,
+                ..
+            } => {
+                // Lateral surface and two cap discs, normals outward
+                let b = v(*base);
+                let top = b + DVec3::Y * *height;
+                let side = Prim::CylinderSide {
+                    base: b,
+                    r: *radius,
+                    h: *height,
+                };
+                let caps =
+                    [(b, -DVec3::Y), (top, DVec3::Y)].map(|(c, n)| Prim::Disc { c, n, r: *radius });
+                for prim in std::iter::once(side).chain(caps) {
+                    objects.push(Object { prim, material });
+                }
+            }
+            Shape::Ellipsoid { center, radii, .. } => objects.push(Object {
+                prim: Prim::Ellipsoid {
+                    c: v(*center),
+                    radii: v(*radii),
+                },
+                material,
+            }),
+            Shape::Torus {
+                center,
+                major,
+                minor,
+                ..
+            } => objects.push(Object {
+                prim: Prim::Torus {
+                    c: v(*center),
+                    major: *major,
+                    minor: *minor,
+                },
+                material,
+            }),
         }
     }
     (Geometry::new(objects, planes), materials)

@@ -33,9 +33,12 @@
 //!
 //! [[shapes]]
 //! type = "sphere"       # also: disc {center, normal, radius}, plane {point, normal},
-//! center = [0.0, 1.0, 0.0]   #       mesh {file (OBJ, relative to the scene file)}
-//! radius = 1.0
-//! material = "red"
+//! center = [0.0, 1.0, 0.0]   #       mesh {file (OBJ, relative to the scene file)},
+//! radius = 1.0               #       box {min, max} (axis-aligned),
+//! material = "red"           #       cylinder {base, radius, height} (closed, along +y),
+//!                            #       ellipsoid {center, radii} (semi-axes along x, y, z),
+//!                            #       torus {center, major, minor} (in the xz plane, around +y,
+//!                            #       as POV-Ray's torus; 0 < minor < major)
 //! ```
 
 use serde::Deserialize;
@@ -154,6 +157,32 @@ pub enum Shape {
         file: String,
         material: String,
     },
+    /// Axis-aligned box, `min < max` on every axis.
+    Box {
+        min: [f64; 3],
+        max: [f64; 3],
+        material: String,
+    },
+    /// Closed cylinder: lateral surface from `base` up `height` along +y, and two cap discs.
+    Cylinder {
+        base: [f64; 3],
+        radius: f64,
+        height: f64,
+        material: String,
+    },
+    /// Ellipsoid with semi-axes `radii` along x, y, z.
+    Ellipsoid {
+        center: [f64; 3],
+        radii: [f64; 3],
+        material: String,
+    },
+    /// Ring torus in the xz plane around the +y axis through `center`.
+    Torus {
+        center: [f64; 3],
+        major: f64,
+        minor: f64,
+        material: String,
+    },
 }
 
 impl Shape {
@@ -162,9 +191,94 @@ impl Shape {
             Shape::Sphere { material, .. }
             | Shape::Disc { material, .. }
             | Shape::Plane { material, .. }
-            | Shape::Mesh { material, .. } => material,
+            | Shape::Mesh { material, .. }
+            | Shape::Box { material, .. }
+            | Shape::Cylinder { material, .. }
+            | Shape::Ellipsoid { material, .. }
+            | Shape::Torus { material, .. } => material,
         }
     }
+
+    /// A closed solid with an inside (a hidden shadow caster fits in it).
+    pub fn is_solid(&self) -> bool {
+        matches!(
+            self,
+            Shape::Sphere { .. }
+                | Shape::Box { .. }
+                | Shape::Cylinder { .. }
+                | Shape::Ellipsoid { .. }
+                | Shape::Torus { .. }
+        )
+    }
+
+    /// The first problem with the shape's values, as (field, message); `None` if it is valid.
+    /// NaN and ±inf are rejected everywhere; sizes must be positive.
+    pub fn problem(&self) -> Option<(&'static str, String)> {
+        let finite3 = |name: &'static str, v: &[f64; 3]| {
+            (!v.iter().all(|x| x.is_finite())).then(|| (name, format!("must be finite, got {v:?}")))
+        };
+        let positive = |name: &'static str, x: f64| {
+            (!(x.is_finite() && x > 0.0))
+                .then(|| (name, format!("must be a finite number > 0, got {x}")))
+        };
+        match self {
+            Shape::Box { min, max, .. } => finite3("min", min)
+                .or_else(|| finite3("max", max))
+                .or_else(|| {
+                    (0..3).find(|&k| min[k] >= max[k]).map(|k| {
+                        (
+                            "max",
+                            format!(
+                                "must exceed min on every axis, got min {min:?}, max {max:?} (axis {})",
+                                ["x", "y", "z"][k]
+                            ),
+                        )
+                    })
+                }),
+            Shape::Cylinder {
+                base,
+                radius,
+                height,
+                ..
+            } => finite3("base", base)
+                .or_else(|| positive("radius", *radius))
+                .or_else(|| positive("height", *height)),
+            Shape::Ellipsoid { center, radii, .. } => finite3("center", center)
+                .or_else(|| radii.iter().find_map(|&r| positive("radii", r))),
+            Shape::Torus {
+                center,
+                major,
+                minor,
+                ..
+            } => finite3("center", center)
+                .or_else(|| positive("major", *major))
+                .or_else(|| positive("minor", *minor))
+                .or_else(|| {
+                    (minor >= major).then(|| {
+                        (
+                            "minor",
+                            format!("must be below major ({major}) for a ring torus, got {minor}"),
+                        )
+                    })
+                }),
+            _ => None,
+        }
+    }
+}
+
+/// The line of `field = …` inside the table whose header is on line `header` (1-based), or the
+/// header's line if the field is not written there.
+fn field_line(text: &str, header: usize, field: &str) -> usize {
+    text.lines()
+        .enumerate()
+        .skip(header)
+        .take_while(|(_, l)| !l.trim_start().starts_with('['))
+        .find(|(_, l)| {
+            l.trim_start()
+                .strip_prefix(field)
+                .is_some_and(|r| r.trim_start().starts_with('='))
+        })
+        .map_or(header, |(i, _)| i + 1)
 }
 
 /// A scene-file error: file, line and field, one line.
@@ -270,6 +384,12 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
             return Err(err(
                 line,
                 format!("shapes[{i}].material: unknown material '{mat}'"),
+            ));
+        }
+        if let Some((field, message)) = shape.problem() {
+            return Err(err(
+                field_line(text, line, field),
+                format!("shapes[{i}].{field}: {message}"),
             ));
         }
         if let Shape::Mesh { file: f, .. } = shape {
