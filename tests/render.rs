@@ -732,10 +732,9 @@ fn rays_from_inside_and_degenerate_directions_never_panic() {
 /// has no audit shape of the same form (see `routine_input`) and is checked by the hit tests.
 #[test]
 fn renderer_calls_agree_with_the_exact_oracles() {
-    use rand::Rng;
     use rand::SeedableRng;
     use rayproof::audit::Precision;
-    use rayproof::render::geom::{routine_input, solid_hit};
+    use rayproof::render::geom::{routine_input, sample_rays, solid_hit};
     use rayproof::routines::{judge, shape_by_name, Metric, Truth};
     use rayproof::sphere::Judgement;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference/scenes/shapes.toml");
@@ -743,16 +742,6 @@ fn renderer_calls_agree_with_the_exact_oracles() {
     let (geo, _) = rayproof::render::build_geometry(&s);
     let cam = glam::DVec3::from_array(s.file.camera.position);
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(6);
-    let unit = |rng: &mut rand_chacha::ChaCha8Rng| loop {
-        let v = glam::DVec3::new(
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-            rng.random_range(-1.0..1.0),
-        );
-        if v.length_squared() > 1e-6 && v.length_squared() <= 1.0 {
-            return v.normalize();
-        }
-    };
     let mut judged = 0;
     for obj in &geo.objects {
         let prim = &obj.prim;
@@ -764,15 +753,14 @@ fn renderer_calls_agree_with_the_exact_oracles() {
         let mut worst_line = String::new();
         let mut judge_ray = |o: glam::DVec3, d: glam::DVec3| {
             let (_, input) = routine_input(prim, o, d).unwrap();
-            let got = solid_hit(prim, o, d);
-            let answer = match got {
+            let answer = match solid_hit(prim, o, d) {
                 Some((t, _)) => rayproof::routines::Answer::hit(vec![t]),
                 None => rayproof::routines::Answer::miss(),
             };
             let truth = shape.oracle(&input, Precision::F64);
             if matches!(&truth, Truth::Answer(e) if e.ill_posed) {
                 ill += 1;
-                return got;
+                return;
             }
             match judge(&truth, &answer, Metric::Ulps, Precision::F64) {
                 Judgement::Ok { ulps } => {
@@ -791,37 +779,9 @@ fn renderer_calls_agree_with_the_exact_oracles() {
                     rayproof::routines::probe_line(shape, Precision::F64, &input)
                 )),
             }
-            got
         };
-        let (lo, hi) = match *prim {
-            rayproof::render::geom::Prim::Box { lo, hi } => (lo, hi),
-            rayproof::render::geom::Prim::CylinderSide { base, r, h } => (
-                base - glam::DVec3::new(r, 0.0, r),
-                base + glam::DVec3::new(r, h, r),
-            ),
-            rayproof::render::geom::Prim::Torus { c, major, minor } => {
-                let e = glam::DVec3::new(major + minor, minor, major + minor);
-                (c - e, c + e)
-            }
-            _ => unreachable!("only routine primitives have an input"),
-        };
-        for _ in 0..60 {
-            let f = glam::DVec3::new(
-                rng.random_range(-0.1..1.1),
-                rng.random_range(-0.1..1.1),
-                rng.random_range(-0.1..1.1),
-            );
-            let d = (lo + (hi - lo) * f - cam).normalize();
-            if let Some((t, n)) = judge_ray(cam, d) {
-                // Secondary rays from the hit, offset as the renderer's `auto` rule does
-                let p = cam + t * d;
-                let eps = 16.0 * f64::EPSILON * p.abs().max_element().max(1.0);
-                for _ in 0..3 {
-                    let w = unit(&mut rng);
-                    let side = if w.dot(n) >= 0.0 { n } else { -n };
-                    judge_ray(p + side * eps, w);
-                }
-            }
+        for (o, d) in sample_rays(prim, cam, 60, &mut rng) {
+            judge_ray(o, d);
         }
         println!(
             "{name}: {ok} right (max {max_ulps} ulps), {} wrong, {ill} ill-posed; worst: {worst_line}",

@@ -192,6 +192,49 @@ fn bounds(p: &Prim) -> Aabb {
     }
 }
 
+/// Rays a renderer asks about a routine primitive `p` ([`solid_hit`]): `n` camera rays from `cam` towards uniform points of its
+/// bounds (padded by 10 % on each side), and for each hit three secondary rays spawned from the
+/// hit point, offset along the normal by the renderer's `auto` rule (16 ulps × max(1, |p|∞)),
+/// in uniform random directions on the side they leave on. Deterministic for a given `rng`.
+pub fn sample_rays(
+    p: &Prim,
+    cam: DVec3,
+    n: usize,
+    rng: &mut rand_chacha::ChaCha8Rng,
+) -> Vec<(DVec3, DVec3)> {
+    use rand::Rng;
+    let b = bounds(p);
+    let uniform = |rng: &mut rand_chacha::ChaCha8Rng, lo: f64, hi: f64| {
+        DVec3::new(
+            rng.random_range(lo..hi),
+            rng.random_range(lo..hi),
+            rng.random_range(lo..hi),
+        )
+    };
+    let mut rays = vec![];
+    for _ in 0..n {
+        let d = (b.lo + (b.hi - b.lo) * uniform(rng, -0.1, 1.1) - cam).normalize();
+        rays.push((cam, d));
+        let Some((t, nrm)) = solid_hit(p, cam, d) else {
+            continue;
+        };
+        let hit = cam + t * d;
+        let eps = 16.0 * f64::EPSILON * hit.abs().max_element().max(1.0);
+        for _ in 0..3 {
+            // A uniform direction: rejection from the cube
+            let w = loop {
+                let v = uniform(rng, -1.0, 1.0);
+                if v.length_squared() > 1e-6 && v.length_squared() <= 1.0 {
+                    break v.normalize();
+                }
+            };
+            let side = if w.dot(nrm) >= 0.0 { nrm } else { -nrm };
+            rays.push((hit + side * eps, w));
+        }
+    }
+    rays
+}
+
 /// World (x, y, z) → the object space of a routine around z: (x, z, y). Its own inverse.
 #[inline]
 fn swap_yz(v: DVec3) -> [f64; 3] {
