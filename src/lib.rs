@@ -24,7 +24,7 @@ pub mod newton;
 pub mod probe;
 pub mod real;
 pub mod render;
-pub mod routines;
 pub mod report;
+pub mod routines;
 pub mod sphere;
 pub mod timing;

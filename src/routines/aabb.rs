@@ -42,15 +42,13 @@ pub fn faces<F: Real>(o: V<F>, d: V<F>, lo: V<F>, hi: V<F>) -> Option<F> {
             continue;
         };
         let t = (plane - o[i]) / d[i];
-        if !(t > F::ZERO) {
-            continue;
-        }
-        // In-face check of the two other coordinates
-        let inside = (1..3).all(|k| {
-            let j = (i + k) % 3;
-            let p = o[j] + t * d[j];
-            lo[j] <= p && p <= hi[j]
-        });
+        // In-face check of the two other coordinates (NaN t fails t > 0)
+        let inside = t > F::ZERO
+            && (1..3).all(|k| {
+                let j = (i + k) % 3;
+                let p = o[j] + t * d[j];
+                lo[j] <= p && p <= hi[j]
+            });
         if inside {
             return Some(t);
         }
@@ -156,6 +154,16 @@ fn valid<F: Real>(o: V<F>, d: V<F>, lo: V<F>, hi: V<F>) -> bool {
         && finite(hi)
         && d.iter().any(|&x| x != F::ZERO)
         && (0..3).all(|i| lo[i] < hi[i])
+}
+
+/// Reintersection rows of the box's methods (issue 6 item 8; see [`super::reintersect`] for the
+/// test and how each method's error bound was chosen).
+pub fn reintersection(
+    seed: u64,
+    per_scale: u64,
+    prec: Precision,
+) -> Vec<super::offset::ReintersectRow> {
+    super::reintersect::box_rows(seed, per_scale, prec)
 }
 
 // ---- the exact oracle ----
@@ -276,7 +284,8 @@ const METHODS: &[MethodInfo] = &[
     MethodInfo {
         name: "robust_slab",
         robust: true,
-        about: "conservative slab: far distance × (1 + 2γ₃), NaN-safe comparisons (Ize 2013, pbrt-v4)",
+        about:
+            "conservative slab: far distance × (1 + 2γ₃), NaN-safe comparisons (Ize 2013, pbrt-v4)",
     },
 ];
 
@@ -471,7 +480,15 @@ fn propose(class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f64> {
             case(o, d, lo, hi, prec)
         }
         "huge" => generic(rng, if f32 { (20.0, 30.0) } else { (100.0, 250.0) }, prec),
-        "tiny" => generic(rng, if f32 { (-30.0, -20.0) } else { (-250.0, -100.0) }, prec),
+        "tiny" => generic(
+            rng,
+            if f32 {
+                (-30.0, -20.0)
+            } else {
+                (-250.0, -100.0)
+            },
+            prec,
+        ),
         "invalid" => {
             let mut v = generic(rng, SCALES, prec);
             match rng.random_range(0..4) {
@@ -485,8 +502,8 @@ fn propose(class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f64> {
                     v[9 + k] = v[6 + k];
                 }
                 _ => {
-                    for k in 3..6 {
-                        v[k] = 0.0 * sample::sign(rng);
+                    for x in &mut v[3..6] {
+                        *x = 0.0 * sample::sign(rng);
                     }
                 }
             }

@@ -156,9 +156,9 @@ fn select(names: &[String], all: &[&'static str], what: &str) -> Result<Vec<usiz
     names
         .iter()
         .map(|n| {
-            all.iter().position(|a| a == n).ok_or_else(|| {
-                format!("unknown {what} '{n}' (known: {})", all.join(", "))
-            })
+            all.iter()
+                .position(|a| a == n)
+                .ok_or_else(|| format!("unknown {what} '{n}' (known: {})", all.join(", ")))
         })
         .collect()
 }
@@ -344,7 +344,13 @@ pub fn check(shape: &dyn Shape, report: &ShapeReport) -> Vec<String> {
             continue;
         };
         let e: Expect = shape.expect(m, r.precision, c);
-        let what = format!("{} {} {} {}", report.shape, r.method, r.precision.name(), r.class);
+        let what = format!(
+            "{} {} {} {}",
+            report.shape,
+            r.method,
+            r.precision.name(),
+            r.class
+        );
         let invalid_bad = r.invalid.hit + r.invalid.nonfinite_t;
         if e.must_fail {
             if r.wrong() == 0 && r.ulps.max <= e.max_ulps as f64 && r.well_posed >= 50 {
@@ -363,7 +369,9 @@ pub fn check(shape: &dyn Shape, report: &ShapeReport) -> Vec<String> {
             ));
         }
         if e.max_wrong != u64::MAX && invalid_bad > 0 {
-            out.push(format!("{what}: {invalid_bad} invalid inputs answered with a hit"));
+            out.push(format!(
+                "{what}: {invalid_bad} invalid inputs answered with a hit"
+            ));
         }
         if e.max_ulps != u64::MAX && r.ulps.max > e.max_ulps as f64 {
             out.push(format!(
@@ -383,8 +391,19 @@ pub fn table(report: &ShapeReport) -> String {
     );
     s += &format!(
         "{:<14} {:<4} {:<16} {:>6} {:>6} {:>6} {:>6} {:>6} {:>6} {:>9} {:>10} {:>8} {:>7}\n",
-        "method", "prec", "class", "well", "ill", "f.hit", "f.miss", "w.root", "nonfin", "wrong%",
-        "max ulps", "p99", "invalid"
+        "method",
+        "prec",
+        "class",
+        "well",
+        "ill",
+        "f.hit",
+        "f.miss",
+        "w.root",
+        "nonfin",
+        "wrong%",
+        "max ulps",
+        "p99",
+        "invalid"
     );
     for r in &report.rows {
         s += &format!(
@@ -526,7 +545,11 @@ pub fn probe(shape: &dyn Shape, prec: Precision, input: &[f64], as_json: bool) -
     }
     s += &format!(
         "oracle: {verdict}{}  values ({}): {}\n",
-        if ill { " (ill-posed: changes under one-ulp moves)" } else { "" },
+        if ill {
+            " (ill-posed: changes under one-ulp moves)"
+        } else {
+            ""
+        },
         shape.values().join(", "),
         values.join(" ")
     );
@@ -538,7 +561,11 @@ pub fn probe(shape: &dyn Shape, prec: Precision, input: &[f64], as_json: bool) -
             r["count"],
             r["values"]
                 .as_array()
-                .map(|v| v.iter().filter_map(|x| x.as_str()).collect::<Vec<_>>().join(" "))
+                .map(|v| v
+                    .iter()
+                    .filter_map(|x| x.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" "))
                 .unwrap_or_default(),
             r["ulps"]
                 .as_u64()

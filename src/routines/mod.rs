@@ -197,8 +197,7 @@ pub fn judge(truth: &Truth, a: &Answer, metric: Metric, prec: Precision) -> Judg
     }
     // A first value nearer another candidate than the right one is a wrong root
     let (got, right) = (a.values[0], e.values[0]);
-    if e
-        .others
+    if e.others
         .iter()
         .any(|&o| o != right && (got - o).abs() < (got - right).abs())
     {
@@ -250,7 +249,11 @@ pub fn hex_text(x: f64) -> String {
 }
 
 /// Parses probe values (decimal or hex, each rounded once to the precision).
-pub fn parse_values(shape: &dyn Shape, prec: Precision, text: &[String]) -> Result<Vec<f64>, String> {
+pub fn parse_values(
+    shape: &dyn Shape,
+    prec: Precision,
+    text: &[String],
+) -> Result<Vec<f64>, String> {
     if text.len() != shape.args().len() {
         return Err(format!(
             "probe {} takes {} values ({}), got {}",

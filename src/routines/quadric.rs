@@ -88,7 +88,9 @@ fn exp_of<F: Real>(x: F, s: F, div: bool) -> i32 {
 /// underflows; [`sphere_roots`] then runs in the wide type.
 fn wide_roots<F: Real>(o: V<F>, d: V<F>, s: V<F>, r: F, div: bool) -> Option<(F::Wide, F::Wide)> {
     // Power-of-two prescale
-    let ep = (0..3).map(|i| exp_of(o[i], s[i], div)).fold(ilogb(r.to_f64()), i32::max);
+    let ep = (0..3)
+        .map(|i| exp_of(o[i], s[i], div))
+        .fold(ilogb(r.to_f64()), i32::max);
     let ed = (0..3).map(|i| exp_of(d[i], s[i], div)).max()?;
     if ed == i32::MIN {
         return None;
@@ -285,6 +287,16 @@ pub fn normal_robust<F: Real>(o: V<F>, d: V<F>, r: F, m: F, n: F) -> Option<V<F>
     Some(g.map(|x| F::narrow(x / len)))
 }
 
+/// Reintersection rows of the ellipsoid's and the cylinder's methods (issue 6 item 8; see
+/// [`super::reintersect`] for the test and the reprojection that bounds the error).
+pub fn reintersection(
+    seed: u64,
+    per_scale: u64,
+    prec: Precision,
+) -> Vec<super::offset::ReintersectRow> {
+    super::reintersect::quadric_rows(seed, per_scale, prec)
+}
+
 // ---- exact arithmetic ----
 
 /// A closed MPFR interval with outward rounding.
@@ -460,7 +472,11 @@ impl Quad {
         let (a, c) = (Iv::q(&self.a, bits), Iv::q(&self.c, bits));
         // q = −(B' + sign(B')√Δ); q/A and C/q
         let neg_b = self.bh.cmp0() != Ordering::Less;
-        let q = if neg_b { b.add(&s).neg() } else { b.neg().add(&s) };
+        let q = if neg_b {
+            b.add(&s).neg()
+        } else {
+            b.neg().add(&s)
+        };
         let (qa, cq) = (q.div(&a), c.div(&q));
         match (neg_b, k) {
             (true, 0) | (false, 1) => qa,
@@ -731,7 +747,8 @@ const CYLINDER_METHODS: &[MethodInfo] = &[
     MethodInfo {
         name: "perp",
         robust: false,
-        about: "pbrt's 2-D perpendicular discriminant and stable pair on (x, my), working precision",
+        about:
+            "pbrt's 2-D perpendicular discriminant and stable pair on (x, my), working precision",
     },
     MethodInfo {
         name: "robust",
@@ -1003,14 +1020,20 @@ fn propose_ellipsoid(class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<
             } else {
                 0.0
             };
-            let o = sub(add(p, mul(g, off)), mul(t, ext * rng.random_range(0.5..4.0)));
+            let o = sub(
+                add(p, mul(g, off)),
+                mul(t, ext * rng.random_range(0.5..4.0)),
+            );
             (o, t)
         }
         "behind" => {
             let q = e.at(ball(rng));
             let u = unit(rng);
             let o = add(q, mul(u, ext * (2.0 + lu(rng, -1.0, 1.0))));
-            (o, normalize(add(u, mul(perp(rng, u), rng.random_range(0.0..0.5)))))
+            (
+                o,
+                normalize(add(u, mul(perp(rng, u), rng.random_range(0.0..0.5)))),
+            )
         }
         "far_small" => {
             let o = mul(unit(rng), ext / lu(rng, -6.0, -2.0));
@@ -1062,7 +1085,12 @@ fn propose_cylinder(class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f
                     *x = lu(rng, -8.0, -3.0) * sample::sign(rng);
                 }
             }
-            let o = at(r, rng.random_range(0.5..1.5), th, h * rng.random_range(-1.0..2.0));
+            let o = at(
+                r,
+                rng.random_range(0.5..1.5),
+                th,
+                h * rng.random_range(-1.0..2.0),
+            );
             (o, normalize(d))
         }
         "grazing" => {
@@ -1071,7 +1099,10 @@ fn propose_cylinder(class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f
             let tan = [-g[1], g[0], 0.0];
             let d = normalize(add(tan, [0.0, 0.0, rng.random_range(-0.5..0.5)]));
             let off = ext * lu(rng, -6.0, -3.0) * sample::sign(rng);
-            let o = sub(add(p, mul(g, off)), mul(d, ext * rng.random_range(0.5..4.0)));
+            let o = sub(
+                add(p, mul(g, off)),
+                mul(d, ext * rng.random_range(0.5..4.0)),
+            );
             (o, d)
         }
         "cap_edge" => {
@@ -1087,15 +1118,28 @@ fn propose_cylinder(class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f
             (o, normalize(sub(q, o)))
         }
         "inside" => (
-            at(r, rng.random_range(0.0..0.999), th, h * rng.random_range(0.001..0.999)),
+            at(
+                r,
+                rng.random_range(0.0..0.999),
+                th,
+                h * rng.random_range(0.001..0.999),
+            ),
             unit(rng),
         ),
         "far_small" => {
             r = lu(rng, -3.0, 2.0);
             h = r * lu(rng, -0.3, 1.0);
             let ext = r * m.recip().max(1.0);
-            let o = add([0.0, 0.0, h / 2.0], mul(unit(rng), ext / lu(rng, -6.0, -2.0)));
-            let target = at(r, rng.random_range(0.0..1.2), th, h * rng.random_range(-0.2..1.2));
+            let o = add(
+                [0.0, 0.0, h / 2.0],
+                mul(unit(rng), ext / lu(rng, -6.0, -2.0)),
+            );
+            let target = at(
+                r,
+                rng.random_range(0.0..1.2),
+                th,
+                h * rng.random_range(-0.2..1.2),
+            );
             (o, normalize(sub(target, o)))
         }
         "huge" => {
@@ -1109,7 +1153,12 @@ fn propose_cylinder(class: &str, prec: Precision, rng: &mut ChaCha8Rng) -> Vec<f
             // generic, invalid
             let o = add([0.0, 0.0, h / 2.0], mul(cube(rng), 3.0 * ext.max(h)));
             let d = if rng.random::<bool>() {
-                let target = at(r, rng.random_range(0.0..1.2), th, h * rng.random_range(-0.2..1.2));
+                let target = at(
+                    r,
+                    rng.random_range(0.0..1.2),
+                    th,
+                    h * rng.random_range(-0.2..1.2),
+                );
                 normalize(sub(target, o))
             } else {
                 unit(rng)
