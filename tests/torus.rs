@@ -620,5 +620,6 @@ fn encloser_narrows_to_the_root() {
     e.narrow(100);
     let w = Rational::from(&e.hi - &e.lo);
     assert!(w <= Rational::from((1, 1u64 << 50)) / Rational::from(1u64 << 49));
-    assert!(e.lo.to_f64() <= 2f64.sqrt() && 2f64.sqrt() <= e.hi.to_f64());
+    let two = Rational::from(2);
+    assert!(Rational::from(e.lo.square_ref()) < two && two < Rational::from(e.hi.square_ref()));
 }
