@@ -86,7 +86,7 @@ pub(super) fn slab<F: Real>(o: V<F>, d: V<F>, h: V<F>) -> Option<(F, F)> {
     for i in 0..3 {
         if d[i] == F::ZERO {
             // Parallel to the slab: inside it or a miss
-            if !(o[i].abs() <= h[i]) {
+            if o[i].abs() > h[i] || o[i].is_nan() {
                 return None;
             }
             continue;
@@ -181,7 +181,7 @@ pub(super) fn sdf<F: Real>(p: V<F>, r1: F, r2: F) -> F {
 /// ring torus) it returns `(0, 0, z)`.
 pub fn torus_normal<F: Real>(p: V<F>, r1: F, _r2: F) -> V<F> {
     let rho = (p[0] * p[0] + p[1] * p[1]).sqrt();
-    if !(rho > F::ZERO) {
+    if rho.partial_cmp(&F::ZERO) != Some(std::cmp::Ordering::Greater) {
         return [F::ZERO, F::ZERO, p[2]];
     }
     let s = (rho - r1) / rho;
@@ -284,13 +284,13 @@ fn refine<F: Real>(o: V<F>, d: V<F>, r1: F, r2: F, mut t: F, max_step: F) -> (F,
     for _ in 0..REFINE_STEPS {
         let slope = dot(normalize(torus_normal(p, r1, r2)), d);
         let step = h / slope;
-        if !(step.abs() <= max_step) {
+        if step.abs() > max_step || step.is_nan() {
             break;
         }
         let tn = t - step;
         let pn = point_at(o, d, tn);
         let hn = sdf(pn, r1, r2);
-        if !(hn.abs() < h.abs()) {
+        if hn.abs() >= h.abs() || hn.is_nan() {
             break;
         }
         (t, p, h) = (tn, pn, hn);
