@@ -97,7 +97,10 @@ pub fn normalised<F: Real>(c: &[F]) -> Vec<F> {
         return c.to_vec();
     }
     let e = exponent(m);
-    let (s1, s2) = (F::from_f64(ldexp(1.0, -e / 2)), F::from_f64(ldexp(1.0, -e + e / 2)));
+    let (s1, s2) = (
+        F::from_f64(ldexp(1.0, -e / 2)),
+        F::from_f64(ldexp(1.0, -e + e / 2)),
+    );
     c.iter().map(|&x| x * s1 * s2).collect()
 }
 
@@ -296,7 +299,11 @@ pub fn cubic_chapter<F: Real>(coef: [F; 4]) -> Vec<F> {
         let theta = acos(-q2 / (m * m * m)) / three;
         let k = lit::<F>(2.0 * std::f64::consts::PI / 3.0);
         let two_m = lit::<F>(2.0) * m;
-        vec![two_m * cos(theta), two_m * cos(theta + k), two_m * cos(theta - k)]
+        vec![
+            two_m * cos(theta),
+            two_m * cos(theta + k),
+            two_m * cos(theta - k),
+        ]
     };
     let shift = a / three;
     sort(xs.into_iter().map(|x| x - shift).collect())
@@ -310,7 +317,12 @@ pub fn cubic_chapter<F: Real>(coef: [F; 4]) -> Vec<F> {
 pub fn quartic_ferrari<F: Real>(coef: [F; 5]) -> Vec<F> {
     // Normalise
     let lead = coef[4];
-    let (a, b, cc, d) = (coef[3] / lead, coef[2] / lead, coef[1] / lead, coef[0] / lead);
+    let (a, b, cc, d) = (
+        coef[3] / lead,
+        coef[2] / lead,
+        coef[1] / lead,
+        coef[0] / lead,
+    );
     // Depress with t = x − a/4
     let a2 = a * a;
     let p = b - lit::<F>(3.0) * a2 / lit::<F>(8.0);
@@ -517,11 +529,27 @@ mod tests {
         assert!(quadratic_robust([f64::NAN, 0.0, 1.0]).is_empty());
         // (x − 1)(x − 2)(x − 3) and (x − 1)(x − 2)(x − 3)(x − 4)
         let r = cubic_chapter([-6.0f64, 11.0, -6.0, 1.0]);
-        assert!(r.iter().zip([1.0, 2.0, 3.0]).all(|(a, b)| (a - b).abs() < 1e-12), "{r:?}");
+        assert!(
+            r.iter()
+                .zip([1.0, 2.0, 3.0])
+                .all(|(a, b)| (a - b).abs() < 1e-12),
+            "{r:?}"
+        );
         let r = quartic_ferrari([24.0f64, -50.0, 35.0, -10.0, 1.0]);
-        assert!(r.iter().zip([1.0, 2.0, 3.0, 4.0]).all(|(a, b)| (a - b).abs() < 1e-9), "{r:?}");
-        assert_eq!(poly_roots_robust(&[24.0f64, -50.0, 35.0, -10.0, 1.0]), vec![1.0, 2.0, 3.0, 4.0]);
-        assert_eq!(poly_roots_robust(&[-6.0f32, 11.0, -6.0, 1.0]), vec![1.0, 2.0, 3.0]);
+        assert!(
+            r.iter()
+                .zip([1.0, 2.0, 3.0, 4.0])
+                .all(|(a, b)| (a - b).abs() < 1e-9),
+            "{r:?}"
+        );
+        assert_eq!(
+            poly_roots_robust(&[24.0f64, -50.0, 35.0, -10.0, 1.0]),
+            vec![1.0, 2.0, 3.0, 4.0]
+        );
+        assert_eq!(
+            poly_roots_robust(&[-6.0f32, 11.0, -6.0, 1.0]),
+            vec![1.0, 2.0, 3.0]
+        );
         // The quadratic closed form is within one ulp
         let r = poly_roots_robust(&[-2.0f64, 0.0, 1.0]);
         assert!(r[0].ulps_between(-2f64.sqrt()) <= 1 && r[1].ulps_between(2f64.sqrt()) <= 1);

@@ -38,7 +38,10 @@ type Poly = Vec<Rational>;
 
 /// The coefficients without their zero high-order terms.
 pub fn trim(c: &[Rational]) -> Poly {
-    let n = c.iter().rposition(|x| x.cmp0() != Ordering::Equal).map_or(0, |i| i + 1);
+    let n = c
+        .iter()
+        .rposition(|x| x.cmp0() != Ordering::Equal)
+        .map_or(0, |i| i + 1);
     c[..n].to_vec()
 }
 
@@ -203,7 +206,12 @@ pub fn real_roots(c: &[Rational]) -> Vec<RealRoot> {
     // Bisect (−B, B] down to one root per interval
     let b = root_bound(&p);
     let mut out = vec![];
-    let mut stack = vec![(Rational::from(-&b), b.clone(), st.at(&-b.clone()), st.at(&b))];
+    let mut stack = vec![(
+        Rational::from(-&b),
+        b.clone(),
+        st.at(&-b.clone()),
+        st.at(&b),
+    )];
     while let Some((lo, hi, vlo, vhi)) = stack.pop() {
         match vlo - vhi {
             0 => {}
@@ -269,7 +277,8 @@ fn from_ordinal(o: i64, prec: Precision) -> f64 {
 /// The rounding boundary between adjacent values `a < b` of the precision (their exact
 /// midpoint; beyond the largest finite value, where rounding to nearest overflows).
 fn boundary(a: f64, b: f64, prec: Precision) -> Rational {
-    let top = |max: f64, half_ulp: i32| q(max) + Rational::from(Integer::from(1) << half_ulp as u32);
+    let top =
+        |max: f64, half_ulp: i32| q(max) + Rational::from(Integer::from(1) << half_ulp as u32);
     let half_ulp = match prec {
         Precision::F32 => 103,
         Precision::F64 => 970,
@@ -349,13 +358,19 @@ mod tests {
         let p = poly(&[-2.0, 5.0, -4.0, 1.0]);
         let r = real_roots(&p);
         assert_eq!(r.len(), 2);
-        assert_eq!(r.iter().map(|r| r.multiplicity).collect::<Vec<_>>(), vec![2, 1]);
+        assert_eq!(
+            r.iter().map(|r| r.multiplicity).collect::<Vec<_>>(),
+            vec![2, 1]
+        );
         assert_eq!(rounded_roots(&p, Precision::F64), vec![1.0, 2.0]);
         assert_eq!(count_distinct(&p), 2);
         // (x − 3)³ x
         let p = poly(&[0.0, -27.0, 27.0, -9.0, 1.0]);
         let r = real_roots(&p);
-        assert_eq!(r.iter().map(|r| r.multiplicity).collect::<Vec<_>>(), vec![1, 3]);
+        assert_eq!(
+            r.iter().map(|r| r.multiplicity).collect::<Vec<_>>(),
+            vec![1, 3]
+        );
         assert_eq!(rounded_roots(&p, Precision::F32), vec![0.0, 3.0]);
     }
 
@@ -384,7 +399,11 @@ mod tests {
         assert_eq!(rounded_roots(&p, Precision::F64), vec![-1e30, 1e-20, 1e20]);
         assert_eq!(
             rounded_roots(&p, Precision::F32),
-            vec![(-1e30f64) as f32 as f64, 1e-20f64 as f32 as f64, 1e20f64 as f32 as f64]
+            vec![
+                (-1e30f64) as f32 as f64,
+                1e-20f64 as f32 as f64,
+                1e20f64 as f32 as f64
+            ]
         );
     }
 

@@ -116,15 +116,24 @@ fn generic(rng: &mut ChaCha8Rng, prec: Precision, r1: f64, r2: f64, k: f64) -> V
 /// normal by `±r2·2^−s`, `s ∈ [4, p − 6]` (p the significand bits): two close roots or none.
 fn grazing(rng: &mut ChaCha8Rng, prec: Precision) -> Vec<f64> {
     let (r1, r2) = radii(rng, 0.2, 0.8);
-    let (p, n, t1, t2) = surface_frame(r1, r2, rng.random_range(0.0..TAU), rng.random_range(0.0..TAU));
+    let (p, n, t1, t2) = surface_frame(
+        r1,
+        r2,
+        rng.random_range(0.0..TAU),
+        rng.random_range(0.0..TAU),
+    );
     let a = rng.random_range(0.0..TAU);
     let w = add(scale(t1, a.cos()), scale(t2, a.sin()));
     let bits = match prec {
         Precision::F32 => 24.0,
         Precision::F64 => 53.0,
     };
-    let h = r2 * (-rng.random_range(4.0..bits - 6.0f64)).exp2() * if rng.random() { 1.0 } else { -1.0 };
-    let o = sub(add(p, scale(n, h)), scale(w, r1 * rng.random_range(1.0..4.0)));
+    let h =
+        r2 * (-rng.random_range(4.0..bits - 6.0f64)).exp2() * if rng.random() { 1.0 } else { -1.0 };
+    let o = sub(
+        add(p, scale(n, h)),
+        scale(w, r1 * rng.random_range(1.0..4.0)),
+    );
     pack(o, w, r1, r2, prec)
 }
 
@@ -140,7 +149,10 @@ fn hole(rng: &mut ChaCha8Rng, prec: Precision) -> Vec<f64> {
     let inner = r1 - r2;
     let j = 0.5 * inner;
     let o = [rng.random_range(-j..j), rng.random_range(-j..j), z0];
-    let (rho, th) = (inner * rng.random_range(0.0..1.1), rng.random_range(0.0..TAU));
+    let (rho, th) = (
+        inner * rng.random_range(0.0..1.1),
+        rng.random_range(0.0..TAU),
+    );
     aimed(o, [rho * th.cos(), rho * th.sin(), 0.0], r1, r2, prec)
 }
 
@@ -149,7 +161,12 @@ fn inside_tube(rng: &mut ChaCha8Rng, prec: Precision) -> Vec<f64> {
     let (r1, r2) = radii(rng, 0.1, 0.9);
     let depth = r2 * rng.random_range(0.0..0.95);
     // A point of the torus with minor radius `depth` is that far from the centre circle
-    let (o, ..) = surface_frame(r1, depth, rng.random_range(0.0..TAU), rng.random_range(0.0..TAU));
+    let (o, ..) = surface_frame(
+        r1,
+        depth,
+        rng.random_range(0.0..TAU),
+        rng.random_range(0.0..TAU),
+    );
     pack(o, unit(rng), r1, r2, prec)
 }
 
@@ -174,7 +191,10 @@ fn thin(rng: &mut ChaCha8Rng, prec: Precision) -> Vec<f64> {
     ];
     let th = rng.random_range(0.0..TAU);
     let c = [r1 * th.cos(), r1 * th.sin(), 0.0];
-    let target = add(c, scale(unit(rng), 1.5 * r2 * rng.random_range(0.0..1.0f64).cbrt()));
+    let target = add(
+        c,
+        scale(unit(rng), 1.5 * r2 * rng.random_range(0.0..1.0f64).cbrt()),
+    );
     aimed(o, target, r1, r2, prec)
 }
 
@@ -193,7 +213,13 @@ fn invalid(rng: &mut ChaCha8Rng, prec: Precision) -> Vec<f64> {
     let i = rng.random_range(0..8);
     match rng.random_range(0..7) {
         0 => x[i] = f64::NAN,
-        1 => x[i] = if rng.random() { f64::INFINITY } else { f64::NEG_INFINITY },
+        1 => {
+            x[i] = if rng.random() {
+                f64::INFINITY
+            } else {
+                f64::NEG_INFINITY
+            }
+        }
         2 => x[7] = if rng.random() { 0.0 } else { -x[7] },
         3 => x[6] = if rng.random() { 0.0 } else { -x[6] },
         4 => x[7] = round_to(x[6] * rng.random_range(1.0..2.0), prec),

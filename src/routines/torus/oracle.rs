@@ -23,7 +23,7 @@
 use super::methods::is_valid;
 use crate::audit::Precision;
 use crate::routines::exact::{self, q, ziv, ZIV_CAP};
-use crate::routines::sturm::{self, RealRoot};
+use crate::routines::sturm::{self, eval, square_free, RealRoot};
 use crate::routines::{Expected, Truth};
 use rug::float::Round;
 use rug::{Float, Rational};
@@ -63,9 +63,8 @@ pub fn quartic_q(c: &ExactCase) -> [Rational; 5] {
     let four_r1s = r1s * 4u32;
     let oz2 = Rational::from(&c.o[2] * &c.o[2]);
     [
-        Rational::from(&k * &k) - Rational::from(&four_r1s * (r2s - oz2)),
-        Rational::from(&sv * &k) * 4u32
-            + Rational::from(&four_r1s * &c.o[2]) * &c.d[2] * 2u32,
+        Rational::from(&k * &k) - &four_r1s * (r2s - oz2),
+        Rational::from(&sv * &k) * 4u32 + Rational::from(&four_r1s * &c.o[2]) * &c.d[2] * 2u32,
         Rational::from(&vv * &k) * 2u32
             + Rational::from(&sv * &sv) * 4u32
             + Rational::from(&four_r1s * &c.d[2]) * &c.d[2],
@@ -74,123 +73,34 @@ pub fn quartic_q(c: &ExactCase) -> [Rational; 5] {
     ]
 }
 
-// ---- exact polynomial helpers (ascending coefficients) ----
-
-/// `p(x)` exactly.
-pub fn eval(p: &[Rational], x: &Rational) -> Rational {
-    let mut acc = Rational::new();
-    for c in p.iter().rev() {
-        acc *= x;
-        acc += c;
-    }
-    acc
-}
-
-fn trim(mut p: Vec<Rational>) -> Vec<Rational> {
-    while p.len() > 1 && p.last().is_some_and(|c| *c == 0) {
-        p.pop();
-    }
-    p
-}
-
-fn derivative(p: &[Rational]) -> Vec<Rational> {
-    trim(
-        p.iter()
-            .enumerate()
-            .skip(1)
-            .map(|(i, c)| Rational::from(c * i as u32))
-            .collect(),
-    )
-}
-
-/// Remainder of `a` divided by `b` (`b` non-zero, trimmed).
-fn rem(a: &[Rational], b: &[Rational]) -> Vec<Rational> {
-    let mut r = a.to_vec();
-    let lead = b.last().expect("non-empty divisor");
-    while r.len() >= b.len() && !(r.len() == 1 && r[0] == 0) {
-        let k = Rational::from(r.last().expect("non-empty") / lead);
-        let shift = r.len() - b.len();
-        for (i, bc) in b.iter().enumerate() {
-            r[shift + i] -= Rational::from(&k * bc);
-        }
-        r.pop();
-        r = trim(r);
-        if r.is_empty() {
-            r.push(Rational::new());
-        }
-    }
-    r
-}
-
-fn is_zero(p: &[Rational]) -> bool {
-    p.iter().all(|c| *c == 0)
-}
-
-/// Exact quotient of `a` by `b` (b divides a).
-fn quot(a: &[Rational], b: &[Rational]) -> Vec<Rational> {
-    let mut r = a.to_vec();
-    let lead = b.last().expect("non-empty divisor");
-    let mut out = vec![Rational::new(); a.len() + 1 - b.len()];
-    for shift in (0..out.len()).rev() {
-        let k = Rational::from(&r[shift + b.len() - 1] / lead);
-        for (i, bc) in b.iter().enumerate() {
-            r[shift + i] -= Rational::from(&k * bc);
-        }
-        out[shift] = k;
-    }
-    out
-}
-
-/// The square-free part `p / gcd(p, p')`: the same distinct roots, all simple, so its sign
-/// changes across each of them.
-pub fn square_free(p: &[Rational]) -> Vec<Rational> {
-    let (mut a, mut b) = (p.to_vec(), derivative(p));
-    while !is_zero(&b) {
-        let r = rem(&a, &b);
-        a = b;
-        b = r;
-    }
-    if a.len() == 1 {
-        p.to_vec()
-    } else {
-        quot(p, &a)
-    }
-}
-
 fn sign(x: &Rational) -> Ordering {
     x.cmp0()
 }
 
-/// An isolated simple root of a square-free polynomial, narrowed on demand by bisection.
+/// An isolated simple root of a square-free polynomial, narrowed on demand by bisection. As in
+/// [`sturm::real_roots`], the root is the only one in `(lo, hi]` (`lo` may be another root).
 pub struct Encloser {
     sf: Vec<Rational>,
     pub lo: Rational,
     pub hi: Rational,
-    sign_lo: Ordering,
+    /// The sign of `sf` at `hi` (non-zero unless the root is exact).
+    sign_hi: Ordering,
 }
 
 impl Encloser {
-    /// `[lo, hi]` isolates one root of `sf`.
+    /// `(lo, hi]` isolates one root of `sf`.
     pub fn new(sf: Vec<Rational>, lo: Rational, hi: Rational) -> Encloser {
+        let sign_hi = sign(&eval(&sf, &hi));
         let mut e = Encloser {
-            sign_lo: Ordering::Equal,
             sf,
             lo,
             hi,
+            sign_hi,
         };
-        e.settle();
+        if e.sign_hi == Ordering::Equal {
+            e.lo = e.hi.clone();
+        }
         e
-    }
-
-    /// Collapses the interval onto an endpoint that is the root.
-    fn settle(&mut self) {
-        if sign(&eval(&self.sf, &self.hi)) == Ordering::Equal {
-            self.lo = self.hi.clone();
-        }
-        self.sign_lo = sign(&eval(&self.sf, &self.lo));
-        if self.sign_lo == Ordering::Equal {
-            self.hi = self.lo.clone();
-        }
     }
 
     /// Whether the root is known exactly (`lo == hi`).
@@ -201,7 +111,7 @@ impl Encloser {
     /// Uses `x` as the root if it is one inside the interval (for rational roots bisection
     /// would only approach).
     pub fn try_exact(&mut self, x: &Rational) {
-        if !self.exact() && *x >= self.lo && *x <= self.hi && eval(&self.sf, x) == 0 {
+        if !self.exact() && *x > self.lo && *x <= self.hi && eval(&self.sf, x) == 0 {
             self.lo = x.clone();
             self.hi = x.clone();
         }
@@ -221,8 +131,8 @@ impl Encloser {
                     self.lo = mid.clone();
                     self.hi = mid;
                 }
-                s if s == self.sign_lo => self.lo = mid,
-                _ => self.hi = mid,
+                s if s == self.sign_hi => self.hi = mid,
+                _ => self.lo = mid,
             }
         }
     }
@@ -238,15 +148,18 @@ pub fn positive_roots(p: &[Rational]) -> (Vec<RealRoot>, Vec<Rational>) {
     (roots, sf)
 }
 
-/// Whether an isolated root is `> 0` (exact: the interval straddling 0 is decided by signs).
+/// Whether an isolated root (the only one in `(lo, hi]`) is `> 0`, decided exactly.
 fn is_positive(sf: &[Rational], r: &RealRoot) -> bool {
-    if r.lo > 0 {
+    if r.lo == r.hi {
+        return r.lo > 0;
+    }
+    if r.lo >= 0 {
         return true;
     }
     if r.hi <= 0 {
         return false;
     }
-    // lo ≤ 0 < hi: the root is 0 itself, or on the side of 0 where the sign changes
+    // lo < 0 < hi: the root is 0 itself, or on the side of 0 where the sign changes
     let at0 = sign(&eval(sf, &Rational::new()));
     if at0 == Ordering::Equal {
         return false;
@@ -287,7 +200,10 @@ pub fn truth(x: &[f64], prec: Precision) -> Truth {
     let p = quartic_q(&ExactCase::new(x));
     let (roots, _) = positive_roots(&p);
     let ill = ill_posed(x, prec, roots.len());
-    let rounded: Vec<f64> = roots.iter().map(|r| sturm::round_root(&p, r, prec)).collect();
+    let rounded: Vec<f64> = roots
+        .iter()
+        .map(|r| sturm::round_root(&p, r, prec))
+        .collect();
     Truth::Answer(Expected {
         count: (!roots.is_empty()) as u32,
         values: rounded.first().copied().into_iter().collect(),
@@ -364,8 +280,14 @@ impl Iv {
                 Float::with_val_round(bits, &self.1 * &o.1, r).0,
             ]
         };
-        let lo = prods(Round::Down).into_iter().reduce(|a, b| a.min(&b)).expect("4");
-        let hi = prods(Round::Up).into_iter().reduce(|a, b| a.max(&b)).expect("4");
+        let lo = prods(Round::Down)
+            .into_iter()
+            .reduce(|a, b| a.min(&b))
+            .expect("4");
+        let hi = prods(Round::Up)
+            .into_iter()
+            .reduce(|a, b| a.max(&b))
+            .expect("4");
         Iv(lo, hi)
     }
     /// Divided by an exact positive rational.
@@ -379,10 +301,7 @@ impl Iv {
 
 /// The exact interval of `a + t·b` for `t ∈ [lo, hi]`.
 fn affine(a: &Rational, b: &Rational, lo: &Rational, hi: &Rational) -> (Rational, Rational) {
-    let (u, v) = (
-        Rational::from(b * lo) + a,
-        Rational::from(b * hi) + a,
-    );
+    let (u, v) = (Rational::from(b * lo) + a, Rational::from(b * hi) + a);
     if u <= v {
         (u, v)
     } else {
@@ -424,7 +343,10 @@ fn normal_encl(h: &FirstHit, bits: u32) -> [Iv; 3] {
             let ratio = Float::with_val_round(bits, &c.r1 / rho, flip(r)).0;
             Float::with_val_round(bits, 1 - ratio, r).0
         };
-        Iv(one_minus(&rho_lo, Round::Down), one_minus(&rho_hi, Round::Up))
+        Iv(
+            one_minus(&rho_lo, Round::Down),
+            one_minus(&rho_hi, Round::Up),
+        )
     };
     let pi = |i: usize| Iv::of_q(&p[i].0, &p[i].1, bits);
     [

@@ -40,7 +40,7 @@ use std::f64::consts::TAU;
 pub const SPAWNED: usize = 8;
 
 /// `K` of the robust bound `γ(K)·(r1 + r2)`.
-pub const ERR_GAMMA: u32 = 16;
+pub const ERR_GAMMA: u32 = 32;
 
 /// Decades of scale, `10^k` for `k` in this range.
 const DECADES: std::ops::Range<i32> = -4..4;
@@ -59,7 +59,12 @@ fn instance(rng: &mut ChaCha8Rng, k: i32, prec: Precision) -> Instance {
     let r1 = r(10f64.powf(k as f64 + rng.random_range(0.0..1.0)));
     let r2 = r(r1 * 10f64.powf(rng.random_range(-2.0..0.9f64.log10())));
     let c = unit(rng).map(|x| r(x * 100.0 * r1 * rng.random_range(0.0..1.0)));
-    let (p, ..) = surface_frame(r1, r2, rng.random_range(0.0..TAU), rng.random_range(0.0..TAU));
+    let (p, ..) = surface_frame(
+        r1,
+        r2,
+        rng.random_range(0.0..TAU),
+        rng.random_range(0.0..TAU),
+    );
     let u = unit(rng);
     let dist = (r1 + r2) * rng.random_range(2.0..4.0);
     let o = [0, 1, 2].map(|i| r(c[i] + u[i] * dist));
