@@ -87,6 +87,9 @@ fn validate<F: Real>(b: &Batch<F>, p: Precision) {
     }
 }
 
+/// A normal at a surface point.
+type NormalFn<F> = fn([F; 3], F, F) -> [F; 3];
+
 // Time every method over the whole batch, then the two normals at the robust hits
 fn time<F: Real>(g: &mut BenchmarkGroup<'_, WallTime>, b: &Batch<F>) {
     g.throughput(Throughput::Elements(b.inputs.len() as u64));
@@ -110,7 +113,7 @@ fn time<F: Real>(g: &mut BenchmarkGroup<'_, WallTime>, b: &Batch<F>) {
         .iter()
         .filter_map(|&(o, d, r1, r2)| torus_robust_hit(o, d, r1, r2).map(|(_, p)| (p, r1, r2)))
         .collect();
-    let normals: [(&str, fn([F; 3], F, F) -> [F; 3]); 2] = [
+    let normals: [(&str, NormalFn<F>); 2] = [
         ("normal_robust", torus_normal::<F>),
         ("normal_gradient", methods::gradient::<F>),
     ];

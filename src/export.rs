@@ -8,10 +8,15 @@
 //!   term has none. Glass uses `conserve_energy`; opaque glass shadows get a hidden caster.
 //!   `max_trace_level` = our `max_depth`, `adc_bailout 0`. Sampling is done outside the file:
 //!   render at n·W × n·H without anti-aliasing and box-average n×n blocks (`rayproof downsample`).
+//!   Boxes, cylinders and tori are POV-Ray's own `box`, `cylinder` (closed) and `torus` (in its
+//!   xz plane around +y, as ours); an ellipsoid is a unit `sphere` scaled to its semi-axes.
 //! - **Mitsuba** is right-handed like rayproof, so nothing is mirrored. The sensor is
 //!   `perspective` with `fov_axis = x`, a `stratified` sampler without jitter (n² samples at the
 //!   cell centres), a `box` filter and a float32 `hdrfilm`. The integrator is `whitted`, which
-//!   `scripts/mitsuba_whitted.py` registers (built from Mitsuba's own parts).
+//!   `scripts/mitsuba_whitted.py` registers (built from Mitsuba's own parts). A box is Mitsuba's
+//!   exact `cube`, a closed cylinder its open `cylinder` plus two `disk` caps; ellipsoids and tori
+//!   have no Mitsuba shape (its `sphere` refuses non-uniform scaling) and are written as PLY
+//!   tessellations into [`mesh_dir`], at most [`TESS_TOL`] of their size off the exact surface.
 
 use crate::render::scene::{GlassShadows, Material, Scene, Shape};
 use std::f64::consts::PI;

@@ -225,3 +225,45 @@ fn shapes_scene_passes_against_povray_mitsuba_and_its_golden_render() {
         assert_eq!(status(&out, r), "PASS", "{out}");
     }
 }
+
+#[test]
+fn shapes_thresholds_catch_an_axis_mixup_in_one_ellipsoid() {
+    // Teeth: the ellipsoid's x and z semi-axes swapped (0.55, 0.45 → 0.45, 0.55), as a renderer
+    // that confused axes would draw it, fails against both external references under the
+    // scene's own rules, while the committed scene passes (the test above)
+    use rayproof::check::ThresholdFile;
+    use rayproof::imgdiff::{compare, Image, Verdict};
+    use rayproof::render::{render, scene, Overrides};
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference");
+    let path = root.join("scenes/shapes.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains("radii = [0.55, 0.9, 0.45]"));
+    let wrong = scene::parse(
+        &text.replace("radii = [0.55, 0.9, 0.45]", "radii = [0.45, 0.9, 0.55]"),
+        &path,
+    )
+    .unwrap();
+    let ov = Overrides {
+        size: Some((128, 128)),
+        grid: Some(8),
+        ..Default::default()
+    };
+    let r = render(&wrong, &ov);
+    let img = Image::rgb(
+        r.width,
+        r.height,
+        r.beauty.iter().flatten().copied().collect(),
+    );
+    let th = ThresholdFile::load(&root.join("thresholds.toml")).unwrap();
+    for reference in ["povray", "mitsuba"] {
+        let refimg = read_image(&root.join("shapes").join(format!("{reference}.exr"))).unwrap();
+        let rule = th.rule("shapes", reference).unwrap();
+        let c = compare(&refimg, &img, &rule.idiff).unwrap();
+        assert!(
+            c.verdict == Verdict::Failure || c.mean_error > rule.max_mean,
+            "{reference}: an axis mix-up passed (verdict {:?}, mean {:e})",
+            c.verdict,
+            c.mean_error
+        );
+    }
+}

@@ -192,6 +192,49 @@ fn bounds(p: &Prim) -> Aabb {
     }
 }
 
+/// Rays a renderer asks about a routine primitive `p` ([`solid_hit`]): `n` camera rays from `cam` towards uniform points of its
+/// bounds (padded by 10 % on each side), and for each hit three secondary rays spawned from the
+/// hit point, offset along the normal by the renderer's `auto` rule (16 ulps × max(1, |p|∞)),
+/// in uniform random directions on the side they leave on. Deterministic for a given `rng`.
+pub fn sample_rays(
+    p: &Prim,
+    cam: DVec3,
+    n: usize,
+    rng: &mut rand_chacha::ChaCha8Rng,
+) -> Vec<(DVec3, DVec3)> {
+    use rand::Rng;
+    let b = bounds(p);
+    let uniform = |rng: &mut rand_chacha::ChaCha8Rng, lo: f64, hi: f64| {
+        DVec3::new(
+            rng.random_range(lo..hi),
+            rng.random_range(lo..hi),
+            rng.random_range(lo..hi),
+        )
+    };
+    let mut rays = vec![];
+    for _ in 0..n {
+        let d = (b.lo + (b.hi - b.lo) * uniform(rng, -0.1, 1.1) - cam).normalize();
+        rays.push((cam, d));
+        let Some((t, nrm)) = solid_hit(p, cam, d) else {
+            continue;
+        };
+        let hit = cam + t * d;
+        let eps = 16.0 * f64::EPSILON * hit.abs().max_element().max(1.0);
+        for _ in 0..3 {
+            // A uniform direction: rejection from the cube
+            let w = loop {
+                let v = uniform(rng, -1.0, 1.0);
+                if v.length_squared() > 1e-6 && v.length_squared() <= 1.0 {
+                    break v.normalize();
+                }
+            };
+            let side = if w.dot(nrm) >= 0.0 { nrm } else { -nrm };
+            rays.push((hit + side * eps, w));
+        }
+    }
+    rays
+}
+
 /// World (x, y, z) → the object space of a routine around z: (x, z, y). Its own inverse.
 #[inline]
 fn swap_yz(v: DVec3) -> [f64; 3] {
@@ -222,32 +265,62 @@ fn box_normal(p: DVec3, lo: DVec3, hi: DVec3) -> DVec3 {
     n
 }
 
-/// The robust routines' hits, in world space: `t` and the unit outward normal.
+/// A ray in a primitive's object space, as its robust routine receives it: translated by the
+/// centre (the cylinder's base), with y and z swapped for the cylinder and torus (routines
+/// around z); a box stays in world space.
+pub fn object_ray(p: &Prim, o: DVec3, d: DVec3) -> ([f64; 3], [f64; 3]) {
+    match *p {
+        Prim::CylinderSide { base, .. } => (swap_yz(o - base), swap_yz(d)),
+        Prim::Torus { c, .. } => (swap_yz(o - c), swap_yz(d)),
+        Prim::Ellipsoid { c, .. } => ((o - c).to_array(), d.to_array()),
+        _ => (o.to_array(), d.to_array()),
+    }
+}
+
+/// The input of the audit shape (`crate::routines::shape_by_name`) that asks exactly what
+/// [`solid_hit`] asks its routine, for replay (`rayproof probe`) and the exact oracle. `None`
+/// for the ellipsoid, whose routine takes semi-axes while the audit's shape is
+/// x² + m²y² + n²z² = r² (1/m = b/a is not exact in general), and for non-routine primitives.
+pub fn routine_input(p: &Prim, o: DVec3, d: DVec3) -> Option<(&'static str, Vec<f64>)> {
+    let (ob, db) = object_ray(p, o, d);
+    let ray = ob.into_iter().chain(db);
+    match *p {
+        Prim::Box { lo, hi } => Some((
+            "box",
+            ray.chain(lo.to_array()).chain(hi.to_array()).collect(),
+        )),
+        Prim::CylinderSide { r, h, .. } => Some(("cylinder", ray.chain([r, 1.0, h]).collect())),
+        Prim::Torus { major, minor, .. } => Some(("torus", ray.chain([major, minor]).collect())),
+        _ => None,
+    }
+}
+
+/// The robust routines' hits, in world space: `t` and the unit outward normal (`None` for a
+/// miss, and for primitives that are not intersected by a routine).
 #[inline]
-fn solid_hit(p: &Prim, o: DVec3, d: DVec3) -> Option<(f64, DVec3)> {
+pub fn solid_hit(p: &Prim, o: DVec3, d: DVec3) -> Option<(f64, DVec3)> {
     use crate::routines::{aabb, quadric, torus};
+    let (ob, db) = object_ray(p, o, d);
+    let at = |t: f64| DVec3::from_array(ob) + t * DVec3::from_array(db);
     match *p {
         Prim::Box { lo, hi } => {
-            let t = aabb::box_robust(o.to_array(), d.to_array(), lo.to_array(), hi.to_array())?;
+            let t = aabb::box_robust(ob, db, lo.to_array(), hi.to_array())?;
             Some((t, box_normal(o + t * d, lo, hi)))
         }
-        Prim::CylinderSide { base, r, h } => {
-            let (ob, db) = (swap_yz(o - base), swap_yz(d));
+        Prim::CylinderSide { r, h, .. } => {
             let t = quadric::cylinder_robust(ob, db, r, h)?;
             // Radial direction of the hit point (object x, y = world x, z)
-            let q = DVec3::from_array(ob) + t * DVec3::from_array(db);
+            let q = at(t);
             Some((t, unit(DVec3::new(q.x, 0.0, q.y))?))
         }
-        Prim::Ellipsoid { c, radii } => {
-            let oc = o - c;
-            let t = quadric::ellipsoid_robust(oc.to_array(), d.to_array(), radii.to_array())?;
-            let g = quadric::ellipsoid_normal((oc + t * d).to_array(), radii.to_array());
+        Prim::Ellipsoid { radii, .. } => {
+            let t = quadric::ellipsoid_robust(ob, db, radii.to_array())?;
+            let g = quadric::ellipsoid_normal(at(t).to_array(), radii.to_array());
             Some((t, unit(DVec3::from_array(g))?))
         }
-        Prim::Torus { c, major, minor } => {
-            let (oc, dc) = (swap_yz(o - c), swap_yz(d));
+        Prim::Torus { major, minor, .. } => {
             // The routine's own hit point is accurate near the torus even for far origins
-            let (t, q) = torus::torus_robust_hit(oc, dc, major, minor)?;
+            let (t, q) = torus::torus_robust_hit(ob, db, major, minor)?;
             let g = torus::torus_normal(q, major, minor);
             Some((t, unit(DVec3::from_array(swap_yz(DVec3::from_array(g))))?))
         }

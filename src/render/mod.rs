@@ -202,7 +202,7 @@ struct Ctx<'a> {
 }
 
 /// Builds the geometry list from the scene (materials by index).
-fn build_geometry(s: &Scene) -> (Geometry, Vec<Material>) {
+pub fn build_geometry(s: &Scene) -> (Geometry, Vec<Material>) {
     let names: Vec<&String> = s.file.materials.keys().collect();
     let materials = s.file.materials.values().cloned().collect();
     let mi = |n: &String| names.iter().position(|k| *k == n).unwrap_or(0);

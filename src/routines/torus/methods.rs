@@ -86,7 +86,7 @@ pub(super) fn slab<F: Real>(o: V<F>, d: V<F>, h: V<F>) -> Option<(F, F)> {
     for i in 0..3 {
         if d[i] == F::ZERO {
             // Parallel to the slab: inside it or a miss
-            if !(o[i].abs() <= h[i]) {
+            if o[i].abs() > h[i] || o[i].is_nan() {
                 return None;
             }
             continue;
@@ -181,7 +181,7 @@ pub(super) fn sdf<F: Real>(p: V<F>, r1: F, r2: F) -> F {
 /// ring torus) it returns `(0, 0, z)`.
 pub fn torus_normal<F: Real>(p: V<F>, r1: F, _r2: F) -> V<F> {
     let rho = (p[0] * p[0] + p[1] * p[1]).sqrt();
-    if !(rho > F::ZERO) {
+    if rho.partial_cmp(&F::ZERO) != Some(std::cmp::Ordering::Greater) {
         return [F::ZERO, F::ZERO, p[2]];
     }
     let s = (rho - r1) / rho;
@@ -211,13 +211,17 @@ pub fn torus_robust<F: Real>(o: V<F>, d: V<F>, r1: F, r2: F) -> Option<F> {
 
 /// **Robust** hit: `t` and the hit point, computed near the torus.
 ///
-/// 1. Reject invalid input ([`is_valid`]) and rays that miss the bounding box, padded by a few
-///    ulps so that rounding cannot clip a real hit.
+/// 0. Reject invalid input ([`is_valid`]); scale the direction by a power of two to unit size
+///    (exact, and `t` is scaled back), so that `(d·d)²` cannot overflow or underflow.
+/// 1. Reject rays that miss the bounding box, padded by a few ulps so that rounding cannot clip
+///    a real hit.
 /// 2. Shift the origin to the box entry (Mitsuba's plane shift, applied to the torus):
 ///    `o' = o + t_s·d` with one rounding per component (fused multiply–add), `t_s = max(t_in, 0)`.
 ///    A rounded `t_s` only slides `o'` along the ray, and `|o'| ≲ 1.8(r1 + r2)`, so the quartic's
 ///    coefficients no longer carry the `|o|⁴`-sized cancellation of a far origin, and `o'` is
-///    off the true ray by half an ulp of `r1 + r2`, not of `|o|`.
+///    off the true ray by half an ulp of `r1 + r2`, not of `|o|`. Then scale positions by a
+///    power of two to `r1 ≈ 1` (exact), so no fourth power of a tiny or huge torus leaves the
+///    format's range.
 /// 3. Solve the shifted quartic with the robust solver ([`poly::poly_roots_robust`]).
 /// 4. Refine each root `t'` (ascending) by Newton on the **signed distance** ([`sdf`]) at
 ///    `p = o' + t'·d` (fused): the distance has a unit gradient and none of the cancellation
@@ -231,29 +235,45 @@ pub fn torus_robust_hit<F: Real>(o: V<F>, d: V<F>, r1: F, r2: F) -> Option<(F, V
     if !is_valid(o, d, r1, r2) {
         return None;
     }
+    // (0) Direction scaled by a power of two to unit size: t = u·sd
+    let sd = pow2_scale(
+        d.iter()
+            .fold(F::ZERO, |m, x| if x.abs() > m { x.abs() } else { m }),
+    );
+    let d = d.map(|x| x * sd);
     // (1) Padded bounding box
     let pad = F::ONE + gamma::<F>(4);
     let half = bbox(r1, r2).map(|h| h * pad);
-    let (t_in, t_out) = slab(o, d, half)?;
+    let (u_in, u_out) = slab(o, d, half)?;
     let g3 = two::<F>() * gamma::<F>(3);
-    let t_out = t_out * (F::ONE + g3);
-    // (2) Origin shifted to the box entry
-    let t_s = if t_in > F::ZERO {
-        t_in * (F::ONE - g3)
+    let u_out = u_out * (F::ONE + g3);
+    // (2) Origin shifted to the box entry, then positions scaled by a power of two to r1 ≈ 1
+    let u_s = if u_in > F::ZERO {
+        u_in * (F::ONE - g3)
     } else {
         F::ZERO
     };
-    let os = point_at(o, d, t_s);
-    // (3) The robust solver on the shifted quartic
-    let roots = poly::poly_roots_robust(&quartic(os, d, r1, r2));
+    let sp = pow2_scale(r1);
+    let os = point_at(o, d, u_s).map(|x| x * sp);
+    let (r1s, r2s) = (r1 * sp, r2 * sp);
+    // (3) The robust solver on the shifted quartic, in scaled units v = u'·sp
+    let roots = poly::poly_roots_robust(&quartic(os, d, r1s, r2s));
     // (4)–(5) Refine, first positive
-    let max_step = (t_out - t_s) * F::from_f64(2f64.powi(-(F::MANT_BITS as i32) / 2));
+    let max_step = (u_out - u_s) * sp * F::from_f64(2f64.powi(-(F::MANT_BITS as i32) / 2));
     roots
         .iter()
-        .filter(|t| t.is_finite())
-        .map(|&tp| refine(os, d, r1, r2, tp, max_step))
-        .map(|(tp, p)| (t_s + tp, p))
+        .filter(|v| v.is_finite())
+        .map(|&v| refine(os, d, r1s, r2s, v, max_step))
+        .map(|(v, p)| ((u_s + v / sp) * sd, p.map(|x| x / sp)))
         .find(|(t, _)| t.is_finite() && *t > F::ZERO)
+}
+
+/// The power of two `2^−e` that brings `x > 0` to `[1, 2)` (`e` clamped to the format's
+/// normal exponents), so that multiplying by it is exact unless a smaller value underflows.
+fn pow2_scale<F: Real>(x: F) -> F {
+    let emax = if F::MANT_BITS == 24 { 126.0 } else { 1022.0 };
+    let e = x.to_f64().log2().floor().clamp(-emax, emax);
+    F::from_f64((-e).exp2())
 }
 
 /// Newton on the signed distance along the ray from `o`, from `t` (see [`torus_robust_hit`]
@@ -264,13 +284,13 @@ fn refine<F: Real>(o: V<F>, d: V<F>, r1: F, r2: F, mut t: F, max_step: F) -> (F,
     for _ in 0..REFINE_STEPS {
         let slope = dot(normalize(torus_normal(p, r1, r2)), d);
         let step = h / slope;
-        if !(step.abs() <= max_step) {
+        if step.abs() > max_step || step.is_nan() {
             break;
         }
         let tn = t - step;
         let pn = point_at(o, d, tn);
         let hn = sdf(pn, r1, r2);
-        if !(hn.abs() < h.abs()) {
+        if hn.abs() >= h.abs() || hn.is_nan() {
             break;
         }
         (t, p, h) = (tn, pn, hn);

@@ -63,7 +63,7 @@ pub fn quartic_q(c: &ExactCase) -> [Rational; 5] {
     let four_r1s = r1s * 4u32;
     let oz2 = Rational::from(&c.o[2] * &c.o[2]);
     [
-        Rational::from(&k * &k) - Rational::from(&four_r1s * (r2s - oz2)),
+        Rational::from(&k * &k) - &four_r1s * (r2s - oz2),
         Rational::from(&sv * &k) * 4u32 + Rational::from(&four_r1s * &c.o[2]) * &c.d[2] * 2u32,
         Rational::from(&vv * &k) * 2u32
             + Rational::from(&sv * &sv) * 4u32

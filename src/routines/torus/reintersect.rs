@@ -40,7 +40,7 @@ use std::f64::consts::TAU;
 pub const SPAWNED: usize = 8;
 
 /// `K` of the robust bound `γ(K)·(r1 + r2)`.
-pub const ERR_GAMMA: u32 = 16;
+pub const ERR_GAMMA: u32 = 32;
 
 /// Decades of scale, `10^k` for `k` in this range.
 const DECADES: std::ops::Range<i32> = -4..4;
