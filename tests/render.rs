@@ -789,20 +789,16 @@ fn renderer_calls_agree_with_the_exact_oracles() {
         );
         assert!(wrong.is_empty(), "{name}:\n{}", wrong.join("\n"));
         assert!(ok >= 60, "{name}: only {ok} judged");
-        // The routine's own bound: the largest its audit allows its robust method in any class
+        // The routine's own bound for its `generic` class (the renderer's rays are generic; the
+        // torus table notes that origins close to the surface, as secondary rays have, cost it
+        // the most there)
         let robust = shape.methods().iter().position(|m| m.robust).unwrap();
-        let bound = (0..shape.classes().len())
-            .map(|c| shape.expect(robust, Precision::F64, c).max_ulps)
-            .max()
+        let generic = shape
+            .classes()
+            .iter()
+            .position(|c| *c == "generic")
             .unwrap();
-        // Known gap, reported to the torus owner: secondary rays that re-cross the tube
-        // (t ≈ 0.05) reach 210 ulps (≈ 2.5e-15 absolute) where the torus audit holds the robust
-        // method to 64 ulps in every class. Lower this to `bound` when the torus is fixed.
-        let bound = if name == "torus" {
-            bound.max(256)
-        } else {
-            bound
-        };
+        let bound = shape.expect(robust, Precision::F64, generic).max_ulps;
         assert!(
             max_ulps <= bound,
             "{name}: {max_ulps} ulps > {bound}; {worst_line}"
