@@ -9,7 +9,9 @@ fn main() -> ExitCode {
     let cli = match parse() {
         Ok(cli) => cli,
         Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => {
-            print!("{e}");
+            // A closed pipe (`rayproof --help | head`) is not an error
+            use std::io::Write;
+            let _ = write!(std::io::stdout(), "{e}");
             return ExitCode::SUCCESS;
         }
         Err(e) => {
