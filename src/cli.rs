@@ -656,10 +656,19 @@ fn run_audit(a: AuditArgs) -> Result<u8> {
         let start = Instant::now();
         let r = crate::routines::robustness::run(a.seed, &shape_opts.precisions);
         say_raw!("{}", crate::routines::robustness::table(&r, false));
-        say!("reintersection and watertightness in {:.1} s", start.elapsed().as_secs_f64());
+        say!(
+            "reintersection and watertightness in {:.1} s",
+            start.elapsed().as_secs_f64()
+        );
         r
     });
-    write_audit_files(sphere.as_ref(), &shapes, robust.as_ref(), &a.json, &a.markdown)?;
+    write_audit_files(
+        sphere.as_ref(),
+        &shapes,
+        robust.as_ref(),
+        &a.json,
+        &a.markdown,
+    )?;
     // Verdict: the sphere's tolerance table and every shape's
     let mut code = sphere.as_ref().map_or(0, tolerance_verdict);
     for r in &shapes {

@@ -323,6 +323,14 @@ fn count_unstable(input: &[f64], prec: Precision, count: u32) -> bool {
 }
 
 impl Shape for Roots {
+    /// The Sturm oracle with one-ulp ill-posedness costs about 0.1 ms per cubic or quartic case.
+    fn default_cases(&self) -> u64 {
+        if self.degree > 2 {
+            5_000
+        } else {
+            20_000
+        }
+    }
     fn name(&self) -> &'static str {
         ["quadratic", "cubic", "quartic"][self.degree - 2]
     }
@@ -553,6 +561,10 @@ impl Newton {
 }
 
 impl Shape for Newton {
+    /// The Sturm oracle with one-ulp ill-posedness costs about 0.1 ms per case.
+    fn default_cases(&self) -> u64 {
+        5_000
+    }
     fn name(&self) -> &'static str {
         "newton"
     }

@@ -106,7 +106,7 @@ impl Shape for Torus {
     /// The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
     /// milliseconds per case.
     fn default_cases(&self) -> u64 {
-        2_000
+        500
     }
     fn name(&self) -> &'static str {
         "torus"
@@ -147,7 +147,7 @@ impl Shape for TorusNormal {
     /// The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
     /// milliseconds per case.
     fn default_cases(&self) -> u64 {
-        2_000
+        500
     }
     fn name(&self) -> &'static str {
         "torus_normal"
