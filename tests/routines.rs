@@ -121,7 +121,9 @@ fn probe_refuses_bad_input_with_one_line() {
     for shape in registry() {
         let name = shape.name();
         // Wrong count of values
-        assert_one_line_error(&rayproof(&["probe", name, "--", "1", "2"]), name);
+        let mut args = vec!["probe", name, "--"];
+        args.extend(std::iter::repeat_n("1", shape.args().len() + 1));
+        assert_one_line_error(&rayproof(&args), name);
         // Not a number
         let mut args = vec!["probe", name, "--"];
         args.extend(std::iter::repeat_n("zz", shape.args().len()));
