@@ -527,7 +527,8 @@ pub fn newton_plain<F: Real>(coef: &[F], x0: F) -> Option<F> {
 /// solver of [`poly_roots_robust`] (signs by compensated, rescaled evaluation).
 pub fn newton_bracketed<F: Real>(coef: &[F], lo: F, hi: F, x0: F) -> Option<F> {
     let finite = coef.iter().chain(&[lo, hi, x0]).all(|x| x.is_finite());
-    if !finite || !(lo < hi) || !(x0 >= lo && x0 <= hi) {
+    let ordered = lo < hi && x0 >= lo && x0 <= hi;
+    if !(finite && ordered) {
         return None;
     }
     let c = normalised(trimmed(coef));
