@@ -86,7 +86,12 @@ fn ldexp(mut x: f64, mut n: i32) -> f64 {
 
 /// `⌊log₂|x|⌋` of a non-zero finite value.
 fn exponent(x: f64) -> i32 {
-    x.abs().log2().floor() as i32
+    let e = ((x.to_bits() >> 52) & 0x7ff) as i32;
+    if e == 0 {
+        x.abs().log2().floor() as i32
+    } else {
+        e - 1023
+    }
 }
 
 /// The coefficients times the power of two that brings the largest magnitude near 1 (exact
@@ -140,8 +145,16 @@ fn eval_scaled<F: Real>(c: &[F], x: F) -> (F, i32) {
     if x == F::ZERO {
         return (c[0], 0);
     }
+    // Fast path: |x| ∈ [2^(−64/n), 2^(64/n)] on coefficients normalised near 1 keeps every term
+    // and every error term within 2^±130 of 1, normal in both precisions
+    let n = c.len().max(2) as i32 - 1;
+    let ex = exponent(x.to_f64());
+    let top = c.iter().fold(0f64, |m, v| m.max(v.abs().to_f64()));
+    if ex.abs() <= 64 / n && (0.5..4.0).contains(&top) {
+        return (comp_horner(c, x), 0);
+    }
     // x = m·2ᵏ, and the largest term's exponent E
-    let k = exponent(x.to_f64());
+    let k = ex;
     let big = c
         .iter()
         .enumerate()
@@ -347,44 +360,60 @@ pub fn quartic_ferrari<F: Real>(coef: [F; 5]) -> Vec<F> {
 
 // ---- Yuksel's method ----
 
-/// The most iterations of the bracket solver (a bound it does not reach: the forced bisections
-/// alone close any bracket of floats in 2 × 64 steps).
+/// A hard cap on the bracket solver's iterations (safeguarded Newton needs a handful; ordinal
+/// bisection alone closes any bracket of floats in 64).
 const MAX_ITERS: usize = 400;
 
 /// The root in `(lo, hi)`, where `p(lo)` is negative iff `lo_neg` and `p(hi)` has the other
-/// sign: Newton from `x` clamped to the bracket, bisection on the floats when a step leaves
-/// it or the bracket fails to halve, until the ends are adjacent floats.
+/// sign: Newton from `x`, safeguarded as in Numerical Recipes' `rtsafe` (a step that leaves
+/// the bracket or does not halve the step before last is replaced by bisection on the floats);
+/// once a Newton step is within two ulps, the float next to it on the root's side is tested
+/// too, so the bracket closes to two adjacent floats.
 fn solve_bracket<F: Real>(c: &[F], dc: &[F], mut lo: F, mut hi: F, lo_neg: bool, mut x: F) -> F {
     let width = |lo: F, hi: F| hi.ordinal() as i128 - lo.ordinal() as i128;
-    let mut w = width(lo, hi);
-    let mut bisect = false;
+    let (mut dx_old, mut dx_older) = (F::INFINITY, F::INFINITY);
     for _ in 0..MAX_ITERS {
-        if w <= 1 {
+        if width(lo, hi) <= 1 {
             break;
         }
-        // Newton step, or bisection
-        let mut y = x - horner(c, x) / horner(dc, x);
-        if bisect || !(y > lo && y < hi) {
+        // Newton step, or bisection when it leaves the bracket or converges too slowly
+        let step = horner(c, x) / horner(dc, x);
+        let ulp = |v: F| v.abs().next_up() - v.abs();
+        let mut y = x - step;
+        let mut newton = y > lo && y < hi && step.abs() * lit::<F>(2.0) <= dx_older;
+        if !newton && (x == lo || x == hi) && step.abs() <= lit::<F>(2.0) * ulp(x) {
+            // Newton has converged at an end: the root is next to it
+            y = if x == lo {
+                lo.next_up()
+            } else {
+                hi.next_down()
+            };
+            newton = true;
+        } else if !newton {
             y = ordinal_mid(lo, hi);
         }
+        dx_older = dx_old;
+        dx_old = if newton {
+            step.abs()
+        } else {
+            hi * lit::<F>(0.5) - lo * lit::<F>(0.5)
+        };
         // Move an end to y by the sign there
         match negative_at(c, y) {
             None => return y,
             Some(n) if n == lo_neg => lo = y,
             Some(_) => hi = y,
         }
-        // Pin the root with y's neighbour on the root's side
+        // A converged Newton step: test the neighbour on the root's side
+        let near = (y - x).abs() <= lit::<F>(2.0) * ulp(y);
         let z = if lo == y { y.next_up() } else { y.next_down() };
-        if z > lo && z < hi {
+        if newton && near && z > lo && z < hi {
             match negative_at(c, z) {
                 None => return z,
                 Some(n) if n == lo_neg => lo = z,
                 Some(_) => hi = z,
             }
         }
-        let w2 = width(lo, hi);
-        bisect = w2 > w / 2;
-        w = w2;
         x = y;
     }
     // The adjacent float with the smaller residual
@@ -498,7 +527,8 @@ pub fn newton_plain<F: Real>(coef: &[F], x0: F) -> Option<F> {
 /// solver of [`poly_roots_robust`] (signs by compensated, rescaled evaluation).
 pub fn newton_bracketed<F: Real>(coef: &[F], lo: F, hi: F, x0: F) -> Option<F> {
     let finite = coef.iter().chain(&[lo, hi, x0]).all(|x| x.is_finite());
-    if !finite || !(lo < hi) || !(x0 >= lo && x0 <= hi) {
+    let ordered = lo < hi && x0 >= lo && x0 <= hi;
+    if !(finite && ordered) {
         return None;
     }
     let c = normalised(trimmed(coef));

@@ -301,11 +301,10 @@ fn method<F: BitTrick>(func: Func, m: usize, input: &[f64]) -> Option<F> {
 /// Known failures: the bit trick on subnormal `r` (and, for `1/r`, huge `r`, where the
 /// subtraction from the magic constant wraps into NaN patterns), and any start out of bound.
 fn tolerance(func: Func, m: usize, prec: Precision, class: &str) -> Expect {
-    let normal = match (func, class) {
-        (_, MANTISSA | START_IN_BOUND | START_OUT_OF_BOUND) => true,
-        (Func::Rsqrt, HUGE) => true,
-        _ => false,
-    };
+    let normal = matches!(
+        (func, class),
+        (_, MANTISSA | START_IN_BOUND | START_OUT_OF_BOUND) | (Func::Rsqrt, HUGE)
+    );
     match (m, class) {
         (0, _) => Expect::pass(if func == Func::Rcp { 0 } else { 1 }),
         (_, INVALID) => Expect::ANY,

@@ -184,7 +184,7 @@ fn root_bound(p: &[Rational]) -> Rational {
     let lead = p[p.len() - 1].clone().abs();
     let mut m = Rational::new();
     for c in &p[..p.len() - 1] {
-        let r = Rational::from(c.clone().abs() / &lead);
+        let r = c.clone().abs() / &lead;
         if r > m {
             m = r;
         }
