@@ -163,6 +163,31 @@ fn cubic_quartic_oracle_exact_cases() {
     assert_eq!(vals, vec![-1e30, 1e-20, 1e20]);
 }
 
+/// Found by CI (quartic huge_range, case 1529 of 5000, seed 1): roots 9e-18 and 5e57 with
+/// critical points at −5e-21, −2e-36 and 1e57. Newton from 5e56 converges only linearly
+/// (factor 2/3 where bx³ dominates) and used to run out of steps, returning the bracket's
+/// lower end −2e-36 as a root (8e18 ulps off). The bracket must close by ulp bisection.
+#[test]
+fn yuksel_linear_newton_across_76_decades() {
+    let h = |s: &str| hexf_parse::parse_hexf64(s, false).unwrap();
+    let input = [
+        h("-0x1.9708cbe56659ap-99"),
+        h("0x1.8def18a1224c4p+91"),
+        h("0x1.9dd8dbd66d878p+24"),
+        h("0x1.30795138b9496p-93"),
+        h("-0x1.aea759e50fbf2p-79"),
+    ];
+    let e = expected(&roots::QUARTIC, &input, Precision::F64);
+    assert_eq!(
+        e.values,
+        vec![h("0x1.4b0fc0301677cp-57"), h("0x1.f48d84d1ad9afp+189")]
+    );
+    assert_eq!(
+        verdict(&roots::QUARTIC, 1, &input, Precision::F64),
+        Judgement::Ok { ulps: Some(0) }
+    );
+}
+
 /// Ascending coefficients of (x − r₀)(x − r₁)(x − r₂), exactly.
 fn cubic_from(r: &[rug::Rational; 3]) -> Vec<rug::Rational> {
     use rug::Rational;
