@@ -19,6 +19,7 @@ pub mod cli;
 pub mod dd;
 pub mod export;
 pub mod imgdiff;
+pub mod implicit;
 pub mod interval;
 pub mod newton;
 pub mod probe;
