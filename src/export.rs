@@ -239,7 +239,85 @@ fn pov_object(s: &Scene, i: usize, sh: &Shape, shrink: f64) -> Option<String> {
             minor,
             ..
         } => format!("torus {{ {major}, {} translate {}", minor * k, pov(*center)),
+        // A hard union of SDF parts is a CSG union (a smooth blend has no POV-Ray equivalent:
+        // see `unsupported`)
+        Shape::Sdf { parts, .. } => {
+            use crate::implicit::field::SdfPart;
+            let mut u = String::from("union {");
+            for p in parts {
+                let _ = match *p {
+                    SdfPart::Sphere { center, radius } => {
+                        write!(u, "\n  sphere {{ {}, {radius} }}", pov(center))
+                    }
+                    SdfPart::Torus {
+                        center,
+                        major,
+                        minor,
+                    } => write!(
+                        u,
+                        "\n  torus {{ {major}, {minor} translate {} }}",
+                        pov(center)
+                    ),
+                    SdfPart::Box { min, max } => {
+                        write!(u, "\n  box {{ {}, {} }}", pov(min), pov(max))
+                    }
+                };
+            }
+            u
+        }
+        // POV-Ray's blob has the same field: strength·(1 − r²/radius²)² against the threshold
+        Shape::Blob {
+            threshold,
+            components,
+            ..
+        } => {
+            let mut b = format!("blob {{ threshold {threshold}");
+            for c in components {
+                let _ = write!(
+                    b,
+                    "\n  sphere {{ {}, {}, {} }}",
+                    pov(c.center),
+                    c.radius,
+                    c.strength
+                );
+            }
+            b
+        }
+        // The MPU surface's source mesh (an approximation of the fit: compared, not matched)
+        Shape::Mpu { .. } => {
+            let mut m = String::from("mesh {");
+            for t in s.meshes.get(&i)? {
+                let _ = write!(
+                    m,
+                    "\n  triangle {{ {}, {}, {} }}",
+                    pov(t[0]),
+                    pov(t[1]),
+                    pov(t[2])
+                );
+            }
+            m
+        }
     })
+}
+
+/// Why the scene cannot be exported to `to` ("povray" or "mitsuba"), if it cannot.
+pub fn unsupported(s: &Scene, to: &str) -> Option<String> {
+    s.file
+        .shapes
+        .iter()
+        .enumerate()
+        .find_map(|(i, sh)| match (sh, to) {
+            (Shape::Sdf { blend, .. }, "povray") if *blend > 0.0 => Some(format!(
+                "shapes[{i}]: a smooth SDF union (blend {blend}) has no POV-Ray equivalent"
+            )),
+            (Shape::Mpu { mesh: None, .. }, "povray") => Some(format!(
+            "shapes[{i}]: an MPU surface exports to POV-Ray only as its source mesh; give `mesh`"
+        )),
+            (sh, "mitsuba") if sh.is_implicit() => Some(format!(
+                "shapes[{i}]: implicit surfaces have no Mitsuba 3 equivalent (export to POV-Ray)"
+            )),
+            _ => None,
+        })
 }
 
 /// A far clipping distance beyond every shape and light: twice the farthest extent, rounded up
@@ -282,6 +360,10 @@ fn far_clip(s: &Scene) -> f64 {
                 minor,
                 ..
             } => d(*center, major + minor),
+            Shape::Sdf { .. } | Shape::Blob { .. } | Shape::Mpu { .. } => {
+                let (lo, hi) = s.implicits[&i].bounds();
+                d(((lo + hi) * 0.5).to_array(), (hi - lo).length() * 0.5)
+            }
         });
     }
     10f64.powf((2.0 * far).log10().ceil())
@@ -420,6 +502,10 @@ pub fn mitsuba(s: &Scene, fr: Frame) -> String {
                     disk(b, -glam::DVec3::Y),
                     disk(top, glam::DVec3::Y)
                 )
+            }
+            // Implicit surfaces: refused by `unsupported` before export
+            Shape::Sdf { .. } | Shape::Blob { .. } | Shape::Mpu { .. } => {
+                format!("<!-- {}: implicit, no Mitsuba equivalent -->", sh.material())
             }
             // No analytic ellipsoid or torus in Mitsuba: fine tessellations as PLY files
             Shape::Ellipsoid { .. } | Shape::Torus { .. } => {

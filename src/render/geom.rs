@@ -50,6 +50,13 @@ pub enum Prim {
         major: f64,
         minor: f64,
     },
+    /// An implicit surface: sphere traced by marcher `k` of the geometry, inside `[lo, hi]`
+    /// grown by the marcher's margin.
+    Implicit {
+        k: usize,
+        lo: DVec3,
+        hi: DVec3,
+    },
 }
 
 /// A primitive with its material index.
@@ -84,6 +91,9 @@ pub struct TestCounts {
     pub sphere_hits: u64,
     pub other_tests: u64,
     pub bvh_nodes: u64,
+    /// Rays sphere traced against an implicit shape, and their field evaluations.
+    pub implicit_tests: u64,
+    pub march_steps: u64,
 }
 
 impl std::ops::AddAssign for TestCounts {
@@ -92,6 +102,8 @@ impl std::ops::AddAssign for TestCounts {
         self.sphere_hits += o.sphere_hits;
         self.other_tests += o.other_tests;
         self.bvh_nodes += o.bvh_nodes;
+        self.implicit_tests += o.implicit_tests;
+        self.march_steps += o.march_steps;
     }
 }
 
@@ -189,6 +201,7 @@ fn bounds(p: &Prim) -> Aabb {
                 hi: c + e,
             }
         }
+        Prim::Implicit { lo, hi, .. } => Aabb { lo, hi },
     }
 }
 
@@ -351,6 +364,8 @@ pub struct Geometry {
     passes: u32,
     /// Keep every n-th sphere test's inputs (n, store), to replay them in a timing loop.
     record: Option<(u64, std::sync::Arc<std::sync::Mutex<Vec<RecordedTest>>>)>,
+    /// One sphere tracer per implicit shape, for [`Prim::Implicit`].
+    pub marchers: Vec<crate::implicit::march::Marcher>,
 }
 
 impl Geometry {
@@ -368,7 +383,14 @@ impl Geometry {
             flat: false,
             passes: 1,
             record: None,
+            marchers: vec![],
         }
+    }
+
+    /// The sphere tracers of the [`Prim::Implicit`] objects (by their `k`).
+    pub fn with_marchers(mut self, marchers: Vec<crate::implicit::march::Marcher>) -> Geometry {
+        self.marchers = marchers;
+        self
     }
 
     /// The same objects without the BVH: every ray tests every object, `passes` (≥ 1) times.
@@ -409,7 +431,7 @@ impl Geometry {
                 }
             }
         }
-        if let Some((t, n)) = prim_hit::<F>(f, &obj.prim, o, d, counts) {
+        if let Some((t, n)) = prim_hit::<F>(f, &obj.prim, o, d, counts, &self.marchers) {
             if t > 0.0 && t < *limit {
                 *limit = t;
                 *best = Some(Hit {
@@ -528,8 +550,19 @@ fn prim_hit<F: PickPrecision>(
     o: DVec3,
     d: DVec3,
     counts: &mut TestCounts,
+    marchers: &[crate::implicit::march::Marcher],
 ) -> Option<(f64, DVec3)> {
     match *p {
+        Prim::Implicit { k, .. } => {
+            // Secondary rays leave the surface first: start 8·eps out (a grazing light within
+            // asin(1/8) of the tangent plane may still see its own surface: a terminator shadow)
+            let m = &marchers[k];
+            counts.implicit_tests += 1;
+            let r = m.trace(o, d, 8.0 * m.eps);
+            counts.march_steps += r.steps as u64;
+            let (t, i) = r.hit?;
+            Some((t, m.normal(i, o + t * d)))
+        }
         Prim::Sphere { c, r } => {
             counts.sphere_tests += 1;
             let t = sphere_t::<F>(f, o, d, c, r)?;

@@ -54,7 +54,7 @@ impl Effects {
         let occluders = f.shapes.len() >= 2
             || f.shapes
                 .iter()
-                .any(|s| matches!(s, Shape::Mesh { .. } | Shape::Torus { .. }));
+                .any(|s| matches!(s, Shape::Mesh { .. } | Shape::Torus { .. }) || s.is_implicit());
         let shadows = diffuse_lit && occluders;
         reasons.push(match (diffuse_lit, occluders) {
             (true, true) => format!(
@@ -79,6 +79,25 @@ impl Effects {
             "refraction + Fresnel: on — a glass material is used".into()
         } else {
             "refraction + Fresnel: off — no material transmits".into()
+        });
+        let implicit: Vec<&str> = f
+            .shapes
+            .iter()
+            .filter(|s| s.is_implicit())
+            .map(|s| match s {
+                Shape::Sdf { .. } => "sdf",
+                Shape::Blob { .. } => "blob",
+                _ => "mpu",
+            })
+            .collect();
+        reasons.push(if implicit.is_empty() {
+            "sphere tracing: off — no implicit shape".into()
+        } else {
+            format!(
+                "sphere tracing: on — {} implicit shape(s) ({})",
+                implicit.len(),
+                implicit.join(", ")
+            )
         });
         let depth = if reflection { f.render.max_depth } else { 1 };
         reasons.push(if reflection {
@@ -207,7 +226,7 @@ pub fn build_geometry(s: &Scene) -> (Geometry, Vec<Material>) {
     let materials = s.file.materials.values().cloned().collect();
     let mi = |n: &String| names.iter().position(|k| *k == n).unwrap_or(0);
     let v = |a: [f64; 3]| DVec3::from_array(a);
-    let (mut objects, mut planes) = (vec![], vec![]);
+    let (mut objects, mut planes, mut marchers) = (vec![], vec![], vec![]);
     for (i, sh) in s.file.shapes.iter().enumerate() {
         let material = mi(sh.material());
         match sh {
@@ -296,9 +315,25 @@ pub fn build_geometry(s: &Scene) -> (Geometry, Vec<Material>) {
                 },
                 material,
             }),
+            Shape::Sdf { .. } | Shape::Blob { .. } | Shape::Mpu { .. } => {
+                let m = crate::implicit::march::Marcher::new(vec![s.implicits[&i].clone()]);
+                let pad = 2.0 * (m.hi - m.lo).length() * 0.01;
+                objects.push(Object {
+                    prim: Prim::Implicit {
+                        k: marchers.len(),
+                        lo: m.lo - pad,
+                        hi: m.hi + pad,
+                    },
+                    material,
+                });
+                marchers.push(m);
+            }
         }
     }
-    (Geometry::new(objects, planes), materials)
+    (
+        Geometry::new(objects, planes).with_marchers(marchers),
+        materials,
+    )
 }
 
 /// Renders a scene with the integrator specialised to its effects.
@@ -383,6 +418,50 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
     }
 }
 
+/// The pinhole camera: right-handed, horizontal field of view, `w × h` pixels.
+#[derive(Clone, Copy, Debug)]
+pub struct Lens {
+    pub pos: DVec3,
+    fwd: DVec3,
+    right: DVec3,
+    up: DVec3,
+    half_w: f64,
+    half_h: f64,
+    w: f64,
+    h: f64,
+}
+
+impl Lens {
+    pub fn new(s: &Scene, w: usize, h: usize) -> Lens {
+        let cam = &s.file.camera;
+        let pos = DVec3::from_array(cam.position);
+        let fwd = (DVec3::from_array(cam.look_at) - pos).normalize();
+        let right = fwd.cross(DVec3::from_array(cam.up)).normalize();
+        let up = right.cross(fwd);
+        let half_w = (cam.fov.to_radians() * 0.5).tan();
+        Lens {
+            pos,
+            fwd,
+            right,
+            up,
+            half_w,
+            half_h: half_w * h as f64 / w as f64,
+            w: w as f64,
+            h: h as f64,
+        }
+    }
+
+    /// The unit direction through image point `(x, y)` in pixels (pixel centres at `+½`).
+    #[inline]
+    pub fn dir(&self, x: f64, y: f64) -> DVec3 {
+        let (u, v) = (x / self.w, y / self.h);
+        (self.fwd
+            + self.right * ((2.0 * u - 1.0) * self.half_w)
+            + self.up * ((1.0 - 2.0 * v) * self.half_h))
+            .normalize()
+    }
+}
+
 type Planes = (Vec<[f32; 3]>, Vec<f32>, Vec<[f32; 3]>, Vec<f32>, RayCounts);
 
 /// The render loop: rows in parallel, one kernel instantiation per effect set.
@@ -393,14 +472,8 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     grid: u32,
     progress: bool,
 ) -> Planes {
-    let cam = &s.file.camera;
-    // Camera basis: right-handed, horizontal field of view
-    let pos = DVec3::from_array(cam.position);
-    let fwd = (DVec3::from_array(cam.look_at) - pos).normalize();
-    let right = fwd.cross(DVec3::from_array(cam.up)).normalize();
-    let up = right.cross(fwd);
-    let half_w = (cam.fov.to_radians() * 0.5).tan();
-    let half_h = half_w * h as f64 / w as f64;
+    let lens = Lens::new(s, w, h);
+    let pos = lens.pos;
     let bar = if progress {
         ProgressBar::new(h as u64)
     } else {
@@ -422,12 +495,10 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                 for j in 0..grid {
                     for i in 0..grid {
                         // Sub-pixel cell centre
-                        let u = (x as f64 + (i as f64 + 0.5) / grid as f64) / w as f64;
-                        let v = (y as f64 + (j as f64 + 0.5) / grid as f64) / h as f64;
-                        let d = (fwd
-                            + right * ((2.0 * u - 1.0) * half_w)
-                            + up * ((1.0 - 2.0 * v) * half_h))
-                            .normalize();
+                        let d = lens.dir(
+                            x as f64 + (i as f64 + 0.5) / grid as f64,
+                            y as f64 + (j as f64 + 0.5) / grid as f64,
+                        );
                         counts.primary += 1;
                         let (l, first) = radiance::<F, SH, RF, RR>(ctx, pos, d, 1, &mut counts);
                         counts.primary_miss += first.is_none() as u64;
@@ -489,6 +560,21 @@ fn radiance<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     else {
         return (DVec3::ZERO, None);
     };
+    (
+        shade::<F, SH, RF, RR>(ctx, o, d, &hit, depth, counts),
+        Some((hit.t, hit.n)),
+    )
+}
+
+/// Radiance leaving `hit` towards `−d` (the ray from `o` at segment `depth`).
+fn shade<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
+    ctx: &Ctx,
+    o: DVec3,
+    d: DVec3,
+    hit: &geom::Hit,
+    depth: u32,
+    counts: &mut RayCounts,
+) -> DVec3 {
     let p = o + hit.t * d;
     // Face the normal towards the incoming ray
     let outside = hit.n.dot(d) < 0.0;
@@ -554,7 +640,79 @@ fn radiance<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
             }
         }
     };
-    (l, Some((hit.t, hit.n)))
+    l
+}
+
+/// Shades primary hits found by another visibility pass (the implicit surfaces' image-space
+/// subdivision): pixel `i`'s ray through its centre from `lens`, its hit (distance, unit
+/// outward normal, material index). Shadows as asked; the other effects as the scene needs.
+/// Returns the beauty pass and the secondary rays' counts.
+pub fn shade_primary(
+    s: &Scene,
+    lens: &Lens,
+    (w, h): (usize, usize),
+    hits: &[Option<(f64, DVec3, usize)>],
+    shadows: bool,
+) -> (Vec<[f32; 3]>, RayCounts) {
+    let effects = Effects::analyse(s);
+    let (geo, materials) = build_geometry(s);
+    let ctx = Ctx {
+        geo,
+        materials,
+        lights: &s.file.lights,
+        method: method_by_name(s.file.render.method.get_ref())
+            .unwrap_or(&crate::sphere::methods::METHODS[4]),
+        glass_shadows: s.file.render.glass_shadows,
+        max_depth: effects.depth,
+        offset: scene::offset_value(&s.file.render.offset).unwrap_or(None),
+        ulp16: 16.0 * f64::EPSILON,
+    };
+    fn rows<const SH: bool, const RF: bool, const RR: bool>(
+        ctx: &Ctx,
+        lens: &Lens,
+        w: usize,
+        h: usize,
+        hits: &[Option<(f64, DVec3, usize)>],
+    ) -> (Vec<[f32; 3]>, RayCounts) {
+        let rows: Vec<(Vec<[f32; 3]>, RayCounts)> = (0..h)
+            .into_par_iter()
+            .map(|y| {
+                let mut counts = RayCounts::default();
+                let row = (0..w)
+                    .map(|x| {
+                        let Some((t, n, material)) = hits[y * w + x] else {
+                            return [0.0; 3];
+                        };
+                        let d = lens.dir(x as f64 + 0.5, y as f64 + 0.5);
+                        let hit = geom::Hit {
+                            t,
+                            n,
+                            material,
+                            object: usize::MAX,
+                        };
+                        shade::<f64, SH, RF, RR>(ctx, lens.pos, d, &hit, 1, &mut counts)
+                            .as_vec3()
+                            .to_array()
+                    })
+                    .collect();
+                (row, counts)
+            })
+            .collect();
+        let mut out = (Vec::with_capacity(w * h), RayCounts::default());
+        for (r, c) in rows {
+            out.0.extend(r);
+            out.1 += c;
+        }
+        out
+    }
+    match (shadows, effects.reflection, effects.refraction) {
+        (false, false, false) => rows::<false, false, false>(&ctx, lens, w, h, hits),
+        (true, false, false) => rows::<true, false, false>(&ctx, lens, w, h, hits),
+        (false, true, false) => rows::<false, true, false>(&ctx, lens, w, h, hits),
+        (true, true, false) => rows::<true, true, false>(&ctx, lens, w, h, hits),
+        (false, _, true) => rows::<false, true, true>(&ctx, lens, w, h, hits),
+        (true, _, true) => rows::<true, true, true>(&ctx, lens, w, h, hits),
+    }
 }
 
 /// A reflected or refracted ray from segment `depth`: its radiance, its miss counted by kind.

@@ -183,6 +183,28 @@ pub enum Shape {
         minor: f64,
         material: String,
     },
+    /// Implicit: signed-distance parts (`kind` sphere, torus, box) joined by a smooth union of
+    /// blend width `blend` (0: a hard union). Sphere traced.
+    Sdf {
+        parts: Vec<crate::implicit::field::SdfPart>,
+        #[serde(default)]
+        blend: f64,
+        material: String,
+    },
+    /// Implicit: POV-Ray's blob, `Σ strength·(1 − r²/radius²)² = threshold`. Sphere traced.
+    Blob {
+        threshold: f64,
+        components: Vec<crate::implicit::field::BlobComponent>,
+        material: String,
+    },
+    /// Implicit: an MPU surface fitted to `points` (lines `x y z nx ny nz`); `mesh` (OBJ) is
+    /// the source mesh POV-Ray renders in its place. Sphere traced.
+    Mpu {
+        points: String,
+        #[serde(default)]
+        mesh: Option<String>,
+        material: String,
+    },
 }
 
 impl Shape {
@@ -195,7 +217,10 @@ impl Shape {
             | Shape::Box { material, .. }
             | Shape::Cylinder { material, .. }
             | Shape::Ellipsoid { material, .. }
-            | Shape::Torus { material, .. } => material,
+            | Shape::Torus { material, .. }
+            | Shape::Sdf { material, .. }
+            | Shape::Blob { material, .. }
+            | Shape::Mpu { material, .. } => material,
         }
     }
 
@@ -208,6 +233,14 @@ impl Shape {
                 | Shape::Cylinder { .. }
                 | Shape::Ellipsoid { .. }
                 | Shape::Torus { .. }
+        )
+    }
+
+    /// An implicit surface (sphere traced).
+    pub fn is_implicit(&self) -> bool {
+        matches!(
+            self,
+            Shape::Sdf { .. } | Shape::Blob { .. } | Shape::Mpu { .. }
         )
     }
 
@@ -261,6 +294,38 @@ impl Shape {
                         )
                     })
                 }),
+            Shape::Sdf { parts, blend, .. } => (parts.is_empty())
+                .then(|| ("parts", "needs at least one part".to_string()))
+                .or_else(|| parts.iter().find_map(|p| p.problem().map(|m| ("parts", m))))
+                .or_else(|| {
+                    (!(blend.is_finite() && *blend >= 0.0))
+                        .then(|| ("blend", format!("must be a finite number ≥ 0, got {blend}")))
+                }),
+            Shape::Blob {
+                threshold,
+                components,
+                ..
+            } => positive("threshold", *threshold)
+                .or_else(|| {
+                    components
+                        .is_empty()
+                        .then(|| ("components", "needs at least one component".to_string()))
+                })
+                .or_else(|| {
+                    components.iter().find_map(|c| {
+                        finite3("components", &c.center)
+                            .or_else(|| positive("components", c.radius))
+                            .or_else(|| {
+                                (!(c.strength.is_finite() && c.strength != 0.0)).then(|| {
+                                    ("components", format!("strength must be finite and non-zero, got {}", c.strength))
+                                })
+                            })
+                    })
+                })
+                .or_else(|| {
+                    (!components.iter().any(|c| c.strength > 0.0))
+                        .then(|| ("components", "needs a component of positive strength".to_string()))
+                }),
             _ => None,
         }
     }
@@ -296,6 +361,8 @@ pub struct Scene {
     pub file: SceneFile,
     /// Triangles of each mesh shape, by shape index.
     pub meshes: BTreeMap<usize, Vec<[[f64; 3]; 3]>>,
+    /// The field of each implicit shape, by shape index (MPU surfaces are fitted on load).
+    pub implicits: BTreeMap<usize, crate::implicit::field::Field>,
     pub path: PathBuf,
 }
 
@@ -377,6 +444,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
         .map(|(i, _)| i + 1)
         .collect();
     let mut meshes = BTreeMap::new();
+    let mut implicits = BTreeMap::new();
     for (i, shape) in file.shapes.iter().enumerate() {
         let line = shape_lines.get(i).copied().unwrap_or(0);
         let mat = shape.material();
@@ -392,16 +460,22 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 format!("shapes[{i}].{field}: {message}"),
             ));
         }
-        if let Shape::Mesh { file: f, .. } = shape {
+        if let Shape::Mesh { file: f, .. } | Shape::Mpu { mesh: Some(f), .. } = shape {
             let mesh_path = path.parent().unwrap_or(Path::new(".")).join(f);
             let tris =
                 load_obj(&mesh_path).map_err(|e| err(line, format!("shapes[{i}].file: {e}")))?;
             meshes.insert(i, tris);
         }
+        if let Some(field) = crate::implicit::field_of(shape, path)
+            .map_err(|e| err(line, format!("shapes[{i}]: {e}")))?
+        {
+            implicits.insert(i, field);
+        }
     }
     Ok(Scene {
         file,
         meshes,
+        implicits,
         path: path.to_path_buf(),
     })
 }
