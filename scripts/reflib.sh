@@ -26,9 +26,12 @@ parse_ref_args() {
   NAME="$(basename "$SCENE" .toml)"
   MANIFEST=""
   if [ -z "$OUT" ]; then
-    mkdir -p "$ROOT/reference/$NAME"
-    OUT="$ROOT/reference/$NAME/$default"
-    MANIFEST="$ROOT/reference/$NAME/manifest.json"
+    # reference/scenes/NAME.toml -> reference/NAME/; elsewhere DIR/NAME.toml -> DIR/NAME/
+    local dir; dir="$(dirname "$SCENE")"
+    if [ "$(basename "$dir")" = scenes ]; then dir="$ROOT/reference"; fi
+    mkdir -p "$dir/$NAME"
+    OUT="$dir/$NAME/$default"
+    MANIFEST="$dir/$NAME/manifest.json"
   else
     OUT="$(cd "$(dirname "$OUT")" && pwd)/$(basename "$OUT")"
   fi
@@ -41,12 +44,12 @@ shown() { local out=() a; for a in "$@"; do out+=("${a#"$ROOT"/}"); done; echo "
 record_manifest() {
   [ -n "$MANIFEST" ] || return 0
   local file="$1" renderer="$2" version="$3" secs="$4"; shift 4
-  python3 - "$MANIFEST" "$file" "$renderer" "$version" "$secs" "$SCENE" "$WIDTH" "$GRID" "$@" <<'PY'
+  ROOT="$ROOT" python3 - "$MANIFEST" "$file" "$renderer" "$version" "$secs" "$SCENE" "$WIDTH" "$GRID" "$@" <<'PY'
 import datetime, hashlib, json, os, sys
 manifest, file, renderer, version, secs, scene, width, grid = sys.argv[1:9]
 commands = sys.argv[9:]
 sha = lambda p: hashlib.sha256(open(p, "rb").read()).hexdigest()
-root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(manifest))))
+root = os.environ["ROOT"]
 m = json.load(open(manifest)) if os.path.exists(manifest) else {}
 m.setdefault("scene", os.path.relpath(os.path.abspath(scene), root))
 m.setdefault("files", {})

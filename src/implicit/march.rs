@@ -6,10 +6,11 @@
 //! `m` is a cheaper bound that is also safe (the zero set lies in the box, and any point outside
 //! the grown box is at least `m` from the box). The step is the minimum over the fields.
 //!
-//! **Hit.** The step falls below `eps` (a fixed fraction of the scene's box diagonal). The hit
-//! is then refined: probes at `t + eps·2ᵏ` (k < 8) look for a sign change, and a found
-//! bracket is bisected to ~1e-15 relative; without a sign change the ray passes within `eps` of
-//! the surface and counts as a hit at `t` (Hart's criterion).
+//! **Hit.** A hit is a proven sign change: when the step falls below `eps` (a fixed fraction of
+//! the scene's box diagonal), probes at `t + eps·2ᵏ` (k ≤ 5) look for an inside point, and the
+//! bracket is bisected to ~1e-15 relative. Without one, the ray passes the surface without
+//! crossing it and marching goes on from the last probe. Unlike Hart's plain `eps` criterion, a
+//! grazing ray is then a miss, and a secondary ray that starts on its surface needs no offset.
 //!
 //! **Miss.** The ray leaves the scene box (`t` beyond its exit) or takes more than
 //! [`MAX_STEPS`] steps (counted separately: a capped ray is a miss that is not proved).
@@ -149,11 +150,16 @@ impl Marcher {
                 // Crossed: only possible when a bound is too small (a measured MPU bound)
                 return self.bisect(o, d, prev, t, out);
             }
-            if v < self.eps {
-                return self.refine(o, d, t, out);
-            }
             prev = t;
-            t += v;
+            if v < self.eps {
+                // Near the surface: a hit needs a sign change just ahead
+                match self.refine(o, d, t, &mut out) {
+                    Ok(hit) => return self.bisect(o, d, hit.0, hit.1, out),
+                    Err(beyond) => t = beyond,
+                }
+            } else {
+                t += v;
+            }
             if t > t1 {
                 return out;
             }
@@ -190,22 +196,22 @@ impl Marcher {
         }
     }
 
-    /// A converged forward step at `t`: look for a sign change just ahead (probes at
-    /// `t + eps·2ᵏ`, k < 8: a bound `f/L` under `eps` may still be `L/|∇f|` times farther from the
-    /// surface) and bisect it from the last probe that was outside.
-    fn refine(&self, o: DVec3, d: DVec3, t: f64, mut out: Traced) -> Traced {
+    /// A converged forward step at `t`: look for a sign change just ahead, by probes at
+    /// `t + eps·2ᵏ`, k ≤ 5 (a bound `f/L` under `eps` may still be `L/|∇f|` times farther from
+    /// the surface). `Ok` with the bracket (last outside probe, first inside one), or `Err` with
+    /// the last probe: the ray passes the surface without crossing it (a grazing ray, or a
+    /// secondary ray leaving its own surface) and marching goes on from there.
+    fn refine(&self, o: DVec3, d: DVec3, t: f64, out: &mut Traced) -> Result<(f64, f64), f64> {
         let (mut a, mut h) = (t, self.eps);
-        for _ in 0..8 {
+        for _ in 0..6 {
             out.steps += 1;
             if self.bound(o + d * (t + h)).0 < 0.0 {
-                return self.bisect(o, d, a, t + h, out);
+                return Ok((a, t + h));
             }
             a = t + h;
             h *= 2.0;
         }
-        let (_, i) = self.bound(o + d * t);
-        out.hit = Some((t, i));
-        out
+        Err(a)
     }
 
     /// Bisects `[a, b]` (outside at `a`, inside at `b`) to the last outside float before the

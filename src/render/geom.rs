@@ -554,11 +554,11 @@ fn prim_hit<F: PickPrecision>(
 ) -> Option<(f64, DVec3)> {
     match *p {
         Prim::Implicit { k, .. } => {
-            // Secondary rays leave the surface first: start 8·eps out (a grazing light within
-            // asin(1/8) of the tangent plane may still see its own surface: a terminator shadow)
+            // A hit is a sign change (see `Marcher::trace`), so a secondary ray leaving its own
+            // surface does not see it again
             let m = &marchers[k];
             counts.implicit_tests += 1;
-            let r = m.trace(o, d, 8.0 * m.eps);
+            let r = m.trace(o, d, 0.0);
             counts.march_steps += r.steps as u64;
             let (t, i) = r.hit?;
             Some((t, m.normal(i, o + t * d)))
