@@ -214,19 +214,46 @@ impl Marcher {
         Err(a)
     }
 
-    /// Bisects `[a, b]` (outside at `a`, inside at `b`) to the last outside float before the
-    /// surface, to ~1e-15 relative.
+    /// Closes the bracket `[a, b]` (outside at `a`, inside at `b`) by the Illinois variant of
+    /// regula falsi on the safe step (superlinear on smooth fields), with a bisection whenever
+    /// an interpolated point would land within 1/16 of the bracket's end, to ~1e-15 relative.
+    /// The hit is the outside end: a point never past the surface.
     fn bisect(&self, o: DVec3, d: DVec3, mut a: f64, mut b: f64, mut out: Traced) -> Traced {
-        for _ in 0..60 {
-            let m = 0.5 * (a + b);
-            if m <= a || m >= b || b - a <= 1e-15 * b.abs() {
+        let at = |t: f64| self.bound(o + d * t).0;
+        let (mut fa, mut fb) = (at(a), at(b));
+        out.steps += 2;
+        let mut side = 0i8;
+        for _ in 0..100 {
+            let width = b - a;
+            if width <= 1e-15 * b.abs() || width <= f64::MIN_POSITIVE {
                 break;
             }
-            out.steps += 1;
-            if self.bound(o + d * m).0 < 0.0 {
-                b = m;
+            let mut m = if fa > 0.0 && fb < 0.0 {
+                a + width * fa / (fa - fb)
             } else {
-                a = m;
+                a + 0.5 * width
+            };
+            if !(m > a + width / 16.0 && m < b - width / 16.0) {
+                m = a + 0.5 * width;
+            }
+            if m <= a || m >= b {
+                break;
+            }
+            let fm = at(m);
+            out.steps += 1;
+            if fm < 0.0 {
+                (b, fb) = (m, fm);
+                // Illinois: halve the stale end's weight when the same end moves twice
+                if side == -1 {
+                    fa *= 0.5;
+                }
+                side = -1;
+            } else {
+                (a, fa) = (m, fm);
+                if side == 1 {
+                    fb *= 0.5;
+                }
+                side = 1;
             }
         }
         let (_, i) = self.bound(o + d * b);
