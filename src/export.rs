@@ -90,7 +90,8 @@ pub fn povray(s: &Scene, fr: Frame) -> String {
     // Global settings: linear, no ambient, Whitted depth, no adaptive bailout
     let _ = writeln!(
         o,
-        "#version 3.7;\nglobal_settings {{ assumed_gamma 1.0 ambient_light 0 max_trace_level {} adc_bailout 0 }}\nbackground {{ rgb 0 }}",
+        "#version 3.7;\nglobal_settings {{ assumed_gamma 1.0 ambient_light rgb <{}> max_trace_level {} adc_bailout 0 }}\nbackground {{ rgb 0 }}",
+        v3(f.render.ambient),
         f.render.max_depth
     );
     // Camera: explicit vectors; pixel (x, y) → direction + ((x+½)/W − ½)·right + (½ − (y+½)/H)·up
@@ -122,12 +123,22 @@ pub fn povray(s: &Scene, fr: Frame) -> String {
             FADE_DISTANCE
         );
     }
+    // Directional lights: parallel, unattenuated; POV-Ray's diffuse has no 1/π, so E/π
+    for l in &f.directional {
+        let d = glam::DVec3::from_array(l.direction).normalize();
+        let _ = writeln!(
+            o,
+            "light_source {{ {} color rgb <{}> parallel point_at <0, 0, 0> }}",
+            pov((-d * 1e4).to_array()),
+            v3(l.irradiance.map(|e| e / PI))
+        );
+    }
     // Shapes with their materials
     for (i, sh) in f.shapes.iter().enumerate() {
         let mat = &f.materials[sh.material()];
         let tex = match mat {
             Material::Diffuse { albedo } => format!(
-                "pigment {{ rgb <{}> }} finish {{ ambient 0 emission 0 diffuse 1 }}",
+                "pigment {{ rgb <{}> }} finish {{ ambient 1 emission 0 diffuse 1 }}",
                 v3(*albedo)
             ),
             Material::Mirror { reflectance } => format!(
@@ -317,6 +328,11 @@ pub fn unsupported(s: &Scene, to: &str) -> Option<String> {
                 "shapes[{i}]: implicit surfaces have no Mitsuba 3 equivalent (export to POV-Ray)"
             )),
             _ => None,
+        })
+        .or_else(|| {
+            let f = &s.file;
+            (to == "mitsuba" && (!f.directional.is_empty() || f.render.ambient != [0.0; 3]))
+                .then(|| "directional lights and render.ambient are not exported to Mitsuba 3 (its Whitted script has point lights only)".to_string())
         })
 }
 

@@ -9,7 +9,8 @@
 //!
 //! Conventions (shared with the exporters of later work): right-handed, +y up; horizontal
 //! field of view; pixel (x, y) samples at ((x + (i+½)/n)/W, (y + (j+½)/n)/H) for the n×n grid,
-//! box filtered; point lights of intensity I (W/sr) give I·cosθ/d²; diffuse is albedo/π;
+//! box filtered; point lights of intensity I (W/sr) give I·cosθ/d², directional lights of
+//! irradiance E give E·cosθ, the ambient radiance A adds albedo·A; diffuse is albedo/π;
 //! glass reflects F and transmits 1−F (exact unpolarised Fresnel, no η² factor), total internal
 //! reflection reflects everything; `max_depth` counts ray segments, and a ray past it is black.
 //!
@@ -47,8 +48,8 @@ impl Effects {
         let f = &s.file;
         let mut reasons = vec![];
         let mats = || f.shapes.iter().map(|sh| &f.materials[sh.material()]);
-        let diffuse_lit =
-            !f.lights.is_empty() && mats().any(|m| matches!(m, Material::Diffuse { .. }));
+        let diffuse_lit = !(f.lights.is_empty() && f.directional.is_empty())
+            && mats().any(|m| matches!(m, Material::Diffuse { .. }));
         // A lone convex shape or plane cannot shadow itself: occlusion needs two shapes, a mesh
         // or a torus (not convex)
         let occluders = f.shapes.len() >= 2
@@ -59,7 +60,7 @@ impl Effects {
         reasons.push(match (diffuse_lit, occluders) {
             (true, true) => format!(
                 "shadows: on — {} light(s) light diffuse surfaces and {} shape(s) can occlude them",
-                f.lights.len(),
+                f.lights.len() + f.directional.len(),
                 f.shapes.len()
             ),
             (false, _) => "shadows: off — no light reaches a diffuse surface".into(),
@@ -213,6 +214,8 @@ struct Ctx<'a> {
     geo: Geometry,
     materials: Vec<Material>,
     lights: &'a [scene::Light],
+    directional: &'a [scene::DirectionalLight],
+    ambient: DVec3,
     method: &'static Method,
     glass_shadows: GlassShadows,
     max_depth: u32,
@@ -374,6 +377,8 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
         geo,
         materials,
         lights: &s.file.lights,
+        directional: &s.file.directional,
+        ambient: DVec3::from_array(s.file.render.ambient),
         method,
         glass_shadows: s.file.render.glass_shadows,
         max_depth: effects.depth,
@@ -602,7 +607,22 @@ fn shade<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                 }
                 sum += DVec3::from_array(light.intensity) * (cos / dist2);
             }
-            DVec3::from_array(albedo) * std::f64::consts::FRAC_1_PI * sum
+            for light in ctx.directional {
+                let wl = -DVec3::from_array(light.direction).normalize();
+                let cos = nf.dot(wl);
+                if cos <= 0.0 {
+                    continue;
+                }
+                if SH {
+                    counts.shadow += 1;
+                    if occluded::<F>(ctx, p + nf * eps, wl, f64::INFINITY, counts) {
+                        continue;
+                    }
+                    counts.shadow_miss += 1;
+                }
+                sum += DVec3::from_array(light.irradiance) * cos;
+            }
+            DVec3::from_array(albedo) * (std::f64::consts::FRAC_1_PI * sum + ctx.ambient)
         }
         Material::Mirror { reflectance } => {
             if RF && depth < ctx.max_depth {
@@ -660,6 +680,8 @@ pub fn shade_primary(
         geo,
         materials,
         lights: &s.file.lights,
+        directional: &s.file.directional,
+        ambient: DVec3::from_array(s.file.render.ambient),
         method: method_by_name(s.file.render.method.get_ref())
             .unwrap_or(&crate::sphere::methods::METHODS[4]),
         glass_shadows: s.file.render.glass_shadows,

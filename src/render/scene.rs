@@ -54,6 +54,9 @@ pub struct SceneFile {
     pub render: RenderSettings,
     #[serde(default)]
     pub lights: Vec<Light>,
+    /// Directional lights (seed 004's Table 1 lighting).
+    #[serde(default)]
+    pub directional: Vec<DirectionalLight>,
     #[serde(default)]
     pub materials: BTreeMap<String, Material>,
     #[serde(default)]
@@ -104,6 +107,9 @@ pub struct RenderSettings {
     pub precision: Spanned<String>,
     /// Secondary-ray origin offset along the geometric normal: "auto", "none" or a distance.
     pub offset: toml::Value,
+    /// Ambient radiance: a uniform, never occluded sky; a diffuse surface adds albedo × ambient
+    /// (POV-Ray's `ambient_light` with `finish { ambient 1 }`).
+    pub ambient: [f64; 3],
 }
 
 impl Default for RenderSettings {
@@ -114,6 +120,7 @@ impl Default for RenderSettings {
             method: Spanned::new(0..0, "rtg7".into()),
             precision: Spanned::new(0..0, "f64".into()),
             offset: toml::Value::String("auto".into()),
+            ambient: [0.0; 3],
         }
     }
 }
@@ -124,6 +131,15 @@ pub struct Light {
     pub position: [f64; 3],
     /// Radiant intensity, W/sr, per RGB channel.
     pub intensity: [f64; 3],
+}
+
+/// A light at infinity: irradiance `E` (W/m², per RGB channel) on a surface facing it, arriving
+/// along `direction` (the way the light travels). A diffuse surface reflects albedo/π·E·cosθ.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DirectionalLight {
+    pub direction: [f64; 3],
+    pub irradiance: [f64; 3],
 }
 
 #[derive(Debug, Clone, Deserialize)]
@@ -436,6 +452,23 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
         return Err(err(0, "render.max_depth must be at least 1".into()));
     }
     offset_value(&file.render.offset).map_err(|e| err(0, format!("render.offset: {e}")))?;
+    if !file.render.ambient.iter().all(|a| a.is_finite() && *a >= 0.0) {
+        return Err(err(
+            field_line(text, 0, "ambient"),
+            format!("render.ambient must be finite and ≥ 0, got {:?}", file.render.ambient),
+        ));
+    }
+    for (i, l) in file.directional.iter().enumerate() {
+        let d = l.direction;
+        if !(d.iter().all(|x| x.is_finite()) && d.iter().any(|x| *x != 0.0))
+            || !l.irradiance.iter().all(|x| x.is_finite() && *x >= 0.0)
+        {
+            return Err(err(
+                0,
+                format!("directional[{i}]: needs a finite non-zero direction and finite irradiance ≥ 0, got {d:?}, {:?}", l.irradiance),
+            ));
+        }
+    }
     // Lines of the [[shapes]] headers (spans are lost inside tagged tables)
     let shape_lines: Vec<usize> = text
         .lines()
