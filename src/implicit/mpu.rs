@@ -42,10 +42,10 @@
 //! continued to first order (C¹) outside it: `Q̃(x) = Q(π(x)) + ∇Q(π(x))·(x − π(x))`, `π`
 //! the radial projection onto that sphere. This changes nothing at the data and bounds the
 //! gradient where a ball's quadric would otherwise be extrapolated quadratically across
-//! empty space. On the bunny (defaults) the measured Lipschitz bound is 3.90; it was 6.6
-//! without the extension (with cones for the empty cells: 4.6 with, 6.6 without), and 7.7
-//! with the paper's splitting (`split_points = min_points`), which also has 2.7× the cells
-//! and 2.5× the evaluation cost for a 25% smaller worst error at the points.
+//! empty space. On the bunny (defaults) the measured Lipschitz bound is 3.90; it was 6.0
+//! without the extension (with cones for the empty cells: 4.6 with it, 6.6 without). The
+//! paper's splitting (`split_points = min_points`) gives 7.7, with 2.7× the cells and about
+//! 3× the evaluation cost, for a 26% smaller worst error at the points.
 //!
 //! # Evaluation ([`Mpu::eval`])
 //! `f(x) = Σ wᵢ(x) Qᵢ(x) / Σ wᵢ(x)` over the accepted local fits whose support ball contains
@@ -70,7 +70,17 @@
 //! # Ghost surfaces
 //! Local quadrics extrapolated into empty space can have zero sets away from the data.
 //! `tests/mpu.rs` measures them against the bunny mesh's inside/outside (generalised winding
-//! number) on a grid, binned by the distance to the mesh.
+//! number) on a grid, binned by the distance to the mesh: on a 40³ grid over `bounds()`, no
+//! point 0.2 or more from the mesh has the wrong sign (outside and inside alike); between 0.1
+//! and 0.2, 1 of 2493; closer, the smooth MPU surface and the flat-faced mesh differ (137 of
+//! 2321 within 0.1, mostly MPU bulging past the faces). No random segment staying ≥ 0.4 from
+//! the mesh sees a sign change. Outside and ≥ 0.05 from the mesh, `f` is at most 1.87× the
+//! distance to the mesh, so `f/lipschitz()` stays below half of it there.
+//!
+//! # Cost (bunny, defaults, the 2-core dev machine)
+//! Fit ≈ 0.09 s on both cores, including the Lipschitz measurement; 2393 cells, 2094 leaves (1072
+//! bivariate, 319 general, 703 empty); [`Mpu::eval`] ≈ 0.35 µs (≈ 15 contributing fits near
+//! the surface, ≈ 10 elsewhere), [`Mpu::eval_grad`] ≈ 0.45 µs.
 
 use anyhow::{anyhow, bail, Context, Result};
 use glam::DVec3;
@@ -82,7 +92,10 @@ use std::path::Path;
 pub struct MpuOptions {
     /// ε₀: a cell is split while its fit's largest Taubin distance exceeds
     /// `max_error × (diagonal of the points' bounding box)`. Default 0.002 (0.032 for the
-    /// bunny, whose diagonal is 15.76 and mean edge ≈ 0.4).
+    /// bunny, whose diagonal is 15.76 and mean edge ≈ 0.4). On data as sparse as the bunny,
+    /// `split_points` ends the subdivision for most cells before ε₀ is met (1237 of its 1391
+    /// fitted leaves are above it; worst error at the points 0.065, mean 0.010); 0.001–0.01
+    /// change the cell count by ±10% and the worst error not at all.
     pub max_error: f64,
     /// Support radius = `alpha × cell diagonal` (paper: 0.75). Must be > 1/2 for the root ball
     /// to cover the whole root cube.
