@@ -561,6 +561,19 @@ fn report() {
             used as f64 / xs.len() as f64
         );
     }
+    for max_error in [0.001, 0.005, 0.01] {
+        let o = MpuOptions {
+            max_error,
+            ..Default::default()
+        };
+        let m = Mpu::fit(p, n, &o);
+        let worst = p.iter().map(|x| m.eval(*x).abs()).fold(0.0, f64::max);
+        println!(
+            "max_error {max_error}: {} cells, worst |f| at the points {worst:.4}, lipschitz {:.3}",
+            m.cells(),
+            m.lipschitz()
+        );
+    }
     // Ghosts: 40³ grid, sign vs the mesh's winding number, by distance to the mesh.
     use rayon::prelude::*;
     let (v, f) = bunny_mesh();
