@@ -85,13 +85,13 @@ impl SdfPart {
     pub fn problem(&self) -> Option<String> {
         let fin = |v: &[f64]| v.iter().all(|x| x.is_finite());
         match *self {
-            SdfPart::Sphere { center, radius } => (!fin(&center) || !(radius > 0.0 && radius.is_finite()))
+            SdfPart::Sphere { center, radius } => (!(fin(&center) && radius > 0.0 && radius.is_finite()))
                 .then(|| format!("sphere needs a finite center and radius > 0, got {center:?}, {radius}")),
             SdfPart::Torus {
                 center,
                 major,
                 minor,
-            } => (!fin(&center) || !(minor > 0.0 && minor < major && major.is_finite())).then(|| {
+            } => (!(fin(&center) && minor > 0.0 && minor < major && major.is_finite())).then(|| {
                 format!("torus needs a finite center and 0 < minor < major, got {center:?}, {major}, {minor}")
             }),
             SdfPart::Box { min, max } => (!fin(&min) || !fin(&max) || (0..3).any(|k| min[k] >= max[k]))

@@ -29,6 +29,13 @@ pub fn field_of(shape: &Shape, scene: &Path) -> Result<Option<Field>, String> {
         Shape::Mpu { points, .. } => {
             let path = scene.parent().unwrap_or(Path::new(".")).join(points);
             let (p, n) = mpu::Mpu::load_points(&path).map_err(|e| format!("points: {e:#}"))?;
+            if p.len() < 4 {
+                return Err(format!(
+                    "points: {} has {} point(s); an MPU fit needs at least 4",
+                    path.display(),
+                    p.len()
+                ));
+            }
             Field::Mpu(Arc::new(mpu::Mpu::fit(&p, &n, &mpu::MpuOptions::default())))
         }
         _ => return Ok(None),

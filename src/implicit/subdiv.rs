@@ -117,6 +117,9 @@ pub struct Primary {
     pub seconds: f64,
 }
 
+/// One block's samples (pixel, trace) and counters.
+type Samples = (Vec<((usize, usize), Traced)>, Stats);
+
 /// A block of pixels `[x0, x1) × [y0, y1)`.
 #[derive(Clone, Copy, Debug)]
 struct Block {
@@ -196,7 +199,7 @@ pub fn primary(
         }
         Mode::Paper => {
             // §2.2: 9 samples per block, from the eye
-            let sampled: Vec<(Vec<((usize, usize), Traced)>, Stats)> = blocks
+            let sampled: Vec<Samples> = blocks
                 .par_iter()
                 .map(|&(bx, by)| {
                     let b = block(bx, by);

@@ -587,7 +587,7 @@ fn shade<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     let eps = ctx
         .offset
         .unwrap_or(ctx.ulp16 * p.abs().max_element().max(1.0));
-    let l = match ctx.materials[hit.material] {
+    match ctx.materials[hit.material] {
         Material::Diffuse { albedo } => {
             let mut sum = DVec3::ZERO;
             for light in ctx.lights {
@@ -659,8 +659,7 @@ fn shade<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                 DVec3::ZERO
             }
         }
-    };
-    l
+    }
 }
 
 /// Shades primary hits found by another visibility pass (the implicit surfaces' image-space

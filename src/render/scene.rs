@@ -452,17 +452,24 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
         return Err(err(0, "render.max_depth must be at least 1".into()));
     }
     offset_value(&file.render.offset).map_err(|e| err(0, format!("render.offset: {e}")))?;
-    if !file.render.ambient.iter().all(|a| a.is_finite() && *a >= 0.0) {
+    if !file
+        .render
+        .ambient
+        .iter()
+        .all(|a| a.is_finite() && *a >= 0.0)
+    {
         return Err(err(
             field_line(text, 0, "ambient"),
-            format!("render.ambient must be finite and ≥ 0, got {:?}", file.render.ambient),
+            format!(
+                "render.ambient must be finite and ≥ 0, got {:?}",
+                file.render.ambient
+            ),
         ));
     }
     for (i, l) in file.directional.iter().enumerate() {
         let d = l.direction;
-        if !(d.iter().all(|x| x.is_finite()) && d.iter().any(|x| *x != 0.0))
-            || !l.irradiance.iter().all(|x| x.is_finite() && *x >= 0.0)
-        {
+        let direction_ok = d.iter().all(|x| x.is_finite()) && d.iter().any(|x| *x != 0.0);
+        if !direction_ok || !l.irradiance.iter().all(|x| x.is_finite() && *x >= 0.0) {
             return Err(err(
                 0,
                 format!("directional[{i}]: needs a finite non-zero direction and finite irradiance ≥ 0, got {d:?}, {:?}", l.irradiance),
