@@ -29,9 +29,10 @@ parse_ref_args() {
     # reference/scenes/NAME.toml -> reference/NAME/; elsewhere DIR/NAME.toml -> DIR/NAME/
     local dir; dir="$(dirname "$SCENE")"
     if [ "$(basename "$dir")" = scenes ]; then dir="$ROOT/reference"; fi
-    mkdir -p "$dir/$NAME"
-    OUT="$dir/$NAME/$default"
-    MANIFEST="$dir/$NAME/manifest.json"
+    local out="${REF_DIR:-$dir/$NAME}"   # REF_DIR: another directory for this scene's references
+    mkdir -p "$out"
+    OUT="$out/$default"
+    MANIFEST="$out/manifest.json"
   else
     OUT="$(cd "$(dirname "$OUT")" && pwd)/$(basename "$OUT")"
   fi
