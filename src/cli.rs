@@ -957,7 +957,14 @@ fn run_render(a: RenderArgs) -> Result<u8> {
         c.primary_miss, c.shadow_miss, c.reflection_miss, c.refraction_miss,
         c.tests.sphere_tests, c.tests.sphere_hits, c.tests.other_tests, c.tests.bvh_nodes
     );
-    let lights = sc.file.lights.len();
+    if c.tests.implicit_tests > 0 {
+        say!(
+            "sphere tracing: {} implicit tests, {} field evaluations",
+            c.tests.implicit_tests,
+            c.tests.march_steps
+        );
+    }
+    let lights = sc.file.lights.len() + sc.file.directional.len();
     say!("{}", render::budget_line(&r, lights));
     if let Some(out) = &a.output {
         let layers = output::Layers {
