@@ -87,11 +87,17 @@ pub fn povray(s: &Scene, fr: Frame) -> String {
         fr.grid,
         fr.grid
     );
-    // Global settings: linear, no ambient, Whitted depth, no adaptive bailout
+    // Global settings: linear, the scene's ambient (0 unless render.ambient), Whitted depth, no
+    // adaptive bailout
+    let lit_ambient = f.render.ambient != [0.0; 3];
     let _ = writeln!(
         o,
-        "#version 3.7;\nglobal_settings {{ assumed_gamma 1.0 ambient_light rgb <{}> max_trace_level {} adc_bailout 0 }}\nbackground {{ rgb 0 }}",
-        v3(f.render.ambient),
+        "#version 3.7;\nglobal_settings {{ assumed_gamma 1.0 ambient_light {} max_trace_level {} adc_bailout 0 }}\nbackground {{ rgb 0 }}",
+        if lit_ambient {
+            format!("rgb <{}>", v3(f.render.ambient))
+        } else {
+            "0".into()
+        },
         f.render.max_depth
     );
     // Camera: explicit vectors; pixel (x, y) → direction + ((x+½)/W − ½)·right + (½ − (y+½)/H)·up
@@ -138,8 +144,9 @@ pub fn povray(s: &Scene, fr: Frame) -> String {
         let mat = &f.materials[sh.material()];
         let tex = match mat {
             Material::Diffuse { albedo } => format!(
-                "pigment {{ rgb <{}> }} finish {{ ambient 1 emission 0 diffuse 1 }}",
-                v3(*albedo)
+                "pigment {{ rgb <{}> }} finish {{ ambient {} emission 0 diffuse 1 }}",
+                v3(*albedo),
+                lit_ambient as u8
             ),
             Material::Mirror { reflectance } => format!(
                 "pigment {{ rgb 0 }} finish {{ ambient 0 emission 0 diffuse 0 reflection {{ rgb <{}> }} }}",
