@@ -205,7 +205,9 @@ fn pov_object(s: &Scene, i: usize, sh: &Shape, shrink: f64) -> Option<String> {
             let d = n.dot(dv(*point));
             format!("plane {{ {}, {d}", pov(n.to_array()))
         }
-        Shape::Mesh { .. } => {
+        // An MPU surface exports as its source mesh (an approximation of the fit: compared,
+        // not matched)
+        Shape::Mesh { .. } | Shape::Mpu { .. } => {
             let mut m = String::from("mesh {");
             for t in s.meshes.get(&i)? {
                 let _ = write!(
@@ -300,20 +302,6 @@ fn pov_object(s: &Scene, i: usize, sh: &Shape, shrink: f64) -> Option<String> {
                 );
             }
             b
-        }
-        // The MPU surface's source mesh (an approximation of the fit: compared, not matched)
-        Shape::Mpu { .. } => {
-            let mut m = String::from("mesh {");
-            for t in s.meshes.get(&i)? {
-                let _ = write!(
-                    m,
-                    "\n  triangle {{ {}, {}, {} }}",
-                    pov(t[0]),
-                    pov(t[1]),
-                    pov(t[2])
-                );
-            }
-            m
         }
     })
 }

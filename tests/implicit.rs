@@ -23,7 +23,7 @@ fn sdf(part: SdfPart) -> Marcher {
 /// Random rays from a shell of radius 4–6 aimed at points within `spread` of the origin.
 fn rays(seed: u64, n: usize, spread: f64) -> Vec<(DVec3, DVec3)> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
-    let mut unit = |rng: &mut rand_chacha::ChaCha8Rng| loop {
+    let unit = |rng: &mut rand_chacha::ChaCha8Rng| loop {
         let v = DVec3::new(
             rng.random_range(-1.0..1.0),
             rng.random_range(-1.0..1.0),
@@ -260,8 +260,8 @@ fn blob_matches_povray_reference() {
     let nc = pov.channels.len();
     let (mut sum, mut max) = (0.0f64, 0.0f64);
     for (i, px) in r.beauty.iter().enumerate() {
-        for c in 0..3 {
-            let e = (px[c] - pov.data[i * nc + c]).abs() as f64;
+        for (c, v) in px.iter().enumerate() {
+            let e = (v - pov.data[i * nc + c]).abs() as f64;
             sum += e;
             max = max.max(e);
         }

@@ -223,6 +223,31 @@ struct Ctx<'a> {
     ulp16: f64,
 }
 
+impl<'a> Ctx<'a> {
+    /// The scene's lights and settings around its geometry; `ulp` is the render precision's.
+    fn new(
+        s: &'a Scene,
+        geo: Geometry,
+        materials: Vec<Material>,
+        method: &'static Method,
+        max_depth: u32,
+        ulp: f64,
+    ) -> Ctx<'a> {
+        Ctx {
+            geo,
+            materials,
+            lights: &s.file.lights,
+            directional: &s.file.directional,
+            ambient: DVec3::from_array(s.file.render.ambient),
+            method,
+            glass_shadows: s.file.render.glass_shadows,
+            max_depth,
+            offset: scene::offset_value(&s.file.render.offset).unwrap_or(None),
+            ulp16: 16.0 * ulp,
+        }
+    }
+}
+
 /// Builds the geometry list from the scene (materials by index).
 pub fn build_geometry(s: &Scene) -> (Geometry, Vec<Material>) {
     let names: Vec<&String> = s.file.materials.keys().collect();
@@ -373,22 +398,12 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
         geo
     };
     let geo = geo.recording(ov.record_every, store.clone());
-    let ctx = Ctx {
-        geo,
-        materials,
-        lights: &s.file.lights,
-        directional: &s.file.directional,
-        ambient: DVec3::from_array(s.file.render.ambient),
-        method,
-        glass_shadows: s.file.render.glass_shadows,
-        max_depth: effects.depth,
-        offset: scene::offset_value(&s.file.render.offset).unwrap_or(None),
-        ulp16: if precision == "f32" {
-            16.0 * f32::EPSILON as f64
-        } else {
-            16.0 * f64::EPSILON
-        },
+    let ulp = if precision == "f32" {
+        f32::EPSILON as f64
+    } else {
+        f64::EPSILON
     };
+    let ctx = Ctx::new(s, geo, materials, method, effects.depth, ulp);
     // Pick the kernel for exactly this set of effects
     macro_rules! kernel {
         ($($sh:literal, $rf:literal, $rr:literal);*) => {
@@ -675,19 +690,9 @@ pub fn shade_primary(
 ) -> (Vec<[f32; 3]>, RayCounts) {
     let effects = Effects::analyse(s);
     let (geo, materials) = build_geometry(s);
-    let ctx = Ctx {
-        geo,
-        materials,
-        lights: &s.file.lights,
-        directional: &s.file.directional,
-        ambient: DVec3::from_array(s.file.render.ambient),
-        method: method_by_name(s.file.render.method.get_ref())
-            .unwrap_or(&crate::sphere::methods::METHODS[4]),
-        glass_shadows: s.file.render.glass_shadows,
-        max_depth: effects.depth,
-        offset: scene::offset_value(&s.file.render.offset).unwrap_or(None),
-        ulp16: 16.0 * f64::EPSILON,
-    };
+    let method = method_by_name(s.file.render.method.get_ref())
+        .unwrap_or(&crate::sphere::methods::METHODS[4]);
+    let ctx = Ctx::new(s, geo, materials, method, effects.depth, f64::EPSILON);
     fn rows<const SH: bool, const RF: bool, const RR: bool>(
         ctx: &Ctx,
         lens: &Lens,
