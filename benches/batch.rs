@@ -13,12 +13,12 @@
 
 use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
-use rayproof::real::Real;
-use rayproof::sphere::batch::{
+use rayproof::numerics::real::Real;
+use rayproof::shapes::sphere::batch::{
     check_identical, mix_cases, run_batch, run_scalar, BatchMethod, Geometric, Isa, Rtg7,
     SphereBatch,
 };
-use rayproof::sphere::methods::{Ray, Sphere};
+use rayproof::shapes::sphere::methods::{Ray, Sphere};
 use std::hint::black_box;
 use std::time::Duration;
 

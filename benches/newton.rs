@@ -11,8 +11,8 @@
 //! ([`Variant::bound_ulps`]) is refused (panics with the input as a hex float).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use rayproof::newton::{accuracy, eval_slice, timed_inputs, Func, Variant};
-use rayproof::real::hex_float;
+use rayproof::numerics::real::hex_float;
+use rayproof::shapes::recip::newton::{accuracy, eval_slice, timed_inputs, Func, Variant};
 use std::hint::black_box;
 use std::time::Duration;
 

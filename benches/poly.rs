@@ -13,11 +13,12 @@
 //! (the chapter's known failures) are counted and printed, so the timing says what it times.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use rayproof::audit::Precision;
-use rayproof::real::Real;
-use rayproof::routines::audit::generate;
-use rayproof::routines::{judge, poly, probe_line, registry, Shape, Truth};
-use rayproof::sphere::Judgement;
+use rayproof::audit::generic::generate;
+use rayproof::audit::shape::{judge, probe_line, Shape, Truth};
+use rayproof::numerics::real::Real;
+use rayproof::numerics::Precision;
+use rayproof::shapes::sphere::Judgement;
+use rayproof::shapes::{poly, registry};
 use std::hint::black_box;
 use std::time::Duration;
 

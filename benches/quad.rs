@@ -9,10 +9,11 @@
 //! counted and printed, so the timing is honest about what it times.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use rayproof::audit::Precision;
-use rayproof::real::Real;
-use rayproof::routines::audit::generate;
-use rayproof::routines::{aabb, judge, probe_line, quadric, Shape, Truth};
+use rayproof::audit::generic::generate;
+use rayproof::audit::shape::{judge, probe_line, Shape, Truth};
+use rayproof::numerics::real::Real;
+use rayproof::numerics::Precision;
+use rayproof::shapes::{aabb, quadric};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -40,7 +41,8 @@ fn validate(shape: &dyn Shape, prec: Precision, cases: &[Vec<f64>]) {
             let j = judge(&truth, &shape.run(m, v, prec), shape.metric(), prec);
             if !ill && j.is_wrong() {
                 wrong += 1;
-                let by_design = shape.name() == "box" && j == rayproof::sphere::Judgement::FalseHit;
+                let by_design =
+                    shape.name() == "box" && j == rayproof::shapes::sphere::Judgement::FalseHit;
                 assert!(
                     !info.robust || by_design,
                     "{} {} {}: {:?}, refusing to time\n  {}",

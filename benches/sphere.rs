@@ -19,17 +19,17 @@
 
 use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
-use rayproof::audit::Precision;
+use rayproof::numerics::Precision;
 use rayproof::render::{render, scene, Overrides};
-use rayproof::sphere::cases::{generate, Class};
-use rayproof::sphere::methods::{PickPrecision, Ray, Sphere, METHODS};
-use rayproof::sphere::oracle::{truth, Case, Truth};
-use rayproof::sphere::{judge, tolerance, Judgement};
+use rayproof::shapes::sphere::cases::{generate, Class};
+use rayproof::shapes::sphere::methods::{PickPrecision, Ray, Sphere, METHODS};
+use rayproof::shapes::sphere::oracle::{truth, Case, Truth};
+use rayproof::shapes::sphere::{judge, tolerance, Judgement};
 use std::hint::black_box;
 use std::time::Duration;
 
 const SEED: u64 = 7;
-use rayproof::sphere::batch::MIX;
+use rayproof::shapes::sphere::batch::MIX;
 const PER_CLASS: u64 = 512;
 const SIDE_LEN: usize = 2048;
 const FAN30_LEN: usize = 4096;

@@ -12,14 +12,14 @@
 
 use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
-use rayproof::audit::Precision;
-use rayproof::real::Real;
-use rayproof::routines::audit::generate;
-use rayproof::routines::torus::{
+use rayproof::audit::generic::generate;
+use rayproof::audit::shape::{judge, probe_line, Shape, Truth};
+use rayproof::numerics::real::Real;
+use rayproof::numerics::Precision;
+use rayproof::shapes::sphere::Judgement;
+use rayproof::shapes::torus::{
     cases, methods, pick, torus_normal, torus_robust_hit, Torus, METHODS,
 };
-use rayproof::routines::{judge, probe_line, Shape, Truth};
-use rayproof::sphere::Judgement;
 use std::hint::black_box;
 use std::time::Duration;
 

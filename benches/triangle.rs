@@ -9,11 +9,11 @@
 //! line); the other methods' wrong verdicts are counted and printed.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use rayproof::audit::Precision;
-use rayproof::routines::audit::generate;
-use rayproof::routines::optics::{Reflect, Refract};
-use rayproof::routines::triangle::{method, Triangle, METHODS};
-use rayproof::routines::{judge, probe_line, Shape, Truth};
+use rayproof::audit::generic::generate;
+use rayproof::audit::shape::{judge, probe_line, Shape, Truth};
+use rayproof::numerics::Precision;
+use rayproof::shapes::optics::{Reflect, Refract};
+use rayproof::shapes::triangle::{method, Triangle, METHODS};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -66,7 +66,7 @@ fn validate(shape: &dyn Shape, cases: &[Vec<f64>], prec: Precision) {
     }
 }
 
-fn triangles<F: rayproof::real::Real>(c: &mut Criterion, prec: Precision) {
+fn triangles<F: rayproof::numerics::real::Real>(c: &mut Criterion, prec: Precision) {
     let cases = batch(&Triangle, &MIX, 512, prec);
     validate(&Triangle, &cases, prec);
     let rays: Vec<Ray<F>> = cases

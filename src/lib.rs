@@ -14,18 +14,11 @@
 //!   against one tolerance table ([`sphere::tolerance`]).
 
 pub mod audit;
-pub mod check;
 pub mod cli;
-pub mod dd;
-pub mod export;
-pub mod imgdiff;
+pub mod golden;
+pub mod images;
 pub mod implicit;
-pub mod interval;
-pub mod newton;
-pub mod probe;
-pub mod real;
+pub mod numerics;
 pub mod render;
 pub mod report;
-pub mod routines;
-pub mod sphere;
-pub mod timing;
+pub mod shapes;

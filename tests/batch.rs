@@ -3,11 +3,11 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rayproof::real::Real;
-use rayproof::sphere::batch::*;
-use rayproof::sphere::cases::{generate, Class};
-use rayproof::sphere::methods::{geometric, rtg7};
-use rayproof::sphere::oracle::Case;
+use rayproof::numerics::real::Real;
+use rayproof::shapes::sphere::batch::*;
+use rayproof::shapes::sphere::cases::{generate, Class};
+use rayproof::shapes::sphere::methods::{geometric, rtg7};
+use rayproof::shapes::sphere::oracle::Case;
 
 /// Both methods, every available instruction set: bit-identical to the scalar methods.
 fn assert_identical<F: Real>(b: &SphereBatch<F>) {

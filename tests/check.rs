@@ -2,8 +2,8 @@
 //! committed, fails when a reference is perturbed, refuses a tampered or stale reference,
 //! `--update` rewrites only rayproof's own golden render, and known failures have teeth.
 
-use rayproof::check::sha256_file;
-use rayproof::imgdiff::{read_image, write_exr_rgb};
+use rayproof::golden::sha256_file;
+use rayproof::images::{read_image, write_exr_rgb};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -231,8 +231,8 @@ fn shapes_thresholds_catch_an_axis_mixup_in_one_ellipsoid() {
     // Teeth: the ellipsoid's x and z semi-axes swapped (0.55, 0.45 → 0.45, 0.55), as a renderer
     // that confused axes would draw it, fails against both external references under the
     // scene's own rules, while the committed scene passes (the test above)
-    use rayproof::check::ThresholdFile;
-    use rayproof::imgdiff::{compare, Image, Verdict};
+    use rayproof::golden::ThresholdFile;
+    use rayproof::images::{compare, Image, Verdict};
     use rayproof::render::{render, scene, Overrides};
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference");
     let path = root.join("scenes/shapes.toml");

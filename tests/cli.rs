@@ -69,7 +69,10 @@ fn probe_json_has_the_documented_shape() {
         .unwrap()
         .starts_with("4.000000000000000000000000000000000000000"));
     let results = v["results"].as_array().unwrap();
-    assert_eq!(results.len(), rayproof::sphere::methods::METHODS.len());
+    assert_eq!(
+        results.len(),
+        rayproof::shapes::sphere::methods::METHODS.len()
+    );
     for r in results {
         assert_eq!(r["hit"], true);
         assert_eq!(r["t"], "0x1p+2");

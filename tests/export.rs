@@ -9,7 +9,7 @@
 //! - `rayproof export`: one-line errors for a bad target and a missing scene.
 
 use glam::DVec3;
-use rayproof::export::{mitsuba, povray, Frame};
+use rayproof::render::export::{mitsuba, povray, Frame};
 use rayproof::render::scene::{self, Material, Scene, Shape};
 use std::collections::BTreeSet;
 use std::f64::consts::PI;
@@ -1007,7 +1007,7 @@ fn test_pixels() -> (usize, usize, Vec<[f32; 3]>) {
 /// A float32 R, G, B EXR, written atomically by the library's writer.
 fn write_rgb(path: &Path, w: usize, h: usize, px: &[[f32; 3]]) -> anyhow::Result<()> {
     let data = px.iter().flatten().copied().collect();
-    rayproof::imgdiff::write_exr_rgb(path, &rayproof::imgdiff::Image::rgb(w, h, data))
+    rayproof::images::write_exr_rgb(path, &rayproof::images::Image::rgb(w, h, data))
 }
 
 #[test]
@@ -1031,7 +1031,7 @@ fn downsample_averages_blocks() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(dir.listing(), set(&["in.exr", "out.exr"]));
-    let img = rayproof::imgdiff::read_image(&output).expect("read the output");
+    let img = rayproof::images::read_image(&output).expect("read the output");
     assert_eq!((img.width, img.height), (2, 3));
     assert_eq!(img.channels, ["R", "G", "B"]);
     for oy in 0..3 {
@@ -1366,7 +1366,7 @@ fn mitsuba_uses_cube_cylinder_disks_and_closed_ply_meshes() {
 
 #[test]
 fn tessellations_stay_within_their_tolerance_of_the_exact_surface() {
-    use rayproof::export::{tessellate, TESS_TOL};
+    use rayproof::render::export::{tessellate, TESS_TOL};
     // Exact distance to the torus; for the ellipsoid an upper bound on it: the distance to the
     // radial projection p/|p/r| onto the surface
     let s = solids(DIFFUSE, "opaque");

@@ -9,7 +9,7 @@ use rayproof::implicit::field::{Field, SdfPart};
 use rayproof::implicit::march::Marcher;
 use rayproof::implicit::subdiv::Mode;
 use rayproof::render::scene;
-use rayproof::routines::{aabb, quadric, torus};
+use rayproof::shapes::{aabb, quadric, torus};
 use std::path::Path;
 use std::process::Command;
 
@@ -252,7 +252,7 @@ fn blob_matches_povray_reference() {
             ..Default::default()
         },
     );
-    let pov = rayproof::imgdiff::read_image(
+    let pov = rayproof::images::read_image(
         &Path::new(env!("CARGO_MANIFEST_DIR")).join("reference/implicit/blob/povray.exr"),
     )
     .expect("POV-Ray reference");

@@ -1,7 +1,7 @@
 //! Newton refinement of 1/x and 1/√x (src/newton.rs): facts that can fail.
 
-use rayproof::newton::*;
-use rayproof::real::{hex_float, parse_f64};
+use rayproof::numerics::real::{hex_float, parse_f64};
+use rayproof::shapes::recip::newton::*;
 use std::sync::OnceLock;
 
 /// The fast table (every 97th input), computed once for all tests.

@@ -4,13 +4,13 @@
 //! (length and angle of R, Snell's law and unit length of T).
 
 use proptest::prelude::*;
-use rayproof::audit::Precision;
-use rayproof::routines::audit::{self, Options, ShapeReport};
-use rayproof::routines::optics::{
+use rayproof::audit::generic::{self as audit, Options, ShapeReport};
+use rayproof::audit::shape::{Shape, Truth};
+use rayproof::numerics::Precision;
+use rayproof::shapes::optics::{
     self, reflect_chapter, reflect_fma, refract_chapter, refract_pbrt, refract_wide, Reflect,
     Refract,
 };
-use rayproof::routines::{Shape, Truth};
 use std::sync::OnceLock;
 
 fn answer(t: Truth) -> (u32, Vec<f64>, bool) {

@@ -3,12 +3,13 @@
 //! proptest stability suites and invalid inputs.
 
 use proptest::prelude::*;
-use rayproof::audit::Precision;
-use rayproof::real::Real;
-use rayproof::routines::audit::{self, Options, Row, ShapeReport};
-use rayproof::routines::exact::{q, round_q};
-use rayproof::routines::{judge, poly, recip, roots, sturm, Answer, Shape, Truth};
-use rayproof::sphere::Judgement;
+use rayproof::audit::generic::{self as audit, Options, Row, ShapeReport};
+use rayproof::audit::shape::{judge, Answer, Shape, Truth};
+use rayproof::numerics::exact::{q, round_q};
+use rayproof::numerics::real::Real;
+use rayproof::numerics::Precision;
+use rayproof::shapes::sphere::Judgement;
+use rayproof::shapes::{poly, recip, roots, sturm};
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
@@ -47,7 +48,7 @@ fn row<'a>(r: &'a ShapeReport, method: &str, prec: Precision, class: &str) -> &'
         .expect("row present")
 }
 
-fn expected(shape: &dyn Shape, input: &[f64], prec: Precision) -> rayproof::routines::Expected {
+fn expected(shape: &dyn Shape, input: &[f64], prec: Precision) -> rayproof::audit::shape::Expected {
     match shape.oracle(input, prec) {
         Truth::Answer(e) => e,
         Truth::Invalid => panic!("valid case judged invalid: {input:?}"),
@@ -328,7 +329,7 @@ fn rsqrt_rows() {
 #[test]
 fn registry_holds_the_shapes() {
     for name in ["quadratic", "cubic", "quartic", "newton", "rcp", "rsqrt"] {
-        assert!(rayproof::routines::shape_by_name(name).is_some(), "{name}");
+        assert!(rayproof::shapes::shape_by_name(name).is_some(), "{name}");
     }
 }
 
@@ -419,7 +420,7 @@ fn bad_values() -> Vec<f64> {
 
 #[test]
 fn invalid_inputs_never_panic() {
-    for shape in rayproof::routines::registry() {
+    for shape in rayproof::shapes::registry() {
         let n = shape.args().len();
         for prec in Precision::ALL {
             for (i, &b) in bad_values().iter().enumerate() {
@@ -520,7 +521,7 @@ proptest! {
         let _ = poly::cubic_chapter([c32[0], c32[1], c32[2], c32[3]]);
         let _ = poly::newton_plain(&c[..4], c[4]);
         let _ = poly::newton_bracketed(&c32[..4], c32[4], c32[0], c32[1]);
-        for shape in rayproof::routines::registry() {
+        for shape in rayproof::shapes::registry() {
             let input: Vec<f64> = c32.iter().cycle().take(shape.args().len()).map(|&x| x as f64).collect();
             let _ = shape.oracle(&input, Precision::F32);
             for m in 0..shape.methods().len() {
@@ -554,7 +555,7 @@ fn print_tables() {
         .and_then(|s| s.parse().ok())
         .unwrap_or(300);
     let only = std::env::var("SHAPE").ok();
-    for s in rayproof::routines::registry() {
+    for s in rayproof::shapes::registry() {
         if only.as_deref().is_some_and(|o| o != s.name()) {
             continue;
         }

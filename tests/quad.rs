@@ -4,9 +4,11 @@
 //! reintersection.
 
 use proptest::prelude::*;
-use rayproof::audit::Precision;
-use rayproof::routines::audit::{self, Options, Row, ShapeReport};
-use rayproof::routines::{aabb, exact, quadric, reintersect, Answer, Shape, Truth};
+use rayproof::audit::generic::{self as audit, Options, Row, ShapeReport};
+use rayproof::audit::shape::{Answer, Shape, Truth};
+use rayproof::numerics::exact;
+use rayproof::numerics::Precision;
+use rayproof::shapes::{aabb, quadric, reintersect};
 use rug::{Float, Rational};
 use std::sync::OnceLock;
 

@@ -3,7 +3,7 @@
 
 use rayproof::render::scene::{self, Scene};
 use rayproof::render::{render, Effects, Overrides, Render};
-use rayproof::sphere::methods::METHODS;
+use rayproof::shapes::sphere::methods::METHODS;
 use std::path::Path;
 use std::process::Command;
 
@@ -733,10 +733,11 @@ fn rays_from_inside_and_degenerate_directions_never_panic() {
 #[test]
 fn renderer_calls_agree_with_the_exact_oracles() {
     use rand::SeedableRng;
-    use rayproof::audit::Precision;
+    use rayproof::audit::shape::{judge, Metric, Truth};
+    use rayproof::numerics::Precision;
     use rayproof::render::geom::{routine_input, sample_rays, solid_hit};
-    use rayproof::routines::{judge, shape_by_name, Metric, Truth};
-    use rayproof::sphere::Judgement;
+    use rayproof::shapes::shape_by_name;
+    use rayproof::shapes::sphere::Judgement;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference/scenes/shapes.toml");
     let s = scene::load(&path).unwrap();
     let (geo, _) = rayproof::render::build_geometry(&s);
@@ -754,8 +755,8 @@ fn renderer_calls_agree_with_the_exact_oracles() {
         let mut judge_ray = |o: glam::DVec3, d: glam::DVec3| {
             let (_, input) = routine_input(prim, o, d).unwrap();
             let answer = match solid_hit(prim, o, d) {
-                Some((t, _)) => rayproof::routines::Answer::hit(vec![t]),
-                None => rayproof::routines::Answer::miss(),
+                Some((t, _)) => rayproof::audit::shape::Answer::hit(vec![t]),
+                None => rayproof::audit::shape::Answer::miss(),
             };
             let truth = shape.oracle(&input, Precision::F64);
             if matches!(&truth, Truth::Answer(e) if e.ill_posed) {
@@ -770,13 +771,13 @@ fn renderer_calls_agree_with_the_exact_oracles() {
                         worst_line = format!(
                             "{max_ulps} ulps at t = {:?}: {}",
                             answer.values,
-                            rayproof::routines::probe_line(shape, Precision::F64, &input)
+                            rayproof::audit::shape::probe_line(shape, Precision::F64, &input)
                         );
                     }
                 }
                 j => wrong.push(format!(
                     "{j:?}: {}",
-                    rayproof::routines::probe_line(shape, Precision::F64, &input)
+                    rayproof::audit::shape::probe_line(shape, Precision::F64, &input)
                 )),
             }
         };

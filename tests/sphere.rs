@@ -2,12 +2,13 @@
 //! against the tolerance table, the harness's teeth, and proptest stability suites.
 
 use proptest::prelude::*;
-use rayproof::audit::{self, AuditOptions, Precision, Report, Row};
-use rayproof::real::Real;
-use rayproof::sphere::cases::{self, Class};
-use rayproof::sphere::methods::{PickPrecision, METHODS};
-use rayproof::sphere::oracle::{self, Case, Verdict};
-use rayproof::sphere::{judge, run_case, tolerance, Judgement};
+use rayproof::audit::sphere_run::{self as audit, AuditOptions, Report, Row};
+use rayproof::numerics::real::Real;
+use rayproof::numerics::Precision;
+use rayproof::shapes::sphere::cases::{self, Class};
+use rayproof::shapes::sphere::methods::{PickPrecision, METHODS};
+use rayproof::shapes::sphere::oracle::{self, Case, Verdict};
+use rayproof::shapes::sphere::{judge, run_case, tolerance, Judgement};
 use std::sync::OnceLock;
 
 // ---- the default audit, run once for every row test ----
@@ -184,7 +185,7 @@ fn teeth_a_wrong_answer_is_judged_wrong() {
         r: 1.0,
     };
     let t = oracle::truth(&case);
-    let hit = |t: f32| Some(rayproof::sphere::methods::SphereHit { t, enclosure: None });
+    let hit = |t: f32| Some(rayproof::shapes::sphere::methods::SphereHit { t, enclosure: None });
     assert_eq!(judge::<f32>(&t, hit(4.0)), Judgement::Ok { ulps: Some(0) });
     assert_eq!(
         judge::<f32>(&t, hit(4.0f32.next_up())),
@@ -353,11 +354,11 @@ proptest! {
         let c64 = Case::<f64>::from_scalars(b64.map(f64::from_bits));
         let methods: Vec<_> = METHODS.iter().collect();
         for (name, _, j) in run_case(&c32, &methods).1 {
-            let robust = rayproof::sphere::methods::method_by_name(name).unwrap().robust;
+            let robust = rayproof::shapes::sphere::methods::method_by_name(name).unwrap().robust;
             prop_assert!(!(robust && matches!(j, Judgement::InvalidHit | Judgement::InvalidNanT)), "{name} f32 {j:?}");
         }
         for (name, _, j) in run_case(&c64, &methods).1 {
-            let robust = rayproof::sphere::methods::method_by_name(name).unwrap().robust;
+            let robust = rayproof::shapes::sphere::methods::method_by_name(name).unwrap().robust;
             prop_assert!(!(robust && matches!(j, Judgement::InvalidHit | Judgement::InvalidNanT)), "{name} f64 {j:?}");
         }
     }

@@ -3,14 +3,14 @@
 //! harness's teeth, reintersection, proptest stability suites, and invalid inputs.
 
 use proptest::prelude::*;
-use rayproof::audit::Precision;
-use rayproof::routines::audit::{self, Options, Row, ShapeReport};
-use rayproof::routines::torus::{
+use rayproof::audit::generic::{self as audit, Options, Row, ShapeReport};
+use rayproof::audit::shape::{judge, Answer, Shape, Truth};
+use rayproof::numerics::Precision;
+use rayproof::shapes::sphere::Judgement;
+use rayproof::shapes::torus::{
     cases, methods, oracle, reintersect, reintersection, torus_normal, torus_robust,
     torus_robust_hit, Torus, TorusNormal, METHODS,
 };
-use rayproof::routines::{judge, Answer, Shape, Truth};
-use rayproof::sphere::Judgement;
 use rug::{Float, Rational};
 use std::sync::OnceLock;
 
@@ -237,7 +237,7 @@ fn teeth_the_table_raises_an_alarm_when_a_known_failure_passes() {
 
 // ---- the oracle on hand-made cases ----
 
-fn truth(x: [f64; 8], p: Precision) -> rayproof::routines::Expected {
+fn truth(x: [f64; 8], p: Precision) -> rayproof::audit::shape::Expected {
     match Torus.oracle(&x, p) {
         Truth::Answer(e) => e,
         Truth::Invalid => panic!("valid case judged invalid"),
@@ -321,7 +321,7 @@ fn oracle_rejects_invalid_shapes_and_rays() {
     }
 }
 
-fn normal_truth(x: [f64; 8], p: Precision) -> rayproof::routines::Expected {
+fn normal_truth(x: [f64; 8], p: Precision) -> rayproof::audit::shape::Expected {
     match TorusNormal.oracle(&x, p) {
         Truth::Answer(e) => e,
         Truth::Invalid => panic!("valid case judged invalid"),
@@ -462,7 +462,7 @@ fn reintersection_error_bound_is_measured() {
 }
 
 /// `|sdf(p)| / (u·(r1 + r2))` at the robust hit point (256-bit evaluation), `u = 2^−p`.
-fn sdf_ratio<F: rayproof::real::Real>(x: &[f64]) -> f64 {
+fn sdf_ratio<F: rayproof::numerics::real::Real>(x: &[f64]) -> f64 {
     let f = |i: usize| F::from_f64(x[i]);
     let Some((_, p)) = torus_robust_hit([f(0), f(1), f(2)], [f(3), f(4), f(5)], f(6), f(7)) else {
         return 0.0;
@@ -599,7 +599,7 @@ proptest! {
                         continue;
                     }
                     let j = judge(&truth, &shape.run(3, &x, p), shape.metric(), p);
-                    let probe = rayproof::routines::probe_line(shape, p, &x);
+                    let probe = rayproof::audit::shape::probe_line(shape, p, &x);
                     prop_assert!(!j.is_wrong(), "{:?}: {}", j, probe);
                     if let Judgement::Ok { ulps: Some(u) } = j {
                         prop_assert!(u <= robust_bound(shape, p, class), "{} ulps: {}", u, probe);

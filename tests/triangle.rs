@@ -4,13 +4,13 @@
 //! proptest suites (shared edges, arbitrary bit patterns).
 
 use proptest::prelude::*;
-use rayproof::audit::Precision;
-use rayproof::routines::audit::{self, Options, Row, ShapeReport};
-use rayproof::routines::triangle::{
+use rayproof::audit::generic::{self as audit, Options, Row, ShapeReport};
+use rayproof::audit::shape::{judge, Shape, Truth};
+use rayproof::numerics::Precision;
+use rayproof::shapes::triangle::{
     self, exact_tri, moller_trumbore_hit, watertight, watertight_hit, watertight_wide_hit,
     ExactTri, Triangle, CLASSES, METHODS,
 };
-use rayproof::routines::{judge, Shape, Truth};
 use std::sync::OnceLock;
 
 // ---- the oracle on hand-made cases ----
@@ -206,7 +206,7 @@ fn teeth_naive_methods_fail_where_known() {
 fn teeth_judge_catches_a_planted_false_hit() {
     let v = case([1.0, 1.0, 1.0], [0.0, 0.0, -1.0]);
     let truth = Triangle.oracle(&v, Precision::F64);
-    let planted = rayproof::routines::Answer::hit(vec![1.0]);
+    let planted = rayproof::audit::shape::Answer::hit(vec![1.0]);
     assert!(judge(&truth, &planted, Triangle.metric(), Precision::F64).is_wrong());
 }
 
@@ -330,7 +330,7 @@ proptest! {
             if !e.ill_posed {
                 prop_assert_eq!(got.count, e.count);
                 if e.count == 1 {
-                    prop_assert!(rayproof::routines::exact::ulps(got.values[0], e.values[0], Precision::F32) <= 1);
+                    prop_assert!(rayproof::numerics::exact::ulps(got.values[0], e.values[0], Precision::F32) <= 1);
                 }
             }
         }

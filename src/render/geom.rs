@@ -3,12 +3,12 @@
 //! Spheres go through the audited method and precision chosen for the render: the ray and the
 //! sphere are rounded to that precision, the method runs, and its `t` comes back as `f64`.
 //! Discs, planes and triangles (Möller–Trumbore) are intersected in `f64`. Boxes, cylinder
-//! sides, ellipsoids and tori go through the audited robust routines of [`crate::routines`] in
+//! sides, ellipsoids and tori go through the audited robust routines of [`crate::audit::shape`] in
 //! `f64`, with the ray moved into each routine's object space: translated by the shape's
 //! centre (or base), and for the cylinder and torus, whose routines are around z, with y and z
 //! swapped (a reflection: `t` is unchanged, and normals are swapped back).
 
-use crate::sphere::methods::{Method, PickPrecision, Ray as MRay, Sphere as MSphere};
+use crate::shapes::sphere::methods::{Method, PickPrecision, Ray as MRay, Sphere as MSphere};
 use glam::DVec3;
 
 /// A bounded primitive.
@@ -107,7 +107,8 @@ impl std::ops::AddAssign for TestCounts {
     }
 }
 
-type SphereFn<F> = fn(&MRay<F>, &MSphere<F>) -> Option<crate::sphere::methods::SphereHit<F>>;
+type SphereFn<F> =
+    fn(&MRay<F>, &MSphere<F>) -> Option<crate::shapes::sphere::methods::SphereHit<F>>;
 
 /// Intersects a sphere through the audited method in precision `F`.
 #[inline]
@@ -290,7 +291,7 @@ pub fn object_ray(p: &Prim, o: DVec3, d: DVec3) -> ([f64; 3], [f64; 3]) {
     }
 }
 
-/// The input of the audit shape (`crate::routines::shape_by_name`) that asks exactly what
+/// The input of the audit shape (`crate::shapes::shape_by_name`) that asks exactly what
 /// [`solid_hit`] asks its routine, for replay (`rayproof probe`) and the exact oracle. `None`
 /// for the ellipsoid, whose routine takes semi-axes while the audit's shape is
 /// x² + m²y² + n²z² = r² (1/m = b/a is not exact in general), and for non-routine primitives.
@@ -312,7 +313,7 @@ pub fn routine_input(p: &Prim, o: DVec3, d: DVec3) -> Option<(&'static str, Vec<
 /// miss, and for primitives that are not intersected by a routine).
 #[inline]
 pub fn solid_hit(p: &Prim, o: DVec3, d: DVec3) -> Option<(f64, DVec3)> {
-    use crate::routines::{aabb, quadric, torus};
+    use crate::shapes::{aabb, quadric, torus};
     let (ob, db) = object_ray(p, o, d);
     let at = |t: f64| DVec3::from_array(ob) + t * DVec3::from_array(db);
     match *p {

@@ -19,11 +19,12 @@
 //! `auto` = 16 ulps of the render precision × max(1, |p|∞), `none` = 0 (shows acne), or a
 //! fixed distance.
 
+pub mod export;
 pub mod geom;
 pub mod output;
 pub mod scene;
 
-use crate::sphere::methods::{method_by_name, Method, PickPrecision};
+use crate::shapes::sphere::methods::{method_by_name, Method, PickPrecision};
 use geom::{Geometry, Object, Plane, Prim, TestCounts};
 use glam::DVec3;
 use indicatif::ProgressBar;
@@ -373,7 +374,7 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
     };
     let method = ov.method.unwrap_or_else(|| {
         method_by_name(s.file.render.method.get_ref())
-            .unwrap_or(&crate::sphere::methods::METHODS[4])
+            .unwrap_or(&crate::shapes::sphere::methods::METHODS[4])
     });
     let precision: &'static str =
         ov.precision
@@ -691,7 +692,7 @@ pub fn shade_primary(
     let effects = Effects::analyse(s);
     let (geo, materials) = build_geometry(s);
     let method = method_by_name(s.file.render.method.get_ref())
-        .unwrap_or(&crate::sphere::methods::METHODS[4]);
+        .unwrap_or(&crate::shapes::sphere::methods::METHODS[4]);
     let ctx = Ctx::new(s, geo, materials, method, effects.depth, f64::EPSILON);
     fn rows<const SH: bool, const RF: bool, const RR: bool>(
         ctx: &Ctx,

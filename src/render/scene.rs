@@ -435,7 +435,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
         ));
     }
     let m = &file.render.method;
-    if crate::sphere::methods::method_by_name(m.get_ref()).is_none() {
+    if crate::shapes::sphere::methods::method_by_name(m.get_ref()).is_none() {
         return Err(err(
             at(&m.span()),
             format!("render.method: unknown method '{}'", m.get_ref()),

@@ -18,10 +18,11 @@ pub mod plot;
 pub mod renders;
 pub mod seed;
 
-use crate::audit::{self, AuditOptions, Precision};
-use crate::sphere::cases::{generate, Class};
-use crate::sphere::methods::{Method, PickPrecision, Ray, Sphere, METHODS};
-use crate::timing::{measure, Timing};
+use crate::audit::sphere_run::{self, AuditOptions};
+use crate::numerics::timing::{measure, Timing};
+use crate::numerics::Precision;
+use crate::shapes::sphere::cases::{generate, Class};
+use crate::shapes::sphere::methods::{Method, PickPrecision, Ray, Sphere, METHODS};
 use anyhow::{Context, Result};
 use serde::Serialize;
 use std::fmt::Write as _;
@@ -41,7 +42,7 @@ pub struct ReportOptions {
 }
 
 /// The classes of the timing batch: the bench's mix.
-use crate::sphere::batch::MIX;
+use crate::shapes::sphere::batch::MIX;
 
 /// One method × precision: the audit's errors beside the in-run cost.
 #[derive(Clone, Debug, Serialize)]
@@ -64,12 +65,12 @@ pub struct CostRow {
 struct Numbers<'a> {
     machine: &'a Machine,
     cost: &'a [CostRow],
-    audit: &'a audit::Report,
-    batch: &'a [crate::sphere::batch::BatchRow],
+    audit: &'a sphere_run::Report,
+    batch: &'a [crate::shapes::sphere::batch::BatchRow],
     renders: &'a [renders::RenderRow],
     seed1996: &'a seed::SeedRepro,
-    newton: &'a [crate::newton::NewtonRow],
-    newton_starts: &'a [crate::newton::StartRow],
+    newton: &'a [crate::shapes::recip::newton::NewtonRow],
+    newton_starts: &'a [crate::shapes::recip::newton::StartRow],
 }
 
 /// Where the numbers were measured.
@@ -98,7 +99,7 @@ impl Machine {
             threads: rayon::current_num_threads(),
             os: std::env::consts::OS.into(),
             tool: concat!("rayproof ", env!("CARGO_PKG_VERSION")),
-            date: crate::check::utc_now(),
+            date: crate::golden::utc_now(),
         }
     }
 }
@@ -161,7 +162,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
         shard: (0, 1),
         progress: o.progress,
     };
-    let (report, shard) = audit::run_shard(&opts);
+    let (report, shard) = sphere_run::run_shard(&opts);
     say(o, "timing every method × precision");
     let runs = if o.quick { 3 } else { 9 };
     let min_ns = if o.quick { 2e6 } else { 2e7 };
@@ -170,11 +171,11 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     let cost = cost_rows(&report, &shard, &t32, &t64);
     // 2. Batched kernel, checked bit-identical before timing
     say(o, "timing the batched kernel");
-    let mut bopts = crate::sphere::batch::BatchOpts::report();
+    let mut bopts = crate::shapes::sphere::batch::BatchOpts::report();
     if o.quick {
         bopts.runs = 3;
     }
-    let batch = crate::sphere::batch::throughput_table(&bopts)
+    let batch = crate::shapes::sphere::batch::throughput_table(&bopts)
         .map_err(|m| anyhow::anyhow!("batched kernel differs from the scalar method: {m}"))?;
     // 3. Render-level trade-off
     say(
@@ -192,21 +193,21 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     let sc = crate::render::scene::load(&o.reference.join("scenes/seed1996.toml"))?;
     let repro = seed::run(&sc, o.quick.then_some(64), if o.quick { 1 } else { 3 });
     for (label, img) in &repro.images {
-        let rgb = crate::imgdiff::tonemap_rgb8(img);
+        let rgb = crate::images::tonemap_rgb8(img);
         let name = format!("seed1996-{}.png", label.replace('/', "-"));
-        crate::imgdiff::write_png_rgb8(&dir.join("img").join(name), img.width, img.height, &rgb)?;
+        crate::images::write_png_rgb8(&dir.join("img").join(name), img.width, img.height, &rgb)?;
     }
     // 5. Newton refinement
     say(
         o,
         "measuring rcp/rsqrt Newton refinement over every f32 of the range",
     );
-    let newton = crate::newton::table(&if o.quick {
-        crate::newton::NewtonOpts::fast()
+    let newton = crate::shapes::recip::newton::table(&if o.quick {
+        crate::shapes::recip::newton::NewtonOpts::fast()
     } else {
-        crate::newton::NewtonOpts::exhaustive()
+        crate::shapes::recip::newton::NewtonOpts::exhaustive()
     });
-    let starts = crate::newton::start_bound_table();
+    let starts = crate::shapes::recip::newton::start_bound_table();
     // Write
     say(o, "writing");
     let md = markdown(
@@ -256,8 +257,8 @@ fn time_methods<F: PickPrecision>(seed: u64, runs: usize, min_ns: f64) -> Vec<Ti
 
 /// Pools the audit over classes per method × precision and sets it beside the timing.
 fn cost_rows(
-    report: &audit::Report,
-    shard: &audit::Shard,
+    report: &sphere_run::Report,
+    shard: &sphere_run::Shard,
     t32: &[Timing],
     t64: &[Timing],
 ) -> Vec<CostRow> {
@@ -342,13 +343,13 @@ fn markdown(
     machine: &Machine,
     cases: &u64,
     cost: &[CostRow],
-    report: &audit::Report,
-    shard: &audit::Shard,
-    batch: &[crate::sphere::batch::BatchRow],
+    report: &sphere_run::Report,
+    shard: &sphere_run::Shard,
+    batch: &[crate::shapes::sphere::batch::BatchRow],
     rows: &[renders::RenderRow],
     repro: &seed::SeedRepro,
-    newton: &[crate::newton::NewtonRow],
-    starts: &[crate::newton::StartRow],
+    newton: &[crate::shapes::recip::newton::NewtonRow],
+    starts: &[crate::shapes::recip::newton::StartRow],
     dir: &Path,
 ) -> Result<String> {
     let mut s = String::new();
@@ -638,8 +639,8 @@ fn to_html(md: &str) -> String {
 
 /// The Newton table and the start-value demonstration, Markdown.
 fn newton_markdown(
-    rows: &[crate::newton::NewtonRow],
-    starts: &[crate::newton::StartRow],
+    rows: &[crate::shapes::recip::newton::NewtonRow],
+    starts: &[crate::shapes::recip::newton::StartRow],
 ) -> String {
     let mut s = String::from(
         "Every f32 of [1, 2) for 1/x and of [1, 4) for 1/√x (the methods repeat over binades), \

@@ -1,11 +1,11 @@
 //! Render-level trade-off: each method × precision renders the hard scenes; its time is set
 //! against its image error versus the f64 robust render and versus the POV-Ray reference.
 
-use crate::export::Frame;
-use crate::imgdiff::{compare, read_image, Image, Thresholds};
+use crate::images::{compare, read_image, Image, Thresholds};
+use crate::numerics::timing::Timing;
+use crate::render::export::Frame;
 use crate::render::{self, scene, Overrides};
-use crate::sphere::methods::{Method, METHODS};
-use crate::timing::Timing;
+use crate::shapes::sphere::methods::{Method, METHODS};
 use serde::Serialize;
 use std::path::Path;
 
@@ -99,8 +99,8 @@ pub fn run(
             let vb = compare(&base, &img, &t)?;
             let vp = povray.as_ref().map(|r| compare(r, &img, &t)).transpose()?;
             let png = format!("{name}-{}-{p}.png", m.name);
-            let rgb = crate::imgdiff::tonemap_rgb8(&img);
-            crate::imgdiff::write_png_rgb8(&img_dir.join(&png), img.width, img.height, &rgb)?;
+            let rgb = crate::images::tonemap_rgb8(&img);
+            crate::images::write_png_rgb8(&img_dir.join(&png), img.width, img.height, &rgb)?;
             let px = vb.pixels.max(1) as f64;
             rows.push(RenderRow {
                 scene: name.into(),
@@ -120,8 +120,8 @@ pub fn run(
         }
         // The POV-Ray reference beside them
         if let Some(r) = &povray {
-            let rgb = crate::imgdiff::tonemap_rgb8(r);
-            crate::imgdiff::write_png_rgb8(
+            let rgb = crate::images::tonemap_rgb8(r);
+            crate::images::write_png_rgb8(
                 &img_dir.join(format!("{name}-povray.png")),
                 r.width,
                 r.height,

@@ -11,10 +11,10 @@
 //!    disagreed with the frame, timing more than the frame's whole CPU time.)
 //! 3. The two methods' images are compared (idiff metrics), per precision.
 
-use crate::imgdiff::{compare, Image, Thresholds};
+use crate::images::{compare, Image, Thresholds};
+use crate::numerics::timing::Timing;
 use crate::render::{self, scene::Scene, Overrides, RayCounts};
-use crate::sphere::methods::{method_by_name, Method};
-use crate::timing::Timing;
+use crate::shapes::sphere::methods::{method_by_name, Method};
 use serde::Serialize;
 
 /// The paper's figures (seed 000, §3).
@@ -180,7 +180,7 @@ pub fn run(sc: &Scene, size: Option<u32>, runs: usize) -> SeedRepro {
     // What a square root costs today against a multiply: dependent chains (latency), each
     // step also one add, as a 1996 scalar FPU would have executed them
     let chain = |f: fn(f64) -> f64| {
-        crate::timing::measure(4096, 7, 1e7, move || {
+        crate::numerics::timing::measure(4096, 7, 1e7, move || {
             let mut x = std::hint::black_box(2.0f64);
             for _ in 0..4096 {
                 x = f(std::hint::black_box(x));

@@ -1,0 +1,29 @@
+//! The number layer: the float trait every method is written against, double-double, outward
+//! rounded intervals, exact rationals and correct rounding, and in-run timing.
+
+pub mod dd;
+pub mod exact;
+pub mod interval;
+pub mod real;
+pub mod scalar;
+pub mod timing;
+
+use serde::{Deserialize, Serialize};
+
+/// Which arithmetic a row is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, PartialOrd, Ord)]
+#[serde(rename_all = "snake_case")]
+pub enum Precision {
+    F32,
+    F64,
+}
+
+impl Precision {
+    pub const ALL: [Precision; 2] = [Precision::F32, Precision::F64];
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        }
+    }
+}

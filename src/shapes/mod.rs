@@ -1,0 +1,44 @@
+//! The audited routine families: each a [`crate::audit::shape::Shape`] with its methods, its
+//! exact oracle and its hard-case classes, kept together.
+
+pub mod aabb;
+pub mod offset;
+pub mod optics;
+pub mod poly;
+pub mod quadric;
+pub mod recip;
+pub mod reintersect;
+pub mod robustness;
+pub mod roots;
+pub mod sphere;
+pub mod sturm;
+pub mod torus;
+pub mod triangle;
+
+use crate::audit::shape::Shape;
+
+/// Every routine family, in the order of the seed chapter.
+pub fn registry() -> Vec<&'static dyn Shape> {
+    vec![
+        &roots::QUADRATIC,
+        &roots::CUBIC,
+        &roots::QUARTIC,
+        &roots::NEWTON,
+        &recip::RCP,
+        &recip::RSQRT,
+        &triangle::Triangle,
+        &aabb::BoxShape,
+        &quadric::EllipsoidShape,
+        &quadric::CylinderShape,
+        &torus::Torus,
+        &quadric::EllipsoidNormalShape,
+        &torus::TorusNormal,
+        &optics::Reflect,
+        &optics::Refract,
+    ]
+}
+
+/// A shape by name.
+pub fn shape_by_name(name: &str) -> Option<&'static dyn Shape> {
+    registry().into_iter().find(|s| s.name() == name)
+}
