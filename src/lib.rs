@@ -19,6 +19,7 @@ pub mod golden;
 pub mod images;
 pub mod implicit;
 pub mod numerics;
+pub mod output;
 pub mod render;
 pub mod report;
 pub mod shapes;

@@ -468,7 +468,7 @@ fn update_golden(
         "sha256": sha256_file(&path)?,
     });
     let text = serde_json::to_string_pretty(&m)? + "\n";
-    crate::cli::write_atomic(&dir.join("manifest.json"), text.as_bytes())
+    crate::output::write_atomic(&dir.join("manifest.json"), text.as_bytes())
 }
 
 /// The current UTC time as `YYYY-MM-DDTHH:MM:SSZ` (civil-from-days, no time crate).

@@ -256,28 +256,6 @@ fn scale<T: Copy + Into<f32>>(v: &[T], max: f32) -> Vec<f32> {
     v.iter().map(|&x| x.into() / max).collect()
 }
 
-fn tmp_for(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
-}
-
-/// Writes through a temporary sibling `.name.tmpPID`, renamed into place; removes it on error.
-fn write_atomic(
-    path: &Path,
-    write: impl FnOnce(&Path) -> anyhow::Result<()>,
-) -> anyhow::Result<()> {
-    use anyhow::Context;
-    let tmp = tmp_for(path);
-    let r = write(&tmp).and_then(|_| Ok(std::fs::rename(&tmp, path)?));
-    if r.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    r.with_context(|| format!("cannot write {}", path.display()))
-}
-
 /// Writes every channel of `img` as a float32 EXR, atomically.
 pub fn write_exr_rgb(path: &Path, img: &Image) -> anyhow::Result<()> {
     use exr::prelude::*;
@@ -294,7 +272,7 @@ pub fn write_exr_rgb(path: &Path, img: &Image) -> anyhow::Result<()> {
         Encoding::FAST_LOSSLESS,
         AnyChannels::sort(list.into()),
     );
-    write_atomic(path, |tmp| {
+    crate::output::write_atomic_with(path, |tmp| {
         Ok(exr::prelude::Image::from_layer(layer)
             .write()
             .to_file(tmp)?)
@@ -303,7 +281,7 @@ pub fn write_exr_rgb(path: &Path, img: &Image) -> anyhow::Result<()> {
 
 /// Writes 8-bit RGB (`w × h × 3` bytes) as a PNG, atomically.
 pub fn write_png_rgb8(path: &Path, w: usize, h: usize, rgb: &[u8]) -> anyhow::Result<()> {
-    write_atomic(path, |tmp| {
+    crate::output::write_atomic_with(path, |tmp| {
         let img = image::RgbImage::from_raw(w as u32, h as u32, rgb.to_vec())
             .ok_or_else(|| anyhow::anyhow!("{} bytes is not {w}x{h} RGB", rgb.len()))?;
         Ok(img.save_with_format(tmp, image::ImageFormat::Png)?)
@@ -1385,7 +1363,7 @@ fn diff(a: &DiffArgs) -> Result<u8, Exit> {
         if json_stdout {
             out(&text);
         } else {
-            write_atomic(p, |tmp| Ok(std::fs::write(tmp, &text)?)).map_err(write_err)?;
+            crate::output::write_atomic(p, text.as_bytes()).map_err(write_err)?;
         }
     }
 

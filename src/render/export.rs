@@ -702,11 +702,10 @@ impl Tessellation {
         if std::fs::metadata(&path).is_ok_and(|m| m.len() == bytes.len() as u64) {
             return Ok(path);
         }
-        let tmp = dir.join(format!("mesh-{hash}.ply.tmp{}", std::process::id()));
         std::fs::create_dir_all(dir)
-            .and_then(|_| std::fs::write(&tmp, &bytes))
-            .and_then(|_| std::fs::rename(&tmp, &path))
-            .map_err(|e| (path.clone(), e.to_string()))?;
+            .map_err(anyhow::Error::from)
+            .and_then(|_| crate::output::write_atomic(&path, &bytes))
+            .map_err(|e| (path.clone(), format!("{e:#}")))?;
         Ok(path)
     }
 }

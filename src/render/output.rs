@@ -15,14 +15,6 @@ pub struct Layers {
     pub rays: bool,
 }
 
-fn tmp_for(path: &Path) -> std::path::PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
-}
-
 /// Writes the EXR.
 pub fn write_exr(r: &Render, path: &Path, layers: Layers) -> Result<()> {
     let ch = |name: &str, f: &dyn Fn(usize) -> f32| {
@@ -54,12 +46,9 @@ pub fn write_exr(r: &Render, path: &Path, layers: Layers) -> Result<()> {
         Encoding::FAST_LOSSLESS,
         channels,
     );
-    let tmp = tmp_for(path);
-    Image::from_layer(layer)
-        .write()
-        .to_file(&tmp)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_atomic_with(path, |tmp| {
+        Ok(Image::from_layer(layer).write().to_file(tmp)?)
+    })
 }
 
 /// sRGB transfer of a linear value clamped to [0, 1].
@@ -78,10 +67,9 @@ pub fn write_png(r: &Render, path: &Path) -> Result<()> {
     let buf: Vec<u8> = r.beauty.iter().flat_map(|p| p.map(srgb)).collect();
     let img =
         image::RgbImage::from_raw(r.width as u32, r.height as u32, buf).context("image size")?;
-    let tmp = tmp_for(path);
-    img.save_with_format(&tmp, image::ImageFormat::Png)
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))
+    crate::output::write_atomic_with(path, |tmp| {
+        Ok(img.save_with_format(tmp, image::ImageFormat::Png)?)
+    })
 }
 
 /// The statistics as JSON (also written beside the EXR as `<file>.json`).

@@ -224,9 +224,9 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
         newton: &newton,
         newton_starts: &starts,
     };
-    crate::cli::write_atomic(&dir.join("report.md"), md.as_bytes())?;
-    crate::cli::write_atomic(&dir.join("index.html"), html.as_bytes())?;
-    crate::cli::write_atomic(
+    crate::output::write_atomic(&dir.join("report.md"), md.as_bytes())?;
+    crate::output::write_atomic(&dir.join("index.html"), html.as_bytes())?;
+    crate::output::write_atomic(
         &dir.join("report.json"),
         (serde_json::to_string_pretty(&numbers)? + "\n").as_bytes(),
     )?;
@@ -354,7 +354,7 @@ fn markdown(
 ) -> Result<String> {
     let mut s = String::new();
     let svg = |name: &str, body: String| -> Result<String> {
-        crate::cli::write_atomic(&dir.join(name), body.as_bytes())?;
+        crate::output::write_atomic(&dir.join(name), body.as_bytes())?;
         Ok(format!("![{name}]({name})\n\n"))
     };
     // Header

@@ -1,0 +1,167 @@
+//! `rayproof render`, `export` and `downsample`.
+
+use super::*;
+use crate::numerics::Precision;
+use crate::output::{check_output_dirs, write_atomic};
+use crate::shapes::sphere::methods::Method;
+use anyhow::{Context, Result};
+use clap::Args;
+use std::io::IsTerminal;
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Output EXR (linear float32); a JSON sidecar with the statistics goes beside it.
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+    /// Tone-mapped PNG preview.
+    #[arg(long)]
+    pub png: Option<PathBuf>,
+    /// Ray–sphere method (overrides render.method).
+    #[arg(long, value_parser = parse_method)]
+    pub method: Option<&'static Method>,
+    /// f32 or f64 (overrides render.precision).
+    #[arg(long, value_parser = parse_precision)]
+    pub precision: Option<Precision>,
+    /// Samples per pixel, a square n² (overrides camera.grid = n).
+    #[arg(long, value_parser = parse_spp)]
+    pub spp: Option<u32>,
+    /// Image width; the height keeps the scene's aspect ratio (overrides camera.width/height).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub width: Option<u32>,
+    /// Print the chosen effects and why, then render.
+    #[arg(long)]
+    pub explain: bool,
+    /// Turn every effect on (to measure what specialisation saves).
+    #[arg(long)]
+    pub all_effects: bool,
+    /// Test every object for every ray (no BVH), as seed 000's 1996 renderer did.
+    #[arg(long)]
+    pub flat: bool,
+    /// Extra EXR layers: depth, normal, rays (comma-separated).
+    #[arg(long, value_delimiter = ',', value_parser = ["depth", "normal", "rays"])]
+    pub layers: Vec<String>,
+}
+
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// Target renderer: povray or mitsuba.
+    #[arg(long = "to", value_parser = ["povray", "mitsuba"])]
+    pub to: String,
+    /// Scene file (TOML).
+    pub scene: PathBuf,
+    /// Image width (the height keeps the scene's aspect ratio); default: the scene's.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub width: Option<u32>,
+    /// n×n sub-pixel grid; default: the scene's camera.grid.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub grid: Option<u32>,
+}
+
+#[derive(Args, Debug)]
+pub struct DownsampleArgs {
+    /// Input EXR (R, G, B; any sample type).
+    pub input: PathBuf,
+    /// Block size n: the output is (W/n)×(H/n), each pixel the mean of an n×n block.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=64))]
+    pub factor: u32,
+    /// Output EXR (float32 R, G, B).
+    #[arg(short = 'o', long = "output")]
+    pub output: PathBuf,
+}
+
+pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
+    use crate::render::{self, output, scene};
+    let sc = scene::load(&a.scene)?;
+    // Refuse before rendering if an output cannot be written
+    check_output_dirs(&[&a.output, &a.png])?;
+    let ov = render::Overrides {
+        method: a.method,
+        precision: a.precision.map(|p| p.name()),
+        grid: a.spp,
+        size: a.width.map(|w| {
+            let fr = crate::render::export::Frame::of(&sc, Some(w), None);
+            (fr.width, fr.height)
+        }),
+        force_all_effects: a.all_effects,
+        progress: std::io::stderr().is_terminal(),
+        flat: a.flat,
+        ..Default::default()
+    };
+    let r = render::render(&sc, &ov);
+    if a.explain {
+        say!("effects for {}:", a.scene.display());
+        for line in &r.effects.reasons {
+            say!("  {line}");
+        }
+    }
+    let c = &r.counts;
+    say!(
+        "{}×{} with {} in {}: {:.3} s\nrays: primary {}, shadow {}, reflection {}, refraction {} (total {})\n\
+         missing every shape: primary {}, shadow (light reached) {}, reflection {}, refraction {}\n\
+         tests: sphere {} ({} hits), other {}, BVH nodes {}",
+        r.width, r.height, r.method, r.precision, r.seconds, c.primary, c.shadow, c.reflection, c.refraction, c.total(),
+        c.primary_miss, c.shadow_miss, c.reflection_miss, c.refraction_miss,
+        c.tests.sphere_tests, c.tests.sphere_hits, c.tests.other_tests, c.tests.bvh_nodes
+    );
+    if c.tests.implicit_tests > 0 {
+        say!(
+            "sphere tracing: {} implicit tests, {} field evaluations",
+            c.tests.implicit_tests,
+            c.tests.march_steps
+        );
+    }
+    let lights = sc.file.lights.len() + sc.file.directional.len();
+    say!("{}", render::budget_line(&r, lights));
+    if let Some(out) = &a.output {
+        let layers = output::Layers {
+            depth: a.layers.iter().any(|l| l == "depth"),
+            normal: a.layers.iter().any(|l| l == "normal"),
+            rays: a.layers.iter().any(|l| l == "rays"),
+        };
+        output::write_exr(&r, out, layers)?;
+        let stats = output::stats_json(&r, &a.scene.display().to_string(), lights);
+        let side = PathBuf::from(format!("{}.json", out.display()));
+        write_atomic(
+            &side,
+            (serde_json::to_string_pretty(&stats)? + "\n").as_bytes(),
+        )?;
+    }
+    if let Some(png) = &a.png {
+        output::write_png(&r, png)?;
+    }
+    Ok(0)
+}
+
+pub(super) fn run_export(e: ExportArgs) -> Result<u8> {
+    let sc = crate::render::scene::load(&e.scene)?;
+    let fr = crate::render::export::Frame::of(&sc, e.width, e.grid);
+    if let Some(why) = crate::render::export::unsupported(&sc, &e.to) {
+        anyhow::bail!("{}: {why}", e.scene.display());
+    }
+    say_raw!(
+        "{}",
+        match e.to.as_str() {
+            "povray" => crate::render::export::povray(&sc, fr),
+            _ => crate::render::export::mitsuba(&sc, fr),
+        }
+    );
+    Ok(0)
+}
+
+pub(super) fn run_downsample(d: DownsampleArgs) -> Result<u8> {
+    check_output_dirs(&[&Some(d.output.clone())])?;
+    let big = crate::images::read_image(&d.input)?;
+    let small = crate::render::export::downsample(&big, d.factor as usize)
+        .with_context(|| d.input.display().to_string())?;
+    crate::images::write_exr_rgb(&d.output, &small)?;
+    let (w, h) = (small.width, small.height);
+    say!(
+        "{}: {w}×{h} (mean of {f}×{f} blocks)",
+        d.output.display(),
+        f = d.factor
+    );
+    Ok(0)
+}
