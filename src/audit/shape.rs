@@ -1,25 +1,24 @@
-//! The game-math chapter's routines (seed 002), audited like the sphere.
+//! What the audit knows about a routine family ([`Shape`]), about a method under audit
+//! ([`Method`]), and the two sides of a judgement: the oracle's [`Truth`] and a method's
+//! [`Answer`].
 //!
-//! Each routine family is a [`Shape`]: named methods written once over [`crate::numerics::real::Real`],
-//! an exact oracle (GMP rationals, MPFR enclosures), and named hard-case classes. A case is a
-//! flat list of scalars, each exactly representable in the case's precision, so it replays
-//! bit for bit through `rayproof probe <shape> --precision P <values…>`.
-//!
-//! What a routine answers is reduced to a discrete **count** (0 = miss / no real root / total
-//! internal reflection; otherwise hit, number of distinct real roots, refracted) and a list of
-//! **values** (`t`, the roots in ascending order, vector components), each correctly rounded
-//! by the oracle. [`judge`] compares the two the same way for every routine; [`audit`]
-//! aggregates judgements into rows shaped like the sphere's.
+//! A case is a flat list of scalars, each exactly representable in the case's precision, so
+//! it replays bit for bit through `rayproof probe <shape> --precision P -- <values…>`. What a
+//! routine answers is reduced to a discrete **count** (0 = miss / no real root / total internal
+//! reflection; otherwise hit, number of distinct real roots, refracted) and a list of
+//! **values** (`t`, the roots in ascending order, vector components), each correctly rounded by
+//! the oracle.
 
-use crate::numerics::{exact, Precision};
-use crate::shapes::sphere::Judgement;
+use crate::numerics::Precision;
+use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+use sha2::{Digest, Sha256};
 
-/// A method of a routine.
+/// A built-in method of a shape.
 #[derive(Clone, Copy, Debug)]
 pub struct MethodInfo {
     pub name: &'static str,
-    /// The robust anchor: held to zero wrong verdicts on well-posed valid cases.
+    /// Offered as robust: held to the strict rows of the tolerance table.
     pub robust: bool,
     /// One line: where the formula comes from.
     pub about: &'static str,
@@ -35,6 +34,15 @@ pub enum Metric {
     NormUlps,
 }
 
+impl Metric {
+    pub fn name(self) -> &'static str {
+        match self {
+            Metric::Ulps => "ulps",
+            Metric::NormUlps => "norm_ulps",
+        }
+    }
+}
+
 /// The oracle's exact answer about one case.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Truth {
@@ -44,19 +52,25 @@ pub enum Truth {
 }
 
 /// A valid case's exact outcome.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, Default)]
 pub struct Expected {
     /// 0 = miss / no real root / TIR; otherwise hit (1), or the number of distinct real roots.
     pub count: u32,
     /// The correctly rounded values in the case's precision (empty when `count` is 0).
     pub values: Vec<f64>,
     /// Other exact candidates for `values[0]` (the far intersection, the other roots): an
-    /// answer nearer one of them than to `values[0]` is a wrong root.
+    /// answer nearer one of them than to the right one is a wrong root.
     pub others: Vec<f64>,
     /// The count changes when some input moves by one ulp: a disagreement is not a failure.
     pub ill_posed: bool,
     /// The oracle could not round a value within its precision cap.
     pub cap_reached: bool,
+    /// `values[0]` correctly rounded to `f64` (sharper than `values[0]` for an `f32` case);
+    /// wrong roots and enclosures are judged against it when the oracle gives it.
+    pub value_f64: Option<f64>,
+    /// How far `values[0]` moves, in its ulps, when every input moves by one ulp (the case's
+    /// own sensitivity); a method's error divided by it is reported as err/cond.
+    pub cond: Option<f64>,
 }
 
 /// A method's answer.
@@ -64,6 +78,8 @@ pub struct Expected {
 pub struct Answer {
     pub count: u32,
     pub values: Vec<f64>,
+    /// An enclosure `[lo, hi]` the method claims holds the exact `values[0]` (checked).
+    pub enclosure: Option<[f64; 2]>,
 }
 
 impl Answer {
@@ -71,150 +87,150 @@ impl Answer {
         Answer::default()
     }
     pub fn hit(values: Vec<f64>) -> Answer {
-        Answer { count: 1, values }
-    }
-}
-
-/// What a row must show for the audit to pass (the shapes' reviewed tolerance table).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Expect {
-    /// Wrong verdicts allowed on well-posed valid cases (`u64::MAX`: not checked).
-    pub max_wrong: u64,
-    /// Largest value error allowed in ulps (`u64::MAX`: not checked).
-    pub max_ulps: u64,
-    /// A known failure (XFAIL): the row must show at least one wrong verdict or one value error
-    /// above `max_ulps`, so the harness is seen to catch it.
-    pub must_fail: bool,
-}
-
-impl Expect {
-    pub const ANY: Expect = Expect {
-        max_wrong: u64::MAX,
-        max_ulps: u64::MAX,
-        must_fail: false,
-    };
-    pub fn pass(max_ulps: u64) -> Expect {
-        Expect {
-            max_wrong: 0,
-            max_ulps,
-            must_fail: false,
-        }
-    }
-    pub fn xfail() -> Expect {
-        Expect {
-            must_fail: true,
-            ..Expect::ANY
+        Answer {
+            count: 1,
+            values,
+            enclosure: None,
         }
     }
 }
 
-/// A routine family: its methods, oracle and classes.
-pub trait Shape: Sync {
+/// What stays fixed about a shape: its names, its built-in methods, how errors are measured.
+#[derive(Debug)]
+pub struct ShapeInfo {
     /// The name used by `--shape` and `rayproof probe <name>`.
-    fn name(&self) -> &'static str;
+    pub name: &'static str,
     /// One line for help and reports (with the seed section, e.g. "§2.1").
-    fn about(&self) -> &'static str;
+    pub about: &'static str,
     /// Names of the input scalars, in probe order.
-    fn args(&self) -> &'static [&'static str];
+    pub args: &'static [&'static str],
     /// Names of the output values.
-    fn values(&self) -> &'static [&'static str];
+    pub values: &'static [&'static str],
     /// Hard-case class names.
-    fn classes(&self) -> &'static [&'static str];
-    fn methods(&self) -> &'static [MethodInfo];
-    fn metric(&self) -> Metric {
-        Metric::Ulps
-    }
-    /// Case of `class` drawn from `rng` (seeded per case by the framework). Every value must be
-    /// exactly representable in `prec`. `None` when the generator found no member.
+    pub classes: &'static [&'static str],
+    pub methods: &'static [MethodInfo],
+    pub metric: Metric,
+    /// Cases per class when `--cases` is not given (an oracle that costs milliseconds per
+    /// case, as the torus's does, audits fewer).
+    pub default_cases: u64,
+    /// The oracle gives each case's sensitivity ([`Expected::cond`]): rows report err/cond.
+    pub reports_cond: bool,
+    /// [`Shape::residual`] is implemented: rows report hit-point residuals.
+    pub reports_residual: bool,
+}
+
+/// A routine family: its methods, oracle and classes. The fixed facts are one [`ShapeInfo`];
+/// the code is `generate`, `oracle` and `run`.
+pub trait Shape: Sync {
+    fn info(&self) -> &ShapeInfo;
+    /// Case of `class` drawn from `rng` (seeded per case by [`Shape::case_rng`]). Every value
+    /// must be exactly representable in `prec`. `None` when the generator found no member.
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>>;
     /// The exact answer (inputs as given, in `prec`).
     fn oracle(&self, input: &[f64], prec: Precision) -> Truth;
-    /// Runs method `m` in `prec` on the input (converted exactly to the precision).
+    /// Runs built-in method `m` in `prec` on the input (converted exactly to the precision).
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer;
-    /// Cases per class when `--cases` is not given (an oracle that costs milliseconds per
-    /// case, as the torus's does, audits fewer).
-    fn default_cases(&self) -> u64 {
-        20_000
+
+    /// The generator of case `index`: by default a ChaCha8 stream keyed by the SHA-256 of
+    /// seed, shape, class, precision and index, so any case is generated alone.
+    fn case_rng(&self, seed: u64, class: usize, prec: Precision, index: u64) -> ChaCha8Rng {
+        let info = self.info();
+        case_rng(seed, info.name, info.classes[class], prec, index)
     }
-    /// The tolerance of method `m` in `prec` on `class`. Default: robust methods pass with no
-    /// wrong verdict and at most 64 ulps; others are only reported.
-    fn expect(&self, m: usize, _prec: Precision, _class: usize) -> Expect {
-        if self.methods()[m].robust {
-            Expect::pass(64)
-        } else {
-            Expect::ANY
-        }
+    /// The hit point's distance from the surface in ulps of the shape's size, for an answer
+    /// judged right (`None`: the shape does not report residuals).
+    fn residual(&self, _input: &[f64], _prec: Precision, _answer: &Answer) -> Option<f64> {
+        None
+    }
+    /// Extra lines of the oracle's answer for `probe` (e.g. the exact roots in decimal).
+    fn oracle_detail(&self, _input: &[f64], _prec: Precision) -> Vec<(String, String)> {
+        vec![]
+    }
+
+    fn name(&self) -> &'static str {
+        self.info().name
     }
 }
 
-/// Judges an answer against the truth (shared by every routine).
-pub fn judge(truth: &Truth, a: &Answer, metric: Metric, prec: Precision) -> Judgement {
-    let e = match truth {
-        Truth::Invalid => {
-            return if a.count == 0 {
-                Judgement::Rejected
-            } else if a.values.iter().any(|v| !v.is_finite()) {
-                Judgement::InvalidNanT
-            } else {
-                Judgement::InvalidHit
+/// A ChaCha8 stream keyed by the SHA-256 of seed, a stream name, a class name, precision and
+/// index (the default case generator of a shape, and the streams of the reintersection tests).
+pub fn case_rng(seed: u64, name: &str, class: &str, prec: Precision, index: u64) -> ChaCha8Rng {
+    let mut h = Sha256::new();
+    h.update(seed.to_le_bytes());
+    h.update(name.as_bytes());
+    h.update([0]);
+    h.update(class.as_bytes());
+    h.update([0]);
+    h.update(prec.name().as_bytes());
+    h.update(index.to_le_bytes());
+    ChaCha8Rng::from_seed(h.finalize().into())
+}
+
+/// A method under audit: one of a shape's own ([`Builtin`]) or one written outside the crate.
+/// It receives the case's inputs (each exactly representable in `prec`) and answers as the
+/// shape's built-in methods do.
+pub trait Method: Sync {
+    fn name(&self) -> &str;
+    /// Offered as robust (robust methods must reject invalid input).
+    fn robust(&self) -> bool {
+        false
+    }
+    fn about(&self) -> &str {
+        ""
+    }
+    fn run(&self, input: &[f64], prec: Precision) -> Answer;
+}
+
+/// Built-in method `index` of a shape.
+#[derive(Clone, Copy)]
+pub struct Builtin {
+    pub shape: &'static dyn Shape,
+    pub index: usize,
+}
+
+impl Builtin {
+    /// Every built-in method of a shape.
+    pub fn all(shape: &'static dyn Shape) -> Vec<Builtin> {
+        (0..shape.info().methods.len())
+            .map(|index| Builtin { shape, index })
+            .collect()
+    }
+    fn info(&self) -> &'static MethodInfo {
+        &self.shape.info().methods[self.index]
+    }
+}
+
+impl Method for Builtin {
+    fn name(&self) -> &str {
+        self.info().name
+    }
+    fn robust(&self) -> bool {
+        self.info().robust
+    }
+    fn about(&self) -> &str {
+        self.info().about
+    }
+    fn run(&self, input: &[f64], prec: Precision) -> Answer {
+        self.shape.run(self.index, input, prec)
+    }
+}
+
+/// Runs a generic expression in a precision: `in_precision!(prec, F => run_in::<F>(m, input))`
+/// evaluates `run_in::<f32>` or `run_in::<f64>`.
+#[macro_export]
+macro_rules! in_precision {
+    ($prec:expr, $F:ident => $e:expr) => {
+        match $prec {
+            $crate::numerics::Precision::F32 => {
+                type $F = f32;
+                $e
+            }
+            $crate::numerics::Precision::F64 => {
+                type $F = f64;
+                $e
             }
         }
-        Truth::Answer(e) => e,
     };
-    if a.count > 0 && a.values.iter().any(|v| !v.is_finite()) {
-        return Judgement::NonfiniteT;
-    }
-    if a.count > e.count {
-        return Judgement::FalseHit;
-    }
-    if a.count < e.count || a.values.len() < e.values.len() {
-        return Judgement::FalseMiss;
-    }
-    if e.count == 0 || e.values.is_empty() {
-        return Judgement::Ok { ulps: None };
-    }
-    // A first value nearer another candidate than the right one is a wrong root
-    let (got, right) = (a.values[0], e.values[0]);
-    if e.others
-        .iter()
-        .any(|&o| o != right && (got - o).abs() < (got - right).abs())
-    {
-        return Judgement::WrongRoot;
-    }
-    Judgement::Ok {
-        ulps: Some(value_error(&e.values, &a.values, metric, prec)),
-    }
-}
-
-/// The error of `got` against the correctly rounded `want`, by the metric.
-pub fn value_error(want: &[f64], got: &[f64], metric: Metric, prec: Precision) -> u64 {
-    match metric {
-        Metric::Ulps => want
-            .iter()
-            .zip(got)
-            .map(|(&w, &g)| exact::ulps(w, g, prec))
-            .max()
-            .unwrap_or(0),
-        Metric::NormUlps => {
-            let scale = want.iter().fold(0f64, |m, w| m.max(w.abs()));
-            let unit = exact::ulp(scale, prec);
-            want.iter()
-                .zip(got)
-                .map(|(&w, &g)| ((w - g).abs() / unit).ceil())
-                .fold(0f64, f64::max) as u64
-        }
-    }
-}
-
-/// The replay command of a case.
-pub fn probe_line(shape: &dyn Shape, prec: Precision, input: &[f64]) -> String {
-    let vals: Vec<String> = input.iter().map(|&x| hex_text(x)).collect();
-    format!(
-        "rayproof probe {} --precision {} -- {}",
-        shape.name(),
-        prec.name(),
-        vals.join(" ")
-    )
 }
 
 /// An input or output value as exact text: a C99 hex float, `inf`, `-inf` or `nan`.
@@ -226,29 +242,12 @@ pub fn hex_text(x: f64) -> String {
     }
 }
 
-/// Parses probe values (decimal or hex, each rounded once to the precision).
-pub fn parse_values(
-    shape: &dyn Shape,
-    prec: Precision,
-    text: &[String],
-) -> Result<Vec<f64>, String> {
-    if text.len() != shape.args().len() {
-        return Err(format!(
-            "probe {} takes {} values ({}), got {}",
-            shape.name(),
-            shape.args().len(),
-            shape.args().join(" "),
-            text.len()
-        ));
-    }
-    text.iter()
-        .zip(shape.args())
-        .map(|(s, name)| {
-            let v = match prec {
-                Precision::F32 => <f32 as crate::numerics::real::Real>::parse(s).map(|x| x as f64),
-                Precision::F64 => <f64 as crate::numerics::real::Real>::parse(s),
-            };
-            v.ok_or_else(|| format!("{name}: '{s}' is not a number in {}", prec.name()))
-        })
-        .collect()
+/// The replay command of a case.
+pub fn probe_line(shape: &str, prec: Precision, input: &[f64]) -> String {
+    let vals: Vec<String> = input.iter().map(|&x| hex_text(x)).collect();
+    format!(
+        "rayproof probe {shape} --precision {} -- {}",
+        prec.name(),
+        vals.join(" ")
+    )
 }

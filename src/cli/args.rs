@@ -1,7 +1,6 @@
 //! Value parsers shared by the commands' arguments (each error is one line).
 
 use crate::numerics::Precision;
-use crate::shapes::sphere::cases::Class;
 use crate::shapes::sphere::methods::{method_by_name, Method, METHODS};
 use anyhow::Result;
 
@@ -31,39 +30,12 @@ pub(super) fn parse_method(s: &str) -> Result<&'static Method, String> {
     })
 }
 
-pub(super) fn parse_shape(s: &str) -> Result<String, String> {
-    if s == "all" || s == "sphere" || crate::shapes::shape_by_name(s).is_some() {
-        Ok(s.to_string())
-    } else {
-        Err(format!(
-            "unknown shape '{s}' (known: all, {})",
-            shape_names().join(", ")
-        ))
-    }
-}
-
-/// Every auditable shape: the sphere, then the routines' registry.
-pub(super) fn shape_names() -> Vec<&'static str> {
-    std::iter::once("sphere")
-        .chain(crate::shapes::registry().iter().map(|s| s.name()))
-        .collect()
-}
-
 pub(super) fn parse_precision(s: &str) -> Result<Precision, String> {
     match s {
         "f32" => Ok(Precision::F32),
         "f64" => Ok(Precision::F64),
         _ => Err(format!("unknown precision '{s}' (known: f32, f64)")),
     }
-}
-
-pub(super) fn parse_class(s: &str) -> Result<Class, String> {
-    Class::from_name(s).ok_or_else(|| {
-        format!(
-            "unknown class '{s}' (known: {})",
-            Class::ALL.map(|c| c.name()).join(", ")
-        )
-    })
 }
 
 pub(super) fn parse_shard(s: &str) -> Result<(u64, u64), String> {
@@ -77,22 +49,4 @@ pub(super) fn parse_shard(s: &str) -> Result<(u64, u64), String> {
         return Err(bad());
     }
     Ok((k, n))
-}
-
-pub(super) fn parse_number(s: &str) -> Result<String, String> {
-    crate::numerics::real::parse_f64(s)
-        .map(|_| s.trim().to_string())
-        .ok_or_else(|| format!("'{s}' is not a decimal or hex-float number"))
-}
-
-pub(super) fn parse_triple(s: &str) -> Result<[String; 3], String> {
-    let parts: Vec<&str> = s.split(',').collect();
-    if parts.len() != 3 {
-        return Err(format!("'{s}' is not three comma-separated numbers X,Y,Z"));
-    }
-    let v: Vec<String> = parts
-        .iter()
-        .map(|p| parse_number(p))
-        .collect::<Result<_, _>>()?;
-    Ok([v[0].clone(), v[1].clone(), v[2].clone()])
 }

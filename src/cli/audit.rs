@@ -1,13 +1,15 @@
 //! `rayproof audit` and `rayproof merge`.
 
 use super::*;
-use crate::audit::sphere_run::{self, AuditOptions};
+use crate::audit::plan::{Options, Plan};
+use crate::audit::run::Tallies;
+use crate::audit::shard::{self, Shard};
+use crate::audit::tolerance::{Known, Status, Table};
+use crate::audit::{table, Report, ShapeReport, TOOL};
 use crate::numerics::Precision;
 use crate::output::{check_output_dirs, write_atomic};
-use crate::shapes::sphere::cases::Class;
-use crate::shapes::sphere::methods::METHODS;
-use crate::shapes::sphere::tolerance;
-use anyhow::{anyhow, bail, Context, Result};
+use crate::shapes::robustness::{self, Robustness};
+use anyhow::{anyhow, Context, Result};
 use clap::Args;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -15,8 +17,8 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct AuditArgs {
-    /// Cases per class and precision (default 20000; for routines whose oracle is slow, such as
-    /// the torus, their own smaller default).
+    /// Cases per class and precision (default: each shape's, 20000, or fewer where the oracle
+    /// is slow, as the torus's is).
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     pub cases: Option<u64>,
     /// Seed of every case generator; the same seed gives byte-identical JSON.
@@ -24,8 +26,8 @@ pub struct AuditArgs {
     pub seed: u64,
     /// Shapes (routine families) to audit: sphere, the game-math chapter's routines (see
     /// `rayproof probe --help`), or all (repeat or comma-separate). Default: all, or only the
-    /// sphere when --method, --class or sharding is given.
-    #[arg(long, value_delimiter = ',', value_parser = parse_shape)]
+    /// sphere when --method or --class is given.
+    #[arg(long, value_delimiter = ',')]
     pub shape: Vec<String>,
     /// Methods to audit (repeat or comma-separate); default: all. Names are the selected
     /// shape's (a single shape).
@@ -40,10 +42,13 @@ pub struct AuditArgs {
     /// Run only shard K of N (cases whose index ≡ K mod N), written as K/N.
     #[arg(long, value_parser = parse_shard, default_value = "0/1")]
     pub shard: (u64, u64),
-    /// Write this shard's raw per-case results for `rayproof merge` (the tolerance table is then
-    /// checked by the merge, not here).
+    /// Write this shard's tallies for `rayproof merge` (the tolerance table is then checked by
+    /// the merge, not here).
     #[arg(long, value_name = "FILE")]
     pub shard_out: Option<PathBuf>,
+    /// Tolerance rules tried before the built-in table (TOML, the built-in table's format).
+    #[arg(long, value_name = "FILE")]
+    pub tolerances: Option<PathBuf>,
     /// Write the full report as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -61,6 +66,9 @@ pub struct MergeArgs {
     /// in any order.
     #[arg(required = true, value_name = "SHARD")]
     pub shards: Vec<PathBuf>,
+    /// Tolerance rules tried before the built-in table (as for `audit`).
+    #[arg(long, value_name = "FILE")]
+    pub tolerances: Option<PathBuf>,
     /// Write the full report as JSON (byte-identical to the unsharded audit's).
     #[arg(long)]
     pub json: Option<PathBuf>,
@@ -72,251 +80,108 @@ pub struct MergeArgs {
     pub worst: usize,
 }
 
+/// The tolerance table, with the user's rules first; one line on any error.
+fn load_table(user: &Option<PathBuf>, known: &Known) -> Result<Table> {
+    let text = match user {
+        Some(p) => Some(
+            std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
+        ),
+        None => None,
+    };
+    let name = user.as_ref().map(|p| p.display().to_string());
+    let file = name.as_deref().zip(text.as_deref());
+    Table::load(file, known).map_err(|e| anyhow!("tolerances: {e}"))
+}
+
+/// Prints a shape's table and worst cases.
+fn print_shape(r: &ShapeReport, worst: usize) {
+    say_raw!("{}", table::shape_table(r));
+    if worst > 0 {
+        say_raw!("{}", table::worst_cases(r, worst));
+    }
+}
+
 pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
-    // Which shapes: sharding, --method and --class keep the sphere-only audit they always meant
-    let sharded = a.shard != (0, 1) || a.shard_out.is_some();
-    let narrowed = !a.method.is_empty() || !a.class.is_empty();
-    let all = shape_names();
-    let every = a.shape.iter().any(|s| s == "all") || (a.shape.is_empty() && !sharded && !narrowed);
-    let names: Vec<&'static str> = if a.shape.is_empty() {
-        if sharded || narrowed {
-            vec!["sphere"]
-        } else {
-            all
-        }
-    } else if a.shape.iter().any(|s| s == "all") {
-        all
-    } else {
-        all.into_iter()
-            .filter(|n| a.shape.iter().any(|s| s == n))
-            .collect()
-    };
-    if narrowed && names.len() != 1 {
-        bail!("--method and --class name one shape's methods and classes: give a single --shape");
-    }
-    if sharded && names != ["sphere"] {
-        bail!("--shard and --shard-out cover the sphere only: give --shape sphere");
-    }
-    let precisions = if a.precision.is_empty() {
-        Precision::ALL.to_vec()
-    } else {
-        a.precision.clone()
-    };
-    let others: Vec<&'static dyn crate::audit::shape::Shape> = names
-        .iter()
-        .filter_map(|n| crate::shapes::shape_by_name(n))
-        .collect();
-    let mut shape_opts = crate::audit::generic::Options {
-        cases: a.cases.unwrap_or(20_000),
-        seed: a.seed,
-        precisions: precisions.clone(),
+    // Resolve every name and the tolerance table before the long run
+    let plan = Plan::new(&Options {
+        shapes: a.shape.clone(),
         methods: a.method.clone(),
         classes: a.class.clone(),
-    };
-    for s in &others {
-        crate::audit::generic::validate(*s, &shape_opts).map_err(|e| anyhow!("{e}"))?;
-    }
-    // Check output paths before the long run
-    check_output_dirs(&[&a.json, &a.markdown, &a.shard_out])?;
-    let sphere = if names.contains(&"sphere") {
-        match audit_sphere(&a, precisions)? {
-            SphereAudit::Shard => return Ok(0),
-            SphereAudit::Done(r) => Some(r),
-        }
-    } else {
-        None
-    };
-    // The game-math chapter's routines
-    let mut shapes = vec![];
-    for s in others {
-        let start = Instant::now();
-        shape_opts.cases = a.cases.unwrap_or(s.default_cases());
-        let r = crate::audit::generic::run(s, &shape_opts).map_err(|e| anyhow!("{e}"))?;
-        say_raw!("{}", crate::audit::generic::table(&r));
-        if a.worst > 0 {
-            say_raw!("{}", crate::audit::generic::worst_cases(&r, a.worst));
-        }
-        say!(
-            "{}: {} cases × {} methods in {:.1} s",
-            s.name(),
-            r.cases_per_class * (r.rows.len() / s.methods().len().max(1)) as u64,
-            s.methods().len(),
-            start.elapsed().as_secs_f64()
-        );
-        shapes.push(r);
-    }
-    // Reintersection and watertightness, with every shape
-    let robust = every.then(|| {
-        let start = Instant::now();
-        let r = crate::shapes::robustness::run(a.seed, &shape_opts.precisions);
-        say_raw!("{}", crate::shapes::robustness::table(&r, false));
-        say!(
-            "reintersection and watertightness in {:.1} s",
-            start.elapsed().as_secs_f64()
-        );
-        r
-    });
-    write_audit_files(
-        sphere.as_ref(),
-        &shapes,
-        robust.as_ref(),
-        &a.json,
-        &a.markdown,
-    )?;
-    // Verdict: the sphere's tolerance table and every shape's
-    let mut code = sphere.as_ref().map_or(0, tolerance_verdict);
-    for r in &shapes {
-        let shape = crate::shapes::shape_by_name(r.shape).expect("audited shape");
-        let breaks = crate::audit::generic::check(shape, r);
-        if breaks.is_empty() {
-            say!("{}: every row within its tolerance", r.shape);
-        } else {
-            say!("{}: {} row(s) out of tolerance", r.shape, breaks.len());
-            for b in &breaks {
-                say!("  {b}");
-            }
-            code = 1;
-        }
-    }
-    if let Some(r) = &robust {
-        let breaks = crate::shapes::robustness::check(r);
-        if breaks.is_empty() {
-            say!("reintersection and watertightness: the robust methods reach 0");
-        } else {
-            for b in &breaks {
-                say!("  {b}");
-            }
-            code = 1;
-        }
-    }
-    Ok(code)
-}
-
-pub(super) enum SphereAudit {
-    Done(sphere_run::Report),
-    /// A shard file was written; the merge checks the tolerance table.
-    Shard,
-}
-
-/// The sphere's audit: prints its table and, for `--shard-out`, writes the shard file.
-pub(super) fn audit_sphere(a: &AuditArgs, precisions: Vec<Precision>) -> Result<SphereAudit> {
-    let methods = a
-        .method
-        .iter()
-        .map(|m| parse_method(m).map_err(|e| anyhow!("--method: {e}")))
-        .collect::<Result<Vec<_>>>()?;
-    let classes = a
-        .class
-        .iter()
-        .map(|c| parse_class(c).map_err(|e| anyhow!("--class: {e}")))
-        .collect::<Result<Vec<_>>>()?;
-    let opts = AuditOptions {
-        cases: a.cases.unwrap_or(20_000),
+        precisions: a.precision.clone(),
+        cases: a.cases,
         seed: a.seed,
-        methods: if methods.is_empty() {
-            METHODS.iter().collect()
-        } else {
-            methods
-        },
-        precisions,
-        classes: if classes.is_empty() {
-            Class::ALL.to_vec()
-        } else {
-            classes
-        },
         shard: a.shard,
-        progress: std::io::stderr().is_terminal(),
-    };
-    let start = Instant::now();
-    sphere_run::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
-    let (report, shard) = match &a.shard_out {
-        Some(_) => {
-            let (report, shard) = sphere_run::run_shard(&opts);
-            (report, Some(shard))
-        }
-        None => (sphere_run::run(&opts), None),
-    };
-    let secs = start.elapsed().as_secs_f64();
-    print_report(&report, a.worst);
-    let n = cases_per_method(&report);
-    say!(
-        "\n{} cases × {} methods in {:.1} s on {} threads ({:.0} cases/s)",
-        n,
-        opts.methods.len(),
-        secs,
-        rayon::current_num_threads(),
-        n as f64 / secs
-    );
-    let oracle_secs =
-        sphere_run::ORACLE_NANOS.load(std::sync::atomic::Ordering::Relaxed) as f64 * 1e-9;
-    say!(
-        "oracle alone: {:.1} s of CPU time, {:.0} cases/s per core (exact verdict, ill-posedness, Ziv roots)",
-        oracle_secs,
-        n as f64 / oracle_secs.max(1e-9)
-    );
-    // A shard for merging: the merge checks the tolerance table on the whole run
-    if let (Some(p), Some(shard)) = (&a.shard_out, &shard) {
-        write_report_files(&report, &a.json, &a.markdown)?;
-        write_atomic(p, shard.to_json().as_bytes())?;
+    })
+    .map_err(|e| anyhow!(e))?;
+    let table = load_table(&a.tolerances, &plan.known())?;
+    check_output_dirs(&[&a.json, &a.markdown, &a.shard_out])?;
+    let shard_label = format!("{}/{}", a.shard.0, a.shard.1);
+    // A shard is judged by its merge, not here
+    let judge = a.shard_out.is_none() && a.shard == (0, 1);
+    say_raw!("{}", table::legend(a.seed, &shard_label));
+    // Each shape in turn, printed as it finishes
+    let mut runs: Vec<Tallies> = vec![];
+    let mut reports = vec![];
+    for i in 0..plan.shapes.len() {
+        let start = Instant::now();
+        crate::audit::run::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
+        let t = plan.run_shape(i, std::io::stderr().is_terminal());
+        let r = t.report(judge.then_some(&table));
+        print_shape(&r, a.worst);
+        let secs = start.elapsed().as_secs_f64();
+        let oracle = crate::audit::run::ORACLE_NANOS.load(std::sync::atomic::Ordering::Relaxed)
+            as f64
+            * 1e-9;
+        let n = crate::audit::run::shard_len(t.cases, a.shard) * t.groups.len() as u64;
+        say!(
+            "{}: {n} cases × {} methods in {secs:.1} s on {} threads ({:.0} cases/s; the oracle alone {oracle:.1} s of CPU)",
+            r.shape,
+            t.methods.len(),
+            rayon::current_num_threads(),
+            n as f64 / secs.max(1e-9),
+        );
+        runs.push(t);
+        reports.push(r);
+    }
+    // A shard: its tallies go to the file for the merge
+    if let Some(p) = &a.shard_out {
+        let report = Report {
+            tool: TOOL,
+            seed: a.seed,
+            shard: shard_label,
+            shapes: reports,
+            robustness: None,
+        };
+        write_files(&report, &a.json, &a.markdown)?;
+        let file = Shard::new(TOOL, a.seed, plan.every_shape, a.shard, &runs);
+        write_atomic(p, file.to_json().as_bytes())?;
         say!(
             "shard {}/{} written to {}; the tolerance table is checked by `rayproof merge`",
-            opts.shard.0,
-            opts.shard.1,
+            a.shard.0,
+            a.shard.1,
             p.display()
         );
-        return Ok(SphereAudit::Shard);
+        return Ok(0);
     }
-    Ok(SphereAudit::Done(report))
-}
-
-/// The JSON of an audit with routines: the sphere's report fields (when audited), then
-/// `shapes`, one report per routine family with rows shaped like the sphere's.
-#[derive(serde::Serialize)]
-pub(super) struct AuditJson<'a> {
-    #[serde(flatten)]
-    sphere: Option<&'a sphere_run::Report>,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    tool: Option<&'static str>,
-    shapes: &'a [crate::audit::generic::ShapeReport],
-    #[serde(skip_serializing_if = "Option::is_none")]
-    robustness: Option<&'a crate::shapes::robustness::Robustness>,
-}
-
-/// Writes `--json` and `--markdown` of an audit: the sphere-only report is unchanged.
-pub(super) fn write_audit_files(
-    sphere: Option<&sphere_run::Report>,
-    shapes: &[crate::audit::generic::ShapeReport],
-    robustness: Option<&crate::shapes::robustness::Robustness>,
-    json: &Option<PathBuf>,
-    markdown: &Option<PathBuf>,
-) -> Result<()> {
-    if shapes.is_empty() {
-        if let Some(r) = sphere {
-            return write_report_files(r, json, markdown);
-        }
-    }
-    if let Some(p) = json {
-        let v = AuditJson {
-            sphere,
-            tool: sphere.is_none().then_some(sphere_run::TOOL),
-            shapes,
+    let robustness = plan.robustness().map(print_robustness);
+    finish(
+        Report {
+            tool: TOOL,
+            seed: a.seed,
+            shard: shard_label,
+            shapes: reports,
             robustness,
-        };
-        write_atomic(p, (serde_json::to_string_pretty(&v)? + "\n").as_bytes())?;
-    }
-    if let Some(p) = markdown {
-        let mut text = sphere.map(sphere_run::markdown).unwrap_or_default();
-        for r in shapes {
-            text += "\n";
-            text += &crate::audit::generic::markdown(r);
-        }
-        if let Some(r) = robustness {
-            text += "\n";
-            text += &crate::shapes::robustness::table(r, true);
-        }
-        write_atomic(p, text.as_bytes())?;
-    }
-    Ok(())
+        },
+        judge,
+        &a.json,
+        &a.markdown,
+    )
+}
+
+/// Runs the reintersection and watertightness tests' table into the output.
+fn print_robustness(r: Robustness) -> Robustness {
+    say_raw!("{}", robustness::table(&r, false));
+    r
 }
 
 pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
@@ -325,71 +190,111 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
     let mut shards = vec![];
     for p in &m.shards {
         let bytes = std::fs::read(p).with_context(|| format!("cannot read {}", p.display()))?;
-        let shard =
-            sphere_run::Shard::from_json(&bytes).map_err(|e| anyhow!("{}: {e}", p.display()))?;
-        shards.push((p.display().to_string(), shard));
+        let s = Shard::from_json(&bytes, crate::shapes::shape_by_name)
+            .map_err(|e| anyhow!("{}: {e}", p.display()))?;
+        shards.push((p.display().to_string(), s));
     }
-    // Check that they make up one audit (exit 3), interleave and aggregate
-    let (count, methods) = (shards.len(), shards[0].1.methods.len());
-    let report = sphere_run::merge(shards)?;
-    print_report(&report, m.worst);
-    say!(
-        "\n{} cases × {} methods merged from {} shards",
-        cases_per_method(&report),
-        methods,
-        count
-    );
-    write_report_files(&report, &m.json, &m.markdown)?;
-    Ok(tolerance_verdict(&report))
-}
-
-/// Cases per method: the cases of every precision × class of the first method's rows.
-pub(super) fn cases_per_method(report: &sphere_run::Report) -> u64 {
-    let first = report.rows.first().map(|r| r.method);
-    report
-        .rows
+    // Check that they make up one audit (exit 3), merge, and judge as the unsharded run does
+    let count = shards.len();
+    let merged = shard::merge(TOOL, shards, crate::shapes::shape_by_name)?;
+    let extra = merged
+        .shapes
         .iter()
-        .filter(|r| Some(r.method) == first)
-        .map(|r| r.cases)
-        .sum()
-}
-
-/// Prints the table and the worst cases (the same for `audit` and `merge`).
-pub(super) fn print_report(report: &sphere_run::Report, worst: usize) {
-    say_raw!("{}", sphere_run::table(report));
-    if worst > 0 {
-        say!("\nWorst cases (replay with the probe line):");
-        say_raw!("{}", sphere_run::worst_cases(report, worst));
+        .flat_map(|t| t.methods.iter().map(|x| (t.shape.name(), x.name.clone())))
+        .collect();
+    let table = load_table(&m.tolerances, &crate::audit::plan::known_names(extra))?;
+    say_raw!("{}", table::legend(merged.seed, "0/1"));
+    let mut reports = vec![];
+    for t in &merged.shapes {
+        let r = t.report(Some(&table));
+        print_shape(&r, m.worst);
+        say!(
+            "{}: {} cases × {} methods merged from {count} shards",
+            r.shape,
+            t.cases * t.groups.len() as u64,
+            t.methods.len()
+        );
+        reports.push(r);
     }
+    let precisions: Vec<Precision> = merged
+        .shapes
+        .first()
+        .map(|t| {
+            let mut p: Vec<Precision> = t.groups.iter().map(|g| g.precision).collect();
+            p.dedup();
+            p
+        })
+        .unwrap_or_default();
+    let robustness = merged
+        .every_shape
+        .then(|| print_robustness(robustness::run(merged.seed, &precisions)));
+    finish(
+        Report {
+            tool: TOOL,
+            seed: merged.seed,
+            shard: "0/1".into(),
+            shapes: reports,
+            robustness,
+        },
+        true,
+        &m.json,
+        &m.markdown,
+    )
 }
 
-/// Writes `--json` and `--markdown` (the same for `audit` and `merge`).
-pub(super) fn write_report_files(
-    report: &sphere_run::Report,
-    json: &Option<PathBuf>,
-    markdown: &Option<PathBuf>,
-) -> Result<()> {
+/// Writes `--json` and `--markdown`.
+fn write_files(report: &Report, json: &Option<PathBuf>, markdown: &Option<PathBuf>) -> Result<()> {
     if let Some(p) = json {
-        let text = serde_json::to_string_pretty(report)? + "\n";
-        write_atomic(p, text.as_bytes())?;
+        write_atomic(p, (serde_json::to_string_pretty(report)? + "\n").as_bytes())?;
     }
     if let Some(p) = markdown {
-        write_atomic(p, sphere_run::markdown(report).as_bytes())?;
+        write_atomic(p, table::markdown(report).as_bytes())?;
     }
     Ok(())
 }
 
-/// Compares with the tolerance table, prints the verdict and returns the exit code.
-pub(super) fn tolerance_verdict(report: &sphere_run::Report) -> u8 {
-    let breaks = tolerance::check(report);
-    if breaks.is_empty() {
-        say!("tolerance table: every row within its entry");
-        0
-    } else {
-        say!("tolerance table: {} row(s) out of bounds", breaks.len());
-        for b in &breaks {
-            say!("  {b}");
+/// Prints the verdict, writes the files and returns the exit code (the same for `audit` and
+/// `merge`).
+fn finish(
+    report: Report,
+    judged: bool,
+    json: &Option<PathBuf>,
+    markdown: &Option<PathBuf>,
+) -> Result<u8> {
+    write_files(&report, json, markdown)?;
+    if !judged {
+        return Ok(0);
+    }
+    // Counts by status
+    let mut by = std::collections::BTreeMap::new();
+    for (_, r) in report.rows() {
+        if let Some(v) = &r.verdict {
+            *by.entry(format!("{:?}", v.status)).or_insert(0u64) += 1;
         }
-        1
+    }
+    let n = |s: Status| by.get(&format!("{s:?}")).copied().unwrap_or(0);
+    let failures = report.failures();
+    let undecided = report.undecided();
+    say!(
+        "\ntolerance table: {} rows — {} within their rule, {} known failures shown, {} reported only, {} too few cases to tell, {} out of tolerance",
+        report.rows().count(),
+        n(Status::Pass),
+        n(Status::KnownFailure),
+        n(Status::Unchecked),
+        n(Status::Undecided),
+        n(Status::Fail)
+    );
+    for u in &undecided {
+        say!("  undecided: {u}");
+    }
+    if failures.is_empty() {
+        say!("verdict: pass");
+        Ok(0)
+    } else {
+        say!("verdict: {} failure(s)", failures.len());
+        for f in &failures {
+            say!("  {f}");
+        }
+        Ok(1)
     }
 }

@@ -95,11 +95,11 @@ pub fn parse() -> Result<Cli, clap::Error> {
     use clap::{CommandFactory, FromArgMatches};
     let list: Vec<String> = crate::shapes::registry()
         .iter()
-        .map(|s| format!("  {:<16} {}", s.name(), s.about()))
+        .map(|s| format!("  {:<16} {}", s.name(), s.info().about))
         .collect();
     let cmd = Cli::command().mut_subcommand("probe", |c| {
         c.after_help(format!(
-            "Routines (probe NAME --help for their values):\n{}",
+            "Shapes (probe NAME --help for their values):\n{}",
             list.join("\n")
         ))
     });
@@ -132,7 +132,7 @@ pub fn one_line(e: &clap::Error) -> String {
 
 /// The exit code of a command that failed with `e` (see the module documentation).
 pub fn error_exit_code(e: &anyhow::Error) -> u8 {
-    if e.downcast_ref::<crate::audit::sphere_run::IncompatibleShards>()
+    if e.downcast_ref::<crate::audit::shard::IncompatibleShards>()
         .is_some()
     {
         3

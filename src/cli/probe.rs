@@ -1,23 +1,23 @@
-//! `rayproof probe`: one case, the oracle's answer and every method's.
+//! `rayproof probe SHAPE [--precision P] [--json] -- VALUES…`: one case, the oracle's answer and
+//! every method's. Every worst case of an audit prints the line that replays it.
 
 use super::*;
-use crate::audit::sphere_probe;
+use crate::audit::probe::{parse_values, probe_json, probe_text};
+use crate::audit::{Builtin, Method};
 use crate::numerics::Precision;
 use anyhow::{anyhow, bail, Result};
-use clap::{Args, Parser, Subcommand};
+use clap::{Parser, Subcommand};
 
 #[derive(Subcommand, Debug)]
 pub enum ProbeCommand {
-    /// One ray against one sphere.
-    Sphere(ProbeSphereArgs),
-    /// A routine of the game-math chapter: `probe SHAPE [--precision P] [--json] -- VALUES…`
-    /// (`probe SHAPE --help` names the values).
+    /// A shape: `probe SHAPE [--precision P] [--json] -- VALUES…` (`probe SHAPE --help` names
+    /// the values).
     #[command(external_subcommand)]
-    Routine(Vec<String>),
+    Shape(Vec<String>),
 }
 
-/// The arguments of `rayproof probe SHAPE` for a routine (parsed after the shape is known, so
-/// the help names its values).
+/// The arguments of `rayproof probe SHAPE` (parsed after the shape is known, so the help names
+/// its values).
 #[derive(Parser, Debug)]
 pub struct ProbeShapeArgs {
     /// f32 or f64.
@@ -32,55 +32,34 @@ pub struct ProbeShapeArgs {
     pub values: Vec<String>,
 }
 
-#[derive(Args, Debug)]
-pub struct ProbeSphereArgs {
-    /// Ray origin X,Y,Z (decimal or hex floats, each rounded once to the precision).
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub origin: [String; 3],
-    /// Ray direction X,Y,Z, used as given (not renormalised).
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub dir: [String; 3],
-    /// Sphere centre X,Y,Z.
-    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
-    pub center: [String; 3],
-    /// Sphere radius.
-    #[arg(long, value_parser = parse_number, allow_hyphen_values = true)]
-    pub radius: String,
-    /// f32 or f64.
-    #[arg(long, value_parser = parse_precision, default_value = "f64")]
-    pub precision: Precision,
-    /// Print the JSON object instead of text.
-    #[arg(long)]
-    pub json: bool,
-}
-
-/// `rayproof probe SHAPE …` for a routine.
-pub(super) fn run_probe_routine(argv: &[String]) -> Result<u8> {
+pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
     use clap::{CommandFactory, FromArgMatches};
+    let ProbeCommand::Shape(argv) = p;
+    // The shape, then its arguments (so that --help names its values)
     let name = argv.first().map(String::as_str).unwrap_or("");
     let Some(shape) = crate::shapes::shape_by_name(name) else {
         bail!(
             "probe: unknown shape '{name}' (known: {})",
-            shape_names().join(", ")
+            crate::shapes::shape_names().join(", ")
         );
     };
+    let info = shape.info();
     let cmd = ProbeShapeArgs::command()
-        .name(shape.name())
+        .name(info.name)
         .bin_name(format!("rayproof probe {name}"))
-        .about(shape.about())
+        .about(info.about)
         .after_help(format!(
             "Values: {}\nOutputs: {}\nMethods: {}",
-            shape.args().join(" "),
-            shape.values().join(" "),
-            shape
-                .methods()
+            info.args.join(" "),
+            info.values.join(" "),
+            info.methods
                 .iter()
                 .map(|m| m.name)
                 .collect::<Vec<_>>()
                 .join(", ")
         ));
     let parsed = cmd
-        .try_get_matches_from(argv)
+        .try_get_matches_from(&argv)
         .and_then(|m| ProbeShapeArgs::from_arg_matches(&m));
     let p = match parsed {
         Ok(p) => p,
@@ -90,24 +69,15 @@ pub(super) fn run_probe_routine(argv: &[String]) -> Result<u8> {
         }
         Err(e) => bail!("{}", one_line(&e).trim_start_matches("error: ")),
     };
-    let input = crate::audit::shape::parse_values(shape, p.precision, &p.values)
-        .map_err(|e| anyhow!("{e}"))?;
-    say_raw!(
-        "{}",
-        crate::audit::generic::probe(shape, p.precision, &input, p.json)
-    );
-    Ok(0)
-}
-
-pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
-    match p {
-        ProbeCommand::Routine(argv) => run_probe_routine(&argv),
-        ProbeCommand::Sphere(p) => {
-            say_raw!(
-                "{}",
-                sphere_probe::sphere(&p.origin, &p.dir, &p.center, &p.radius, p.precision, p.json)?
-            );
-            Ok(0)
-        }
+    // The oracle and every built-in method on the case
+    let input = parse_values(shape, p.precision, &p.values).map_err(|e| anyhow!("{e}"))?;
+    let builtins = Builtin::all(shape);
+    let methods: Vec<&dyn Method> = builtins.iter().map(|m| m as &dyn Method).collect();
+    if p.json {
+        let v = probe_json(shape, &methods, p.precision, &input);
+        say_raw!("{}", serde_json::to_string_pretty(&v)? + "\n");
+    } else {
+        say_raw!("{}", probe_text(shape, &methods, p.precision, &input));
     }
+    Ok(0)
 }

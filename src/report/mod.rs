@@ -18,7 +18,9 @@ pub mod plot;
 pub mod renders;
 pub mod seed;
 
-use crate::audit::sphere_run::{self, AuditOptions};
+use crate::audit::plan::{Options, Plan};
+use crate::audit::run::Tallies;
+use crate::audit::ShapeReport;
 use crate::numerics::timing::{measure, Timing};
 use crate::numerics::Precision;
 use crate::shapes::sphere::cases::{generate, Class};
@@ -65,7 +67,7 @@ pub struct CostRow {
 struct Numbers<'a> {
     machine: &'a Machine,
     cost: &'a [CostRow],
-    audit: &'a sphere_run::Report,
+    audit: &'a ShapeReport,
     batch: &'a [crate::shapes::sphere::batch::BatchRow],
     renders: &'a [renders::RenderRow],
     seed1996: &'a seed::SeedRepro,
@@ -153,22 +155,22 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     let machine = Machine::read();
     // 1. Audit with raw samples, and in-run timing of every method
     say(o, "auditing every method × precision × class");
-    let opts = AuditOptions {
-        cases: o.cases,
+    let plan = Plan::new(&Options {
+        shapes: vec!["sphere".into()],
+        cases: Some(o.cases),
         seed: o.seed,
-        methods: METHODS.iter().collect(),
-        precisions: Precision::ALL.to_vec(),
-        classes: Class::ALL.to_vec(),
         shard: (0, 1),
-        progress: o.progress,
-    };
-    let (report, shard) = sphere_run::run_shard(&opts);
+        ..Default::default()
+    })
+    .map_err(|e| anyhow::anyhow!(e))?;
+    let tallies = plan.run_shape(0, o.progress);
+    let report = tallies.report(None);
     say(o, "timing every method × precision");
     let runs = if o.quick { 3 } else { 9 };
     let min_ns = if o.quick { 2e6 } else { 2e7 };
     let t32 = time_methods::<f32>(o.seed, runs, min_ns);
     let t64 = time_methods::<f64>(o.seed, runs, min_ns);
-    let cost = cost_rows(&report, &shard, &t32, &t64);
+    let cost = cost_rows(&report, &tallies, &t32, &t64);
     // 2. Batched kernel, checked bit-identical before timing
     say(o, "timing the batched kernel");
     let mut bopts = crate::shapes::sphere::batch::BatchOpts::report();
@@ -211,7 +213,8 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     // Write
     say(o, "writing");
     let md = markdown(
-        &machine, &o.cases, &cost, &report, &shard, &batch, &rows, &repro, &newton, &starts, dir,
+        &machine, o.seed, &o.cases, &cost, &report, &tallies, &batch, &rows, &repro, &newton,
+        &starts, dir,
     )?;
     let html = to_html(&md);
     let numbers = Numbers {
@@ -257,8 +260,8 @@ fn time_methods<F: PickPrecision>(seed: u64, runs: usize, min_ns: f64) -> Vec<Ti
 
 /// Pools the audit over classes per method × precision and sets it beside the timing.
 fn cost_rows(
-    report: &sphere_run::Report,
-    shard: &sphere_run::Shard,
+    report: &ShapeReport,
+    tallies: &Tallies,
     t32: &[Timing],
     t64: &[Timing],
 ) -> Vec<CostRow> {
@@ -274,7 +277,7 @@ fn cost_rows(
             let well_posed: u64 = rows.iter().map(|r| r.well_posed).sum();
             let mut bits: Vec<f64> = Class::ALL
                 .iter()
-                .flat_map(|&c| shard.ulps(m.name, p, c))
+                .flat_map(|&c| tallies.ulps(m.name, p, c.name()))
                 .map(|u| (1.0 + u as f64).log2())
                 .collect();
             bits.sort_by(f64::total_cmp);
@@ -341,10 +344,11 @@ fn pct(x: f64) -> String {
 #[allow(clippy::too_many_arguments)]
 fn markdown(
     machine: &Machine,
+    seed: u64,
     cases: &u64,
     cost: &[CostRow],
-    report: &sphere_run::Report,
-    shard: &sphere_run::Shard,
+    report: &ShapeReport,
+    tallies: &Tallies,
     batch: &[crate::shapes::sphere::batch::BatchRow],
     rows: &[renders::RenderRow],
     repro: &seed::SeedRepro,
@@ -366,7 +370,7 @@ fn markdown(
          as the median of repeated runs with ± half their spread. The machine is shared and \
          noisy: trust ratios between rows more than absolute nanoseconds; `cargo bench` \
          (criterion) is the precise tool.\n",
-        machine.cpu, machine.threads, machine.os, machine.tool, machine.date, report.seed, cases
+        machine.cpu, machine.threads, machine.os, machine.tool, machine.date, seed, cases
     )?;
     // 1. Accuracy vs cost
     s += "## 1. Accuracy vs cost, per ray–sphere test\n\n\
@@ -458,7 +462,7 @@ fn markdown(
                 match report
                     .rows
                     .iter()
-                    .find(|r| r.method == m.name && r.precision == p && r.class == c)
+                    .find(|r| r.method == m.name && r.precision == p && r.class == c.name())
                 {
                     Some(r) if r.well_posed > 0 => write!(
                         s,
@@ -484,8 +488,8 @@ fn markdown(
             let series: Vec<(String, Vec<f64>)> = Class::ALL
                 .iter()
                 .map(|&c| {
-                    let b = shard
-                        .ulps(m.name, p, c)
+                    let b = tallies
+                        .ulps(m.name, p, c.name())
                         .into_iter()
                         .map(|u| (1.0 + u as f64).log2())
                         .collect();

@@ -17,7 +17,7 @@
 //! answer between the entry and the exit.
 
 use super::reintersect::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
-use crate::audit::shape::{Answer, Expect, Expected, MethodInfo, Shape, Truth};
+use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
@@ -257,6 +257,7 @@ pub fn oracle(v: &[f64], prec: Precision) -> Truth {
         others,
         ill_posed,
         cap_reached: false,
+        ..Default::default()
     })
 }
 
@@ -311,26 +312,24 @@ fn run_in<F: Real>(m: usize, v: &[f64]) -> Answer {
     }
 }
 
+const BOX: ShapeInfo = ShapeInfo {
+    name: "box",
+    about: "ray–box, first surface crossing t > 0 (seed 002 §2.2)",
+    args: &[
+        "ox", "oy", "oz", "dx", "dy", "dz", "lox", "loy", "loz", "hix", "hiy", "hiz",
+    ],
+    values: &["t"],
+    classes: CLASSES,
+    methods: METHODS,
+    metric: Metric::Ulps,
+    default_cases: 20_000,
+    reports_cond: false,
+    reports_residual: false,
+};
+
 impl Shape for BoxShape {
-    fn name(&self) -> &'static str {
-        "box"
-    }
-    fn about(&self) -> &'static str {
-        "ray–box, first surface crossing t > 0 (seed 002 §2.2)"
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &[
-            "ox", "oy", "oz", "dx", "dy", "dz", "lox", "loy", "loz", "hix", "hiy", "hiz",
-        ]
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["t"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        METHODS
+    fn info(&self) -> &ShapeInfo {
+        &BOX
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         Some(propose(CLASSES[class], prec, rng))
@@ -339,33 +338,7 @@ impl Shape for BoxShape {
         oracle(input, prec)
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        match prec {
-            Precision::F32 => run_in::<f32>(m, input),
-            Precision::F64 => run_in::<f64>(m, input),
-        }
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        expect(METHODS[m].name, prec, CLASSES[class])
-    }
-}
-
-/// The tolerance table (measured with seed 1, see `tests/quad.rs`; ceilings have a margin).
-fn expect(method: &str, _prec: Precision, class: &str) -> Expect {
-    match (method, class) {
-        // Conservative by design: near-misses along edges within the padding become hits, so
-        // only the value bound is held here; tests/quad.rs holds its false misses to zero.
-        ("robust_slab", "grazing_edge") => Expect {
-            max_ulps: 16,
-            ..Expect::ANY
-        },
-        // Entry: three roundings; exit: padded by 1 + 2γ₃ (≤ 6 ulps more)
-        ("robust_slab", _) => Expect::pass(16),
-        // The NaN slab: origin on the x plane with dx = ±0 poisons [tmin, tmax] (a NaN hit
-        // where y or z rule the ray out), and on a face the classic code returns t = 0
-        ("slab", "zero_dir" | "on_face_plane") => Expect::xfail(),
-        // From inside, every front-facing plane is behind the origin
-        ("faces", "inside") => Expect::xfail(),
-        _ => Expect::ANY,
+        crate::in_precision!(prec, F => run_in::<F>(m, input))
     }
 }
 

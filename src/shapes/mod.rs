@@ -15,11 +15,12 @@ pub mod sturm;
 pub mod torus;
 pub mod triangle;
 
-use crate::audit::shape::Shape;
+use crate::audit::Shape;
 
-/// Every routine family, in the order of the seed chapter.
+/// Every routine family: the sphere, then the seed chapter's in its order.
 pub fn registry() -> Vec<&'static dyn Shape> {
     vec![
+        &sphere::SphereShape,
         &roots::QUADRATIC,
         &roots::CUBIC,
         &roots::QUARTIC,
@@ -41,4 +42,9 @@ pub fn registry() -> Vec<&'static dyn Shape> {
 /// A shape by name.
 pub fn shape_by_name(name: &str) -> Option<&'static dyn Shape> {
     registry().into_iter().find(|s| s.name() == name)
+}
+
+/// Every shape's name, in registry order.
+pub fn shape_names() -> Vec<&'static str> {
+    registry().iter().map(|s| s.name()).collect()
 }

@@ -19,7 +19,7 @@
 //! when one of the 7 inputs moves by one ulp (14 single moves, exact); reflection is never
 //! ill-posed (its count is always 1).
 
-use crate::audit::shape::{Answer, Expect, Expected, MethodInfo, Metric, Shape, Truth};
+use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{self, nudge, q, round_q, sqrt_encl, ziv, ZIV_CAP};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
@@ -182,6 +182,7 @@ pub fn reflect_truth(v: &[f64], prec: Precision) -> Truth {
         others: vec![],
         ill_posed: false,
         cap_reached: false,
+        ..Default::default()
     })
 }
 
@@ -259,6 +260,7 @@ pub fn refract_truth(v: &[f64], prec: Precision) -> Truth {
         others: vec![],
         ill_posed,
         cap_reached,
+        ..Default::default()
     })
 }
 
@@ -422,27 +424,22 @@ fn refract_in<F: Real>(m: usize, v: &[f64]) -> Answer {
     vec_answer(f(x(0), x(3), F::from_f64(v[6])))
 }
 
+const REFLECT: ShapeInfo = ShapeInfo {
+    name: "reflect",
+    about: "reflection vector R = 2(N·L)N − L, seed 002 §4.1",
+    args: &["lx", "ly", "lz", "nx", "ny", "nz"],
+    values: &["rx", "ry", "rz"],
+    classes: &REFLECT_CLASSES,
+    methods: &REFLECT_METHODS,
+    metric: Metric::NormUlps,
+    default_cases: 20_000,
+    reports_cond: false,
+    reports_residual: false,
+};
+
 impl Shape for Reflect {
-    fn name(&self) -> &'static str {
-        "reflect"
-    }
-    fn about(&self) -> &'static str {
-        "reflection vector R = 2(N·L)N − L, seed 002 §4.1"
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &["lx", "ly", "lz", "nx", "ny", "nz"]
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["rx", "ry", "rz"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        &REFLECT_CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        &REFLECT_METHODS
-    }
-    fn metric(&self) -> Metric {
-        Metric::NormUlps
+    fn info(&self) -> &ShapeInfo {
+        &REFLECT
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         Some(propose(REFLECT_CLASSES[class], prec, false, rng))
@@ -451,37 +448,26 @@ impl Shape for Reflect {
         reflect_truth(input, prec)
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        match prec {
-            Precision::F32 => reflect_in::<f32>(m, input),
-            Precision::F64 => reflect_in::<f64>(m, input),
-        }
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        reflect_expect(REFLECT_METHODS[m].name, prec, REFLECT_CLASSES[class])
+        crate::in_precision!(prec, F => reflect_in::<F>(m, input))
     }
 }
 
+const REFRACT: ShapeInfo = ShapeInfo {
+    name: "refract",
+    about: "refraction vector, η = η_L/η_T, TIR when the radicand < 0, seed 002 §4.2",
+    args: &["lx", "ly", "lz", "nx", "ny", "nz", "eta"],
+    values: &["tx", "ty", "tz"],
+    classes: &REFRACT_CLASSES,
+    methods: &REFRACT_METHODS,
+    metric: Metric::NormUlps,
+    default_cases: 20_000,
+    reports_cond: false,
+    reports_residual: false,
+};
+
 impl Shape for Refract {
-    fn name(&self) -> &'static str {
-        "refract"
-    }
-    fn about(&self) -> &'static str {
-        "refraction vector, η = η_L/η_T, TIR when the radicand < 0, seed 002 §4.2"
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &["lx", "ly", "lz", "nx", "ny", "nz", "eta"]
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["tx", "ty", "tz"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        &REFRACT_CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        &REFRACT_METHODS
-    }
-    fn metric(&self) -> Metric {
-        Metric::NormUlps
+    fn info(&self) -> &ShapeInfo {
+        &REFRACT
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         Some(propose(REFRACT_CLASSES[class], prec, true, rng))
@@ -490,41 +476,6 @@ impl Shape for Refract {
         refract_truth(input, prec)
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        match prec {
-            Precision::F32 => refract_in::<f32>(m, input),
-            Precision::F64 => refract_in::<f64>(m, input),
-        }
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        refract_expect(REFRACT_METHODS[m].name, prec, REFRACT_CLASSES[class])
-    }
-}
-
-/// Reflection's tolerance table, measured at seed 1 with 1,000 cases per class (largest error
-/// 4 norm-ulps for `chapter`, 3 for `fma`, in both precisions), ceilings twice that.
-pub fn reflect_expect(method: &str, _prec: Precision, _class: &str) -> Expect {
-    match method {
-        "fma" => Expect::pass(6),
-        // Not robust (no guard against invalid input), but its values are held to a bound
-        _ => Expect {
-            max_ulps: 8,
-            ..Expect::ANY
-        },
-    }
-}
-
-/// Refraction's tolerance table, measured at seed 1 with 1,000 cases per class. `wide` showed
-/// no wrong verdict and 0 norm-ulps (allowed 1). `chapter` and `pbrt` are known to fail near
-/// the critical angle: TIR decisions that flip on well-posed cases and errors of thousands of
-/// ulps (f32) to 1e8 ulps (f64) from the cancellation in the radicand; elsewhere they are
-/// reported (up to 63 ulps at η = 1 in f32 and 534 in f64, from `1 − (1 − c²)`).
-pub fn refract_expect(method: &str, _prec: Precision, class: &str) -> Expect {
-    match (method, class) {
-        ("wide", _) => Expect::pass(1),
-        (_, "critical") => Expect {
-            max_ulps: 64,
-            ..Expect::xfail()
-        },
-        _ => Expect::ANY,
+        crate::in_precision!(prec, F => refract_in::<F>(m, input))
     }
 }

@@ -26,7 +26,7 @@
 use super::reintersect::sample::{
     self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit,
 };
-use crate::audit::shape::{Answer, Expect, Expected, MethodInfo, Metric, Shape, Truth};
+use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
@@ -569,6 +569,7 @@ fn oracle(kind: Kind, v: &[f64], prec: Precision) -> Truth {
             others: vec![],
             ill_posed,
             cap_reached: false,
+            ..Default::default()
         });
     };
     let t = qd.round_root(k, prec);
@@ -579,6 +580,7 @@ fn oracle(kind: Kind, v: &[f64], prec: Precision) -> Truth {
         others: other.into_iter().collect(),
         ill_posed,
         cap_reached: t.is_none(),
+        ..Default::default()
     })
 }
 
@@ -595,6 +597,7 @@ fn normal_oracle(v: &[f64], prec: Precision) -> Truth {
             others: vec![],
             ill_posed,
             cap_reached: false,
+            ..Default::default()
         });
     };
     let (o, d) = (qv(v, 0), qv(v, 3));
@@ -625,6 +628,7 @@ fn normal_oracle(v: &[f64], prec: Precision) -> Truth {
         others: vec![],
         ill_posed,
         cap_reached: n.iter().any(|x| x.is_none()),
+        ..Default::default()
     })
 }
 
@@ -700,24 +704,22 @@ fn normal_fns<F: Real>() -> [QFn<F, V<F>>; 3] {
     [normal_chapter, normal_robust_t, normal_robust]
 }
 
+const ELLIPSOID: ShapeInfo = ShapeInfo {
+    name: "ellipsoid",
+    about: "ray–ellipsoid x² + m²y² + n²z² = r², nearest t > 0 (seed 002 §2.3)",
+    args: &["ox", "oy", "oz", "dx", "dy", "dz", "r", "m", "n"],
+    values: &["t"],
+    classes: ELLIPSOID_CLASSES,
+    methods: ELLIPSOID_METHODS,
+    metric: Metric::Ulps,
+    default_cases: 20_000,
+    reports_cond: false,
+    reports_residual: false,
+};
+
 impl Shape for EllipsoidShape {
-    fn name(&self) -> &'static str {
-        "ellipsoid"
-    }
-    fn about(&self) -> &'static str {
-        "ray–ellipsoid x² + m²y² + n²z² = r², nearest t > 0 (seed 002 §2.3)"
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &["ox", "oy", "oz", "dx", "dy", "dz", "r", "m", "n"]
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["t"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        ELLIPSOID_CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        ELLIPSOID_METHODS
+    fn info(&self) -> &ShapeInfo {
+        &ELLIPSOID
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         Some(propose_ellipsoid(ELLIPSOID_CLASSES[class], prec, rng))
@@ -726,13 +728,7 @@ impl Shape for EllipsoidShape {
         oracle(Kind::Ellipsoid, input, prec)
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        match prec {
-            Precision::F32 => run_t(ellipsoid_fns::<f32>(), m, input),
-            Precision::F64 => run_t(ellipsoid_fns::<f64>(), m, input),
-        }
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        expect_t(ELLIPSOID_METHODS[m].name, prec, ELLIPSOID_CLASSES[class])
+        crate::in_precision!(prec, F => run_t(ellipsoid_fns::<F>(), m, input))
     }
 }
 
@@ -770,24 +766,22 @@ pub const CYLINDER_CLASSES: &[&str] = &[
     "invalid",
 ];
 
+const CYLINDER: ShapeInfo = ShapeInfo {
+    name: "cylinder",
+    about: "ray–cylinder x² + m²y² = r², 0 ≤ z ≤ h, lateral surface (seed 002 §2.4)",
+    args: &["ox", "oy", "oz", "dx", "dy", "dz", "r", "m", "h"],
+    values: &["t"],
+    classes: CYLINDER_CLASSES,
+    methods: CYLINDER_METHODS,
+    metric: Metric::Ulps,
+    default_cases: 20_000,
+    reports_cond: false,
+    reports_residual: false,
+};
+
 impl Shape for CylinderShape {
-    fn name(&self) -> &'static str {
-        "cylinder"
-    }
-    fn about(&self) -> &'static str {
-        "ray–cylinder x² + m²y² = r², 0 ≤ z ≤ h, lateral surface (seed 002 §2.4)"
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &["ox", "oy", "oz", "dx", "dy", "dz", "r", "m", "h"]
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["t"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        CYLINDER_CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        CYLINDER_METHODS
+    fn info(&self) -> &ShapeInfo {
+        &CYLINDER
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         Some(propose_cylinder(CYLINDER_CLASSES[class], prec, rng))
@@ -796,13 +790,7 @@ impl Shape for CylinderShape {
         oracle(Kind::Cylinder, input, prec)
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        match prec {
-            Precision::F32 => run_t(cylinder_fns::<f32>(), m, input),
-            Precision::F64 => run_t(cylinder_fns::<f64>(), m, input),
-        }
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        expect_t(CYLINDER_METHODS[m].name, prec, CYLINDER_CLASSES[class])
+        crate::in_precision!(prec, F => run_t(cylinder_fns::<F>(), m, input))
     }
 }
 
@@ -834,27 +822,18 @@ fn run_n<F: Real>(m: usize, v: &[f64]) -> Answer {
     }
 }
 
+const ELLIPSOID_NORMAL: ShapeInfo = ShapeInfo {
+    name: "ellipsoid_normal",
+    about: "unit gradient normal of x² + m²y² + n²z² = r² at the ray's hit (seed 002 §3)",
+    values: &["nx", "ny", "nz"],
+    methods: NORMAL_METHODS,
+    metric: Metric::NormUlps,
+    ..ELLIPSOID
+};
+
 impl Shape for EllipsoidNormalShape {
-    fn name(&self) -> &'static str {
-        "ellipsoid_normal"
-    }
-    fn about(&self) -> &'static str {
-        "unit gradient normal of x² + m²y² + n²z² = r² at the ray's hit (seed 002 §3)"
-    }
-    fn args(&self) -> &'static [&'static str] {
-        EllipsoidShape.args()
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["nx", "ny", "nz"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        ELLIPSOID_CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        NORMAL_METHODS
-    }
-    fn metric(&self) -> Metric {
-        Metric::NormUlps
+    fn info(&self) -> &ShapeInfo {
+        &ELLIPSOID_NORMAL
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         EllipsoidShape.generate(class, prec, rng)
@@ -863,46 +842,7 @@ impl Shape for EllipsoidNormalShape {
         normal_oracle(input, prec)
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        match prec {
-            Precision::F32 => run_n::<f32>(m, input),
-            Precision::F64 => run_n::<f64>(m, input),
-        }
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        expect_normal(NORMAL_METHODS[m].name, prec, ELLIPSOID_CLASSES[class])
-    }
-}
-
-/// A known value failure: the row must show a wrong verdict or an error above `ulps`.
-fn xfail_ulps(ulps: u64) -> Expect {
-    Expect {
-        max_ulps: ulps,
-        ..Expect::xfail()
-    }
-}
-
-/// The tolerance table of the ellipsoid and cylinder, measured with seed 1 and 300 cases per
-/// class (`tests/quad.rs`): the robust rows measured 0 wrong verdicts and at most 1 ulp.
-fn expect_t(method: &str, prec: Precision, class: &str) -> Expect {
-    match (method, prec, class) {
-        ("robust", _, _) => Expect::pass(2),
-        // b² − 4ac cancels on far small shapes (36% wrong verdicts measured) and near tangents
-        ("chapter", Precision::F32, "far_small") | ("chapter", _, "tangent") => Expect::xfail(),
-        // c = |o|² − r² cancels for an origin near a huge surface: millions of ulps measured
-        ("chapter", _, "huge") => xfail_ulps(64),
-        _ => Expect::ANY,
-    }
-}
-
-/// The tolerance table of the normals (seed 1, 300 cases per class): the robust rows measured
-/// 0 wrong verdicts and at most 1 ulp of the largest component.
-fn expect_normal(method: &str, prec: Precision, class: &str) -> Expect {
-    match (method, prec, class) {
-        ("robust", _, _) => Expect::pass(2),
-        ("chapter", Precision::F32, "far_small") | ("chapter", _, "tangent") => Expect::xfail(),
-        // An accurate t is not enough: o + t·d cancels when the origin is far away
-        ("robust_t", _, "far_small") => xfail_ulps(64),
-        _ => Expect::ANY,
+        crate::in_precision!(prec, F => run_n::<F>(m, input))
     }
 }
 

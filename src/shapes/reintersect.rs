@@ -124,7 +124,7 @@ pub(crate) mod sample {
 
 use self::sample::{add, cube, lu, mul, normalize, rp, rpv, sub, unit};
 use super::offset::{gamma, spawn_origin, ReintersectRow};
-use crate::audit::shape::{Shape, Truth};
+use crate::audit::{Shape, Truth};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
 use crate::shapes::aabb;
@@ -194,7 +194,12 @@ fn shape_exact<F: Real>(shape: &dyn Shape, input: &[F]) -> Option<f64> {
 }
 
 fn shape_methods(shape: &dyn Shape) -> Vec<(&'static str, bool)> {
-    shape.methods().iter().map(|m| (m.name, m.robust)).collect()
+    shape
+        .info()
+        .methods
+        .iter()
+        .map(|m| (m.name, m.robust))
+        .collect()
 }
 
 /// `o + t·d` in the working precision.
@@ -478,7 +483,7 @@ fn trial<K: Closed, F: PickPrecision>(
     spawn: Spawn,
 ) -> Vec<(u64, u64)> {
     let prec = prec_of::<F>();
-    let mut rng = crate::audit::generic::case_rng(seed, k.name(), "reintersect", prec, index);
+    let mut rng = crate::audit::shape::case_rng(seed, k.name(), "reintersect", prec, index);
     let decade = (index % DECADES as u64) as f64 - 4.0;
     let s = 10f64.powf(decade + rng.random::<f64>());
     let inst = k.instance(&mut rng, s, prec);

@@ -21,7 +21,7 @@
 
 use super::poly;
 use super::sturm::{self, RealRoot};
-use crate::audit::shape::{Answer, Expect, Expected, MethodInfo, Shape, Truth};
+use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{all_finite, nudge, q};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
@@ -98,11 +98,52 @@ fn leading_first(mut c: Vec<f64>) -> Vec<f64> {
 /// A polynomial shape of one degree.
 pub struct Roots {
     degree: usize,
+    info: ShapeInfo,
 }
 
-pub static QUADRATIC: Roots = Roots { degree: 2 };
-pub static CUBIC: Roots = Roots { degree: 3 };
-pub static QUARTIC: Roots = Roots { degree: 4 };
+pub static QUADRATIC: Roots = Roots {
+    degree: 2,
+    info: ShapeInfo {
+        name: "quadratic",
+        about: "real roots of ax²+bx+c (§1.1)",
+        args: &["a", "b", "c"],
+        values: &["x1", "x2"],
+        classes: QUADRATIC_CLASSES,
+        methods: QUADRATIC_METHODS,
+        metric: Metric::Ulps,
+        default_cases: 20_000,
+        reports_cond: false,
+        reports_residual: false,
+    },
+};
+/// The Sturm oracle with one-ulp ill-posedness costs about 0.1 ms per cubic or quartic case:
+/// 5,000 cases per class by default.
+pub static CUBIC: Roots = Roots {
+    degree: 3,
+    info: ShapeInfo {
+        name: "cubic",
+        about: "real roots of ax³+bx²+cx+d (§1.2)",
+        args: &["a", "b", "c", "d"],
+        values: &["x1", "x2", "x3"],
+        classes: CUBIC_CLASSES,
+        methods: CUBIC_METHODS,
+        default_cases: 5_000,
+        ..QUADRATIC.info
+    },
+};
+pub static QUARTIC: Roots = Roots {
+    degree: 4,
+    info: ShapeInfo {
+        name: "quartic",
+        about: "real roots of ax⁴+bx³+cx²+dx+e (§1.3)",
+        args: &["a", "b", "c", "d", "e"],
+        values: &["x1", "x2", "x3", "x4"],
+        classes: QUARTIC_CLASSES,
+        methods: QUARTIC_METHODS,
+        default_cases: 5_000,
+        ..QUADRATIC.info
+    },
+};
 
 const QUADRATIC_METHODS: &[MethodInfo] = &[
     MethodInfo {
@@ -323,38 +364,11 @@ fn count_unstable(input: &[f64], prec: Precision, count: u32) -> bool {
 }
 
 impl Shape for Roots {
-    /// The Sturm oracle with one-ulp ill-posedness costs about 0.1 ms per cubic or quartic case.
-    fn default_cases(&self) -> u64 {
-        if self.degree > 2 {
-            5_000
-        } else {
-            20_000
-        }
-    }
-    fn name(&self) -> &'static str {
-        ["quadratic", "cubic", "quartic"][self.degree - 2]
-    }
-    fn about(&self) -> &'static str {
-        [
-            "real roots of ax²+bx+c (§1.1)",
-            "real roots of ax³+bx²+cx+d (§1.2)",
-            "real roots of ax⁴+bx³+cx²+dx+e (§1.3)",
-        ][self.degree - 2]
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &["a", "b", "c", "d", "e"][..=self.degree]
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["x1", "x2", "x3", "x4"][..self.degree]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        [QUADRATIC_CLASSES, CUBIC_CLASSES, QUARTIC_CLASSES][self.degree - 2]
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        [QUADRATIC_METHODS, CUBIC_METHODS, QUARTIC_METHODS][self.degree - 2]
+    fn info(&self) -> &ShapeInfo {
+        &self.info
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
-        let c = self.coefficients(self.classes()[class], prec, rng);
+        let c = self.coefficients(self.info().classes[class], prec, rng);
         Some(leading_first(c))
     }
     fn oracle(&self, input: &[f64], prec: Precision) -> Truth {
@@ -373,6 +387,7 @@ impl Shape for Roots {
             values,
             ill_posed: count_unstable(input, prec, count),
             cap_reached: false,
+            ..Default::default()
         })
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
@@ -392,49 +407,8 @@ impl Shape for Roots {
         Answer {
             count: values.len() as u32,
             values,
+            enclosure: None,
         }
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        tolerance(self.degree, m, prec, self.classes()[class])
-    }
-}
-
-/// A known failure: a wrong verdict, or a value error beyond `ulps`.
-pub fn xfail_beyond(ulps: u64) -> Expect {
-    Expect {
-        max_ulps: ulps,
-        ..Expect::xfail()
-    }
-}
-
-/// The reviewed tolerance table of the polynomial shapes, measured at seed 1 with 2,000 cases
-/// per class (tests/poly.rs re-runs 300): the robust methods were within 2 ulps everywhere
-/// (Yuksel's within 0), held to 4; the chapter's formulas are known failures (more than 4
-/// ulps, or wrong counts) on the classes listed, and only reported on the others.
-fn tolerance(degree: usize, m: usize, prec: Precision, class: &str) -> Expect {
-    if m == 1 {
-        return Expect::pass(4);
-    }
-    let known = match degree {
-        2 => matches!(
-            class,
-            KAHAN | NEAR_ZERO | HUGE_RANGE | TINY_LEADING | CLUSTERED
-        ),
-        3 => matches!(
-            class,
-            CLUSTERED | NEAR_ZERO | HUGE_RANGE | TINY_LEADING | GENERIC
-        ),
-        _ => {
-            matches!(
-                class,
-                GENERIC | CLUSTERED | NEAR_ZERO | HUGE_RANGE | TINY_LEADING
-            ) || (class == NO_REAL && prec == Precision::F32)
-        }
-    };
-    if known {
-        xfail_beyond(4)
-    } else {
-        Expect::ANY
     }
 }
 
@@ -560,33 +534,28 @@ impl Newton {
     }
 }
 
+const NEWTON_INFO: ShapeInfo = ShapeInfo {
+    name: "newton",
+    about: "Newton's method on ax³+bx²+cx+d in [lo, hi] from x0 (§1.4)",
+    args: &["a", "b", "c", "d", "lo", "hi", "x0"],
+    values: &["x"],
+    classes: NEWTON_CLASSES,
+    methods: NEWTON_METHODS,
+    metric: Metric::Ulps,
+    // The Sturm oracle with one-ulp ill-posedness costs about 0.1 ms per case.
+    default_cases: 5_000,
+    reports_cond: false,
+    reports_residual: false,
+};
+
 impl Shape for Newton {
-    /// The Sturm oracle with one-ulp ill-posedness costs about 0.1 ms per case.
-    fn default_cases(&self) -> u64 {
-        5_000
-    }
-    fn name(&self) -> &'static str {
-        "newton"
-    }
-    fn about(&self) -> &'static str {
-        "Newton's method on ax³+bx²+cx+d in [lo, hi] from x0 (§1.4)"
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &["a", "b", "c", "d", "lo", "hi", "x0"]
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["x"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        NEWTON_CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        NEWTON_METHODS
+    fn info(&self) -> &ShapeInfo {
+        &NEWTON_INFO
     }
     /// A proposal whose rounded cubic does not have exactly one root in the bracket (the
     /// rounding can add or remove one) is redrawn, up to 16 times.
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
-        let name = self.classes()[class];
+        let name = self.info().classes[class];
         (0..16).find_map(|_| {
             let (c, lo, hi, x0) = self.case(name, prec, rng);
             let member = name == INVALID || {
@@ -643,25 +612,11 @@ impl Shape for Newton {
             others,
             ill_posed,
             cap_reached: false,
+            ..Default::default()
         })
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        match prec {
-            Precision::F32 => run_newton::<f32>(m, input),
-            Precision::F64 => run_newton::<f64>(m, input),
-        }
-    }
-    /// Bracketed: 0 ulps measured (seed 1, 2,000 cases per class), held to 4. Plain Newton:
-    /// within a few hundred ulps near the root (where the rounding of its own residual stops
-    /// it; measured at most 369 in f32 and 887 in f64), a known failure from flat, far and
-    /// multiple-root starts.
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        match (m, NEWTON_CLASSES[class]) {
-            (1, _) => Expect::pass(4),
-            (_, NEAR_ROOT) => Expect::pass(if prec == Precision::F32 { 1024 } else { 2048 }),
-            (_, INVALID) => Expect::ANY,
-            _ => xfail_beyond(1024),
-        }
+        crate::in_precision!(prec, F => run_newton::<F>(m, input))
     }
 }
 

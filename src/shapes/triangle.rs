@@ -19,8 +19,8 @@
 //! counts as a miss). Joint moves of several inputs are not tried.
 
 use super::offset::{gamma, spawn_origin, ReintersectRow};
-use crate::audit::generic::generate as gen_case;
-use crate::audit::shape::{Answer, Expect, Expected, MethodInfo, Shape, Truth};
+use crate::audit::run::generate as gen_case;
+use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{self, nudge, q, round_q};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
@@ -519,6 +519,7 @@ pub fn truth(v: &[f64], prec: Precision) -> Truth {
         others: vec![],
         ill_posed: ill_posed(v, prec, count),
         cap_reached: false,
+        ..Default::default()
     })
 }
 
@@ -775,24 +776,22 @@ fn run_in<F: Real>(m: usize, v: &[f64]) -> Answer {
     }
 }
 
+const TRIANGLE: ShapeInfo = ShapeInfo {
+    name: "triangle",
+    about: "ray–triangle, seed 002 §2.1 (closed triangle, t > 0)",
+    args: &ARGS,
+    values: &["t"],
+    classes: &CLASSES,
+    methods: &METHODS,
+    metric: Metric::Ulps,
+    default_cases: 20_000,
+    reports_cond: false,
+    reports_residual: false,
+};
+
 impl Shape for Triangle {
-    fn name(&self) -> &'static str {
-        "triangle"
-    }
-    fn about(&self) -> &'static str {
-        "ray–triangle, seed 002 §2.1 (closed triangle, t > 0)"
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &ARGS
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["t"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        &CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        &METHODS
+    fn info(&self) -> &ShapeInfo {
+        &TRIANGLE
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         // A valid class redraws a proposal that rounding made invalid (degenerate)
@@ -805,46 +804,7 @@ impl Shape for Triangle {
         truth(input, prec)
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        match prec {
-            Precision::F32 => run_in::<f32>(m, input),
-            Precision::F64 => run_in::<f64>(m, input),
-        }
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        expect(METHODS[m].name, prec, CLASSES[class])
-    }
-}
-
-/// The tolerance table, measured at seed 1 (300 and 2,000 cases per class). `watertight_wide`
-/// is held to no wrong verdict and 1 ulp (measured: 0). The others are reported, and held to
-/// fail (XFAIL) where they are known to:
-/// - every native method on `vertex`: a ray a few ulps outside a vertex is a well-posed miss,
-///   but the rounding of the translation/shear (watertight), of `d×e2` (Möller–Trumbore) or of
-///   `R` (chapter) is larger than that: 10–35 % wrong;
-/// - `tiny`: Möller–Trumbore's absolute `|det| < 1e-6` rejects everything small; watertight's
-///   `Δt` (unscaled x, y mixed with z scaled by 1/d_z) rejects hits when |d| ≪ 1; in f32 the
-///   chapter's and watertight's products underflow;
-/// - `huge` in f32: products of coordinates ≥ 1e19 overflow (all three methods);
-/// - `far`: the chapter's `N·S − N·P0` cancels (errors of 1e5 ulps in f32, 1e8 in f64), and
-///   Möller–Trumbore's `det` of a small far triangle falls under its epsilon in f64.
-pub fn expect(method: &str, prec: Precision, class: &str) -> Expect {
-    let f32 = prec == Precision::F32;
-    let known = match (method, class) {
-        ("watertight_wide", _) => return Expect::pass(1),
-        (_, "vertex") => true,
-        ("moller_trumbore", "tiny") | ("watertight", "tiny") => true,
-        ("chapter", "tiny") | (_, "huge") => f32,
-        ("chapter", "far") => true,
-        ("moller_trumbore", "far") => !f32,
-        _ => false,
-    };
-    if known {
-        Expect {
-            max_ulps: 1000,
-            ..Expect::xfail()
-        }
-    } else {
-        Expect::ANY
+        crate::in_precision!(prec, F => run_in::<F>(m, input))
     }
 }
 

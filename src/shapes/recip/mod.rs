@@ -21,7 +21,7 @@
 pub mod newton;
 
 use self::newton::{BitTrick, Func};
-use crate::audit::shape::{Answer, Expect, Expected, MethodInfo, Shape, Truth};
+use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{all_finite, q, round_q, sqrt_encl, ziv, ZIV_CAP};
 use crate::numerics::Precision;
 use rand::Rng;
@@ -34,10 +34,35 @@ pub const X0_STEPS: usize = 100;
 /// One of the two functions as a shape.
 pub struct Recip {
     func: Func,
+    info: ShapeInfo,
 }
 
-pub static RCP: Recip = Recip { func: Func::Rcp };
-pub static RSQRT: Recip = Recip { func: Func::Rsqrt };
+const RECIP: ShapeInfo = ShapeInfo {
+    name: "rcp",
+    about: "1/r by Newton's iteration x(2 − rx) (§1.5)",
+    args: &["r", "x0"],
+    values: &["y"],
+    classes: CLASSES,
+    methods: RCP_METHODS,
+    metric: Metric::Ulps,
+    default_cases: 20_000,
+    reports_cond: false,
+    reports_residual: false,
+};
+
+pub static RCP: Recip = Recip {
+    func: Func::Rcp,
+    info: RECIP,
+};
+pub static RSQRT: Recip = Recip {
+    func: Func::Rsqrt,
+    info: ShapeInfo {
+        name: "rsqrt",
+        about: "1/√r by Newton's iteration y(3 − ry²)/2 (§1.5)",
+        methods: RSQRT_METHODS,
+        ..RECIP
+    },
+};
 
 const RCP_METHODS: &[MethodInfo] = &[
     MethodInfo {
@@ -170,29 +195,8 @@ impl Recip {
 }
 
 impl Shape for Recip {
-    fn name(&self) -> &'static str {
-        self.func.name()
-    }
-    fn about(&self) -> &'static str {
-        match self.func {
-            Func::Rcp => "1/r by Newton's iteration x(2 − rx) (§1.5)",
-            Func::Rsqrt => "1/√r by Newton's iteration y(3 − ry²)/2 (§1.5)",
-        }
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &["r", "x0"]
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["y"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        match self.func {
-            Func::Rcp => RCP_METHODS,
-            Func::Rsqrt => RSQRT_METHODS,
-        }
+    fn info(&self) -> &ShapeInfo {
+        &self.info
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         let class = CLASSES[class];
@@ -242,6 +246,7 @@ impl Shape for Recip {
                 others: vec![],
                 ill_posed: false,
                 cap_reached: false,
+                ..Default::default()
             }),
             Some(_) => Truth::Invalid,
             None => Truth::Answer(Expected {
@@ -250,6 +255,7 @@ impl Shape for Recip {
                 others: vec![],
                 ill_posed: false,
                 cap_reached: true,
+                ..Default::default()
             }),
         }
     }
@@ -259,9 +265,6 @@ impl Shape for Recip {
             Precision::F64 => method::<f64>(self.func, m, input),
         };
         y.map_or(Answer::miss(), |y| Answer::hit(vec![y]))
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        tolerance(self.func, m, prec, CLASSES[class])
     }
 }
 
@@ -294,26 +297,6 @@ fn method<F: BitTrick>(func: Func, m: usize, input: &[f64]) -> Option<F> {
             }
             Some(y)
         }
-    }
-}
-
-/// The reviewed tolerance table, measured at seed 1 with 2,000 cases per class: the
-/// reference is correctly rounded (`1/r`) or within 1 ulp (`1/√r`); `bits+k` on normal
-/// inputs within [`bits_ulps`]; `x0+newton` from a start in the chapter's bound within 1 ulp.
-/// Known failures: the bit trick on subnormal `r` (and, for `1/r`, huge `r`, where the
-/// subtraction from the magic constant wraps into NaN patterns), and any start out of bound.
-fn tolerance(func: Func, m: usize, prec: Precision, class: &str) -> Expect {
-    let normal = matches!(
-        (func, class),
-        (_, MANTISSA | START_IN_BOUND | START_OUT_OF_BOUND) | (Func::Rsqrt, HUGE)
-    );
-    match (m, class) {
-        (0, _) => Expect::pass(if func == Func::Rcp { 0 } else { 1 }),
-        (_, INVALID) => Expect::ANY,
-        (1..=3, _) if normal => Expect::pass(bits_ulps(func, m, prec)),
-        (1..=3, _) => super::roots::xfail_beyond(bits_ulps(func, m, prec)),
-        (_, START_OUT_OF_BOUND) => super::roots::xfail_beyond(2),
-        _ => Expect::pass(2),
     }
 }
 

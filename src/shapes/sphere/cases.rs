@@ -52,7 +52,7 @@ impl Class {
         Class::Random,
         Class::Invalid,
     ];
-    pub fn name(self) -> &'static str {
+    pub const fn name(self) -> &'static str {
         match self {
             Class::Inside => "inside",
             Class::OnSurface => "on_surface",
@@ -92,9 +92,13 @@ const MAX_ATTEMPTS: usize = 200;
 /// Generates case `index` of `class`: the first proposal the oracle confirms as a member.
 /// Returns `None` only if [`MAX_ATTEMPTS`] proposals were all rejected (counted by the audit).
 pub fn generate<F: Real>(seed: u64, class: Class, index: u64) -> Option<Case<F>> {
-    let mut rng = case_rng::<F>(seed, class, index);
+    generate_from(&mut case_rng::<F>(seed, class, index), class)
+}
+
+/// The first proposal drawn from `rng` that the oracle confirms as a member of `class`.
+pub fn generate_from<F: Real>(rng: &mut ChaCha8Rng, class: Class) -> Option<Case<F>> {
     (0..MAX_ATTEMPTS)
-        .map(|_| propose::<F>(&mut rng, class))
+        .map(|_| propose::<F>(rng, class))
         .find(|c| is_member(c, class))
 }
 

@@ -17,7 +17,7 @@ pub mod reintersect;
 pub use methods::{torus_normal, torus_robust, torus_robust_hit};
 pub use reintersect::reintersection;
 
-use crate::audit::shape::{Answer, Expect, MethodInfo, Metric, Shape, Truth};
+use crate::audit::{Answer, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
 use rand_chacha::ChaCha8Rng;
@@ -102,29 +102,24 @@ pub struct Torus;
 /// The unit normal at the ray–torus hit.
 pub struct TorusNormal;
 
+const TORUS: ShapeInfo = ShapeInfo {
+    name: "torus",
+    about: "§2.5 ray–torus, nearest t > 0 (torus around z, radii r1 > r2 > 0)",
+    args: &ARGS,
+    values: &["t"],
+    classes: &cases::CLASSES,
+    methods: &METHODS,
+    metric: Metric::Ulps,
+    // The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
+    // milliseconds per case.
+    default_cases: 500,
+    reports_cond: false,
+    reports_residual: false,
+};
+
 impl Shape for Torus {
-    /// The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
-    /// milliseconds per case.
-    fn default_cases(&self) -> u64 {
-        500
-    }
-    fn name(&self) -> &'static str {
-        "torus"
-    }
-    fn about(&self) -> &'static str {
-        "§2.5 ray–torus, nearest t > 0 (torus around z, radii r1 > r2 > 0)"
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &ARGS
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["t"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        &cases::CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        &METHODS
+    fn info(&self) -> &ShapeInfo {
+        &TORUS
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         cases::generate(class, prec, rng)
@@ -133,42 +128,28 @@ impl Shape for Torus {
         oracle::truth(input, prec)
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        match prec {
-            Precision::F32 => answer(hit_t::<f32>(m, input).map(|t| [t])),
-            Precision::F64 => answer(hit_t::<f64>(m, input).map(|t| [t])),
-        }
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        tolerance::torus(m, prec, class)
+        crate::in_precision!(prec, F => answer(hit_t::<F>(m, input).map(|t| [t])))
     }
 }
 
+const TORUS_NORMAL: ShapeInfo = ShapeInfo {
+    name: "torus_normal",
+    about: "§3 unit normal (normalised gradient) at the ray–torus hit",
+    args: &ARGS,
+    values: &["nx", "ny", "nz"],
+    classes: &cases::CLASSES,
+    methods: &METHODS,
+    metric: Metric::NormUlps,
+    // The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
+    // milliseconds per case.
+    default_cases: 500,
+    reports_cond: false,
+    reports_residual: false,
+};
+
 impl Shape for TorusNormal {
-    /// The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
-    /// milliseconds per case.
-    fn default_cases(&self) -> u64 {
-        500
-    }
-    fn name(&self) -> &'static str {
-        "torus_normal"
-    }
-    fn about(&self) -> &'static str {
-        "§3 unit normal (normalised gradient) at the ray–torus hit"
-    }
-    fn args(&self) -> &'static [&'static str] {
-        &ARGS
-    }
-    fn values(&self) -> &'static [&'static str] {
-        &["nx", "ny", "nz"]
-    }
-    fn classes(&self) -> &'static [&'static str] {
-        &cases::CLASSES
-    }
-    fn methods(&self) -> &'static [MethodInfo] {
-        &METHODS
-    }
-    fn metric(&self) -> Metric {
-        Metric::NormUlps
+    fn info(&self) -> &ShapeInfo {
+        &TORUS_NORMAL
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
         cases::generate(class, prec, rng)
@@ -177,14 +158,6 @@ impl Shape for TorusNormal {
         oracle::normal_truth(input, prec)
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        match prec {
-            Precision::F32 => answer(hit_normal::<f32>(m, input)),
-            Precision::F64 => answer(hit_normal::<f64>(m, input)),
-        }
-    }
-    fn expect(&self, m: usize, prec: Precision, class: usize) -> Expect {
-        tolerance::normal(m, prec, class)
+        crate::in_precision!(prec, F => answer(hit_normal::<F>(m, input)))
     }
 }
-
-pub mod tolerance;

@@ -21,7 +21,7 @@
 //!    (the gradient equals `8·r1·ρ·(p − c)` there), so no normalisation is rounded.
 
 use super::methods::is_valid;
-use crate::audit::shape::{Expected, Truth};
+use crate::audit::{Expected, Truth};
 use crate::numerics::exact::{self, q, ziv, ZIV_CAP};
 use crate::numerics::Precision;
 use crate::shapes::sturm::{self, eval, square_free, RealRoot};
@@ -210,6 +210,7 @@ pub fn truth(x: &[f64], prec: Precision) -> Truth {
         others: rounded.iter().skip(1).copied().collect(),
         ill_posed: ill,
         cap_reached: rounded.iter().any(|v| v.is_nan()),
+        ..Default::default()
     })
 }
 
@@ -375,6 +376,7 @@ pub fn normal_truth(x: &[f64], prec: Precision) -> Truth {
             others: vec![],
             ill_posed: ill_posed(x, prec, 0),
             cap_reached: false,
+            ..Default::default()
         });
     };
     let ill = ill_posed(x, prec, h.n_roots);
@@ -396,5 +398,6 @@ pub fn normal_truth(x: &[f64], prec: Precision) -> Truth {
         others: vec![],
         ill_posed: ill,
         cap_reached: cap,
+        ..Default::default()
     })
 }

@@ -25,7 +25,7 @@ use super::cases::{round_to, surface_frame, unit};
 use super::methods::{normalize, point_at, torus_normal, torus_robust_hit};
 use super::oracle::{positive_roots, quartic_q, ExactCase};
 use super::{pick, METHODS};
-use crate::audit::generic::case_rng;
+use crate::audit::shape::case_rng;
 use crate::numerics::exact::q;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;

@@ -1,0 +1,139 @@
+//! How one method's answer compares with the oracle's truth on one case: one rule for every
+//! shape.
+
+use super::shape::{Answer, Metric, Truth};
+use crate::numerics::{exact, Precision};
+use serde::{Deserialize, Serialize};
+
+/// How one method's answer compares with the oracle on one case.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Judgement {
+    /// Right verdict; for a hit, `ulps` from the correctly rounded value(s) by the metric.
+    Ok { ulps: Option<u64> },
+    /// Hit (or more roots) reported where the exact answer has fewer.
+    FalseHit,
+    /// Miss (or fewer roots) reported where the exact answer has more.
+    FalseMiss,
+    /// A first value nearer another exact candidate (the other root) than the right one.
+    WrongRoot,
+    /// A hit with a NaN or infinite value on valid input.
+    NonfiniteT,
+    /// Invalid input, reported as a miss (the right answer).
+    Rejected,
+    /// Invalid input, answered with a NaN or infinite value.
+    InvalidNanT,
+    /// Invalid input, answered with a finite hit.
+    InvalidHit,
+}
+
+impl Judgement {
+    /// The short verdict word used in JSON: ok, false_hit, false_miss, wrong_root, nonfinite_t,
+    /// invalid.
+    pub fn verdict_word(self) -> &'static str {
+        match self {
+            Judgement::Ok { .. } => "ok",
+            Judgement::FalseHit => "false_hit",
+            Judgement::FalseMiss => "false_miss",
+            Judgement::WrongRoot => "wrong_root",
+            Judgement::NonfiniteT => "nonfinite_t",
+            Judgement::Rejected | Judgement::InvalidNanT | Judgement::InvalidHit => "invalid",
+        }
+    }
+    /// A wrong answer on valid input (counted only when the case is well posed).
+    pub fn is_wrong(self) -> bool {
+        matches!(
+            self,
+            Judgement::FalseHit
+                | Judgement::FalseMiss
+                | Judgement::WrongRoot
+                | Judgement::NonfiniteT
+        )
+    }
+    /// The value error of a right answer.
+    pub fn ulps(self) -> Option<u64> {
+        match self {
+            Judgement::Ok { ulps } => ulps,
+            _ => None,
+        }
+    }
+}
+
+/// Judges an answer against the truth.
+pub fn judge(truth: &Truth, a: &Answer, metric: Metric, prec: Precision) -> Judgement {
+    // Invalid input: only a rejection is right
+    let e = match truth {
+        Truth::Invalid => {
+            return if a.count == 0 {
+                Judgement::Rejected
+            } else if a.values.iter().any(|v| !v.is_finite()) {
+                Judgement::InvalidNanT
+            } else {
+                Judgement::InvalidHit
+            }
+        }
+        Truth::Answer(e) => e,
+    };
+    // The verdict: non-finite values, then the count
+    if a.count > 0 && a.values.iter().any(|v| !v.is_finite()) {
+        return Judgement::NonfiniteT;
+    }
+    if a.count > e.count {
+        return Judgement::FalseHit;
+    }
+    if a.count == 0 && e.values.first().is_some_and(|v| v.is_infinite()) {
+        // The exact value lies beyond the format's range: it cannot be returned, a miss is right
+        return Judgement::Ok { ulps: None };
+    }
+    if a.count < e.count || a.values.len() < e.values.len() {
+        return Judgement::FalseMiss;
+    }
+    if e.count == 0 || e.values.is_empty() {
+        return Judgement::Ok { ulps: None };
+    }
+    // A first value nearer another candidate than the right one is a wrong root
+    let got = a.values[0];
+    let right = e.value_f64.unwrap_or(e.values[0]);
+    if e.others
+        .iter()
+        .any(|&o| o != right && (got - o).abs() < (got - right).abs())
+    {
+        return Judgement::WrongRoot;
+    }
+    Judgement::Ok {
+        ulps: Some(value_error(&e.values, &a.values, metric, prec)),
+    }
+}
+
+/// The error of `got` against the correctly rounded `want`, by the metric.
+pub fn value_error(want: &[f64], got: &[f64], metric: Metric, prec: Precision) -> u64 {
+    match metric {
+        Metric::Ulps => want
+            .iter()
+            .zip(got)
+            .map(|(&w, &g)| exact::ulps(w, g, prec))
+            .max()
+            .unwrap_or(0),
+        Metric::NormUlps => {
+            let scale = want.iter().fold(0f64, |m, w| m.max(w.abs()));
+            let unit = exact::ulp(scale, prec);
+            want.iter()
+                .zip(got)
+                .map(|(&w, &g)| ((w - g).abs() / unit).ceil())
+                .fold(0f64, f64::max) as u64
+        }
+    }
+}
+
+/// Whether an enclosure `[lo, hi]` contains the exact first value. Checked through the value
+/// correctly rounded to `f64` (or to the case's precision): rounding is monotonic and the ends
+/// are floats, so a rounded value outside means the exact value is outside.
+pub fn enclosure_holds(truth: &Truth, enclosure: [f64; 2]) -> bool {
+    match truth {
+        Truth::Answer(e) => match e.value_f64.or(e.values.first().copied()) {
+            Some(t) => enclosure[0] <= t && t <= enclosure[1],
+            None => true,
+        },
+        Truth::Invalid => true,
+    }
+}

@@ -1,0 +1,187 @@
+//! What a `rayproof audit` covers: shapes, methods, classes and precisions resolved from names
+//! (an unknown name is a one-line error), the case count per shape, and whether the
+//! reintersection and watertightness tests run (with every shape).
+
+use super::run::{Selection, Tallies};
+use super::shape::{Builtin, Method, Shape};
+use super::tolerance::Known;
+use crate::numerics::Precision;
+use crate::shapes::{registry, robustness, shape_by_name, shape_names};
+
+/// The audit as asked for on the command line.
+#[derive(Clone, Debug, Default)]
+pub struct Options {
+    /// Shape names, or `all` (empty: every shape, or the sphere alone when methods or classes
+    /// are named).
+    pub shapes: Vec<String>,
+    /// Method names of the one shape (empty: all).
+    pub methods: Vec<String>,
+    /// Class names of the one shape (empty: all).
+    pub classes: Vec<String>,
+    /// Empty: both.
+    pub precisions: Vec<Precision>,
+    /// Cases per class (`None`: each shape's default).
+    pub cases: Option<u64>,
+    pub seed: u64,
+    /// `(k, n)`: only the cases whose index ≡ k (mod n).
+    pub shard: (u64, u64),
+}
+
+/// One shape's part of the audit.
+pub struct ShapePlan {
+    pub shape: &'static dyn Shape,
+    /// The methods under audit: the shape's own, or any [`Method`] from outside the crate.
+    pub methods: Vec<Box<dyn Method>>,
+    pub classes: Vec<usize>,
+    pub cases: u64,
+}
+
+/// The resolved audit.
+pub struct Plan {
+    pub shapes: Vec<ShapePlan>,
+    pub precisions: Vec<Precision>,
+    pub seed: u64,
+    pub shard: (u64, u64),
+    /// Every shape is audited: the reintersection and watertightness tests run too.
+    pub every_shape: bool,
+}
+
+/// Resolves names against a list, or all when empty.
+fn select(names: &[String], all: &[&str], what: &str, shape: &str) -> Result<Vec<usize>, String> {
+    if names.is_empty() {
+        return Ok((0..all.len()).collect());
+    }
+    names
+        .iter()
+        .map(|n| {
+            all.iter().position(|a| a == n).ok_or_else(|| {
+                format!(
+                    "unknown {what} '{n}' of {shape} (known: {})",
+                    all.join(", ")
+                )
+            })
+        })
+        .collect()
+}
+
+impl Plan {
+    /// Resolves the options; an unknown name is an error of one line.
+    pub fn new(o: &Options) -> Result<Plan, String> {
+        // Which shapes
+        let narrowed = !o.methods.is_empty() || !o.classes.is_empty();
+        let all = o.shapes.iter().any(|s| s == "all");
+        let every_shape = all || (o.shapes.is_empty() && !narrowed);
+        let mut shapes: Vec<&'static dyn Shape> = vec![];
+        if every_shape {
+            shapes = registry();
+        } else if o.shapes.is_empty() {
+            shapes.push(shape_by_name("sphere").expect("the sphere is registered"));
+        } else {
+            for name in &o.shapes {
+                let s = shape_by_name(name).ok_or_else(|| {
+                    format!(
+                        "unknown shape '{name}' (known: all, {})",
+                        shape_names().join(", ")
+                    )
+                })?;
+                if !shapes.iter().any(|x| x.name() == s.name()) {
+                    shapes.push(s);
+                }
+            }
+        }
+        if narrowed && shapes.len() != 1 {
+            return Err(
+                "--method and --class name one shape's methods and classes: give a single --shape"
+                    .into(),
+            );
+        }
+        // Each shape's methods, classes and case count
+        let mut plans = vec![];
+        for shape in shapes {
+            let info = shape.info();
+            let names: Vec<&str> = info.methods.iter().map(|m| m.name).collect();
+            let methods = select(&o.methods, &names, "method", info.name)?;
+            let classes = select(&o.classes, info.classes, "class", info.name)?;
+            plans.push(ShapePlan {
+                shape,
+                methods: methods
+                    .into_iter()
+                    .map(|index| Box::new(Builtin { shape, index }) as Box<dyn Method>)
+                    .collect(),
+                classes,
+                cases: o.cases.unwrap_or(info.default_cases),
+            });
+        }
+        Ok(Plan {
+            shapes: plans,
+            precisions: if o.precisions.is_empty() {
+                Precision::ALL.to_vec()
+            } else {
+                o.precisions.clone()
+            },
+            seed: o.seed,
+            shard: o.shard,
+            every_shape,
+        })
+    }
+
+    /// The selection of shape `i`, for [`super::run::run`].
+    pub fn selection(&self, i: usize) -> Selection<'_> {
+        let p = &self.shapes[i];
+        Selection {
+            shape: p.shape,
+            methods: p.methods.iter().map(|m| m.as_ref()).collect(),
+            precisions: self.precisions.clone(),
+            classes: p.classes.clone(),
+            cases: p.cases,
+            seed: self.seed,
+            shard: self.shard,
+        }
+    }
+
+    /// Runs shape `i`.
+    pub fn run_shape(&self, i: usize, progress: bool) -> Tallies {
+        super::run::run(&self.selection(i), progress)
+    }
+
+    /// The reintersection and watertightness tests, when every shape is audited.
+    pub fn robustness(&self) -> Option<robustness::Robustness> {
+        self.every_shape
+            .then(|| robustness::run(self.seed, &self.precisions))
+    }
+
+    /// The names a tolerance table may use: every registered shape with its methods and
+    /// classes, and the methods of this audit.
+    pub fn known(&self) -> Known<'static> {
+        known_names(
+            self.shapes
+                .iter()
+                .flat_map(|p| {
+                    p.methods
+                        .iter()
+                        .map(|m| (p.shape.name(), m.name().to_string()))
+                })
+                .collect(),
+        )
+    }
+}
+
+/// Every registered shape's built-in method and class names, plus `extra` (shape, method).
+pub fn known_names(extra: Vec<(&'static str, String)>) -> Known<'static> {
+    Known {
+        shapes: registry()
+            .into_iter()
+            .map(|s| {
+                let info = s.info();
+                let mut methods: Vec<String> =
+                    info.methods.iter().map(|m| m.name.to_string()).collect();
+                for (shape, m) in &extra {
+                    if *shape == info.name && !methods.contains(m) {
+                        methods.push(m.clone());
+                    }
+                }
+                (info.name, methods, info.classes.to_vec())
+            })
+            .collect(),
+    }
+}

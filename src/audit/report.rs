@@ -1,0 +1,127 @@
+//! The audit's report: one [`ShapeReport`] per shape (its rows, each with the tolerance
+//! table's verdict) and the reintersection and watertightness tests of a whole audit. The JSON
+//! of `--json` is this structure; the same seed gives byte-identical JSON.
+
+use super::run::Tallies;
+use super::tally::{Row, RowKey};
+use super::tolerance::{Status, Table};
+use crate::shapes::robustness::Robustness;
+use serde::Serialize;
+
+/// The `tool` field of reports and shard files.
+pub const TOOL: &str = concat!("rayproof ", env!("CARGO_PKG_VERSION"));
+
+/// One shape's rows.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct ShapeReport {
+    pub shape: String,
+    pub about: String,
+    /// How value errors are measured: `ulps` or `norm_ulps`.
+    pub metric: &'static str,
+    pub cases_per_class: u64,
+    pub rows: Vec<Row>,
+}
+
+/// The whole audit.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Report {
+    pub tool: &'static str,
+    pub seed: u64,
+    /// `K/N` for a shard's own report; `0/1` for a whole run and for a merge.
+    pub shard: String,
+    pub shapes: Vec<ShapeReport>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub robustness: Option<Robustness>,
+}
+
+impl Tallies {
+    /// The rows, in precision × class × method order, judged by `table` when given.
+    pub fn report(&self, table: Option<&Table>) -> ShapeReport {
+        let info = self.shape.info();
+        let mut rows = vec![];
+        for g in &self.groups {
+            for (m, t) in self.methods.iter().zip(&g.tallies) {
+                let key = RowKey {
+                    shape: info.name,
+                    method: &m.name,
+                    robust: m.robust,
+                    precision: g.precision,
+                    class: info.classes[g.class],
+                    has_cond: info.reports_cond,
+                    has_residual: info.reports_residual,
+                };
+                let mut row = t.row(&key);
+                row.verdict = table.map(|tb| tb.verdict(info.name, &row, |u| t.ulps.above(u)));
+                rows.push(row);
+            }
+        }
+        ShapeReport {
+            shape: info.name.to_string(),
+            about: info.about.to_string(),
+            metric: info.metric.name(),
+            cases_per_class: self.cases,
+            rows,
+        }
+    }
+}
+
+impl Report {
+    /// Rows of every shape with their shape's name.
+    pub fn rows(&self) -> impl Iterator<Item = (&str, &Row)> {
+        self.shapes
+            .iter()
+            .flat_map(|s| s.rows.iter().map(move |r| (s.shape.as_str(), r)))
+    }
+
+    /// Every row out of tolerance, and every robustness goal missed, one line each.
+    pub fn failures(&self) -> Vec<String> {
+        let mut out: Vec<String> = self
+            .rows()
+            .filter_map(|(shape, r)| {
+                let v = r.verdict.as_ref()?;
+                (v.status == Status::Fail).then(|| {
+                    let why: Vec<&str> = v
+                        .reasons
+                        .iter()
+                        .map(String::as_str)
+                        .filter(|x| !x.starts_with("known failure shown"))
+                        .collect();
+                    format!(
+                        "{shape} {} {} {}: {}",
+                        r.method,
+                        r.precision.name(),
+                        r.class,
+                        why.join("; ")
+                    )
+                })
+            })
+            .collect();
+        if let Some(r) = &self.robustness {
+            out.extend(crate::shapes::robustness::check(r));
+        }
+        out
+    }
+
+    /// Rows whose known failure could not be shown with so few cases, one line each.
+    pub fn undecided(&self) -> Vec<String> {
+        self.rows()
+            .filter(|(_, r)| {
+                r.verdict
+                    .as_ref()
+                    .is_some_and(|v| v.status == Status::Undecided)
+            })
+            .map(|(shape, r)| {
+                format!(
+                    "{shape} {} {} {}: {}",
+                    r.method,
+                    r.precision.name(),
+                    r.class,
+                    r.verdict
+                        .as_ref()
+                        .map(|v| v.reasons.join("; "))
+                        .unwrap_or_default()
+                )
+            })
+            .collect()
+    }
+}

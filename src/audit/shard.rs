@@ -1,0 +1,463 @@
+//! Sharding: `rayproof audit --shard K/N --shard-out FILE` runs the cases whose index ≡ K
+//! (mod N) of every shape selected and writes their tallies; `rayproof merge` checks that the
+//! files are the shards 0/N … N−1/N of one audit and merges them into exactly the report of the
+//! unsharded run (byte for byte: tallies merge exactly, see [`super::tally`]).
+//!
+//! A shard file (format [`SHARD_FORMAT`], version [`SHARD_FORMAT_VERSION`]) is one line of
+//! JSON: the selection, then per shape × precision × class one tally per method. Floats are
+//! exact (C99 hex text; a NaN by its bits); samples are histograms, so a file's size grows with
+//! the number of distinct errors, not with the number of cases. The reintersection and
+//! watertightness tests of a whole audit are not sharded: the merge runs them (a few seconds).
+
+use super::run::{Group, MethodTag, Tallies};
+use super::shape::Shape;
+use super::tally::Tally;
+use crate::numerics::real::{hex_float, parse_f64};
+use crate::numerics::Precision;
+use serde::{Deserialize, Serialize};
+
+/// The tag in the `format` field of a shard file.
+pub const SHARD_FORMAT: &str = "rayproof-audit-shard";
+/// The version in the `format_version` field; a reader refuses any other.
+pub const SHARD_FORMAT_VERSION: u32 = 2;
+
+/// An `f64` as exact text: a C99 hex float (`0x1.8p+1`, `-0x0p+0`, `inf`), and a NaN as its
+/// bit pattern (`nan:0x7ff8000000000000`). Decimal JSON numbers are not used because a JSON
+/// reader need not parse them exactly.
+pub fn exact_text(x: f64) -> String {
+    if x.is_nan() {
+        format!("nan:{:#018x}", x.to_bits())
+    } else {
+        hex_float(x)
+    }
+}
+
+/// Reads [`exact_text`].
+pub fn parse_exact(s: &str) -> Option<f64> {
+    match s.strip_prefix("nan:0x") {
+        Some(bits) => u64::from_str_radix(bits, 16)
+            .ok()
+            .map(f64::from_bits)
+            .filter(|x| x.is_nan()),
+        None => parse_f64(s).filter(|x| !x.is_nan()),
+    }
+}
+
+/// `Vec<f64>` fields written as [`exact_text`].
+pub mod exact_vec {
+    use serde::{de::Error, Deserialize, Deserializer, Serializer};
+    pub fn serialize<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(v.iter().map(|&x| super::exact_text(x)))
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
+        Vec::<std::borrow::Cow<str>>::deserialize(d)?
+            .iter()
+            .map(|t| {
+                super::parse_exact(t)
+                    .ok_or_else(|| D::Error::custom(format!("'{t}' is not an exact float")))
+            })
+            .collect()
+    }
+}
+
+/// One precision × class of a shard: a tally per method.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GroupFile {
+    precision: Precision,
+    class: String,
+    tallies: Vec<Tally>,
+}
+
+/// One shape of a shard.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShapeShard {
+    pub shape: String,
+    pub cases_per_class: u64,
+    pub methods: Vec<MethodTag>,
+    pub precisions: Vec<Precision>,
+    pub classes: Vec<String>,
+    groups: Vec<GroupFile>,
+}
+
+/// `k` and `n` of a shard file.
+#[derive(Clone, Copy, Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ShardId {
+    k: u64,
+    n: u64,
+}
+
+/// A shard file (field order is the file's).
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Shard {
+    format: String,
+    format_version: u32,
+    pub tool: String,
+    pub seed: u64,
+    /// The audit covers every shape (the merge then adds the reintersection tests).
+    pub every_shape: bool,
+    shard: ShardId,
+    pub shapes: Vec<ShapeShard>,
+}
+
+/// Just the tag of a file, to tell "not a shard" from "a corrupt shard".
+#[derive(Deserialize)]
+struct FormatTag {
+    format: Option<serde_json::Value>,
+    format_version: Option<serde_json::Value>,
+}
+
+impl Shard {
+    /// The shard of a run.
+    pub fn new(
+        tool: &str,
+        seed: u64,
+        every_shape: bool,
+        (k, n): (u64, u64),
+        parts: &[Tallies],
+    ) -> Shard {
+        let shapes = parts
+            .iter()
+            .map(|p| {
+                let info = p.shape.info();
+                let mut precisions = vec![];
+                let mut classes = vec![];
+                for g in &p.groups {
+                    if !precisions.contains(&g.precision) {
+                        precisions.push(g.precision);
+                    }
+                    let c = info.classes[g.class].to_string();
+                    if !classes.contains(&c) {
+                        classes.push(c);
+                    }
+                }
+                ShapeShard {
+                    shape: info.name.to_string(),
+                    cases_per_class: p.cases,
+                    methods: p.methods.clone(),
+                    precisions,
+                    classes,
+                    groups: p
+                        .groups
+                        .iter()
+                        .map(|g| GroupFile {
+                            precision: g.precision,
+                            class: info.classes[g.class].to_string(),
+                            tallies: g.tallies.clone(),
+                        })
+                        .collect(),
+                }
+            })
+            .collect();
+        Shard {
+            format: SHARD_FORMAT.into(),
+            format_version: SHARD_FORMAT_VERSION,
+            tool: tool.into(),
+            seed,
+            every_shape,
+            shard: ShardId { k, n },
+            shapes,
+        }
+    }
+
+    pub fn id(&self) -> (u64, u64) {
+        (self.shard.k, self.shard.n)
+    }
+
+    /// The file: one line of JSON.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("a shard serialises") + "\n"
+    }
+
+    /// Reads a shard file, checking that it is complete and consistent in itself: every shape
+    /// known, every precision × class of its selection in order, one tally per method, each
+    /// tally holding this shard's number of cases. The error is one line.
+    pub fn from_json(
+        bytes: &[u8],
+        shape_by_name: impl Fn(&str) -> Option<&'static dyn Shape>,
+    ) -> Result<Shard, String> {
+        let not_shard =
+            || format!("not a rayproof audit shard (no \"format\": \"{SHARD_FORMAT}\")");
+        let file: Shard = match serde_json::from_slice(bytes) {
+            Ok(f) => f,
+            Err(e) => {
+                // Tell a file of another kind from a damaged shard
+                let tag = serde_json::from_slice::<FormatTag>(bytes).ok();
+                let json = serde_json::from_slice::<serde::de::IgnoredAny>(bytes).is_ok();
+                return Err(match tag {
+                    Some(t) if t.format != Some(SHARD_FORMAT.into()) => not_shard(),
+                    Some(t) if t.format_version != Some(SHARD_FORMAT_VERSION.into()) => format!(
+                        "shard format version {}, but this rayproof reads version {SHARD_FORMAT_VERSION}",
+                        t.format_version.map(|v| v.to_string()).unwrap_or("(none)".into())
+                    ),
+                    None if json => not_shard(),
+                    _ if e.is_eof() => format!("truncated shard ({e})"),
+                    _ => format!("corrupt shard ({e})"),
+                });
+            }
+        };
+        if file.format != SHARD_FORMAT {
+            return Err(not_shard());
+        }
+        if file.format_version != SHARD_FORMAT_VERSION {
+            return Err(format!(
+                "shard format version {}, but this rayproof reads version {SHARD_FORMAT_VERSION}",
+                file.format_version
+            ));
+        }
+        let corrupt = |what: String| Err(format!("corrupt shard: {what}"));
+        let ShardId { k, n } = file.shard;
+        if n == 0 || k >= n {
+            return corrupt(format!("shard {k}/{n} is not K/N with 0 ≤ K < N"));
+        }
+        if file.shapes.is_empty() {
+            return corrupt("no shape".into());
+        }
+        for s in &file.shapes {
+            let Some(shape) = shape_by_name(&s.shape) else {
+                return corrupt(format!("unknown shape '{}'", s.shape));
+            };
+            let info = shape.info();
+            if let Some(c) = s
+                .classes
+                .iter()
+                .find(|c| !info.classes.contains(&c.as_str()))
+            {
+                return corrupt(format!("{}: unknown class '{c}'", s.shape));
+            }
+            if s.methods.is_empty() || s.classes.is_empty() || s.precisions.is_empty() {
+                return corrupt(format!("{}: empty selection", s.shape));
+            }
+            // Every precision × class in selection order, one tally per method
+            let expected: Vec<(Precision, &str)> = s
+                .precisions
+                .iter()
+                .flat_map(|&p| s.classes.iter().map(move |c| (p, c.as_str())))
+                .collect();
+            let got: Vec<(Precision, &str)> = s
+                .groups
+                .iter()
+                .map(|g| (g.precision, g.class.as_str()))
+                .collect();
+            if got != expected {
+                return corrupt(format!(
+                    "{}: {} precision × class groups where the selection has {}",
+                    s.shape,
+                    got.len(),
+                    expected.len()
+                ));
+            }
+            let per_group = super::run::shard_len(s.cases_per_class, (k, n));
+            for g in &s.groups {
+                let at = format!("{} {} {}", s.shape, g.precision.name(), g.class);
+                if g.tallies.len() != s.methods.len() {
+                    return corrupt(format!(
+                        "{at}: {} tallies for {} methods",
+                        g.tallies.len(),
+                        s.methods.len()
+                    ));
+                }
+                if let Some(t) = g.tallies.iter().find(|t| t.cases != per_group) {
+                    return corrupt(format!(
+                        "{at}: {} cases where shard {k}/{n} of {} has {per_group}",
+                        t.cases, s.cases_per_class
+                    ));
+                }
+            }
+        }
+        Ok(file)
+    }
+}
+
+/// Shards that are each sound but do not make up one audit: different tool version, seed,
+/// cases or selection, or a shard missing or given twice. The CLI exits 3 on it.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct IncompatibleShards(pub String);
+
+/// Combines the shards `0/N … N−1/N` of one audit (each given once, in any order, with a name
+/// for messages).
+pub fn merge(
+    tool: &str,
+    shards: Vec<(String, Shard)>,
+    shape_by_name: impl Fn(&str) -> Option<&'static dyn Shape>,
+) -> Result<Merged, IncompatibleShards> {
+    let fail = |s: String| Err(IncompatibleShards(s));
+    let Some((first_name, first)) = shards.first() else {
+        return fail("no shard given".into());
+    };
+    // Same tool, seed, selection and N everywhere
+    for (name, s) in &shards {
+        if s.tool != tool {
+            return fail(format!(
+                "{name} was written by {}, but this is {tool}",
+                s.tool
+            ));
+        }
+    }
+    let key = |s: &Shard| {
+        let sel = |f: &dyn Fn(&ShapeShard) -> String| {
+            s.shapes.iter().map(f).collect::<Vec<_>>().join("; ")
+        };
+        [
+            ("seed", s.seed.to_string()),
+            ("shapes", sel(&|x| x.shape.clone())),
+            ("cases per class", sel(&|x| x.cases_per_class.to_string())),
+            (
+                "methods",
+                sel(&|x| {
+                    x.methods
+                        .iter()
+                        .map(|m| m.name.as_str())
+                        .collect::<Vec<_>>()
+                        .join(",")
+                }),
+            ),
+            (
+                "precisions",
+                sel(&|x| {
+                    x.precisions
+                        .iter()
+                        .map(|p| p.name())
+                        .collect::<Vec<_>>()
+                        .join(",")
+                }),
+            ),
+            ("classes", sel(&|x| x.classes.join(","))),
+            ("shard count N", s.shard.n.to_string()),
+        ]
+    };
+    let want = key(first);
+    for (name, s) in &shards[1..] {
+        for ((what, a), (_, b)) in want.iter().zip(key(s)) {
+            if *a != b {
+                return fail(format!(
+                    "{first_name} and {name} are not shards of one audit: {what} {a} vs {b}"
+                ));
+            }
+        }
+    }
+    // Each of 0/N … N−1/N exactly once
+    let n = first.shard.n;
+    let mut by_k = std::collections::BTreeMap::new();
+    for (name, s) in &shards {
+        let k = s.shard.k;
+        if let Some(other) = by_k.insert(k, name) {
+            return fail(format!("shard {k}/{n} given twice: {other} and {name}"));
+        }
+    }
+    if (by_k.len() as u64) < n {
+        let missing: Vec<String> = (0..n)
+            .filter(|k| !by_k.contains_key(k))
+            .take(4)
+            .map(|k| format!("{k}/{n}"))
+            .collect();
+        let more = if n - by_k.len() as u64 > missing.len() as u64 {
+            ", …"
+        } else {
+            ""
+        };
+        return fail(format!(
+            "missing shard {}{more}: a merge needs each of 0/{n} … {}/{n} once",
+            missing.join(", "),
+            n - 1
+        ));
+    }
+    // Merge the tallies group by group
+    let (seed, every_shape) = (first.seed, first.every_shape);
+    let mut parts = shards.into_iter().map(|(_, s)| s.shapes);
+    let mut shapes: Vec<Tallies> = vec![];
+    for s in parts.next().expect("one shard") {
+        let shape = shape_by_name(&s.shape).expect("checked when read");
+        let class = |name: &str| {
+            shape
+                .info()
+                .classes
+                .iter()
+                .position(|c| *c == name)
+                .expect("checked when read")
+        };
+        shapes.push(Tallies {
+            shape,
+            cases: s.cases_per_class,
+            methods: s.methods,
+            groups: s
+                .groups
+                .into_iter()
+                .map(|g| Group {
+                    precision: g.precision,
+                    class: class(&g.class),
+                    tallies: g.tallies,
+                })
+                .collect(),
+        });
+    }
+    for other in parts {
+        for (m, s) in shapes.iter_mut().zip(other) {
+            for (mine, g) in m.groups.iter_mut().zip(s.groups) {
+                for (t, u) in mine.tallies.iter_mut().zip(&g.tallies) {
+                    t.merge(u);
+                }
+            }
+        }
+    }
+    Ok(Merged {
+        seed,
+        every_shape,
+        shapes,
+    })
+}
+
+/// A merged audit: what the unsharded run would have tallied.
+pub struct Merged {
+    pub seed: u64,
+    pub every_shape: bool,
+    pub shapes: Vec<Tallies>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn round_trip(x: f64) -> f64 {
+        parse_exact(&exact_text(x)).unwrap()
+    }
+
+    #[test]
+    fn floats_round_trip_exactly_through_shard_text() {
+        let specials = [
+            0.0,
+            -0.0,
+            0.1,
+            -3.5,
+            f64::MIN_POSITIVE,
+            f64::from_bits(1),
+            -f64::from_bits(0x000f_ffff_ffff_ffff),
+            f64::MAX,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            -f64::NAN,
+            f64::from_bits(0x7ff0_0000_0000_0001),
+            0.1f32 as f64,
+        ];
+        for x in specials {
+            assert_eq!(round_trip(x).to_bits(), x.to_bits(), "{}", exact_text(x));
+        }
+        // A sweep of bit patterns over every exponent
+        let mut h = 0x243f_6a88_85a3_08d3u64;
+        for _ in 0..20_000 {
+            h = h
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            assert_eq!(round_trip(f64::from_bits(h)).to_bits(), h);
+        }
+        assert_eq!(exact_text(f64::NAN), "nan:0x7ff8000000000000");
+        for bad in ["0x1.zzp+1", "nan:0x0", "", "1.5e", "null"] {
+            assert!(parse_exact(bad).is_none(), "{bad}");
+        }
+    }
+}

@@ -1,0 +1,399 @@
+//! Aggregation: every judged case of one method × precision × class is added to a [`Tally`],
+//! and a tally becomes one [`Row`] of the report.
+//!
+//! A tally is exact and mergeable: counts add, samples are histograms ([`super::hist`]), and the
+//! examples are chosen by rules that do not depend on the order of the cases (the worst value
+//! error, ties to the lowest index; the lowest index of each failure kind). So a run split in
+//! any way — over threads, or over shards merged later — gives the same rows, byte for byte.
+
+use super::hist::{FloatHist, Hist, Stats};
+use super::judge::Judgement;
+use super::shape::{hex_text, probe_line, Truth};
+use crate::numerics::Precision;
+use serde::{Deserialize, Serialize};
+
+/// What was recorded of one case for one method.
+pub struct Sample {
+    pub judgement: Judgement,
+    /// The method's values, exactly.
+    pub values: Vec<f64>,
+    /// The hit point's residual, for shapes that report one (right-verdict hits only).
+    pub residual: Option<f64>,
+    /// Whether the method's enclosure holds, and its width in ulps.
+    pub enclosure: Option<(bool, u64)>,
+}
+
+/// One evaluated case: its inputs, the oracle's truth, and one sample per method.
+pub struct Case {
+    pub index: u64,
+    pub input: Vec<f64>,
+    /// `None` when the generator found no member.
+    pub truth: Option<Truth>,
+    pub samples: Vec<Sample>,
+}
+
+/// What happened on invalid inputs.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct InvalidStats {
+    pub cases: u64,
+    pub rejected: u64,
+    pub nonfinite_t: u64,
+    pub hit: u64,
+}
+
+impl InvalidStats {
+    fn merge(&mut self, o: &InvalidStats) {
+        self.cases += o.cases;
+        self.rejected += o.rejected;
+        self.nonfinite_t += o.nonfinite_t;
+        self.hit += o.hit;
+    }
+}
+
+/// A case kept as an example: everything needed to print and replay it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Candidate {
+    pub index: u64,
+    /// The inputs, exactly (hex floats in a shard file).
+    #[serde(with = "super::shard::exact_vec")]
+    pub input: Vec<f64>,
+    #[serde(with = "super::shard::exact_vec")]
+    pub method_values: Vec<f64>,
+    #[serde(with = "super::shard::exact_vec")]
+    pub oracle_values: Vec<f64>,
+    pub ulps: Option<u64>,
+    /// What the example is worst at, for choosing between candidates: the ulps, or the
+    /// residual's `f64` bits (which order like the non-negative values).
+    pub key: u64,
+}
+
+/// The kinds of example, in the order a row lists them (worst first, residual last).
+pub const KINDS: [&str; 9] = [
+    "worst_ulps",
+    "false_hit",
+    "false_miss",
+    "wrong_root",
+    "nonfinite_t",
+    "enclosure_violation",
+    "invalid_nan_t",
+    "invalid_hit",
+    "worst_residual",
+];
+
+/// Whether `kind` keeps its largest `key` (else its lowest index).
+fn keeps_worst(kind: &str) -> bool {
+    kind.starts_with("worst_")
+}
+
+/// Everything a row needs from the cases of one method × precision × class.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Tally {
+    pub cases: u64,
+    pub generator_failures: u64,
+    pub ill_posed: u64,
+    pub well_posed: u64,
+    pub oracle_hits: u64,
+    pub cap_reached: u64,
+    pub false_hit: u64,
+    pub false_miss: u64,
+    pub wrong_root: u64,
+    pub nonfinite_t: u64,
+    pub ill_posed_disagree: u64,
+    pub invalid: InvalidStats,
+    /// Value errors of right-verdict answers on well-posed cases.
+    pub ulps: Hist,
+    pub err_over_cond: FloatHist,
+    pub residual: FloatHist,
+    /// Enclosures checked, violated, and their widths in ulps.
+    pub enclosures: u64,
+    pub enclosure_violations: u64,
+    pub enclosure_widths: Hist,
+    /// One candidate per kind of [`KINDS`].
+    pub examples: Vec<(String, Candidate)>,
+}
+
+impl Tally {
+    /// Wrong verdicts on well-posed valid cases.
+    pub fn wrong(&self) -> u64 {
+        self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t
+    }
+
+    /// Keeps `c` as the example of `kind` if it beats the one kept.
+    fn offer(&mut self, kind: &str, c: impl FnOnce() -> Candidate, key: u64, index: u64) {
+        let better = |old: &Candidate| {
+            if keeps_worst(kind) {
+                key > old.key || (key == old.key && index < old.index)
+            } else {
+                index < old.index
+            }
+        };
+        match self.examples.iter_mut().find(|(k, _)| k == kind) {
+            Some((_, old)) if better(old) => *old = c(),
+            Some(_) => {}
+            None => self.examples.push((kind.to_string(), c())),
+        }
+    }
+
+    /// Adds method `k`'s sample of one case.
+    pub fn add(&mut self, case: &Case, k: usize) {
+        self.cases += 1;
+        let Some(truth) = &case.truth else {
+            self.generator_failures += 1;
+            return;
+        };
+        let s = &case.samples[k];
+        let candidate = |ulps: Option<u64>, key: u64| {
+            let oracle_values = match truth {
+                Truth::Answer(e) => e.values.clone(),
+                Truth::Invalid => vec![],
+            };
+            move || Candidate {
+                index: case.index,
+                input: case.input.clone(),
+                method_values: s.values.clone(),
+                oracle_values,
+                ulps,
+                key,
+            }
+        };
+        let e = match truth {
+            // Invalid input: a rejection is right
+            Truth::Invalid => {
+                self.invalid.cases += 1;
+                match s.judgement {
+                    Judgement::Rejected => self.invalid.rejected += 1,
+                    Judgement::InvalidNanT => {
+                        self.invalid.nonfinite_t += 1;
+                        self.offer("invalid_nan_t", candidate(None, 0), 0, case.index);
+                    }
+                    _ => {
+                        self.invalid.hit += 1;
+                        self.offer("invalid_hit", candidate(None, 0), 0, case.index);
+                    }
+                }
+                return;
+            }
+            Truth::Answer(e) => e,
+        };
+        self.cap_reached += e.cap_reached as u64;
+        // Ill-posed cases are reported apart
+        if e.ill_posed {
+            self.ill_posed += 1;
+            self.ill_posed_disagree += s.judgement.is_wrong() as u64;
+            return;
+        }
+        self.well_posed += 1;
+        self.oracle_hits += (e.count > 0) as u64;
+        let (kind, counter) = match s.judgement {
+            Judgement::FalseHit => ("false_hit", &mut self.false_hit),
+            Judgement::FalseMiss => ("false_miss", &mut self.false_miss),
+            Judgement::WrongRoot => ("wrong_root", &mut self.wrong_root),
+            Judgement::NonfiniteT => ("nonfinite_t", &mut self.nonfinite_t),
+            Judgement::Ok { ulps: Some(u) } => {
+                self.add_right(case, k, u, e.cond, candidate);
+                return;
+            }
+            _ => return,
+        };
+        *counter += 1;
+        self.offer(kind, candidate(None, 0), 0, case.index);
+    }
+
+    /// A right verdict with a value error of `u`: its samples and the worst-case examples.
+    fn add_right<F: FnOnce() -> Candidate>(
+        &mut self,
+        case: &Case,
+        k: usize,
+        u: u64,
+        cond: Option<f64>,
+        candidate: impl Fn(Option<u64>, u64) -> F,
+    ) {
+        let s = &case.samples[k];
+        self.ulps.add(u);
+        if let Some(c) = cond {
+            self.err_over_cond.add(u as f64 / c.max(1.0));
+        }
+        if u > 0 {
+            self.offer("worst_ulps", candidate(Some(u), u), u, case.index);
+        }
+        if let Some(r) = s.residual {
+            self.residual.add(r);
+            let key = if r.is_nan() { f64::INFINITY } else { r.abs() }.to_bits();
+            self.offer("worst_residual", candidate(None, key), key, case.index);
+        }
+        if let Some((holds, width)) = s.enclosure {
+            self.enclosures += 1;
+            self.enclosure_widths.add(width);
+            if !holds {
+                self.enclosure_violations += 1;
+                self.offer("enclosure_violation", candidate(Some(u), 0), 0, case.index);
+            }
+        }
+    }
+
+    /// Adds another tally of the same row (another slice of its cases).
+    pub fn merge(&mut self, o: &Tally) {
+        self.cases += o.cases;
+        self.generator_failures += o.generator_failures;
+        self.ill_posed += o.ill_posed;
+        self.well_posed += o.well_posed;
+        self.oracle_hits += o.oracle_hits;
+        self.cap_reached += o.cap_reached;
+        self.false_hit += o.false_hit;
+        self.false_miss += o.false_miss;
+        self.wrong_root += o.wrong_root;
+        self.nonfinite_t += o.nonfinite_t;
+        self.ill_posed_disagree += o.ill_posed_disagree;
+        self.invalid.merge(&o.invalid);
+        self.ulps.merge(&o.ulps);
+        self.err_over_cond.merge(&o.err_over_cond);
+        self.residual.merge(&o.residual);
+        self.enclosures += o.enclosures;
+        self.enclosure_violations += o.enclosure_violations;
+        self.enclosure_widths.merge(&o.enclosure_widths);
+        for (kind, c) in &o.examples {
+            self.offer(kind, || c.clone(), c.key, c.index);
+        }
+    }
+}
+
+/// A case worth replaying, with the command that replays it.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Example {
+    /// One of [`KINDS`].
+    pub kind: String,
+    pub index: u64,
+    pub probe: String,
+    pub method_values: Vec<String>,
+    pub oracle_values: Vec<String>,
+    pub ulps: Option<u64>,
+}
+
+/// Enclosure checks for methods that return one.
+#[derive(Clone, Debug, Default, Serialize, PartialEq)]
+pub struct EnclosureStats {
+    pub checked: u64,
+    pub violations: u64,
+    /// Width `hi − lo` in ulps of the precision.
+    pub width_ulps: Stats,
+}
+
+/// One row: a method in a precision on a class.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct Row {
+    pub method: String,
+    pub robust: bool,
+    pub precision: Precision,
+    pub class: String,
+    pub cases: u64,
+    /// Cases for which the generator found no member (a broken generator shows here).
+    pub generator_failures: u64,
+    pub ill_posed: u64,
+    pub well_posed: u64,
+    /// Well-posed valid cases whose exact count is not 0.
+    pub oracle_hits: u64,
+    /// Oracle precision cap reached (a value's rounding could not be made certain).
+    pub cap_reached: u64,
+    pub false_hit: u64,
+    pub false_miss: u64,
+    pub wrong_root: u64,
+    pub nonfinite_t: u64,
+    /// Wrong verdicts / well-posed valid cases.
+    pub wrong_rate: f64,
+    /// Ill-posed cases on which the method's verdict differs from the exact one (not failures).
+    pub ill_posed_disagree: u64,
+    /// Value error (by the shape's metric) over right-verdict answers of well-posed cases.
+    pub ulps: Stats,
+    /// Herbie's bits of error, log2(1 + ulps).
+    pub bits: Stats,
+    /// Error relative to the case's sensitivity: ulps / max(1, condition ulps). Near 1: as
+    /// accurate as the inputs allow; large: the method lost digits the case did not force it
+    /// to lose. Only for shapes whose oracle gives the sensitivity.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub err_over_cond: Option<Stats>,
+    /// |hit-point residual| in ulps of the shape's size (shapes that report it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub residual_ulps: Option<Stats>,
+    pub invalid: InvalidStats,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub enclosure: Option<EnclosureStats>,
+    pub examples: Vec<Example>,
+    /// The tolerance table's verdict (not given for a shard, whose merge judges it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub verdict: Option<super::tolerance::Verdict>,
+}
+
+impl Row {
+    pub fn wrong(&self) -> u64 {
+        self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t
+    }
+}
+
+/// What a row is about, beside its tally.
+pub struct RowKey<'a> {
+    pub shape: &'a str,
+    pub method: &'a str,
+    pub robust: bool,
+    pub precision: Precision,
+    pub class: &'a str,
+    /// The shape's oracle gives the sensitivity (err/cond) / reports residuals.
+    pub has_cond: bool,
+    pub has_residual: bool,
+}
+
+impl Tally {
+    /// The row of this tally.
+    pub fn row(&self, key: &RowKey) -> Row {
+        let mut examples: Vec<&(String, Candidate)> = self.examples.iter().collect();
+        examples.sort_by_key(|(kind, c)| {
+            let rank = KINDS.iter().position(|k| k == kind).unwrap_or(KINDS.len());
+            // The worst first, the residual last, failures by first occurrence between
+            match rank {
+                0 => (0, 0, 0),
+                r if r == KINDS.len() - 1 => (2, 0, 0),
+                r => (1, c.index, r),
+            }
+        });
+        let hex = |v: &[f64]| v.iter().map(|&x| hex_text(x)).collect();
+        Row {
+            method: key.method.to_string(),
+            robust: key.robust,
+            precision: key.precision,
+            class: key.class.to_string(),
+            cases: self.cases,
+            generator_failures: self.generator_failures,
+            ill_posed: self.ill_posed,
+            well_posed: self.well_posed,
+            oracle_hits: self.oracle_hits,
+            cap_reached: self.cap_reached,
+            false_hit: self.false_hit,
+            false_miss: self.false_miss,
+            wrong_root: self.wrong_root,
+            nonfinite_t: self.nonfinite_t,
+            wrong_rate: self.wrong() as f64 / self.well_posed.max(1) as f64,
+            ill_posed_disagree: self.ill_posed_disagree,
+            ulps: self.ulps.stats(),
+            bits: self.ulps.stats_of(|u| (1.0 + u as f64).log2()),
+            err_over_cond: key.has_cond.then(|| self.err_over_cond.stats()),
+            residual_ulps: key.has_residual.then(|| self.residual.stats()),
+            invalid: self.invalid.clone(),
+            enclosure: (self.enclosures > 0).then(|| EnclosureStats {
+                checked: self.enclosures,
+                violations: self.enclosure_violations,
+                width_ulps: self.enclosure_widths.stats(),
+            }),
+            examples: examples
+                .into_iter()
+                .map(|(kind, c)| Example {
+                    kind: kind.clone(),
+                    index: c.index,
+                    probe: probe_line(key.shape, key.precision, &c.input),
+                    method_values: hex(&c.method_values),
+                    oracle_values: hex(&c.oracle_values),
+                    ulps: c.ulps,
+                })
+                .collect(),
+            verdict: None,
+        }
+    }
+}

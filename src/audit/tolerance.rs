@@ -1,0 +1,602 @@
+//! The tolerance table: what each method × precision × class row must show, for every shape,
+//! read from one reviewed file (`tolerances.toml` beside this module, compiled in; `audit
+//! --tolerances FILE` puts a user's rules before it).
+//!
+//! Rules are tried in order and the first whose shape, method, precision and class match a row
+//! applies. Every name must exist and every rule must apply to some row: a rule for a method
+//! that does not exist is an error, never silently ignored.
+//!
+//! Verdicts hold for any seed and any case count:
+//! - **strict** checks are absolute: no wrong verdict (`wrong = "none"`), at most so many
+//!   ulps, false hits or times the case's sensitivity, invalid input rejected;
+//! - a **rate** (`wrong = "measured"`, with the row's measurement `[k, n]` in the table's
+//!   `[measured]` section: k wrong verdicts in n well-posed cases) fails only when the row's
+//!   count is incompatible with the measurement: when the probability of seeing at least as
+//!   many wrong verdicts, at the rate of the measurement's one-sided Clopper–Pearson upper
+//!   bound, is at most [`ALPHA`];
+//! - a **known failure** (`known_failure = true`, measured likewise; failures are wrong
+//!   verdicts and, with `known_failure_beyond_ulps`, errors above that many ulps) must keep
+//!   failing by the same rule: it is an alarm when the row's count is incompatible with the
+//!   measurement's lower bound (the harness lost its teeth, or the method was fixed and the
+//!   table is out of date). A row with no failure that is too small to tell says so
+//!   (undecided) instead of passing or failing.
+//!
+//! With [`ALPHA`] = 10⁻⁶ per bound, a row whose true rate is unchanged raises a false alarm with
+//! probability at most 2·10⁻⁶ (the measurement's bound, and the row's count).
+
+use super::tally::Row;
+use crate::numerics::Precision;
+use serde::{Deserialize, Serialize};
+use statrs::distribution::{Beta, Binomial, ContinuousCDF, DiscreteCDF};
+use std::collections::BTreeMap;
+
+/// The false-alarm probability of each statistical bound.
+pub const ALPHA: f64 = 1e-6;
+
+/// The reviewed table.
+pub const BUILT_IN: &str = include_str!("tolerances.toml");
+
+/// One name or a list of names in the file.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+enum Names {
+    One(String),
+    Many(Vec<String>),
+}
+
+impl Names {
+    fn list(&self) -> Vec<String> {
+        match self {
+            Names::One(s) => vec![s.clone()],
+            Names::Many(v) => v.clone(),
+        }
+    }
+}
+
+/// A rule as written in the file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RuleText {
+    shape: String,
+    method: Names,
+    precision: Option<Names>,
+    class: Option<Names>,
+    wrong: Option<String>,
+    known_failure: Option<bool>,
+    known_failure_beyond_ulps: Option<u64>,
+    max_false_hits: Option<u64>,
+    max_ulps: Option<u64>,
+    max_err_over_cond: Option<f64>,
+    invalid: Option<String>,
+    why: String,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TableText {
+    #[serde(default)]
+    rule: Vec<RuleText>,
+    /// `"shape method precision class" = [k, n]`.
+    #[serde(default)]
+    measured: BTreeMap<String, [u64; 2]>,
+}
+
+/// What a row's wrong verdicts may be.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Wrong {
+    /// None allowed.
+    None,
+    /// A rate, as measured for the row.
+    Measured,
+    /// A known failure, as measured for the row (errors above `beyond` ulps count too).
+    Known { beyond: u64 },
+}
+
+/// A rule, checked.
+#[derive(Clone, Debug)]
+pub struct Rule {
+    /// Where it was read: `FILE rule N`.
+    pub origin: String,
+    pub shape: String,
+    pub methods: Vec<String>,
+    pub precisions: Option<Vec<Precision>>,
+    pub classes: Option<Vec<String>>,
+    pub wrong: Option<Wrong>,
+    pub max_false_hits: Option<u64>,
+    pub max_ulps: Option<u64>,
+    pub max_err_over_cond: Option<f64>,
+    pub reject_invalid: bool,
+    pub why: String,
+}
+
+impl Rule {
+    /// A rule that bounds nothing: its rows are reported only.
+    fn checks_nothing(&self) -> bool {
+        self.wrong.is_none()
+            && self.max_false_hits.is_none()
+            && self.max_ulps.is_none()
+            && self.max_err_over_cond.is_none()
+            && !self.reject_invalid
+    }
+
+    fn matches(&self, shape: &str, method: &str, prec: Precision, class: &str) -> bool {
+        self.shape == shape
+            && self.methods.iter().any(|m| m == method)
+            && self.precisions.as_ref().is_none_or(|p| p.contains(&prec))
+            && self
+                .classes
+                .as_ref()
+                .is_none_or(|c| c.iter().any(|x| x == class))
+    }
+}
+
+/// The names a table is checked against: each shape with its methods and classes.
+pub struct Known<'a> {
+    pub shapes: Vec<(&'a str, Vec<String>, Vec<&'a str>)>,
+}
+
+/// The ordered rules of the user's file (if any) and the built-in table, and the measured
+/// counts `(k, n)` of the rows whose rules refer to them.
+#[derive(Clone, Debug)]
+pub struct Table {
+    pub rules: Vec<Rule>,
+    pub measured: BTreeMap<(String, String, Precision, String), (u64, u64)>,
+}
+
+/// A row's measurement key.
+type RowKey = (String, String, Precision, String);
+
+fn parse_precision(p: &str, origin: &str) -> Result<Precision, String> {
+    match p {
+        "f32" => Ok(Precision::F32),
+        "f64" => Ok(Precision::F64),
+        _ => Err(format!("{origin}: unknown precision '{p}' (f32, f64)")),
+    }
+}
+
+/// Reads one file: its rules in order and its measurements.
+fn parse_table(text: &str, file: &str) -> Result<(Vec<Rule>, Vec<(RowKey, (u64, u64))>), String> {
+    let t: TableText = toml::from_str(text).map_err(|e| {
+        format!(
+            "{file}: {}",
+            e.to_string()
+                .split_whitespace()
+                .collect::<Vec<_>>()
+                .join(" ")
+        )
+    })?;
+    // Measurements: "shape method precision class" = [k, n]
+    let mut measured = vec![];
+    for (key, [k, n]) in t.measured {
+        let origin = format!("{file} measured \"{key}\"");
+        let parts: Vec<&str> = key.split_whitespace().collect();
+        let [shape, method, prec, class] = parts[..] else {
+            return Err(format!("{origin}: not \"shape method precision class\""));
+        };
+        if k > n || n == 0 {
+            return Err(format!("{origin}: [{k}, {n}] is not k of n > 0 cases"));
+        }
+        let p = parse_precision(prec, &origin)?;
+        measured.push(((shape.into(), method.into(), p, class.into()), (k, n)));
+    }
+    let rules = t
+        .rule
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let origin = format!("{file} rule {}", i + 1);
+            let bad = |what: String| Err(format!("{origin} ({}): {what}", r.shape));
+            let precisions = match &r.precision {
+                None => None,
+                Some(n) => Some(
+                    n.list()
+                        .iter()
+                        .map(|p| parse_precision(p, &origin))
+                        .collect::<Result<Vec<_>, _>>()?,
+                ),
+            };
+            // What wrong verdicts may be
+            let known = r.known_failure.unwrap_or(false);
+            let wrong = match (r.wrong.as_deref(), known) {
+                (Some(_), true) => return bad("give wrong or known_failure, not both".into()),
+                (Some("none"), _) => Some(Wrong::None),
+                (Some("measured"), _) => Some(Wrong::Measured),
+                (Some(w), _) => return bad(format!("wrong = \"{w}\" (\"none\" or \"measured\")")),
+                (None, true) => Some(Wrong::Known {
+                    beyond: r.known_failure_beyond_ulps.unwrap_or(u64::MAX),
+                }),
+                (None, false) => None,
+            };
+            if r.known_failure_beyond_ulps.is_some() && !known {
+                return bad("known_failure_beyond_ulps without known_failure".into());
+            }
+            let reject_invalid = match r.invalid.as_deref() {
+                None => false,
+                Some("reject") => true,
+                Some(x) => return bad(format!("invalid = \"{x}\" (only \"reject\")")),
+            };
+            if r.why.trim().is_empty() {
+                return bad("say why (where its numbers came from)".into());
+            }
+            Ok(Rule {
+                origin,
+                shape: r.shape,
+                methods: r.method.list(),
+                precisions,
+                classes: r.class.map(|c| c.list()),
+                wrong,
+                max_false_hits: r.max_false_hits,
+                max_ulps: r.max_ulps,
+                max_err_over_cond: r.max_err_over_cond,
+                reject_invalid,
+                why: r.why,
+            })
+        })
+        .collect::<Result<Vec<_>, String>>()?;
+    Ok((rules, measured))
+}
+
+impl Table {
+    /// Reads the built-in table, after the user's rules when given, and checks every name
+    /// against `known`. Errors are one line.
+    pub fn load(user: Option<(&str, &str)>, known: &Known) -> Result<Table, String> {
+        let (mut rules, mut measured) = match user {
+            Some((file, text)) => parse_table(text, file)?,
+            None => (vec![], vec![]),
+        };
+        let user_rules = rules.len();
+        let (r, m) = parse_table(BUILT_IN, "built-in tolerances.toml")?;
+        rules.extend(r);
+        // The user's measurements come first and win
+        measured.extend(m);
+        let mut map = BTreeMap::new();
+        for (k, v) in measured {
+            map.entry(k).or_insert(v);
+        }
+        let table = Table {
+            rules,
+            measured: map,
+        };
+        table.check_names(known, user_rules)?;
+        Ok(table)
+    }
+
+    /// Every shape, method and class named exists; every built-in rule applies to some row.
+    fn check_names(&self, known: &Known, user_rules: usize) -> Result<(), String> {
+        for r in &self.rules {
+            let Some((_, methods, classes)) = known.shapes.iter().find(|(s, _, _)| *s == r.shape)
+            else {
+                let names: Vec<&str> = known.shapes.iter().map(|s| s.0).collect();
+                return Err(format!(
+                    "{}: unknown shape '{}' (known: {})",
+                    r.origin,
+                    r.shape,
+                    names.join(", ")
+                ));
+            };
+            if let Some(m) = r.methods.iter().find(|m| !methods.contains(m)) {
+                return Err(format!(
+                    "{}: shape {} has no method '{m}' (known: {})",
+                    r.origin,
+                    r.shape,
+                    methods.join(", ")
+                ));
+            }
+            if let Some(c) = r
+                .classes
+                .iter()
+                .flatten()
+                .find(|c| !classes.contains(&c.as_str()))
+            {
+                return Err(format!(
+                    "{}: shape {} has no class '{c}' (known: {})",
+                    r.origin,
+                    r.shape,
+                    classes.join(", ")
+                ));
+            }
+        }
+        // Every row of every known method, and the rule that applies to it
+        let rows: Vec<(usize, RowKey)> = known
+            .shapes
+            .iter()
+            .flat_map(|(shape, methods, classes)| {
+                methods.iter().flat_map(move |m| {
+                    Precision::ALL.into_iter().flat_map(move |p| {
+                        classes
+                            .iter()
+                            .map(move |c| (shape.to_string(), m.clone(), p, c.to_string()))
+                    })
+                })
+            })
+            .filter_map(|k| {
+                let i = self
+                    .rules
+                    .iter()
+                    .position(|r| r.matches(&k.0, &k.1, k.2, &k.3))?;
+                Some((i, k))
+            })
+            .collect();
+        // A built-in rule that no row reaches is dead: an error in the table
+        for (i, r) in self.rules.iter().enumerate().skip(user_rules) {
+            if !rows.iter().any(|(j, _)| *j == i) {
+                return Err(format!(
+                    "{}: shadowed by earlier rules, it applies to no row",
+                    r.origin
+                ));
+            }
+        }
+        // Rates and known failures need the row's measurement; every measurement is used
+        for (i, k) in &rows {
+            let r = &self.rules[*i];
+            let needs = matches!(r.wrong, Some(Wrong::Measured | Wrong::Known { .. }));
+            if needs && !self.measured.contains_key(k) {
+                return Err(format!(
+                    "{}: no measurement for \"{} {} {} {}\" in [measured]",
+                    r.origin,
+                    k.0,
+                    k.1,
+                    k.2.name(),
+                    k.3
+                ));
+            }
+        }
+        for k in self.measured.keys() {
+            let used = rows.iter().any(|(i, x)| {
+                x == k
+                    && matches!(
+                        self.rules[*i].wrong,
+                        Some(Wrong::Measured | Wrong::Known { .. })
+                    )
+            });
+            if !used {
+                return Err(format!(
+                    "measured \"{} {} {} {}\": no row of that name is judged by a measured rule",
+                    k.0,
+                    k.1,
+                    k.2.name(),
+                    k.3
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The rule that applies to a row.
+    pub fn rule(&self, shape: &str, method: &str, prec: Precision, class: &str) -> Option<&Rule> {
+        self.rules
+            .iter()
+            .find(|r| r.matches(shape, method, prec, class))
+    }
+
+    /// The verdict of a row.
+    pub fn verdict(&self, shape: &str, row: &Row, ulps_above: impl Fn(u64) -> u64) -> Verdict {
+        let rule = self.rule(shape, &row.method, row.precision, &row.class);
+        let key = (
+            shape.to_string(),
+            row.method.clone(),
+            row.precision,
+            row.class.clone(),
+        );
+        verdict(rule, self.measured.get(&key).copied(), row, ulps_above)
+    }
+}
+
+/// The outcome of a row.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    /// Within its rule.
+    Pass,
+    /// A known failure, shown as expected.
+    KnownFailure,
+    /// Too few cases to tell whether a known failure still fails.
+    Undecided,
+    /// No rule applies: reported only.
+    Unchecked,
+    /// Outside its rule.
+    Fail,
+}
+
+/// A row's verdict with its reasons (one line each).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Verdict {
+    pub status: Status,
+    /// The rule that applied (`FILE rule N`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rule: Option<String>,
+    /// The row's own count `[k, n]` under a measured rule (wrong verdicts, or failures of a
+    /// known failure, in well-posed cases): what `[measured]` records for it.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub count: Option<[u64; 2]>,
+    pub reasons: Vec<String>,
+}
+
+/// The one-sided Clopper–Pearson upper bound of a rate measured as `k` of `n`.
+pub fn upper_bound(k: u64, n: u64) -> f64 {
+    if k >= n {
+        return 1.0;
+    }
+    Beta::new(k as f64 + 1.0, (n - k) as f64)
+        .map(|b| b.inverse_cdf(1.0 - ALPHA))
+        .unwrap_or(1.0)
+}
+
+/// The one-sided Clopper–Pearson lower bound of a rate measured as `k` of `n`.
+pub fn lower_bound(k: u64, n: u64) -> f64 {
+    if k == 0 {
+        return 0.0;
+    }
+    Beta::new(k as f64, (n - k) as f64 + 1.0)
+        .map(|b| b.inverse_cdf(ALPHA))
+        .unwrap_or(0.0)
+}
+
+/// P(X ≥ k) for X ~ Binomial(n, p).
+fn at_least(k: u64, n: u64, p: f64) -> f64 {
+    if k == 0 {
+        return 1.0;
+    }
+    Binomial::new(p.clamp(0.0, 1.0), n)
+        .map(|b| b.sf(k - 1))
+        .unwrap_or(1.0)
+}
+
+/// P(X ≤ k) for X ~ Binomial(n, p).
+fn at_most(k: u64, n: u64, p: f64) -> f64 {
+    Binomial::new(p.clamp(0.0, 1.0), n)
+        .map(|b| b.cdf(k))
+        .unwrap_or(1.0)
+}
+
+fn pct(x: f64) -> String {
+    format!("{:.4}%", 100.0 * x)
+}
+
+/// Judges a row by its rule (`None`: only the checks every row has).
+fn verdict(
+    rule: Option<&Rule>,
+    measured: Option<(u64, u64)>,
+    row: &Row,
+    ulps_above: impl Fn(u64) -> u64,
+) -> Verdict {
+    let mut fail = vec![];
+    let mut status = if rule.is_some_and(|r| !r.checks_nothing()) {
+        Status::Pass
+    } else {
+        Status::Unchecked
+    };
+    let mut note = vec![];
+    // Every row: the generator, the oracle and enclosures keep their promises
+    if row.generator_failures > 0 {
+        fail.push(format!(
+            "the generator found no member for {} case(s)",
+            row.generator_failures
+        ));
+    }
+    if row.cap_reached > 0 {
+        fail.push(format!(
+            "the oracle reached its precision cap on {} case(s)",
+            row.cap_reached
+        ));
+    }
+    if let Some(e) = row.enclosure.as_ref().filter(|e| e.violations > 0) {
+        fail.push(format!(
+            "{} enclosure(s) do not contain the exact value",
+            e.violations
+        ));
+    }
+    let Some(rule) = rule else {
+        return Verdict {
+            status: if fail.is_empty() {
+                status
+            } else {
+                Status::Fail
+            },
+            rule: None,
+            count: None,
+            reasons: fail,
+        };
+    };
+    let (k, n) = (row.wrong(), row.well_posed);
+    let mut count = None;
+    // Wrong verdicts
+    match rule.wrong {
+        Some(Wrong::None) if k > 0 => {
+            fail.push(format!("{k} wrong verdict(s) of {n} (allowed none)"));
+        }
+        Some(Wrong::Measured) => {
+            let (k0, n0) = measured.expect("checked when loaded");
+            count = Some([k, n]);
+            let p = upper_bound(k0, n0);
+            let prob = at_least(k, n, p);
+            if prob <= ALPHA {
+                fail.push(format!(
+                    "{k} wrong of {n} ({}): the measured {k0} of {n0} allows at most {} (P = {prob:.1e})",
+                    pct(k as f64 / n.max(1) as f64),
+                    pct(p)
+                ));
+            }
+        }
+        Some(Wrong::Known { beyond }) => {
+            let (k0, n0) = measured.expect("checked when loaded");
+            let shown = k + if beyond == u64::MAX {
+                0
+            } else {
+                ulps_above(beyond)
+            };
+            count = Some([shown, n]);
+            let floor = lower_bound(k0, n0);
+            let prob = at_most(shown, n, floor);
+            let what = if beyond == u64::MAX {
+                "wrong verdicts".to_string()
+            } else {
+                format!("wrong verdicts or errors above {beyond} ulps")
+            };
+            if prob <= ALPHA {
+                fail.push(format!(
+                    "known failure lost: {shown} {what} of {n}, where the measured {k0} of {n0} means at least {} (P = {prob:.1e}); is the harness broken, or is the table out of date?",
+                    pct(floor)
+                ));
+            } else if shown > 0 {
+                status = Status::KnownFailure;
+                note.push(format!("known failure shown: {shown} {what} of {n}"));
+            } else {
+                let need = (ALPHA.ln() / (1.0 - floor).ln()).ceil();
+                status = Status::Undecided;
+                note.push(format!(
+                    "known failure not shown in {n} cases, too few to tell (needs about {need} well-posed cases)"
+                ));
+            }
+        }
+        _ => {}
+    }
+    // Absolute bounds
+    if let Some(m) = rule.max_false_hits.filter(|&m| row.false_hit > m) {
+        fail.push(format!("{} false hit(s) (allowed {m})", row.false_hit));
+    }
+    if let Some(m) = rule.max_ulps.filter(|&m| row.ulps.max > m as f64) {
+        fail.push(format!("max error {} ulps (allowed {m})", row.ulps.max));
+    }
+    if let (Some(m), Some(s)) = (rule.max_err_over_cond, &row.err_over_cond) {
+        if s.max > m {
+            fail.push(format!(
+                "error {:.1}× the case's sensitivity (allowed {m}×)",
+                s.max
+            ));
+        }
+    }
+    if rule.reject_invalid && row.invalid.nonfinite_t + row.invalid.hit > 0 {
+        fail.push(format!(
+            "{} invalid input(s) answered with a hit or a NaN value",
+            row.invalid.nonfinite_t + row.invalid.hit
+        ));
+    }
+    if !fail.is_empty() {
+        status = Status::Fail;
+    }
+    fail.extend(note);
+    Verdict {
+        status,
+        rule: Some(rule.origin.clone()),
+        count,
+        reasons: fail,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn clopper_pearson_bounds_bracket_the_measurement() {
+        // 4 of 20,000: the 1e-6 bounds (checked against the exact binomial tails)
+        let (lo, hi) = (lower_bound(4, 20_000), upper_bound(4, 20_000));
+        assert!(lo < 4.0 / 20_000.0 && 4.0 / 20_000.0 < hi);
+        assert!((at_least(4, 20_000, lo) - ALPHA).abs() < 1e-9);
+        assert!((at_most(4, 20_000, hi) - ALPHA).abs() < 1e-9);
+        // None measured: the upper bound is 1 − α^(1/n)
+        let u = upper_bound(0, 1000);
+        assert!((u - (1.0 - ALPHA.powf(1e-3))).abs() < 1e-9, "{u}");
+    }
+}
