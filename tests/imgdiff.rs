@@ -2,6 +2,7 @@
 //! mismatches, HDR-ꟻLIP, the noise-aware z-test, and `run_diff`'s exit codes and files.
 
 use clap::Parser;
+use rayproof::cli::{run_diff, DiffArgs};
 use rayproof::images::*;
 use std::path::{Path, PathBuf};
 

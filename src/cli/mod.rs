@@ -43,6 +43,7 @@ macro_rules! say_raw {
 mod args;
 mod audit;
 mod check;
+mod diff;
 mod implicit;
 mod probe;
 mod render;
@@ -51,6 +52,7 @@ mod report;
 use args::*;
 use audit::{AuditArgs, MergeArgs};
 use check::CheckArgs;
+pub use diff::{run_diff, DiffArgs};
 use implicit::ImplicitCheckArgs;
 use probe::ProbeCommand;
 use render::{DownsampleArgs, ExportArgs, RenderArgs};
@@ -80,7 +82,7 @@ pub enum Command {
     /// Box-average n×n pixel blocks of an EXR (a supersampled POV-Ray render → an n×n grid).
     Downsample(DownsampleArgs),
     /// Compare two images as OpenImageIO's idiff does (exit 0 pass, 1 warn, 2 fail, 3 size, 4 file).
-    Diff(crate::images::DiffArgs),
+    Diff(DiffArgs),
     /// Render every reference scene and compare it with the POV-Ray, Mitsuba and golden references.
     Check(CheckArgs),
     /// Measure what accuracy costs in time: write DIR/index.html, report.md, report.json and figures.
@@ -150,7 +152,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Render(r) => render::run_render(r),
         Command::Export(e) => render::run_export(e),
         Command::Downsample(d) => render::run_downsample(d),
-        Command::Diff(d) => Ok(crate::images::run_diff(d)),
+        Command::Diff(d) => Ok(run_diff(d)),
         Command::Check(c) => check::run_check(c),
         Command::Report(r) => report::run_report(r),
         Command::ImplicitCheck(a) => implicit::run_implicit_check(a),

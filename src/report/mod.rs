@@ -114,6 +114,7 @@ pub fn run(o: &ReportOptions) -> Result<()> {
         crate::render::scene::load(&path)?;
     }
     // Build beside the target, rename into place at the end
+    // A directory swap: the one rename outside crate::output, whose writers handle files
     let tmp = sibling(&o.out, "partial")?;
     std::fs::create_dir_all(tmp.join("img"))
         .with_context(|| format!("cannot create {}", tmp.display()))?;

@@ -1,0 +1,259 @@
+//! `rayproof diff REF TEST`: the command line of the image comparison in [`crate::images`].
+//!
+//! Exit codes of `rayproof diff`:
+//! - 0: PASS
+//! - 1: WARNING
+//! - 2: FAILURE; also bad usage (clap errors exit 2 in this binary, like every rayproof
+//!   command), an output directory that does not exist, or an output that cannot be written
+//! - 3: the images, or the variance image, differ in width, height or channels
+//! - 4: an input file is unreadable: missing, empty, truncated, corrupt, or not OpenEXR/PNG
+//!
+//! Errors are one line on stderr, `error: …`, naming the file.
+//!
+//! Output files are written through [`crate::output`] (a temporary sibling renamed into place);
+//! their directories are checked before any image is read.
+
+use super::emit;
+use crate::images::{
+    abs_diff, abs_error_map, compare, flip_error, heatmap_rgb8, one_line, read_image,
+    write_exr_rgb, write_png_rgb8, z_test, DiffReport, SizeMismatch, Thresholds, ZParams,
+};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+fn parse_threshold(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v >= 0.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a non-negative number (inf allowed)")),
+    }
+}
+
+fn parse_unit_open(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v > 0.0 && v < 1.0 => Ok(v),
+        _ => Err(format!("'{s}' is not a number strictly between 0 and 1")),
+    }
+}
+
+fn parse_unit_closed(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        _ => Err(format!("'{s}' is not a number between 0 and 1")),
+    }
+}
+
+/// `rayproof diff`: compare two images (OpenEXR or PNG) like OpenImageIO's idiff.
+///
+/// Exit codes: 0 PASS, 1 WARNING, 2 FAILURE (also bad usage and unwritable outputs), 3 size
+/// mismatch, 4 unreadable input.
+#[derive(clap::Args, Debug, Clone)]
+pub struct DiffArgs {
+    /// Reference image (OpenEXR or PNG, recognised by content).
+    pub reference: PathBuf,
+    /// Test image.
+    pub test: PathBuf,
+    /// A pixel fails if some channel differs by more than this…
+    #[arg(long, default_value_t = 1e-6, value_parser = parse_threshold)]
+    pub fail: f64,
+    /// …and by more than this relative to the mean of the two |values|.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_threshold)]
+    pub failrelative: f64,
+    /// FAILURE needs more than this percentage of pixels to fail.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_threshold)]
+    pub failpercent: f64,
+    /// FAILURE if the max error exceeds this, however few pixels fail.
+    #[arg(long, default_value_t = f64::INFINITY, value_parser = parse_threshold)]
+    pub hardfail: f64,
+    /// PASS if at most this many pixels fail (overrides everything else).
+    #[arg(long, default_value_t = 0)]
+    pub allowfailures: u64,
+    /// A pixel warns if some channel differs by more than this…
+    #[arg(long, default_value_t = 1e-6, value_parser = parse_threshold)]
+    pub warn: f64,
+    /// …and by more than this relative to the mean of the two |values|.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_threshold)]
+    pub warnrelative: f64,
+    /// WARNING needs more than this percentage of pixels to warn.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_threshold)]
+    pub warnpercent: f64,
+    /// WARNING if the max error exceeds this.
+    #[arg(long, default_value_t = f64::INFINITY, value_parser = parse_threshold)]
+    pub hardwarn: f64,
+    /// Write |REF − TEST| per channel as a float32 EXR (always, even if identical).
+    #[arg(long, value_name = "FILE")]
+    pub diff_exr: Option<PathBuf>,
+    /// Write a magma heat map PNG of the ꟻLIP error (with --no-flip: of the largest channel
+    /// |REF − TEST| × 16, clamped).
+    #[arg(long, value_name = "FILE.png")]
+    pub heatmap: Option<PathBuf>,
+    /// Skip ꟻLIP (faster).
+    #[arg(long)]
+    pub no_flip: bool,
+    /// Write the metrics, thresholds and z-test as JSON ('-': stdout, instead of the text).
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Noise-aware mode: per-pixel variance of the test image (EXR); the verdict is then the
+    /// z-test's (PASS or FAILURE).
+    #[arg(long, value_name = "VAR.exr")]
+    pub variance: Option<PathBuf>,
+    /// Samples per pixel of the test image [default: 1]; with N > 1 the variance image is
+    /// the per-sample variance, with 1 the variance of the pixel mean.
+    #[arg(long, requires = "variance", value_parser = clap::value_parser!(u64).range(1..))]
+    pub spp: Option<u64>,
+    /// Family-wise significance of the z-test, Šidák-corrected over pixels [default: 0.01].
+    #[arg(long, requires = "variance", value_parser = parse_unit_open)]
+    pub significance: Option<f64>,
+    /// Fraction of pixels that must pass the z-test [default: 0.9975].
+    #[arg(long, requires = "variance", value_parser = parse_unit_closed)]
+    pub pixel_success_rate: Option<f64>,
+    /// Print only the verdict line.
+    #[arg(short, long)]
+    pub quiet: bool,
+}
+
+impl DiffArgs {
+    /// The idiff thresholds given on the command line.
+    pub fn thresholds(&self) -> Thresholds {
+        Thresholds {
+            fail: self.fail,
+            failrelative: self.failrelative,
+            failpercent: self.failpercent,
+            hardfail: self.hardfail,
+            allowfailures: self.allowfailures,
+            warn: self.warn,
+            warnrelative: self.warnrelative,
+            warnpercent: self.warnpercent,
+            hardwarn: self.hardwarn,
+        }
+    }
+
+    /// The z-test settings given on the command line.
+    pub fn z_params(&self) -> ZParams {
+        let d = ZParams::default();
+        ZParams {
+            spp: self.spp.unwrap_or(d.spp),
+            significance: self.significance.unwrap_or(d.significance),
+            pixel_success_rate: self.pixel_success_rate.unwrap_or(d.pixel_success_rate),
+        }
+    }
+}
+
+/// An exit code and a one-line message.
+struct Exit(u8, String);
+
+/// Output files: their directory exists, they are not directories, not one of the inputs.
+fn check_output(path: &Path, inputs: &[&Path]) -> Result<(), Exit> {
+    let bad = |why: String| Exit(2, format!("cannot write {}: {why}", path.display()));
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        return Err(bad(format!("directory {} does not exist", dir.display())));
+    }
+    if path.is_dir() {
+        return Err(bad("it is a directory".into()));
+    }
+    let canon = |p: &Path| std::fs::canonicalize(p).ok();
+    if canon(path).is_some() && inputs.iter().any(|i| canon(i) == canon(path)) {
+        return Err(bad("it is one of the input images".into()));
+    }
+    Ok(())
+}
+
+/// Runs `rayproof diff`: prints the report (or only the verdict, or the JSON), writes the
+/// requested files, and returns the exit code; errors are printed as one line on stderr.
+pub fn run_diff(a: DiffArgs) -> u8 {
+    match diff(&a) {
+        Ok(code) => code,
+        Err(Exit(code, msg)) => {
+            let _ = writeln!(std::io::stderr(), "error: {}", one_line(&msg));
+            code
+        }
+    }
+}
+
+fn diff(a: &DiffArgs) -> Result<u8, Exit> {
+    let t = a.thresholds();
+    let json_stdout = a.json.as_deref() == Some(Path::new("-"));
+
+    // Outputs are checked before any work
+    let mut inputs = vec![a.reference.as_path(), a.test.as_path()];
+    inputs.extend(a.variance.as_deref());
+    let json_file = a.json.as_deref().filter(|_| !json_stdout);
+    for p in [a.diff_exr.as_deref(), a.heatmap.as_deref(), json_file]
+        .into_iter()
+        .flatten()
+    {
+        check_output(p, &inputs)?;
+    }
+
+    // Inputs
+    let read = |p: &Path| read_image(p).map_err(|e| Exit(e.exit_code(), e.to_string()));
+    let reference = read(&a.reference)?;
+    let test = read(&a.test)?;
+    let variance = a.variance.as_deref().map(read).transpose()?;
+    let (rn, tn) = (a.reference.display(), a.test.display());
+    let mismatch = |e: SizeMismatch| Exit(3, format!("{rn} and {tn}: {e}"));
+
+    // Metrics, z-test, ꟻLIP
+    let mut c = compare(&reference, &test, &t).map_err(mismatch)?;
+    let z = match &variance {
+        Some(v) => Some(z_test(&reference, &test, v, &a.z_params()).map_err(|e| {
+            let vn = a.variance.as_deref().unwrap_or(Path::new("")).display();
+            Exit(
+                3,
+                format!(
+                    "{rn} and variance {vn}: {e} (the variance needs the same size and R, G, B)"
+                ),
+            )
+        })?),
+        None => None,
+    };
+    let flip_map = (!a.no_flip).then(|| {
+        let (kind, m, map) = flip_error(&reference, &test);
+        (c.flip_kind, c.flip_mean) = (Some(kind), Some(m));
+        map
+    });
+    let report = DiffReport {
+        reference: &a.reference,
+        test: &a.test,
+        display_referred: [reference.display_referred, test.display_referred],
+        comparison: &c,
+        thresholds: &t,
+        ztest: z.as_ref(),
+    };
+    let verdict = report.verdict();
+
+    // Files
+    let (w, h) = (reference.width, reference.height);
+    let write_err = |e: anyhow::Error| Exit(2, format!("{e:#}"));
+    if let Some(p) = &a.diff_exr {
+        let d = abs_diff(&reference, &test).map_err(mismatch)?;
+        write_exr_rgb(p, &d).map_err(write_err)?;
+    }
+    if let Some(p) = &a.heatmap {
+        let map = match flip_map {
+            Some(m) => m,
+            None => abs_error_map(&reference, &test).map_err(mismatch)?,
+        };
+        write_png_rgb8(p, w, h, &heatmap_rgb8(&map, w, h)).map_err(write_err)?;
+    }
+    if let Some(p) = &a.json {
+        let text = report.json();
+        if json_stdout {
+            say_raw!("{text}");
+        } else {
+            crate::output::write_atomic(p, text.as_bytes()).map_err(write_err)?;
+        }
+    }
+
+    // Report
+    if json_stdout {
+    } else if a.quiet {
+        say_raw!("{}\n", verdict.label());
+    } else {
+        say_raw!("{}", report.text());
+    }
+    Ok(verdict.exit_code())
+}

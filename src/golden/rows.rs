@@ -1,0 +1,138 @@
+//! The results of `rayproof check`: one [`Row`] per scene × reference × configuration, its
+//! [`Status`], and the text and Markdown tables of the rows.
+
+use super::references::Rule;
+use crate::images::Comparison;
+use serde::Serialize;
+
+/// The judgement of one scene × reference × configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Status {
+    Pass,
+    Warning,
+    Failure,
+    /// Listed as a known failure and still failing.
+    KnownFailure,
+    /// Listed as a known failure but passing: the entry must go.
+    UnexpectedPass,
+    /// The reference could not be used: missing, unreadable, hash mismatch, stale, wrong size.
+    Refused,
+    /// No golden render yet (rayproof.exr); `--update` writes it.
+    New,
+}
+
+impl Status {
+    pub fn is_failure(self) -> bool {
+        matches!(
+            self,
+            Status::Failure | Status::UnexpectedPass | Status::Refused | Status::New
+        )
+    }
+    pub fn label(self) -> &'static str {
+        match self {
+            Status::Pass => "PASS",
+            Status::Warning => "WARNING",
+            Status::Failure => "FAILURE",
+            Status::KnownFailure => "XFAIL",
+            Status::UnexpectedPass => "XPASS",
+            Status::Refused => "REFUSED",
+            Status::New => "NEW",
+        }
+    }
+}
+
+/// One row of the check: a scene × reference × configuration.
+#[derive(Clone, Debug, Serialize)]
+pub struct Row {
+    pub scene: String,
+    pub reference: String,
+    pub renderer: String,
+    pub config: String,
+    pub status: Status,
+    /// Why (refusals, known failures, mean over max_mean).
+    pub note: String,
+    pub comparison: Option<Comparison>,
+    pub rule: Rule,
+    pub render_seconds: f64,
+    /// Report images, relative to the report directory.
+    #[serde(skip)]
+    pub images: Option<[String; 3]>,
+}
+
+/// The text table: one line per row.
+pub fn table(rows: &[Row]) -> String {
+    let mut s = format!(
+        "{:<8} {:<9} {:<12} {:<8} {:>10} {:>10} {:>8} {:>9} {:>9} {:>8}  {}\n",
+        "scene",
+        "reference",
+        "config",
+        "status",
+        "mean",
+        "RMS",
+        "PSNR",
+        "max",
+        ">fail %",
+        "FLIP",
+        "note"
+    );
+    for r in rows {
+        let c = r.comparison.as_ref();
+        let f = |x: Option<f64>, p: usize| x.map(|v| format!("{v:.p$e}")).unwrap_or("-".into());
+        s += &format!(
+            "{:<8} {:<9} {:<12} {:<8} {:>10} {:>10} {:>8} {:>9} {:>9} {:>8}  {}\n",
+            r.scene,
+            r.reference,
+            r.config,
+            r.status.label(),
+            f(c.map(|c| c.mean_error), 2),
+            f(c.map(|c| c.rms_error), 2),
+            c.map(|c| format!("{:.1}", c.psnr)).unwrap_or("-".into()),
+            f(c.map(|c| c.max_error), 2),
+            c.map(|c| format!("{:.3}", 100.0 * c.n_fail as f64 / c.pixels as f64))
+                .unwrap_or("-".into()),
+            c.and_then(|c| c.flip_mean)
+                .map(|v| format!("{v:.4}"))
+                .unwrap_or("-".into()),
+            r.note
+        );
+    }
+    s
+}
+
+/// A Markdown table (for the README), from the same rows.
+pub fn markdown(rows: &[Row]) -> String {
+    let mut rows: Vec<&Row> = rows.iter().collect();
+    rows.sort_by(|a, b| {
+        (&a.scene, &a.reference, &a.config).cmp(&(&b.scene, &b.reference, &b.config))
+    });
+    let mut s = String::from(
+        "| scene | reference | method / precision | status | MAE | RMS | PSNR dB | max error | pixels > fail | HDR-FLIP |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in rows {
+        let Some(c) = &r.comparison else {
+            s += &format!(
+                "| {} | {} | {} | {} | | | | | | |\n",
+                r.scene,
+                r.reference,
+                r.config,
+                r.status.label()
+            );
+            continue;
+        };
+        s += &format!(
+            "| {} | {} | {} | {} | {:.2e} | {:.2e} | {:.1} | {:.3} | {:.3} % | {} |\n",
+            r.scene,
+            r.reference,
+            r.config,
+            r.status.label(),
+            c.mean_error,
+            c.rms_error,
+            c.psnr,
+            c.max_error,
+            100.0 * c.n_fail as f64 / c.pixels as f64,
+            c.flip_mean.map(|v| format!("{v:.4}")).unwrap_or("-".into())
+        );
+    }
+    s
+}
