@@ -16,7 +16,7 @@
 //! precision, up or down (24 moves, each decided exactly), changes the count or switches the
 //! answer between the entry and the exit.
 
-use super::reintersect::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
+use super::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
 use crate::audit::shape::{Answer, Expect, Expected, MethodInfo, Shape, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::Real;

@@ -23,9 +23,7 @@
 //! decided exactly) changes the count or which root is the answer (the origin crossing the
 //! surface, or the near root crossing a cap plane), as in the sphere's oracle.
 
-use super::reintersect::sample::{
-    self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit,
-};
+use super::sample::{self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
 use crate::audit::shape::{Answer, Expect, Expected, MethodInfo, Metric, Shape, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::{Real, Scalar};
