@@ -149,16 +149,7 @@ pub fn primary(
     region: usize,
 ) -> Primary {
     let start = std::time::Instant::now();
-    let region = region.max(1);
-    let trace =
-        |x: usize, y: usize, t: f64| m.trace(lens.pos, lens.dir(x as f64 + 0.5, y as f64 + 0.5), t);
-    let (nx, ny) = (w.div_ceil(region), h.div_ceil(region));
-    let block = |bx: usize, by: usize| Block {
-        x0: bx * region,
-        y0: by * region,
-        x1: ((bx + 1) * region).min(w),
-        y1: ((by + 1) * region).min(h),
-    };
+    let g = Grid::new(m, lens, (w, h), region);
     let mut pixels = vec![
         Pixel {
             start: f64::NAN,
@@ -167,210 +158,312 @@ pub fn primary(
         w * h
     ];
     let mut stats = Stats::default();
-    let blocks: Vec<(usize, usize)> = (0..ny)
-        .flat_map(|by| (0..nx).map(move |bx| (bx, by)))
-        .collect();
     match mode {
-        Mode::Full => {
-            // Every pixel from the eye, rows in parallel
-            let rows: Vec<(Vec<Pixel>, Stats)> = (0..h)
-                .into_par_iter()
-                .map(|y| {
-                    let mut st = Stats::default();
-                    let row = (0..w)
-                        .map(|x| {
-                            let r = trace(x, y, 0.0);
-                            st.ray(&r);
-                            st.case1 += 1;
-                            Pixel {
-                                hit: r.hit,
-                                start: 0.0,
-                                skipped: false,
-                            }
-                        })
-                        .collect();
-                    (row, st)
-                })
-                .collect();
-            for (y, (row, st)) in rows.into_iter().enumerate() {
-                pixels[y * w..(y + 1) * w].copy_from_slice(&row);
-                stats += st;
-            }
-        }
-        Mode::Paper => {
-            // §2.2: 9 samples per block, from the eye
-            let sampled: Vec<Samples> = blocks
-                .par_iter()
-                .map(|&(bx, by)| {
-                    let b = block(bx, by);
-                    let (ox, oy) = (sample_offsets(b.x1 - b.x0), sample_offsets(b.y1 - b.y0));
-                    let mut st = Stats::default();
-                    let mut seen = vec![];
-                    for &sy in &oy {
-                        for &sx in &ox {
-                            let (x, y) = (b.x0 + sx, b.y0 + sy);
-                            if seen.iter().any(|(p, _)| *p == (x, y)) {
-                                continue;
-                            }
-                            let r = trace(x, y, 0.0);
-                            st.ray(&r);
-                            seen.push(((x, y), r));
-                        }
-                    }
-                    (seen, st)
-                })
-                .collect();
-            // Each block's smallest and largest sampled hit length
-            let mut lo = vec![f64::INFINITY; nx * ny];
-            let mut hi = vec![f64::NEG_INFINITY; nx * ny];
-            for (k, (samples, st)) in sampled.iter().enumerate() {
-                stats += *st;
-                for ((x, y), r) in samples {
-                    pixels[y * w + x] = Pixel {
-                        hit: r.hit,
-                        start: 0.0,
-                        skipped: false,
-                    };
-                    stats.case1 += 1;
-                    if let Some((t, _)) = r.hit {
-                        lo[k] = lo[k].min(t);
-                        hi[k] = hi[k].max(t);
-                    }
-                }
-            }
-            // §2.3: blocks without a sampled hit next to one that has
-            let neigh = |bx: usize, by: usize| {
-                let mut v = vec![];
-                for dy in -1i64..=1 {
-                    for dx in -1i64..=1 {
-                        let (x, y) = (bx as i64 + dx, by as i64 + dy);
-                        if (dx, dy) != (0, 0)
-                            && x >= 0
-                            && y >= 0
-                            && (x as usize) < nx
-                            && (y as usize) < ny
-                        {
-                            v.push(y as usize * nx + x as usize);
-                        }
-                    }
-                }
-                v
-            };
-            let filled: Vec<(Vec<(usize, Pixel)>, Stats)> = blocks
-                .par_iter()
-                .enumerate()
-                .map(|(k, &(bx, by))| {
-                    let b = block(bx, by);
-                    let mut st = Stats {
-                        regions: 1,
-                        ..Stats::default()
-                    };
-                    let around = neigh(bx, by);
-                    let n_lo = around.iter().map(|&j| lo[j]).fold(f64::INFINITY, f64::min);
-                    let deepest = around.iter().map(|&j| hi[j]).fold(hi[k], f64::max);
-                    let s = if lo[k].is_finite() {
-                        st.regions_hit += 1;
-                        lo[k]
-                    } else if n_lo.is_finite() {
-                        st.regions_corrected += 1;
-                        n_lo
-                    } else {
-                        st.regions_skipped += 1;
-                        let out = b
-                            .pixels()
-                            .map(|(x, y)| {
-                                (
-                                    y * w + x,
-                                    Pixel {
-                                        hit: None,
-                                        start: f64::NAN,
-                                        skipped: true,
-                                    },
-                                )
-                            })
-                            .collect();
-                        return (out, st);
-                    };
-                    let mut out = vec![];
-                    for (x, y) in b.pixels() {
-                        if sampled[k].0.iter().any(|(p, _)| *p == (x, y)) {
-                            continue;
-                        }
-                        let r = trace(x, y, s);
-                        st.ray(&r);
-                        let depth = r.hit.map_or(f64::INFINITY, |h| h.0);
-                        let px = if r.backward {
-                            st.case2 += 1;
-                            Pixel {
-                                hit: r.hit,
-                                start: s,
-                                skipped: false,
-                            }
-                        } else if depth > deepest {
-                            // Case ③ suspected: deeper than anything sampled around
-                            st.case3_redone += 1;
-                            let again = trace(x, y, 0.0);
-                            st.ray(&again);
-                            Pixel {
-                                hit: again.hit,
-                                start: 0.0,
-                                skipped: false,
-                            }
-                        } else {
-                            st.case1 += 1;
-                            Pixel {
-                                hit: r.hit,
-                                start: s,
-                                skipped: false,
-                            }
-                        };
-                        out.push((y * w + x, px));
-                    }
-                    (out, st)
-                })
-                .collect();
-            for (out, st) in filled {
-                stats += st;
-                for (i, px) in out {
-                    pixels[i] = px;
-                }
-            }
-        }
-        Mode::Certified => {
-            let (lo, hi) = (m.lo, m.hi);
-            let centre = (lo + hi) * 0.5;
-            // Past this distance every ray has left the scene's bounding sphere
-            let far = (lens.pos - centre).length() + (hi - lo).length() * 0.5 + 4.0 * m.eps;
-            let done: Vec<(Vec<(usize, Pixel)>, Stats)> = blocks
-                .par_iter()
-                .map(|&(bx, by)| {
-                    let mut st = Stats {
-                        regions: 1,
-                        ..Stats::default()
-                    };
-                    let mut out = vec![];
-                    let b = block(bx, by);
-                    certify(m, lens, w, b, 0.0, far, &mut st, &mut out);
-                    if out.iter().all(|(_, p)| p.skipped) {
-                        st.regions_skipped += 1;
-                    } else {
-                        st.regions_hit += 1;
-                    }
-                    (out, st)
-                })
-                .collect();
-            for (out, st) in done {
-                stats += st;
-                for (i, px) in out {
-                    pixels[i] = px;
-                }
-            }
-        }
+        Mode::Full => g.full(&mut pixels, &mut stats),
+        Mode::Paper => g.paper(&mut pixels, &mut stats),
+        Mode::Certified => g.certified(&mut pixels, &mut stats),
     }
     Primary {
         pixels,
         stats,
         seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+/// Pixels found per block (row-major index, pixel) with the block's counters.
+type Found = (Vec<(usize, Pixel)>, Stats);
+
+/// Writes each block's pixels into the image and adds its counters.
+fn merge(found: Vec<Found>, pixels: &mut [Pixel], stats: &mut Stats) {
+    for (out, st) in found {
+        *stats += st;
+        for (i, px) in out {
+            pixels[i] = px;
+        }
+    }
+}
+
+/// The image of one primary pass, cut into `region × region` blocks (`nx × ny` of them), and
+/// its pixel rays.
+struct Grid<'a> {
+    m: &'a Marcher,
+    lens: &'a Lens,
+    w: usize,
+    h: usize,
+    region: usize,
+    nx: usize,
+    ny: usize,
+    /// Block coordinates, row-major.
+    blocks: Vec<(usize, usize)>,
+}
+
+impl<'a> Grid<'a> {
+    fn new(m: &'a Marcher, lens: &'a Lens, (w, h): (usize, usize), region: usize) -> Self {
+        let region = region.max(1);
+        let (nx, ny) = (w.div_ceil(region), h.div_ceil(region));
+        let blocks = (0..ny)
+            .flat_map(|by| (0..nx).map(move |bx| (bx, by)))
+            .collect();
+        Grid {
+            m,
+            lens,
+            w,
+            h,
+            region,
+            nx,
+            ny,
+            blocks,
+        }
+    }
+
+    /// Traces pixel `(x, y)`'s ray through its centre from length `t`.
+    fn trace(&self, x: usize, y: usize, t: f64) -> Traced {
+        let d = self.lens.dir(x as f64 + 0.5, y as f64 + 0.5);
+        self.m.trace(self.lens.pos, d, t)
+    }
+
+    /// Block `(bx, by)`, clipped to the image.
+    fn block(&self, bx: usize, by: usize) -> Block {
+        Block {
+            x0: bx * self.region,
+            y0: by * self.region,
+            x1: ((bx + 1) * self.region).min(self.w),
+            y1: ((by + 1) * self.region).min(self.h),
+        }
+    }
+
+    /// Indices of the (up to 8) blocks around block `(bx, by)`.
+    fn neighbours(&self, bx: usize, by: usize) -> Vec<usize> {
+        let mut v = vec![];
+        for dy in -1i64..=1 {
+            for dx in -1i64..=1 {
+                let (x, y) = (bx as i64 + dx, by as i64 + dy);
+                if (dx, dy) != (0, 0)
+                    && x >= 0
+                    && y >= 0
+                    && (x as usize) < self.nx
+                    && (y as usize) < self.ny
+                {
+                    v.push(y as usize * self.nx + x as usize);
+                }
+            }
+        }
+        v
+    }
+
+    /// Mode full: every pixel from the eye.
+    fn full(&self, pixels: &mut [Pixel], stats: &mut Stats) {
+        let w = self.w;
+        // Trace the rows in parallel
+        let rows: Vec<(Vec<Pixel>, Stats)> = (0..self.h)
+            .into_par_iter()
+            .map(|y| {
+                let mut st = Stats::default();
+                let row = (0..w)
+                    .map(|x| {
+                        let r = self.trace(x, y, 0.0);
+                        st.ray(&r);
+                        st.case1 += 1;
+                        Pixel {
+                            hit: r.hit,
+                            start: 0.0,
+                            skipped: false,
+                        }
+                    })
+                    .collect();
+                (row, st)
+            })
+            .collect();
+        // Copy them into the image
+        for (y, (row, st)) in rows.into_iter().enumerate() {
+            pixels[y * w..(y + 1) * w].copy_from_slice(&row);
+            *stats += st;
+        }
+    }
+
+    /// Mode paper (§2.2–2.3): samples, then every other pixel from the block's start length.
+    fn paper(&self, pixels: &mut [Pixel], stats: &mut Stats) {
+        // §2.2: 9 samples per block, from the eye
+        let sampled: Vec<Samples> = self
+            .blocks
+            .par_iter()
+            .map(|&(bx, by)| self.paper_samples(self.block(bx, by)))
+            .collect();
+        // Keep the samples; each block's smallest and largest sampled hit length
+        let (lo, hi) = self.keep_samples(&sampled, pixels, stats);
+        // §2.3: trace the other pixels of blocks with a sampled hit or next to one
+        let filled: Vec<Found> = self
+            .blocks
+            .par_iter()
+            .enumerate()
+            .map(|(k, &(bx, by))| self.paper_fill(k, (bx, by), &sampled[k].0, &lo, &hi))
+            .collect();
+        merge(filled, pixels, stats);
+    }
+
+    /// Block `b`'s samples at the 3×3 positions of [`sample_offsets`], each traced once.
+    fn paper_samples(&self, b: Block) -> Samples {
+        let (ox, oy) = (sample_offsets(b.x1 - b.x0), sample_offsets(b.y1 - b.y0));
+        let mut st = Stats::default();
+        let mut seen = vec![];
+        for &sy in &oy {
+            for &sx in &ox {
+                let (x, y) = (b.x0 + sx, b.y0 + sy);
+                if seen.iter().any(|(p, _)| *p == (x, y)) {
+                    continue;
+                }
+                let r = self.trace(x, y, 0.0);
+                st.ray(&r);
+                seen.push(((x, y), r));
+            }
+        }
+        (seen, st)
+    }
+
+    /// Writes the samples as their pixels' results; returns each block's smallest and largest
+    /// sampled hit length (±inf without a hit).
+    fn keep_samples(
+        &self,
+        sampled: &[Samples],
+        pixels: &mut [Pixel],
+        stats: &mut Stats,
+    ) -> (Vec<f64>, Vec<f64>) {
+        let mut lo = vec![f64::INFINITY; self.nx * self.ny];
+        let mut hi = vec![f64::NEG_INFINITY; self.nx * self.ny];
+        for (k, (samples, st)) in sampled.iter().enumerate() {
+            *stats += *st;
+            for ((x, y), r) in samples {
+                pixels[y * self.w + x] = Pixel {
+                    hit: r.hit,
+                    start: 0.0,
+                    skipped: false,
+                };
+                stats.case1 += 1;
+                if let Some((t, _)) = r.hit {
+                    lo[k] = lo[k].min(t);
+                    hi[k] = hi[k].max(t);
+                }
+            }
+        }
+        (lo, hi)
+    }
+
+    /// Block `k` at `(bx, by)` after its `samples`: its start length from its own samples or
+    /// its neighbours' (§2.3), or skipped as background; then every other pixel traced.
+    fn paper_fill(
+        &self,
+        k: usize,
+        (bx, by): (usize, usize),
+        samples: &[((usize, usize), Traced)],
+        lo: &[f64],
+        hi: &[f64],
+    ) -> Found {
+        let w = self.w;
+        let b = self.block(bx, by);
+        let mut st = Stats {
+            regions: 1,
+            ..Stats::default()
+        };
+        // The start length, or skip the block
+        let around = self.neighbours(bx, by);
+        let n_lo = around.iter().map(|&j| lo[j]).fold(f64::INFINITY, f64::min);
+        let deepest = around.iter().map(|&j| hi[j]).fold(hi[k], f64::max);
+        let s = if lo[k].is_finite() {
+            st.regions_hit += 1;
+            lo[k]
+        } else if n_lo.is_finite() {
+            st.regions_corrected += 1;
+            n_lo
+        } else {
+            st.regions_skipped += 1;
+            let out = b
+                .pixels()
+                .map(|(x, y)| {
+                    (
+                        y * w + x,
+                        Pixel {
+                            hit: None,
+                            start: f64::NAN,
+                            skipped: true,
+                        },
+                    )
+                })
+                .collect();
+            return (out, st);
+        };
+        // Trace the pixels that were not sampled
+        let mut out = vec![];
+        for (x, y) in b.pixels() {
+            if samples.iter().any(|(p, _)| *p == (x, y)) {
+                continue;
+            }
+            let px = self.paper_pixel(x, y, s, deepest, &mut st);
+            out.push((y * w + x, px));
+        }
+        (out, st)
+    }
+
+    /// Pixel `(x, y)` traced from start length `s`: case ② if the trace went backward, case ③
+    /// suspected (and the pixel redone from the eye) if it ends deeper than `deepest`, else ①.
+    fn paper_pixel(&self, x: usize, y: usize, s: f64, deepest: f64, st: &mut Stats) -> Pixel {
+        let r = self.trace(x, y, s);
+        st.ray(&r);
+        let depth = r.hit.map_or(f64::INFINITY, |h| h.0);
+        if r.backward {
+            st.case2 += 1;
+            Pixel {
+                hit: r.hit,
+                start: s,
+                skipped: false,
+            }
+        } else if depth > deepest {
+            // Case ③ suspected: deeper than anything sampled around
+            st.case3_redone += 1;
+            let again = self.trace(x, y, 0.0);
+            st.ray(&again);
+            Pixel {
+                hit: again.hit,
+                start: 0.0,
+                skipped: false,
+            }
+        } else {
+            st.case1 += 1;
+            Pixel {
+                hit: r.hit,
+                start: s,
+                skipped: false,
+            }
+        }
+    }
+
+    /// Mode certified: each block certified by cone marching, then skipped, split or traced.
+    fn certified(&self, pixels: &mut [Pixel], stats: &mut Stats) {
+        let (m, lens) = (self.m, self.lens);
+        let (lo, hi) = (m.lo, m.hi);
+        let centre = (lo + hi) * 0.5;
+        // Past this distance every ray has left the scene's bounding sphere
+        let far = (lens.pos - centre).length() + (hi - lo).length() * 0.5 + 4.0 * m.eps;
+        // Certify the blocks in parallel
+        let done: Vec<Found> = self
+            .blocks
+            .par_iter()
+            .map(|&(bx, by)| {
+                let mut st = Stats {
+                    regions: 1,
+                    ..Stats::default()
+                };
+                let mut out = vec![];
+                let b = self.block(bx, by);
+                certify(m, lens, self.w, b, 0.0, far, &mut st, &mut out);
+                if out.iter().all(|(_, p)| p.skipped) {
+                    st.regions_skipped += 1;
+                } else {
+                    st.regions_hit += 1;
+                }
+                (out, st)
+            })
+            .collect();
+        merge(done, pixels, stats);
     }
 }
 

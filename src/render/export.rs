@@ -383,8 +383,39 @@ fn far_clip(s: &Scene) -> f64 {
 /// The scene as Mitsuba 3 XML (integrator `whitted` from `scripts/mitsuba_whitted.py`).
 pub fn mitsuba(s: &Scene, fr: Frame) -> String {
     let f = &s.file;
-    let cam = &f.camera;
     let mut o = String::new();
+    // Header and integrator
+    mitsuba_integrator(&mut o, s);
+    // Sensor: horizontal fov, n×n cell centres (stratified, no jitter), box filter, float32;
+    // far_clip (default 1e4) beyond everything in the scene
+    mitsuba_sensor(&mut o, s, fr);
+    // Point lights
+    for l in &f.lights {
+        let _ = writeln!(
+            o,
+            "  <emitter type=\"point\">\n    <point name=\"position\" value=\"{}\"/>\n    <rgb name=\"intensity\" value=\"{}\"/>\n  </emitter>",
+            v3(l.position),
+            v3(l.intensity)
+        );
+    }
+    // Materials
+    for (name, m) in &f.materials {
+        let _ = writeln!(o, "  {}", mitsuba_bsdf(name, m));
+    }
+    // Shapes
+    let dir = s.path.parent().unwrap_or(std::path::Path::new("."));
+    for sh in &f.shapes {
+        if let Some(body) = mitsuba_shape(sh, dir) {
+            let _ = writeln!(o, "  {body}");
+        }
+    }
+    o.push_str("</scene>\n");
+    o
+}
+
+/// The XML header, the opening `<scene>` and the `whitted` integrator.
+fn mitsuba_integrator(o: &mut String, s: &Scene) {
+    let f = &s.file;
     let shadows = match f.render.glass_shadows {
         GlassShadows::Opaque => "opaque",
         GlassShadows::Transmissive => "transmissive",
@@ -397,8 +428,11 @@ pub fn mitsuba(s: &Scene, fr: Frame) -> String {
         s.path.display(),
         f.render.max_depth
     );
-    // Sensor: horizontal fov, n×n cell centres (stratified, no jitter), box filter, float32;
-    // far_clip (default 1e4) beyond everything in the scene
+}
+
+/// The perspective sensor with its sampler and film.
+fn mitsuba_sensor(o: &mut String, s: &Scene, fr: Frame) {
+    let cam = &s.file.camera;
     let _ = writeln!(
         o,
         "  <sensor type=\"perspective\">\n    <string name=\"fov_axis\" value=\"x\"/>\n    <float name=\"fov\" value=\"{}\"/>\n    <float name=\"far_clip\" value=\"{:e}\"/>\n    <transform name=\"to_world\">\n      <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    <sampler type=\"stratified\">\n      <integer name=\"sample_count\" value=\"{}\"/>\n      <boolean name=\"jitter\" value=\"false\"/>\n    </sampler>\n    <film type=\"hdrfilm\">\n      <integer name=\"width\" value=\"{}\"/>\n      <integer name=\"height\" value=\"{}\"/>\n      <string name=\"pixel_format\" value=\"rgb\"/>\n      <string name=\"component_format\" value=\"float32\"/>\n      <rfilter type=\"box\"/>\n    </film>\n  </sensor>",
@@ -411,130 +445,130 @@ pub fn mitsuba(s: &Scene, fr: Frame) -> String {
         fr.width,
         fr.height
     );
-    for l in &f.lights {
-        let _ = writeln!(
-            o,
-            "  <emitter type=\"point\">\n    <point name=\"position\" value=\"{}\"/>\n    <rgb name=\"intensity\" value=\"{}\"/>\n  </emitter>",
-            v3(l.position),
-            v3(l.intensity)
-        );
+}
+
+/// A material's `<bsdf>` with the material's name as its id; diffuse is two-sided (rayproof
+/// shades the side the ray sees).
+fn mitsuba_bsdf(name: &str, m: &Material) -> String {
+    let name = xml(name);
+    match m {
+        Material::Diffuse { albedo } => format!(
+            "<bsdf type=\"twosided\" id=\"{name}\">\n    <bsdf type=\"diffuse\">\n      <rgb name=\"reflectance\" value=\"{}\"/>\n    </bsdf>\n  </bsdf>",
+            v3(*albedo)
+        ),
+        Material::Mirror { reflectance } => format!(
+            "<bsdf type=\"conductor\" id=\"{name}\">\n    <string name=\"material\" value=\"none\"/>\n    <rgb name=\"specular_reflectance\" value=\"{}\"/>\n  </bsdf>",
+            v3(*reflectance)
+        ),
+        Material::Glass { ior } => format!(
+            "<bsdf type=\"dielectric\" id=\"{name}\">\n    <float name=\"int_ior\" value=\"{ior}\"/>\n    <float name=\"ext_ior\" value=\"1.0\"/>\n  </bsdf>"
+        ),
     }
-    // Materials: diffuse is two-sided (rayproof shades the side the ray sees)
-    for (name, m) in &f.materials {
-        let name = xml(name);
-        let body = match m {
-            Material::Diffuse { albedo } => format!(
-                "<bsdf type=\"twosided\" id=\"{name}\">\n    <bsdf type=\"diffuse\">\n      <rgb name=\"reflectance\" value=\"{}\"/>\n    </bsdf>\n  </bsdf>",
-                v3(*albedo)
-            ),
-            Material::Mirror { reflectance } => format!(
-                "<bsdf type=\"conductor\" id=\"{name}\">\n    <string name=\"material\" value=\"none\"/>\n    <rgb name=\"specular_reflectance\" value=\"{}\"/>\n  </bsdf>",
-                v3(*reflectance)
-            ),
-            Material::Glass { ior } => format!(
-                "<bsdf type=\"dielectric\" id=\"{name}\">\n    <float name=\"int_ior\" value=\"{ior}\"/>\n    <float name=\"ext_ior\" value=\"1.0\"/>\n  </bsdf>"
-            ),
-        };
-        let _ = writeln!(o, "  {body}");
-    }
-    // Shapes
-    let dir = s.path.parent().unwrap_or(std::path::Path::new("."));
-    for sh in &f.shapes {
-        let r = format!("<ref id=\"{}\"/>", xml(sh.material()));
-        let body = match sh {
-            Shape::Sphere { center, radius, .. } => format!(
-                "<shape type=\"sphere\">\n    <point name=\"center\" value=\"{}\"/>\n    <float name=\"radius\" value=\"{radius}\"/>\n    {r}\n  </shape>",
-                v3(*center)
-            ),
-            Shape::Disc {
-                center,
-                normal,
-                radius,
-                ..
-            } => {
-                // The unit disk in z = 0, scaled, then turned so +z becomes the normal
-                let c = glam::DVec3::from_array(*center);
-                let n = glam::DVec3::from_array(*normal).normalize();
-                format!(
-                    "<shape type=\"disk\">\n    <transform name=\"to_world\">\n      <scale value=\"{radius}\"/>\n      <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    {r}\n  </shape>",
-                    v3(*center),
-                    v3((c + n).to_array()),
-                    v3(n.any_orthonormal_vector().to_array())
-                )
-            }
-            Shape::Plane { point, normal, .. } => {
-                // Mitsuba has no infinite plane: a rectangle 1e6 wide stands in for it
-                let c = glam::DVec3::from_array(*point);
-                let n = glam::DVec3::from_array(*normal).normalize();
-                format!(
-                    "<shape type=\"rectangle\">\n    <transform name=\"to_world\">\n      <scale value=\"1e6\"/>\n      <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    {r}\n  </shape>",
-                    v3(*point),
-                    v3((c + n).to_array()),
-                    v3(n.any_orthonormal_vector().to_array())
-                )
-            }
-            Shape::Mesh { file, .. } => {
-                let p = dir.join(file);
-                let p = p.canonicalize().unwrap_or(p);
-                format!(
-                    "<shape type=\"obj\">\n    <string name=\"filename\" value=\"{}\"/>\n    <boolean name=\"face_normals\" value=\"true\"/>\n    {r}\n  </shape>",
-                    xml(&p.display().to_string())
-                )
-            }
-            // Mitsuba's cube is the exact [-1, 1]³ (12 triangles, face normals)
-            Shape::Box { min, max, .. } => {
-                let (lo, hi) = (glam::DVec3::from_array(*min), glam::DVec3::from_array(*max));
-                format!(
-                    "<shape type=\"cube\">\n    <transform name=\"to_world\">\n      <scale value=\"{}\"/>\n      <translate value=\"{}\"/>\n    </transform>\n    {r}\n  </shape>",
-                    v3(((hi - lo) * 0.5).to_array()),
-                    v3(((lo + hi) * 0.5).to_array())
-                )
-            }
-            // Mitsuba's cylinder is open: the caps are two disks, normals outward (±y)
-            Shape::Cylinder {
-                base,
-                radius,
-                height,
-                ..
-            } => {
-                let b = glam::DVec3::from_array(*base);
-                let top = b + glam::DVec3::Y * *height;
-                let disk = |c: glam::DVec3, n: glam::DVec3| {
-                    format!(
-                        "<shape type=\"disk\">\n    <transform name=\"to_world\">\n      <scale value=\"{radius}\"/>\n      <lookat origin=\"{}\" target=\"{}\" up=\"1, 0, 0\"/>\n    </transform>\n    {r}\n  </shape>",
-                        v3(c.to_array()),
-                        v3((c + n).to_array())
-                    )
-                };
-                format!(
-                    "<shape type=\"cylinder\">\n    <point name=\"p0\" value=\"{}\"/>\n    <point name=\"p1\" value=\"{}\"/>\n    <float name=\"radius\" value=\"{radius}\"/>\n    {r}\n  </shape>\n  {}\n  {}",
-                    v3(*base),
-                    v3(top.to_array()),
-                    disk(b, -glam::DVec3::Y),
-                    disk(top, glam::DVec3::Y)
-                )
-            }
-            // Implicit surfaces: refused by `unsupported` before export
-            Shape::Sdf { .. } | Shape::Blob { .. } | Shape::Mpu { .. } => {
-                format!("<!-- {}: implicit, no Mitsuba equivalent -->", sh.material())
-            }
-            // No analytic ellipsoid or torus in Mitsuba: fine tessellations as PLY files
-            Shape::Ellipsoid { .. } | Shape::Torus { .. } => {
-                let (path, note) = match tessellate(sh).map(|m| m.write_ply(&mesh_dir())) {
-                    Some(Ok(p)) => (p, String::new()),
-                    Some(Err((p, e))) => (p, format!("<!-- error: cannot write the mesh: {} -->\n  ", xml(&e))),
-                    None => continue,
-                };
-                format!(
-                    "{note}<shape type=\"ply\">\n    <string name=\"filename\" value=\"{}\"/>\n    {r}\n  </shape>",
-                    xml(&path.display().to_string())
-                )
-            }
-        };
-        let _ = writeln!(o, "  {body}");
-    }
-    o.push_str("</scene>\n");
-    o
+}
+
+/// A shape's XML (mesh files relative to `dir`); `None` if a tessellated shape has no mesh.
+fn mitsuba_shape(sh: &Shape, dir: &std::path::Path) -> Option<String> {
+    let r = format!("<ref id=\"{}\"/>", xml(sh.material()));
+    Some(match sh {
+        Shape::Sphere { center, radius, .. } => format!(
+            "<shape type=\"sphere\">\n    <point name=\"center\" value=\"{}\"/>\n    <float name=\"radius\" value=\"{radius}\"/>\n    {r}\n  </shape>",
+            v3(*center)
+        ),
+        Shape::Disc {
+            center,
+            normal,
+            radius,
+            ..
+        } => {
+            // The unit disk in z = 0, scaled, then turned so +z becomes the normal
+            let c = glam::DVec3::from_array(*center);
+            let n = glam::DVec3::from_array(*normal).normalize();
+            format!(
+                "<shape type=\"disk\">\n    <transform name=\"to_world\">\n      <scale value=\"{radius}\"/>\n      <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    {r}\n  </shape>",
+                v3(*center),
+                v3((c + n).to_array()),
+                v3(n.any_orthonormal_vector().to_array())
+            )
+        }
+        Shape::Plane { point, normal, .. } => {
+            // Mitsuba has no infinite plane: a rectangle 1e6 wide stands in for it
+            let c = glam::DVec3::from_array(*point);
+            let n = glam::DVec3::from_array(*normal).normalize();
+            format!(
+                "<shape type=\"rectangle\">\n    <transform name=\"to_world\">\n      <scale value=\"1e6\"/>\n      <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>\n    </transform>\n    {r}\n  </shape>",
+                v3(*point),
+                v3((c + n).to_array()),
+                v3(n.any_orthonormal_vector().to_array())
+            )
+        }
+        Shape::Mesh { file, .. } => {
+            let p = dir.join(file);
+            let p = p.canonicalize().unwrap_or(p);
+            format!(
+                "<shape type=\"obj\">\n    <string name=\"filename\" value=\"{}\"/>\n    <boolean name=\"face_normals\" value=\"true\"/>\n    {r}\n  </shape>",
+                xml(&p.display().to_string())
+            )
+        }
+        // Mitsuba's cube is the exact [-1, 1]³ (12 triangles, face normals)
+        Shape::Box { min, max, .. } => {
+            let (lo, hi) = (glam::DVec3::from_array(*min), glam::DVec3::from_array(*max));
+            format!(
+                "<shape type=\"cube\">\n    <transform name=\"to_world\">\n      <scale value=\"{}\"/>\n      <translate value=\"{}\"/>\n    </transform>\n    {r}\n  </shape>",
+                v3(((hi - lo) * 0.5).to_array()),
+                v3(((lo + hi) * 0.5).to_array())
+            )
+        }
+        Shape::Cylinder {
+            base,
+            radius,
+            height,
+            ..
+        } => mitsuba_cylinder(*base, *radius, *height, &r),
+        // Implicit surfaces: refused by `unsupported` before export
+        Shape::Sdf { .. } | Shape::Blob { .. } | Shape::Mpu { .. } => {
+            format!("<!-- {}: implicit, no Mitsuba equivalent -->", sh.material())
+        }
+        Shape::Ellipsoid { .. } | Shape::Torus { .. } => mitsuba_tessellated(sh, &r)?,
+    })
+}
+
+/// A closed cylinder: Mitsuba's cylinder is open, so the caps are two disks, normals outward
+/// (±y); `r` is the material reference.
+fn mitsuba_cylinder(base: [f64; 3], radius: f64, height: f64, r: &str) -> String {
+    let b = glam::DVec3::from_array(base);
+    let top = b + glam::DVec3::Y * height;
+    let disk = |c: glam::DVec3, n: glam::DVec3| {
+        format!(
+            "<shape type=\"disk\">\n    <transform name=\"to_world\">\n      <scale value=\"{radius}\"/>\n      <lookat origin=\"{}\" target=\"{}\" up=\"1, 0, 0\"/>\n    </transform>\n    {r}\n  </shape>",
+            v3(c.to_array()),
+            v3((c + n).to_array())
+        )
+    };
+    format!(
+        "<shape type=\"cylinder\">\n    <point name=\"p0\" value=\"{}\"/>\n    <point name=\"p1\" value=\"{}\"/>\n    <float name=\"radius\" value=\"{radius}\"/>\n    {r}\n  </shape>\n  {}\n  {}",
+        v3(base),
+        v3(top.to_array()),
+        disk(b, -glam::DVec3::Y),
+        disk(top, glam::DVec3::Y)
+    )
+}
+
+/// An ellipsoid or a torus, which Mitsuba has no analytic shape for: a fine tessellation
+/// written as a PLY file into [`mesh_dir`] (`None` for other shapes); `r` is the material
+/// reference.
+fn mitsuba_tessellated(sh: &Shape, r: &str) -> Option<String> {
+    let (path, note) = match tessellate(sh).map(|m| m.write_ply(&mesh_dir())) {
+        Some(Ok(p)) => (p, String::new()),
+        Some(Err((p, e))) => (
+            p,
+            format!("<!-- error: cannot write the mesh: {} -->\n  ", xml(&e)),
+        ),
+        None => return None,
+    };
+    Some(format!(
+        "{note}<shape type=\"ply\">\n    <string name=\"filename\" value=\"{}\"/>\n    {r}\n  </shape>",
+        xml(&path.display().to_string())
+    ))
 }
 
 /// Tessellations for Mitsuba are made so that every vertex lies on the exact surface and no

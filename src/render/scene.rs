@@ -41,9 +41,12 @@
 //!                            #       as POV-Ray's torus; 0 < minor < major)
 //! ```
 
+use crate::implicit::field::{BlobComponent, Field, SdfPart};
+use crate::implicit::mpu::{Mpu, MpuOptions};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 use toml::Spanned;
 
 #[derive(Debug, Clone, Deserialize)]
@@ -202,7 +205,7 @@ pub enum Shape {
     /// Implicit: signed-distance parts (`kind` sphere, torus, box) joined by a smooth union of
     /// blend width `blend` (0: a hard union). Sphere traced.
     Sdf {
-        parts: Vec<crate::implicit::field::SdfPart>,
+        parts: Vec<SdfPart>,
         #[serde(default)]
         blend: f64,
         material: String,
@@ -210,7 +213,7 @@ pub enum Shape {
     /// Implicit: POV-Ray's blob, `Σ strength·(1 − r²/radius²)² = threshold`. Sphere traced.
     Blob {
         threshold: f64,
-        components: Vec<crate::implicit::field::BlobComponent>,
+        components: Vec<BlobComponent>,
         material: String,
     },
     /// Implicit: an MPU surface fitted to `points` (lines `x y z nx ny nz`); `mesh` (OBJ) is
@@ -347,6 +350,35 @@ impl Shape {
     }
 }
 
+/// The field of an implicit scene shape (`None` for other shapes). MPU points are read
+/// relative to the scene file and fitted here.
+pub fn field_of(shape: &Shape, scene: &Path) -> Result<Option<Field>, String> {
+    Ok(Some(match shape {
+        Shape::Sdf { parts, blend, .. } => Field::Sdf {
+            parts: parts.clone(),
+            blend: *blend,
+        },
+        Shape::Blob {
+            threshold,
+            components,
+            ..
+        } => Field::blob(*threshold, components.clone()),
+        Shape::Mpu { points, .. } => {
+            let path = scene.parent().unwrap_or(Path::new(".")).join(points);
+            let (p, n) = Mpu::load_points(&path).map_err(|e| format!("points: {e:#}"))?;
+            if p.len() < 4 {
+                return Err(format!(
+                    "points: {} has {} point(s); an MPU fit needs at least 4",
+                    path.display(),
+                    p.len()
+                ));
+            }
+            Field::Mpu(Arc::new(Mpu::fit(&p, &n, &MpuOptions::default())))
+        }
+        _ => return Ok(None),
+    }))
+}
+
 /// The line of `field = …` inside the table whose header is on line `header` (1-based), or the
 /// header's line if the field is not written there.
 fn field_line(text: &str, header: usize, field: &str) -> usize {
@@ -378,7 +410,7 @@ pub struct Scene {
     /// Triangles of each mesh shape, by shape index.
     pub meshes: BTreeMap<usize, Vec<[[f64; 3]; 3]>>,
     /// The field of each implicit shape, by shape index (MPU surfaces are fitted on load).
-    pub implicits: BTreeMap<usize, crate::implicit::field::Field>,
+    pub implicits: BTreeMap<usize, Field>,
     pub path: PathBuf,
 }
 
@@ -506,8 +538,8 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 load_obj(&mesh_path).map_err(|e| err(line, format!("shapes[{i}].file: {e}")))?;
             meshes.insert(i, tris);
         }
-        if let Some(field) = crate::implicit::field_of(shape, path)
-            .map_err(|e| err(line, format!("shapes[{i}]: {e}")))?
+        if let Some(field) =
+            field_of(shape, path).map_err(|e| err(line, format!("shapes[{i}]: {e}")))?
         {
             implicits.insert(i, field);
         }

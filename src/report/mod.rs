@@ -357,196 +357,255 @@ fn markdown(
     starts: &[crate::shapes::recip::newton::StartRow],
     dir: &Path,
 ) -> Result<String> {
-    let mut s = String::new();
-    let svg = |name: &str, body: String| -> Result<String> {
-        crate::output::write_atomic(&dir.join(name), body.as_bytes())?;
-        Ok(format!("![{name}]({name})\n\n"))
+    let mut md = Markdown {
+        s: String::new(),
+        dir,
     };
     // Header
-    writeln!(
-        s,
-        "# rayproof report: what accuracy costs in time\n\n\
-         Measured on **{}** ({} threads, {}) by {} on {}. Every number below was measured in \
-         this run: the audit against the MPFR oracle (seed {}, {} cases per class), timings \
-         as the median of repeated runs with ± half their spread. The machine is shared and \
-         noisy: trust ratios between rows more than absolute nanoseconds; `cargo bench` \
-         (criterion) is the precise tool.\n",
-        machine.cpu, machine.threads, machine.os, machine.tool, machine.date, seed, cases
-    )?;
+    md.header(machine, seed, cases)?;
     // 1. Accuracy vs cost
-    s += "## 1. Accuracy vs cost, per ray–sphere test\n\n\
-          ns/test: one thread, the bench's mix of hard classes (random, inside, far_small, huge, \
-          grazing, behind; 512 cases each). Errors: the audit over every class; wrong = false hit, \
-          false miss, wrong root or non-finite t on a well-posed case; ulps and bits over \
-          right-verdict hits.\n\n\
-          | method | precision | robust | ns/test | × geometric | wrong verdicts | wrong rate | max ulps | p99 bits |\n\
-          |---|---|---|---:|---:|---:|---:|---:|---:|\n";
-    for r in cost {
-        let geo = cost
-            .iter()
-            .find(|g| g.method == "geometric" && g.precision == r.precision)
-            .map_or(f64::NAN, |g| g.ns.median_ns);
+    md.cost(cost)?;
+    // 2. Wrong-verdict rates and bits of error per class: the audit's own data
+    md.classes(report, tallies)?;
+    // 3. Batched kernel
+    md.batch(batch)?;
+    // 4. Render-level trade-off
+    md.renders(rows)?;
+    // 5. Seed 000
+    md.seed1996(repro)?;
+    // 6. Newton
+    md.newton(newton, starts);
+    Ok(md.s)
+}
+
+/// The report's Markdown as it is written, and the directory its figures go to.
+struct Markdown<'a> {
+    s: String,
+    dir: &'a Path,
+}
+
+impl Markdown<'_> {
+    /// Writes the figure `name` and links it.
+    fn svg(&mut self, name: &str, body: String) -> Result<()> {
+        crate::output::write_atomic(&self.dir.join(name), body.as_bytes())?;
+        self.s += &format!("![{name}]({name})\n\n");
+        Ok(())
+    }
+
+    /// Title, machine and what was measured.
+    fn header(&mut self, machine: &Machine, seed: u64, cases: &u64) -> Result<()> {
         writeln!(
-            s,
-            "| {} | {} | {} | {} | {:.2} | {} / {} | {} | {:.3e} | {:.2} |",
-            r.method,
-            r.precision.name(),
-            if r.robust { "yes" } else { "no" },
-            r.ns.label(),
-            r.ns.median_ns / geo,
-            r.wrong,
-            r.well_posed,
-            pct(r.wrong_rate),
-            r.max_ulps,
-            r.p99_bits
+            self.s,
+            "# rayproof report: what accuracy costs in time\n\n\
+             Measured on **{}** ({} threads, {}) by {} on {}. Every number below was measured in \
+             this run: the audit against the MPFR oracle (seed {}, {} cases per class), timings \
+             as the median of repeated runs with ± half their spread. The machine is shared and \
+             noisy: trust ratios between rows more than absolute nanoseconds; `cargo bench` \
+             (criterion) is the precise tool.\n",
+            machine.cpu, machine.threads, machine.os, machine.tool, machine.date, seed, cases
         )?;
+        Ok(())
     }
-    s += "\n";
-    let pts = |y: &dyn Fn(&CostRow) -> f64| -> Vec<plot::Point> {
-        cost.iter()
-            .map(|r| plot::Point {
-                label: format!("{}/{}", r.method, r.precision.name()),
-                x: r.ns.median_ns,
-                y: y(r),
-                robust: r.robust,
-                colour: method_index(r.method),
-                square: r.precision == Precision::F64,
-            })
-            .collect()
-    };
-    let floor_rate = 0.1 / cost.iter().map(|r| r.well_posed).max().unwrap_or(1).max(1) as f64;
-    s += "One colour per method; circles f32, triangles f64; filled marks the robust methods. \
-          The red line is the Pareto front: nothing is both faster and more accurate than a \
-          point on it. Zero errors are drawn on the grey line at the bottom.\n\n";
-    s += &svg(
-        "pareto-wrong-rate.svg",
-        plot::pareto_svg(
-            "Wrong verdicts vs cost",
-            "ns per test (log)",
-            "wrong-verdict rate, well-posed cases (log)",
-            &pts(&|r| r.wrong_rate),
-            floor_rate,
-        ),
-    )?;
-    s += &svg(
-        "pareto-max-ulps.svg",
-        plot::pareto_svg(
-            "Worst t error vs cost",
-            "ns per test (log)",
-            "max ulps of t (log)",
-            &pts(&|r| r.max_ulps),
-            0.1,
-        ),
-    )?;
-    s += &svg(
-        "pareto-p99-bits.svg",
-        plot::pareto_svg(
-            "p99 bits of error vs cost",
-            "ns per test (log)",
-            "p99 of log2(1 + ulps) (log)",
-            &pts(&|r| r.p99_bits),
-            0.01,
-        ),
-    )?;
-    // 2. Heat table
-    s += "## 2. Wrong-verdict rate per class\n\nGreen: none; yellow to red on a log scale up to 10 %. \
-          Ill-posed cases (the exact answer is decided by less than the input's rounding) are \
-          not counted.\n\n<table class=\"heat\"><tr><th>method</th><th>precision</th>";
-    for c in Class::ALL {
-        write!(s, "<th>{}</th>", c.name())?;
-    }
-    s += "</tr>\n";
-    for p in Precision::ALL {
-        for m in METHODS {
-            write!(s, "<tr><td>{}</td><td>{}</td>", m.name, p.name())?;
-            for c in Class::ALL {
-                match report
-                    .rows
-                    .iter()
-                    .find(|r| r.method == m.name && r.precision == p && r.class == c.name())
-                {
-                    Some(r) if r.well_posed > 0 => write!(
-                        s,
-                        "<td style=\"background:{}\" title=\"{} wrong of {}\">{}</td>",
-                        heat(r.wrong_rate),
-                        r.wrong(),
-                        r.well_posed,
-                        pct(r.wrong_rate)
-                    )?,
-                    _ => s += "<td>—</td>",
-                }
-            }
-            s += "</tr>\n";
-        }
-    }
-    s += "</table>\n\n";
-    // ULP histograms
-    s +=
-        "### Bits of error per class\n\nFor each method and precision: the share of right-verdict \
-          hits per ⌈log2(1 + ulps)⌉, one line per class (0 = correctly rounded).\n\n";
-    for m in METHODS {
-        for p in Precision::ALL {
-            let series: Vec<(String, Vec<f64>)> = Class::ALL
+
+    /// Section 1: the cost table and three Pareto plots.
+    fn cost(&mut self, cost: &[CostRow]) -> Result<()> {
+        // The table
+        self.s += "## 1. Accuracy vs cost, per ray–sphere test\n\n\
+              ns/test: one thread, the bench's mix of hard classes (random, inside, far_small, huge, \
+              grazing, behind; 512 cases each). Errors: the audit over every class; wrong = false hit, \
+              false miss, wrong root or non-finite t on a well-posed case; ulps and bits over \
+              right-verdict hits.\n\n\
+              | method | precision | robust | ns/test | × geometric | wrong verdicts | wrong rate | max ulps | p99 bits |\n\
+              |---|---|---|---:|---:|---:|---:|---:|---:|\n";
+        for r in cost {
+            let geo = cost
                 .iter()
-                .map(|&c| {
-                    let b = tallies
-                        .ulps(m.name, p, c.name())
-                        .into_iter()
-                        .map(|u| (1.0 + u as f64).log2())
-                        .collect();
-                    (c.name().to_string(), b)
-                })
-                .filter(|(_, b): &(String, Vec<f64>)| !b.is_empty())
-                .collect();
-            s += &svg(
-                &format!("bits-{}-{}.svg", m.name, p.name()),
-                plot::bits_histogram_svg(&format!("{} / {}", m.name, p.name()), &series),
+                .find(|g| g.method == "geometric" && g.precision == r.precision)
+                .map_or(f64::NAN, |g| g.ns.median_ns);
+            writeln!(
+                self.s,
+                "| {} | {} | {} | {} | {:.2} | {} / {} | {} | {:.3e} | {:.2} |",
+                r.method,
+                r.precision.name(),
+                if r.robust { "yes" } else { "no" },
+                r.ns.label(),
+                r.ns.median_ns / geo,
+                r.wrong,
+                r.well_posed,
+                pct(r.wrong_rate),
+                r.max_ulps,
+                r.p99_bits
             )?;
         }
-    }
-    // 3. Batched kernel
-    s += "## 3. Batched (structure-of-arrays) kernel\n\nThe same 3,072 mix cases in ten columns, \
-          lanes computed without branches (auto-vectorised; SSE2, and AVX2 picked at run time, no \
-          FMA). Every answer was checked bit-identical to the scalar method before timing. One \
-          thread; speed-up = scalar ÷ batched.\n\n\
-          | method | precision | instruction set | scalar ns/test | batched ns/test | speed-up |\n\
-          |---|---|---|---:|---:|---:|\n";
-    for b in batch {
-        writeln!(
-            s,
-            "| {} | {} | {} | {} | {} | {:.2}× |",
-            b.method,
-            b.precision,
-            b.isa,
-            b.scalar.label(),
-            b.batched.label(),
-            b.speedup
+        self.s += "\n";
+        // The Pareto plots: cost against three error measures
+        let pts = |y: &dyn Fn(&CostRow) -> f64| -> Vec<plot::Point> {
+            cost.iter()
+                .map(|r| plot::Point {
+                    label: format!("{}/{}", r.method, r.precision.name()),
+                    x: r.ns.median_ns,
+                    y: y(r),
+                    robust: r.robust,
+                    colour: method_index(r.method),
+                    square: r.precision == Precision::F64,
+                })
+                .collect()
+        };
+        let floor_rate = 0.1 / cost.iter().map(|r| r.well_posed).max().unwrap_or(1).max(1) as f64;
+        self.s +=
+            "One colour per method; circles f32, triangles f64; filled marks the robust methods. \
+              The red line is the Pareto front: nothing is both faster and more accurate than a \
+              point on it. Zero errors are drawn on the grey line at the bottom.\n\n";
+        self.svg(
+            "pareto-wrong-rate.svg",
+            plot::pareto_svg(
+                "Wrong verdicts vs cost",
+                "ns per test (log)",
+                "wrong-verdict rate, well-posed cases (log)",
+                &pts(&|r| r.wrong_rate),
+                floor_rate,
+            ),
         )?;
+        self.svg(
+            "pareto-max-ulps.svg",
+            plot::pareto_svg(
+                "Worst t error vs cost",
+                "ns per test (log)",
+                "max ulps of t (log)",
+                &pts(&|r| r.max_ulps),
+                0.1,
+            ),
+        )?;
+        self.svg(
+            "pareto-p99-bits.svg",
+            plot::pareto_svg(
+                "p99 bits of error vs cost",
+                "ns per test (log)",
+                "p99 of log2(1 + ulps) (log)",
+                &pts(&|r| r.p99_bits),
+                0.01,
+            ),
+        )
     }
-    // 4. Render-level
-    s += "\n## 4. Render-level trade-off\n\n";
-    s += &format!(
-        "Each scene rendered by every method × precision at the references' size and grid (the \
-         image compared and shown), and timed separately at 4 samples per pixel (wall seconds \
-         per frame, all threads, median of interleaved runs; time is proportional to the \
-         samples). Error: mean |Δ| and the share of pixels with a channel off by more than \
-         0.05, against the {} {} render and against POV-Ray 3.7.\n\n",
-        renders::BASELINE.0,
-        renders::BASELINE.1
-    );
-    for name in renders::SCENES {
-        let sr: Vec<&renders::RenderRow> = rows.iter().filter(|r| r.scene == name).collect();
-        if sr.is_empty() {
-            continue;
+
+    /// Section 2, from the audit's rows and raw samples: the heat table of wrong-verdict rates
+    /// per class and the histograms of bits of error per class.
+    fn classes(&mut self, report: &ShapeReport, tallies: &Tallies) -> Result<()> {
+        // Heat table
+        self.s += "## 2. Wrong-verdict rate per class\n\nGreen: none; yellow to red on a log scale up to 10 %. \
+              Ill-posed cases (the exact answer is decided by less than the input's rounding) are \
+              not counted.\n\n<table class=\"heat\"><tr><th>method</th><th>precision</th>";
+        for c in Class::ALL {
+            write!(self.s, "<th>{}</th>", c.name())?;
         }
+        self.s += "</tr>\n";
+        for p in Precision::ALL {
+            for m in METHODS {
+                write!(self.s, "<tr><td>{}</td><td>{}</td>", m.name, p.name())?;
+                for c in Class::ALL {
+                    match report
+                        .rows
+                        .iter()
+                        .find(|r| r.method == m.name && r.precision == p && r.class == c.name())
+                    {
+                        Some(r) if r.well_posed > 0 => write!(
+                            self.s,
+                            "<td style=\"background:{}\" title=\"{} wrong of {}\">{}</td>",
+                            heat(r.wrong_rate),
+                            r.wrong(),
+                            r.well_posed,
+                            pct(r.wrong_rate)
+                        )?,
+                        _ => self.s += "<td>—</td>",
+                    }
+                }
+                self.s += "</tr>\n";
+            }
+        }
+        self.s += "</table>\n\n";
+        // ULP histograms
+        self.s +=
+            "### Bits of error per class\n\nFor each method and precision: the share of right-verdict \
+              hits per ⌈log2(1 + ulps)⌉, one line per class (0 = correctly rounded).\n\n";
+        for m in METHODS {
+            for p in Precision::ALL {
+                let series: Vec<(String, Vec<f64>)> = Class::ALL
+                    .iter()
+                    .map(|&c| {
+                        let b = tallies
+                        .ulps(m.name, p, c.name())
+                            .into_iter()
+                            .map(|u| (1.0 + u as f64).log2())
+                            .collect();
+                        (c.name().to_string(), b)
+                    })
+                    .filter(|(_, b): &(String, Vec<f64>)| !b.is_empty())
+                    .collect();
+                self.svg(
+                    &format!("bits-{}-{}.svg", m.name, p.name()),
+                    plot::bits_histogram_svg(&format!("{} / {}", m.name, p.name()), &series),
+                )?;
+            }
+        }
+        Ok(())
+    }
+
+    /// Section 3: the batched kernel's throughput beside the scalar one.
+    fn batch(&mut self, batch: &[crate::shapes::sphere::batch::BatchRow]) -> Result<()> {
+        self.s += "## 3. Batched (structure-of-arrays) kernel\n\nThe same 3,072 mix cases in ten columns, \
+              lanes computed without branches (auto-vectorised; SSE2, and AVX2 picked at run time, no \
+              FMA). Every answer was checked bit-identical to the scalar method before timing. One \
+              thread; speed-up = scalar ÷ batched.\n\n\
+              | method | precision | instruction set | scalar ns/test | batched ns/test | speed-up |\n\
+              |---|---|---|---:|---:|---:|\n";
+        for b in batch {
+            writeln!(
+                self.s,
+                "| {} | {} | {} | {} | {} | {:.2}× |",
+                b.method,
+                b.precision,
+                b.isa,
+                b.scalar.label(),
+                b.batched.label(),
+                b.speedup
+            )?;
+        }
+        Ok(())
+    }
+
+    /// Section 4: per scene, time against image error, and the images.
+    fn renders(&mut self, rows: &[renders::RenderRow]) -> Result<()> {
+        self.s += "\n## 4. Render-level trade-off\n\n";
+        self.s += &format!(
+            "Each scene rendered by every method × precision at the references' size and grid (the \
+             image compared and shown), and timed separately at 4 samples per pixel (wall seconds \
+             per frame, all threads, median of interleaved runs; time is proportional to the \
+             samples). Error: mean |Δ| and the share of pixels with a channel off by more than \
+             0.05, against the {} {} render and against POV-Ray 3.7.\n\n",
+            renders::BASELINE.0,
+            renders::BASELINE.1
+        );
+        for name in renders::SCENES {
+            let sr: Vec<&renders::RenderRow> = rows.iter().filter(|r| r.scene == name).collect();
+            if sr.is_empty() {
+                continue;
+            }
+            self.render_scene(name, &sr)?;
+        }
+        Ok(())
+    }
+
+    /// One scene of section 4: its table, its Pareto plot and its images.
+    fn render_scene(&mut self, name: &str, sr: &[&renders::RenderRow]) -> Result<()> {
+        // The table
         writeln!(
-            s,
+            self.s,
             "### {name}\n\n| method | precision | s per 4-spp frame | rays (image) | mean vs {b} | px > 0.05 vs {b} | mean vs POV-Ray | px > 0.05 vs POV-Ray |\n|---|---|---:|---:|---:|---:|---:|---:|",
             b = format!("{}/{}", renders::BASELINE.0, renders::BASELINE.1)
         )?;
-        for r in &sr {
+        for r in sr {
             writeln!(
-                s,
+                self.s,
                 "| {} | {} | {:.3} (±{:.0}%) | {} | {:.2e} | {} | {} | {} |",
                 r.method,
                 r.precision,
@@ -559,7 +618,8 @@ fn markdown(
                 r.vs_povray_fail.map_or("—".into(), pct)
             )?;
         }
-        s += "\n";
+        self.s += "\n";
+        // The plot: frame time against the error to POV-Ray (or the baseline)
         let p: Vec<plot::Point> = sr
             .iter()
             .map(|r| plot::Point {
@@ -576,7 +636,7 @@ fn markdown(
         } else {
             "the baseline"
         };
-        s += &svg(
+        self.svg(
             &format!("render-{name}.svg"),
             plot::pareto_svg(
                 &format!("{name}: frame time vs image error"),
@@ -586,13 +646,14 @@ fn markdown(
                 1e-9,
             ),
         )?;
-        s += "<div class=\"grid\">";
+        // The images
+        self.s += "<div class=\"grid\">";
         if sr.iter().any(|r| r.vs_povray_mean.is_some()) {
-            write!(s, "<figure><img src=\"img/{name}-povray.png\"><figcaption>POV-Ray 3.7</figcaption></figure>")?;
+            write!(self.s, "<figure><img src=\"img/{name}-povray.png\"><figcaption>POV-Ray 3.7</figcaption></figure>")?;
         }
-        for r in &sr {
+        for r in sr {
             write!(
-                s,
+                self.s,
                 "<figure><img src=\"img/{}\"><figcaption>{}/{} — {} px</figcaption></figure>",
                 r.png,
                 r.method,
@@ -600,30 +661,41 @@ fn markdown(
                 pct(r.vs_povray_fail.unwrap_or(r.vs_baseline_fail))
             )?;
         }
-        s += "</div>\n\n";
+        self.s += "</div>\n\n";
+        Ok(())
     }
-    // 5. Seed 000
-    s += "## 5. Seed 000's speed claim, reproduced\n\n\
-          Fan et al. (1996) report for 30 spheres at 1024×1024, d = 5, m = 2, about 15 M rays: \
-          the algebraic method about 2 h and the geometric one about 35 min on an SGI \
-          workstation. The scene `reference/scenes/seed1996.toml` was built to that budget; both \
-          methods render it in both precisions, with every ray testing all 30 spheres (flat, as \
-          in 1996) and with a BVH.\n\n";
-    s += &repro.markdown();
-    s += "\n<div class=\"grid\">";
-    for (label, _) in &repro.images {
-        write!(
-            s,
-            "<figure><img src=\"img/seed1996-{}.png\"><figcaption>{label}</figcaption></figure>",
-            label.replace('/', "-")
-        )?;
+
+    /// Section 5: seed 000's speed claim on `seed1996`, with the images.
+    fn seed1996(&mut self, repro: &seed::SeedRepro) -> Result<()> {
+        self.s += "## 5. Seed 000's speed claim, reproduced\n\n\
+              Fan et al. (1996) report for 30 spheres at 1024×1024, d = 5, m = 2, about 15 M rays: \
+              the algebraic method about 2 h and the geometric one about 35 min on an SGI \
+              workstation. The scene `reference/scenes/seed1996.toml` was built to that budget; both \
+              methods render it in both precisions, with every ray testing all 30 spheres (flat, as \
+              in 1996) and with a BVH.\n\n";
+        self.s += &repro.markdown();
+        self.s += "\n<div class=\"grid\">";
+        for (label, _) in &repro.images {
+            write!(
+                self.s,
+                "<figure><img src=\"img/seed1996-{}.png\"><figcaption>{label}</figcaption></figure>",
+                label.replace('/', "-")
+            )?;
+        }
+        self.s += "</div>\n\n";
+        self.s += &seed::explanation(repro);
+        Ok(())
     }
-    s += "</div>\n\n";
-    s += &seed::explanation(repro);
-    // 6. Newton
-    s += "\n## 6. Accuracy cost of Newton refinement (seed 002 §1.5)\n\n";
-    s += &newton_markdown(newton, starts);
-    Ok(s)
+
+    /// Section 6: Newton refinement of rcp/rsqrt.
+    fn newton(
+        &mut self,
+        newton: &[crate::shapes::recip::newton::NewtonRow],
+        starts: &[crate::shapes::recip::newton::StartRow],
+    ) {
+        self.s += "\n## 6. Accuracy cost of Newton refinement (seed 002 §1.5)\n\n";
+        self.s += &newton_markdown(newton, starts);
+    }
 }
 
 /// Markdown → a standalone HTML page.

@@ -16,7 +16,7 @@
 //! precision, up or down (24 moves, each decided exactly), changes the count or switches the
 //! answer between the entry and the exit.
 
-use super::reintersect::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
+use super::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
 use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::Real;
@@ -155,16 +155,6 @@ fn valid<F: Real>(o: V<F>, d: V<F>, lo: V<F>, hi: V<F>) -> bool {
         && finite(hi)
         && d.iter().any(|&x| x != F::ZERO)
         && (0..3).all(|i| lo[i] < hi[i])
-}
-
-/// Reintersection rows of the box's methods (issue 6 item 8; see [`super::reintersect`] for the
-/// test and how each method's error bound was chosen).
-pub fn reintersection(
-    seed: u64,
-    per_scale: u64,
-    prec: Precision,
-) -> Vec<super::offset::ReintersectRow> {
-    super::reintersect::box_rows(seed, per_scale, prec)
 }
 
 // ---- the exact oracle ----

@@ -10,6 +10,7 @@ pub mod recip;
 pub mod reintersect;
 pub mod robustness;
 pub mod roots;
+pub(crate) mod sample;
 pub mod sphere;
 pub mod sturm;
 pub mod torus;

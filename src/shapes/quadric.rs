@@ -23,9 +23,7 @@
 //! decided exactly) changes the count or which root is the answer (the origin crossing the
 //! surface, or the near root crossing a cap plane), as in the sphere's oracle.
 
-use super::reintersect::sample::{
-    self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit,
-};
+use super::sample::{self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
 use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::{Real, Scalar};
@@ -286,16 +284,6 @@ pub fn normal_robust<F: Real>(o: V<F>, d: V<F>, r: F, m: F, n: F) -> Option<V<F>
     let g = g.map(|x| mul_pow2(x, -big));
     let len = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
     Some(g.map(|x| F::narrow(x / len)))
-}
-
-/// Reintersection rows of the ellipsoid's and the cylinder's methods (issue 6 item 8; see
-/// [`super::reintersect`] for the test and the reprojection that bounds the error).
-pub fn reintersection(
-    seed: u64,
-    per_scale: u64,
-    prec: Precision,
-) -> Vec<super::offset::ReintersectRow> {
-    super::reintersect::quadric_rows(seed, per_scale, prec)
 }
 
 // ---- exact arithmetic ----

@@ -1,5 +1,5 @@
-//! Reintersection (issue 6 item 8) for the box, the ellipsoid, the cylinder and the sphere, and
-//! the sampling helpers the box and quadric case generators share.
+//! Reintersection (issue 6 item 8) for the box, the ellipsoid, the cylinder and the sphere (its
+//! sampling helpers are [`super::sample`], shared with the box and quadric case generators).
 //!
 //! **Test.** Per precision, `per_scale` instances in each decade of scale `10^[-4, 4)`, placed up
 //! to 100 scales from the origin (the box and the sphere through their own parameters, the
@@ -23,107 +23,8 @@
 //!   roundings for `m·y`, `n·z`), `γ₅|(x, y)|` for the cylinder's lateral surface (its `z` error
 //!   does not matter: the normal has no `z`). A world translation adds `γ₂(|p| + |c|)`.
 
-/// Sampling helpers: every value is drawn in `f64` and rounded once to the case's precision.
-pub(crate) mod sample {
-    use crate::numerics::exact;
-    use crate::numerics::Precision;
-    use rand::Rng;
-    use rand_chacha::ChaCha8Rng;
-
-    pub type V = [f64; 3];
-
-    /// `10^u`, `u` uniform in `[lo, hi)` (log-uniform magnitudes).
-    pub fn lu(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
-        10f64.powf(rng.random_range(lo..hi))
-    }
-    /// ±1 with equal odds.
-    pub fn sign(rng: &mut ChaCha8Rng) -> f64 {
-        if rng.random::<bool>() {
-            1.0
-        } else {
-            -1.0
-        }
-    }
-    /// A uniform point of `[-1, 1]³`.
-    pub fn cube(rng: &mut ChaCha8Rng) -> V {
-        std::array::from_fn(|_| rng.random_range(-1.0..1.0))
-    }
-    /// A uniform unit vector.
-    pub fn unit(rng: &mut ChaCha8Rng) -> V {
-        loop {
-            let v = cube(rng);
-            let n = norm(v);
-            if n > 1e-3 && n <= 1.0 {
-                return mul(v, 1.0 / n);
-            }
-        }
-    }
-    /// A uniform point of the unit ball.
-    pub fn ball(rng: &mut ChaCha8Rng) -> V {
-        mul(unit(rng), rng.random::<f64>().cbrt())
-    }
-    /// A random unit vector perpendicular to `v` (any length).
-    pub fn perp(rng: &mut ChaCha8Rng, v: V) -> V {
-        let d = normalize(v);
-        loop {
-            let u = unit(rng);
-            let p = sub(u, mul(d, dot(u, d)));
-            if norm(p) > 0.1 {
-                return normalize(p);
-            }
-        }
-    }
-    pub fn add(a: V, b: V) -> V {
-        [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-    }
-    pub fn sub(a: V, b: V) -> V {
-        [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-    }
-    pub fn mul(a: V, k: f64) -> V {
-        a.map(|x| x * k)
-    }
-    pub fn dot(a: V, b: V) -> f64 {
-        a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-    }
-    /// `|a|`, scaled by its largest component first so that `|a|²` cannot over- or underflow.
-    pub fn norm(a: V) -> f64 {
-        let big = a.iter().fold(0f64, |m, x| m.max(x.abs()));
-        if big == 0.0 {
-            return 0.0;
-        }
-        let u = mul(a, 1.0 / big);
-        big * dot(u, u).sqrt()
-    }
-    pub fn normalize(a: V) -> V {
-        let big = a.iter().fold(0f64, |m, x| m.max(x.abs()));
-        let a = mul(a, 1.0 / big);
-        mul(a, 1.0 / norm(a))
-    }
-    /// `x` rounded to the precision (an `f32` widened exactly).
-    pub fn rp(prec: Precision, x: f64) -> f64 {
-        match prec {
-            Precision::F32 => x as f32 as f64,
-            Precision::F64 => x,
-        }
-    }
-    pub fn rpv(prec: Precision, v: V) -> V {
-        v.map(|x| rp(prec, x))
-    }
-    /// `x` moved by `k` ulps of the precision.
-    pub fn nudge_k(mut x: f64, prec: Precision, k: i32) -> f64 {
-        for _ in 0..k.unsigned_abs() {
-            x = exact::nudge(x, prec, k > 0);
-        }
-        x
-    }
-    /// An invalid scalar: NaN, +inf or −inf.
-    pub fn non_finite(rng: &mut ChaCha8Rng) -> f64 {
-        [f64::NAN, f64::INFINITY, f64::NEG_INFINITY][rng.random_range(0..3)]
-    }
-}
-
-use self::sample::{add, cube, lu, mul, normalize, rp, rpv, sub, unit};
 use super::offset::{gamma, spawn_origin, ReintersectRow};
+use super::sample::{self, add, cube, lu, mul, normalize, rp, rpv, sub, unit};
 use crate::audit::{Shape, Truth};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;

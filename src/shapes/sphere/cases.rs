@@ -199,175 +199,206 @@ fn subnormal_scale<F: Real>() -> f64 {
     }
 }
 
-/// One proposal for a class (not yet confirmed).
+/// One proposal for a class (not yet confirmed). Each class draws from `rng` in its own fixed
+/// order, so a case is bit-identical for every seed across versions: keep the draws in order.
 fn propose<F: Real>(rng: &mut ChaCha8Rng, class: Class) -> Case<F> {
-    let mk = |o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64| Case::<F> {
+    match class {
+        Class::Random => propose_random(rng),
+        Class::Inside => propose_inside(rng),
+        Class::OnSurface => propose_on_surface(rng),
+        Class::Tangent => propose_tangent(rng),
+        Class::Behind => propose_behind(rng),
+        Class::FarSmall => propose_far_small(rng),
+        Class::Huge => propose_huge(rng),
+        Class::Grazing => propose_grazing(rng),
+        Class::Invalid => propose_invalid(rng),
+    }
+}
+
+/// A case from `f64` values, each rounded once to `F`.
+fn mk<F: Real>(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> Case<F> {
+    Case::<F> {
         o: to_f(o),
         d: to_f(d),
         c: to_f(c),
         r: F::from_f64(r),
-    };
-    match class {
-        Class::Random => {
-            // Scene scale s, sphere within it, origin up to 10 s away, half the rays aimed
-            let s = lu(rng, -2.0, 3.0);
-            let c = mul(cube(rng), s);
-            let r = s * lu(rng, -2.0, 0.0);
-            let o = mul(cube(rng), s * lu(rng, 0.0, 1.0));
-            let d = if rng.random::<bool>() {
-                normalize(sub(add(c, mul(ball(rng), 1.5 * r)), o))
-            } else {
-                unit(rng)
-            };
-            mk(o, d, c, r)
-        }
-        Class::Inside => {
-            let s = lu(rng, -2.0, 3.0);
-            let c = mul(cube(rng), s);
-            let r = s * lu(rng, -1.0, 0.0);
-            let o = if rng.random_range(0..16) == 0 {
-                c
-            } else {
-                add(c, mul(ball(rng), 0.999 * r))
-            };
-            mk(o, unit(rng), c, r)
-        }
-        Class::OnSurface => {
-            if rng.random_range(0..4) == 0 {
-                // Exactly on the sphere: o = c + (a,b,c)·2^k with |(a,b,c)| = m, r = m·2^k
-                let q = QUADRUPLES[rng.random_range(0..QUADRUPLES.len())];
-                let scale = 2f64.powi(rng.random_range(-10..10));
-                let c = std::array::from_fn(|_| rng.random_range(-100..100) as f64 * scale);
-                let o = add(c, mul(shuffle_signs(rng, [q[0], q[1], q[2]]), scale));
-                mk(o, unit(rng), c, q[3] as f64 * scale)
-            } else {
-                // Rounded surface point, then up to ±3 ulps per coordinate
-                let s = lu(rng, -2.0, 3.0);
-                let c = mul(cube(rng), s);
-                let r = s * lu(rng, -1.0, 0.0);
-                let mut case = mk(add(c, mul(unit(rng), r)), unit(rng), c, r);
-                for x in case.o.iter_mut() {
-                    *x = nudge(*x, rng.random_range(-3..=3));
-                }
-                case
-            }
-        }
-        Class::Tangent => {
-            if rng.random_range(0..4) == 0 {
-                // Exactly tangent: axis-aligned d, offset (a,b,0)·2^k with |(a,b)| = m = r/2^k
-                let t = TRIPLES[rng.random_range(0..TRIPLES.len())];
-                let axis = rng.random_range(0..3);
-                let scale = 2f64.powi(rng.random_range(-10..10));
-                let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
-                let mut off = [0.0; 3];
-                off[i] = t[0] as f64 * scale * if rng.random::<bool>() { 1.0 } else { -1.0 };
-                off[j] = t[1] as f64 * scale * if rng.random::<bool>() { 1.0 } else { -1.0 };
-                let mut d = [0.0; 3];
-                d[axis] = if rng.random::<bool>() { 1.0 } else { -1.0 };
-                let c: [f64; 3] =
-                    std::array::from_fn(|_| rng.random_range(-100..100) as f64 * scale);
-                let back = rng.random_range(1..64) as f64 * scale;
-                let o = sub(add(c, off), mul(d, back));
-                mk(o, d, c, t[2] as f64 * scale)
-            } else {
-                // Rounded tangent: o = c + r·n⊥ − L·d, optionally nudged by ±k/2 ulps
-                let s = lu(rng, -2.0, 3.0);
-                let c = if rng.random::<bool>() {
-                    [0.0; 3]
-                } else {
-                    mul(cube(rng), s)
-                };
-                let r = s * lu(rng, -1.0, 0.0);
-                let d = unit(rng);
-                let n = perp(rng, d);
-                let o = sub(add(c, mul(n, r)), mul(d, r * rng.random_range(0.5..4.0)));
-                let mut case = mk(o, d, c, r);
-                case.r = nudge(case.r, rng.random_range(-8..=8));
-                case
-            }
-        }
-        Class::Behind => {
-            let s = lu(rng, -2.0, 3.0);
-            let c = mul(cube(rng), s);
-            let r = s * lu(rng, -2.0, 0.0);
-            let dist = r * lu(rng, 0.05, 3.0);
-            let away = unit(rng);
-            let o = add(c, mul(away, dist));
-            // Directions within the cone that keeps the whole sphere behind
-            let half = (r / dist).asin();
-            let spread = ((std::f64::consts::FRAC_PI_2 - half) * rng.random::<f64>()).tan();
-            let d = normalize(add(away, mul(perp(rng, away), spread)));
-            mk(o, d, c, r)
-        }
-        Class::FarSmall => {
-            let r = lu(rng, -3.0, 2.0);
-            let dist = r / lu(rng, -6.0, -2.0);
-            let o = mul(cube(rng), lu(rng, -1.0, 1.0));
-            let c = add(o, mul(unit(rng), dist));
-            let target = add(c, mul(ball(rng), 1.5 * r));
-            mk(o, normalize(sub(target, o)), c, r)
-        }
-        Class::Huge => {
-            let r = lu(rng, 4.0, 6.5);
-            let c = add([0.0, -r, 0.0], mul(cube(rng), 10.0));
-            // Height above the surface, down to where f32/f64 can no longer tell it from 0
-            let eps = 2f64.powi(1 - F::MANT_BITS as i32);
-            let h = r * lu(rng, eps.log10() - 1.0, -3.0);
-            let up = normalize(add([0.0, 1.0, 0.0], mul(cube(rng), 0.01)));
-            let o = add(c, mul(up, r + h));
-            let d = if rng.random_range(0..5) < 3 {
-                // Looking down at the floor
-                let mut v = unit(rng);
-                v[1] = -v[1].abs();
-                v
-            } else {
-                // Near the horizon, up to 0.1 rad either side
-                let tilt = lu(rng, -4.0, -1.0) * if rng.random::<bool>() { 1.0 } else { -1.0 };
-                normalize(add(perp(rng, up), mul(up, tilt)))
-            };
-            mk(o, d, c, r)
-        }
-        Class::Grazing => {
-            let s = lu(rng, -2.0, 3.0);
-            let c = if rng.random::<bool>() {
-                [0.0; 3]
-            } else {
-                mul(cube(rng), s)
-            };
-            let r = s * lu(rng, -1.0, 0.0);
-            let d = unit(rng);
-            let n = perp(rng, d);
-            let lo = (2.0 * K_ULPS * 2f64.powi(1 - F::MANT_BITS as i32)).log10() + 0.3;
-            let h = r * (1.0 + lu(rng, lo, -3.0) * if rng.random::<bool>() { 1.0 } else { -1.0 });
-            let o = sub(add(c, mul(n, h)), mul(d, r * rng.random_range(0.5..4.0)));
-            mk(o, d, c, r)
-        }
-        Class::Invalid => {
-            let mut case = propose::<F>(rng, Class::Random);
-            let mut s = case.scalars();
-            let i = rng.random_range(0..10);
-            let tiny = subnormal_scale::<F>();
-            match rng.random_range(0..10) {
-                0 => s[i] = F::NAN,
-                1 => s[i] = F::INFINITY,
-                2 => s[i] = -F::INFINITY,
-                3 => (3..6).for_each(|k| s[k] = F::ZERO),
-                4 => s[9] = F::ZERO,
-                5 => s[9] = -s[9],
-                6 => s[9] = F::NAN,
-                // A whole subnormal direction: valid, but |d|² underflows to 0
-                7 => (3..6).for_each(|k| s[k] = F::from_f64(s[k].to_f64() * tiny)),
-                // A whole scene at subnormal scale
-                8 => s.iter_mut().for_each(|x| {
-                    *x = F::from_f64(x.to_f64() / (1e4 * case.r.to_f64()) * tiny * 1e3)
-                }),
-                // One subnormal direction component
-                _ => s[3 + i % 3] = F::from_f64(tiny),
-            }
-            case = Case::from_scalars(s);
-            case
-        }
     }
+}
+
+/// [`Class::Random`]: general position.
+fn propose_random<F: Real>(rng: &mut ChaCha8Rng) -> Case<F> {
+    // Scene scale s, sphere within it, origin up to 10 s away, half the rays aimed
+    let s = lu(rng, -2.0, 3.0);
+    let c = mul(cube(rng), s);
+    let r = s * lu(rng, -2.0, 0.0);
+    let o = mul(cube(rng), s * lu(rng, 0.0, 1.0));
+    let d = if rng.random::<bool>() {
+        normalize(sub(add(c, mul(ball(rng), 1.5 * r)), o))
+    } else {
+        unit(rng)
+    };
+    mk(o, d, c, r)
+}
+
+/// [`Class::Inside`]: origin strictly inside, 1 in 16 at the centre.
+fn propose_inside<F: Real>(rng: &mut ChaCha8Rng) -> Case<F> {
+    let s = lu(rng, -2.0, 3.0);
+    let c = mul(cube(rng), s);
+    let r = s * lu(rng, -1.0, 0.0);
+    let o = if rng.random_range(0..16) == 0 {
+        c
+    } else {
+        add(c, mul(ball(rng), 0.999 * r))
+    };
+    mk(o, unit(rng), c, r)
+}
+
+/// [`Class::OnSurface`]: 1 in 4 exactly on the sphere, the rest within a few ulps of it.
+fn propose_on_surface<F: Real>(rng: &mut ChaCha8Rng) -> Case<F> {
+    if rng.random_range(0..4) == 0 {
+        // Exactly on the sphere: o = c + (a,b,c)·2^k with |(a,b,c)| = m, r = m·2^k
+        let q = QUADRUPLES[rng.random_range(0..QUADRUPLES.len())];
+        let scale = 2f64.powi(rng.random_range(-10..10));
+        let c = std::array::from_fn(|_| rng.random_range(-100..100) as f64 * scale);
+        let o = add(c, mul(shuffle_signs(rng, [q[0], q[1], q[2]]), scale));
+        mk(o, unit(rng), c, q[3] as f64 * scale)
+    } else {
+        // Rounded surface point, then up to ±3 ulps per coordinate
+        let s = lu(rng, -2.0, 3.0);
+        let c = mul(cube(rng), s);
+        let r = s * lu(rng, -1.0, 0.0);
+        let mut case = mk(add(c, mul(unit(rng), r)), unit(rng), c, r);
+        for x in case.o.iter_mut() {
+            *x = nudge(*x, rng.random_range(-3..=3));
+        }
+        case
+    }
+}
+
+/// [`Class::Tangent`]: 1 in 4 exactly tangent, the rest within a few ulps of it.
+fn propose_tangent<F: Real>(rng: &mut ChaCha8Rng) -> Case<F> {
+    if rng.random_range(0..4) == 0 {
+        // Exactly tangent: axis-aligned d, offset (a,b,0)·2^k with |(a,b)| = m = r/2^k
+        let t = TRIPLES[rng.random_range(0..TRIPLES.len())];
+        let axis = rng.random_range(0..3);
+        let scale = 2f64.powi(rng.random_range(-10..10));
+        let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+        let mut off = [0.0; 3];
+        off[i] = t[0] as f64 * scale * if rng.random::<bool>() { 1.0 } else { -1.0 };
+        off[j] = t[1] as f64 * scale * if rng.random::<bool>() { 1.0 } else { -1.0 };
+        let mut d = [0.0; 3];
+        d[axis] = if rng.random::<bool>() { 1.0 } else { -1.0 };
+        let c: [f64; 3] = std::array::from_fn(|_| rng.random_range(-100..100) as f64 * scale);
+        let back = rng.random_range(1..64) as f64 * scale;
+        let o = sub(add(c, off), mul(d, back));
+        mk(o, d, c, t[2] as f64 * scale)
+    } else {
+        // Rounded tangent: o = c + r·n⊥ − L·d, optionally nudged by ±k/2 ulps
+        let s = lu(rng, -2.0, 3.0);
+        let c = if rng.random::<bool>() {
+            [0.0; 3]
+        } else {
+            mul(cube(rng), s)
+        };
+        let r = s * lu(rng, -1.0, 0.0);
+        let d = unit(rng);
+        let n = perp(rng, d);
+        let o = sub(add(c, mul(n, r)), mul(d, r * rng.random_range(0.5..4.0)));
+        let mut case = mk(o, d, c, r);
+        case.r = nudge(case.r, rng.random_range(-8..=8));
+        case
+    }
+}
+
+/// [`Class::Behind`]: origin outside, the whole sphere behind it.
+fn propose_behind<F: Real>(rng: &mut ChaCha8Rng) -> Case<F> {
+    let s = lu(rng, -2.0, 3.0);
+    let c = mul(cube(rng), s);
+    let r = s * lu(rng, -2.0, 0.0);
+    let dist = r * lu(rng, 0.05, 3.0);
+    let away = unit(rng);
+    let o = add(c, mul(away, dist));
+    // Directions within the cone that keeps the whole sphere behind
+    let half = (r / dist).asin();
+    let spread = ((std::f64::consts::FRAC_PI_2 - half) * rng.random::<f64>()).tan();
+    let d = normalize(add(away, mul(perp(rng, away), spread)));
+    mk(o, d, c, r)
+}
+
+/// [`Class::FarSmall`]: a small, distant sphere, aimed at.
+fn propose_far_small<F: Real>(rng: &mut ChaCha8Rng) -> Case<F> {
+    let r = lu(rng, -3.0, 2.0);
+    let dist = r / lu(rng, -6.0, -2.0);
+    let o = mul(cube(rng), lu(rng, -1.0, 1.0));
+    let c = add(o, mul(unit(rng), dist));
+    let target = add(c, mul(ball(rng), 1.5 * r));
+    mk(o, normalize(sub(target, o)), c, r)
+}
+
+/// [`Class::Huge`]: a sphere used as a floor, the origin just above it.
+fn propose_huge<F: Real>(rng: &mut ChaCha8Rng) -> Case<F> {
+    let r = lu(rng, 4.0, 6.5);
+    let c = add([0.0, -r, 0.0], mul(cube(rng), 10.0));
+    // Height above the surface, down to where f32/f64 can no longer tell it from 0
+    let eps = 2f64.powi(1 - F::MANT_BITS as i32);
+    let h = r * lu(rng, eps.log10() - 1.0, -3.0);
+    let up = normalize(add([0.0, 1.0, 0.0], mul(cube(rng), 0.01)));
+    let o = add(c, mul(up, r + h));
+    let d = if rng.random_range(0..5) < 3 {
+        // Looking down at the floor
+        let mut v = unit(rng);
+        v[1] = -v[1].abs();
+        v
+    } else {
+        // Near the horizon, up to 0.1 rad either side
+        let tilt = lu(rng, -4.0, -1.0) * if rng.random::<bool>() { 1.0 } else { -1.0 };
+        normalize(add(perp(rng, up), mul(up, tilt)))
+    };
+    mk(o, d, c, r)
+}
+
+/// [`Class::Grazing`]: a ray near the limb, outside the tangent band.
+fn propose_grazing<F: Real>(rng: &mut ChaCha8Rng) -> Case<F> {
+    let s = lu(rng, -2.0, 3.0);
+    let c = if rng.random::<bool>() {
+        [0.0; 3]
+    } else {
+        mul(cube(rng), s)
+    };
+    let r = s * lu(rng, -1.0, 0.0);
+    let d = unit(rng);
+    let n = perp(rng, d);
+    let lo = (2.0 * K_ULPS * 2f64.powi(1 - F::MANT_BITS as i32)).log10() + 0.3;
+    let h = r * (1.0 + lu(rng, lo, -3.0) * if rng.random::<bool>() { 1.0 } else { -1.0 });
+    let o = sub(add(c, mul(n, h)), mul(d, r * rng.random_range(0.5..4.0)));
+    mk(o, d, c, r)
+}
+
+/// [`Class::Invalid`]: a random case with one value spoiled.
+fn propose_invalid<F: Real>(rng: &mut ChaCha8Rng) -> Case<F> {
+    let mut case = propose_random::<F>(rng);
+    let mut s = case.scalars();
+    let i = rng.random_range(0..10);
+    let tiny = subnormal_scale::<F>();
+    match rng.random_range(0..10) {
+        0 => s[i] = F::NAN,
+        1 => s[i] = F::INFINITY,
+        2 => s[i] = -F::INFINITY,
+        3 => (3..6).for_each(|k| s[k] = F::ZERO),
+        4 => s[9] = F::ZERO,
+        5 => s[9] = -s[9],
+        6 => s[9] = F::NAN,
+        // A whole subnormal direction: valid, but |d|² underflows to 0
+        7 => (3..6).for_each(|k| s[k] = F::from_f64(s[k].to_f64() * tiny)),
+        // A whole scene at subnormal scale
+        8 => s
+            .iter_mut()
+            .for_each(|x| *x = F::from_f64(x.to_f64() / (1e4 * case.r.to_f64()) * tiny * 1e3)),
+        // One subnormal direction component
+        _ => s[3 + i % 3] = F::from_f64(tiny),
+    }
+    case = Case::from_scalars(s);
+    case
 }
 
 /// High-precision geometry of a valid case, in units of `r`'s ulp and of `r`.
