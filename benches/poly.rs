@@ -13,11 +13,11 @@
 //! (the chapter's known failures) are counted and printed, so the timing says what it times.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use rayproof::audit::generic::generate;
-use rayproof::audit::shape::{judge, probe_line, Shape, Truth};
+use rayproof::audit::run::generate;
+use rayproof::audit::Judgement;
+use rayproof::audit::{judge, probe_line, Shape, Truth};
 use rayproof::numerics::real::Real;
 use rayproof::numerics::Precision;
-use rayproof::shapes::sphere::Judgement;
 use rayproof::shapes::{poly, registry};
 use std::hint::black_box;
 use std::time::Duration;
@@ -27,8 +27,8 @@ const PER_CLASS: u64 = 128;
 
 /// The batch of a shape: `(class, input)` round robin over the valid classes.
 fn batch(shape: &dyn Shape, prec: Precision) -> Vec<(usize, Vec<f64>)> {
-    let classes: Vec<usize> = (0..shape.classes().len())
-        .filter(|&c| shape.classes()[c] != "invalid")
+    let classes: Vec<usize> = (0..shape.info().classes.len())
+        .filter(|&c| shape.info().classes[c] != "invalid")
         .collect();
     (0..PER_CLASS)
         .flat_map(|i| classes.iter().map(move |&c| (c, i)))
@@ -39,11 +39,11 @@ fn batch(shape: &dyn Shape, prec: Precision) -> Vec<(usize, Vec<f64>)> {
 /// Judges every method on the batch; panics where the tolerance table forbids a failure.
 fn validate(shape: &dyn Shape, prec: Precision, cases: &[(usize, Vec<f64>)]) {
     let truths: Vec<Truth> = cases.iter().map(|(_, v)| shape.oracle(v, prec)).collect();
-    for (m, info) in shape.methods().iter().enumerate() {
+    for (m, info) in shape.info().methods.iter().enumerate() {
         let mut wrong = 0;
         for ((class, input), truth) in cases.iter().zip(&truths) {
             let well_posed = matches!(truth, Truth::Answer(e) if !e.ill_posed);
-            let j = judge(truth, &shape.run(m, input, prec), shape.metric(), prec);
+            let j = judge(truth, &shape.run(m, input, prec), shape.info().metric, prec);
             let e = shape.expect(m, prec, *class);
             let too_far = matches!(j, Judgement::Ok { ulps: Some(u) } if u > e.max_ulps);
             if well_posed && (j.is_wrong() || too_far) {
@@ -54,7 +54,7 @@ fn validate(shape: &dyn Shape, prec: Precision, cases: &[(usize, Vec<f64>)]) {
                     shape.name(),
                     info.name,
                     prec.name(),
-                    probe_line(shape, prec, input)
+                    probe_line(shape.name(), prec, input)
                 );
             }
         }
@@ -91,10 +91,10 @@ fn time_polys<F: Real>(c: &mut Criterion, shape: &dyn Shape, prec: Precision) {
     let cases = batch(shape, prec);
     validate(shape, prec, &cases);
     let coeffs = ascending::<F>(&cases);
-    let n = shape.args().len() - 1;
+    let n = shape.info().args.len() - 1;
     let mut g = c.benchmark_group(format!("poly/{}", shape.name()));
     g.throughput(Throughput::Elements(coeffs.len() as u64));
-    for (m, info) in shape.methods().iter().enumerate() {
+    for (m, info) in shape.info().methods.iter().enumerate() {
         let f = solver::<F>(n, m);
         g.bench_function(format!("{}/{}", info.name, prec.name()), |b| {
             b.iter(|| {
@@ -112,7 +112,7 @@ fn time_shape(c: &mut Criterion, shape: &dyn Shape, prec: Precision) {
     validate(shape, prec, &cases);
     let mut g = c.benchmark_group(format!("poly/{}", shape.name()));
     g.throughput(Throughput::Elements(cases.len() as u64));
-    for (m, info) in shape.methods().iter().enumerate() {
+    for (m, info) in shape.info().methods.iter().enumerate() {
         g.bench_function(format!("{}/{}", info.name, prec.name()), |b| {
             b.iter(|| {
                 for (_, v) in &cases {

@@ -9,8 +9,8 @@
 //! counted and printed, so the timing is honest about what it times.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use rayproof::audit::generic::generate;
-use rayproof::audit::shape::{judge, probe_line, Shape, Truth};
+use rayproof::audit::run::generate;
+use rayproof::audit::{judge, probe_line, Shape, Truth};
 use rayproof::numerics::real::Real;
 use rayproof::numerics::Precision;
 use rayproof::shapes::{aabb, quadric};
@@ -22,8 +22,8 @@ const PER_CLASS: u64 = 256;
 
 /// The batch of a shape: every valid class, round robin by index.
 fn batch(shape: &dyn Shape, prec: Precision) -> Vec<Vec<f64>> {
-    let classes: Vec<usize> = (0..shape.classes().len())
-        .filter(|&c| shape.classes()[c] != "invalid")
+    let classes: Vec<usize> = (0..shape.info().classes.len())
+        .filter(|&c| shape.info().classes[c] != "invalid")
         .collect();
     (0..PER_CLASS)
         .flat_map(|i| classes.iter().map(move |&c| (c, i)))
@@ -33,16 +33,15 @@ fn batch(shape: &dyn Shape, prec: Precision) -> Vec<Vec<f64>> {
 
 /// Judges every method on every case; panics on a robust method's wrong verdict.
 fn validate(shape: &dyn Shape, prec: Precision, cases: &[Vec<f64>]) {
-    for (m, info) in shape.methods().iter().enumerate() {
+    for (m, info) in shape.info().methods.iter().enumerate() {
         let mut wrong = 0;
         for v in cases {
             let truth = shape.oracle(v, prec);
             let ill = matches!(&truth, Truth::Answer(e) if e.ill_posed);
-            let j = judge(&truth, &shape.run(m, v, prec), shape.metric(), prec);
+            let j = judge(&truth, &shape.run(m, v, prec), shape.info().metric, prec);
             if !ill && j.is_wrong() {
                 wrong += 1;
-                let by_design =
-                    shape.name() == "box" && j == rayproof::shapes::sphere::Judgement::FalseHit;
+                let by_design = shape.name() == "box" && j == rayproof::audit::Judgement::FalseHit;
                 assert!(
                     !info.robust || by_design,
                     "{} {} {}: {:?}, refusing to time\n  {}",
@@ -50,7 +49,7 @@ fn validate(shape: &dyn Shape, prec: Precision, cases: &[Vec<f64>]) {
                     info.name,
                     prec.name(),
                     j,
-                    probe_line(shape, prec, v)
+                    probe_line(shape.name(), prec, v)
                 );
             }
         }
@@ -136,7 +135,7 @@ fn time_in<F: Real>(c: &mut Criterion, shape: &dyn Shape, prec: Precision) {
     let inputs: Vec<In<F>> = cases.iter().map(|v| typed::<F>(v)).collect();
     let mut g = c.benchmark_group(format!("{}/{}", shape.name(), prec.name()));
     g.throughput(Throughput::Elements(inputs.len() as u64));
-    for (info, f) in shape.methods().iter().zip(methods::<F>(shape.name())) {
+    for (info, f) in shape.info().methods.iter().zip(methods::<F>(shape.name())) {
         g.bench_function(info.name, |b| {
             b.iter(|| {
                 let f = black_box(f);

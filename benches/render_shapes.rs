@@ -12,12 +12,12 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::DVec3;
 use rand::SeedableRng;
-use rayproof::audit::shape::{judge, Answer, Metric, Truth};
+use rayproof::audit::Judgement;
+use rayproof::audit::{judge, Answer, Metric, Truth};
 use rayproof::numerics::Precision;
 use rayproof::render::geom::{routine_input, sample_rays, solid_hit, Prim};
 use rayproof::render::{build_geometry, scene};
 use rayproof::shapes::shape_by_name;
-use rayproof::shapes::sphere::Judgement;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::Duration;
@@ -53,7 +53,7 @@ fn validate(p: &Prim, rays: &[(DVec3, DVec3)]) -> usize {
             Judgement::Ok { .. } => judged += 1,
             j => panic!(
                 "{name}: {j:?}; refusing to time. Replay: {}",
-                rayproof::audit::shape::probe_line(shape, Precision::F64, &input)
+                rayproof::audit::shape::probe_line(shape.name(), Precision::F64, &input)
             ),
         }
     }

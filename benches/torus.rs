@@ -12,11 +12,11 @@
 
 use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
-use rayproof::audit::generic::generate;
-use rayproof::audit::shape::{judge, probe_line, Shape, Truth};
+use rayproof::audit::run::generate;
+use rayproof::audit::Judgement;
+use rayproof::audit::{judge, probe_line, Shape, Truth};
 use rayproof::numerics::real::Real;
 use rayproof::numerics::Precision;
-use rayproof::shapes::sphere::Judgement;
 use rayproof::shapes::torus::{
     cases, methods, pick, torus_normal, torus_robust_hit, Torus, METHODS,
 };
@@ -60,7 +60,7 @@ fn validate<F: Real>(b: &Batch<F>, p: Precision) {
                 continue;
             }
             posed += 1;
-            let j = judge(truth, &Torus.run(m, x, p), Torus.metric(), p);
+            let j = judge(truth, &Torus.run(m, x, p), Torus.info().metric, p);
             let e = Torus.expect(m, p, *class);
             let beyond = matches!(j, Judgement::Ok { ulps: Some(u) } if u > e.max_ulps);
             if !j.is_wrong() && !beyond {
@@ -75,7 +75,7 @@ fn validate<F: Real>(b: &Batch<F>, p: Precision) {
                 F::NAME,
                 j.verdict_word(),
                 cases::CLASSES[*class],
-                probe_line(&Torus, p, x)
+                probe_line(&Torus.name(), p, x)
             );
         }
         eprintln!(

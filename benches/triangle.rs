@@ -9,8 +9,8 @@
 //! line); the other methods' wrong verdicts are counted and printed.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use rayproof::audit::generic::generate;
-use rayproof::audit::shape::{judge, probe_line, Shape, Truth};
+use rayproof::audit::run::generate;
+use rayproof::audit::{judge, probe_line, Shape, Truth};
 use rayproof::numerics::Precision;
 use rayproof::shapes::optics::{Reflect, Refract};
 use rayproof::shapes::triangle::{method, Triangle, METHODS};
@@ -28,7 +28,12 @@ fn batch(shape: &dyn Shape, classes: &[&str], per: u64, prec: Precision) -> Vec<
     classes
         .iter()
         .flat_map(|c| {
-            let k = shape.classes().iter().position(|x| x == c).expect("class");
+            let k = shape
+                .info()
+                .classes
+                .iter()
+                .position(|x| x == c)
+                .expect("class");
             (0..per).filter_map(move |i| generate(shape, SEED, k, prec, i))
         })
         .collect()
@@ -37,13 +42,13 @@ fn batch(shape: &dyn Shape, classes: &[&str], per: u64, prec: Precision) -> Vec<
 /// Judges every method on every well-posed case; robust methods must be right.
 fn validate(shape: &dyn Shape, cases: &[Vec<f64>], prec: Precision) {
     let truths: Vec<Truth> = cases.iter().map(|v| shape.oracle(v, prec)).collect();
-    for (m, info) in shape.methods().iter().enumerate() {
+    for (m, info) in shape.info().methods.iter().enumerate() {
         let mut wrong = 0;
         for (v, t) in cases.iter().zip(&truths) {
             if matches!(t, Truth::Answer(e) if e.ill_posed) {
                 continue;
             }
-            let j = judge(t, &shape.run(m, v, prec), shape.metric(), prec);
+            let j = judge(t, &shape.run(m, v, prec), shape.info().metric, prec);
             if j.is_wrong() || (matches!(t, Truth::Invalid) && j.verdict_word() != "invalid") {
                 wrong += 1;
                 assert!(
@@ -52,7 +57,7 @@ fn validate(shape: &dyn Shape, cases: &[Vec<f64>], prec: Precision) {
                     shape.name(),
                     info.name,
                     j.verdict_word(),
-                    probe_line(shape, prec, v)
+                    probe_line(shape.name(), prec, v)
                 );
             }
         }
@@ -101,7 +106,7 @@ fn vectors(c: &mut Criterion, shape: &dyn Shape, prec: Precision) {
     validate(shape, &cases, prec);
     let mut g = c.benchmark_group(format!("{}/generic", shape.name()));
     g.throughput(Throughput::Elements(cases.len() as u64));
-    for (m, info) in shape.methods().iter().enumerate() {
+    for (m, info) in shape.info().methods.iter().enumerate() {
         g.bench_function(format!("{}/{}", info.name, prec.name()), |b| {
             b.iter(|| {
                 black_box(&cases)

@@ -40,76 +40,75 @@ fn probe_json_has_the_documented_shape() {
     let o = rayproof(&[
         "probe",
         "sphere",
-        "--origin",
-        "0,0,-5",
-        "--dir",
-        "0,0,1",
-        "--center",
-        "0,0,0",
-        "--radius",
-        "1",
         "--precision",
         "f32",
         "--json",
+        "--",
+        "0",
+        "0",
+        "-5",
+        "0",
+        "0",
+        "1",
+        "0",
+        "0",
+        "0",
+        "1",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let v: Value = serde_json::from_slice(&o.stdout).expect("JSON");
+    assert_eq!(v["shape"], "sphere");
     assert_eq!(v["precision"], "f32");
+    assert_eq!(v["inputs"].as_array().unwrap().len(), 10);
     let oracle = &v["oracle"];
-    assert_eq!(oracle["hit"], true);
+    assert_eq!(oracle["verdict"], "count 1");
     assert_eq!(oracle["ill_posed"], false);
-    assert_eq!(oracle["t_f32"], "0x1p+2");
-    assert_eq!(oracle["t_f64"], "0x1p+2");
-    let roots = oracle["roots"].as_array().unwrap();
-    assert_eq!(roots.len(), 2);
+    assert_eq!(oracle["values"][0], "0x1p+2");
+    let detail = &v["oracle_detail"];
+    assert_eq!(detail["t (f32)"], "0x1p+2");
+    assert_eq!(detail["t (f64)"], "0x1p+2");
     let digits = |s: &str| s.chars().filter(|c| c.is_ascii_digit()).count();
-    assert!(digits(roots[0].as_str().unwrap()) >= 40);
-    assert!(oracle["t"]
-        .as_str()
-        .unwrap()
-        .starts_with("4.000000000000000000000000000000000000000"));
-    let results = v["results"].as_array().unwrap();
+    let root = detail["root t1"].as_str().unwrap();
+    assert!(digits(root) >= 40 && root.starts_with("4.000000000000000000000000000000000000000"));
+    let methods = v["methods"].as_array().unwrap();
     assert_eq!(
-        results.len(),
+        methods.len(),
         rayproof::shapes::sphere::methods::METHODS.len()
     );
-    for r in results {
-        assert_eq!(r["hit"], true);
-        assert_eq!(r["t"], "0x1p+2");
-        assert_eq!(r["ulp_error"], 0);
-        assert_eq!(r["verdict"], "ok");
+    for r in methods {
+        assert_eq!(r["values"][0], "0x1p+2");
+        assert_eq!(r["ulps"], 0);
+        assert_eq!(r["judgement"], "ok");
         assert!(r["method"].is_string());
     }
+}
+
+/// `probe sphere --json` with the ten values.
+fn probe_sphere(prec: &str, values: &[&str]) -> Value {
+    let mut args = vec!["probe", "sphere", "--precision", prec, "--json", "--"];
+    args.extend(values);
+    let o = rayproof(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_slice(&o.stdout).expect("JSON")
 }
 
 #[test]
 fn probe_takes_hex_floats_and_reports_findings() {
     // A far-small sphere that the f32 textbook discriminant misses (from the default audit)
-    let o = rayproof(&[
-        "probe",
-        "sphere",
-        "--origin",
-        "0x1p+0,-0x1p+0,0x0p+0",
-        "--dir",
-        "0x1p+0,0,0",
-        "--center",
-        "0x1p+20,-0x1p+0,0",
-        "--radius",
-        "0x1p-3",
-        "--precision",
+    let v = probe_sphere(
         "f32",
-        "--json",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert_eq!(v["oracle"]["hit"], true);
+        &[
+            "0x1p+0", "-0x1p+0", "0x0p+0", "0x1p+0", "0", "0", "0x1p+20", "-0x1p+0", "0", "0x1p-3",
+        ],
+    );
+    assert_eq!(v["oracle"]["verdict"], "count 1");
     let verdict = |m: &str| {
-        v["results"]
+        v["methods"]
             .as_array()
             .unwrap()
             .iter()
             .find(|r| r["method"] == m)
-            .unwrap()["verdict"]
+            .unwrap()["judgement"]
             .as_str()
             .unwrap()
             .to_string()
@@ -122,35 +121,23 @@ fn probe_takes_hex_floats_and_reports_findings() {
 
 #[test]
 fn probe_reports_invalid_input() {
-    let o = rayproof(&[
-        "probe", "sphere", "--origin", "nan,0,0", "--dir", "0,0,1", "--center", "0,0,0",
-        "--radius", "1", "--json",
-    ]);
-    assert!(o.status.success());
-    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert_eq!(v["oracle"]["valid"], false);
-    for r in v["results"].as_array().unwrap() {
-        assert_eq!(r["verdict"], "invalid");
+    let v = probe_sphere("f64", &["nan", "0", "0", "0", "0", "1", "0", "0", "0", "1"]);
+    assert_eq!(v["oracle"]["verdict"], "invalid");
+    for r in v["methods"].as_array().unwrap() {
+        assert_eq!(r["judgement"], "invalid");
     }
 }
 
 #[test]
 fn malformed_arguments_get_one_line_and_exit_2() {
+    let o = rayproof(&["probe", "sphere", "--", "1", "2"]);
+    assert_one_line_error(&o, "takes 10 values");
     let o = rayproof(&[
-        "probe", "sphere", "--origin", "1,2", "--dir", "0,0,1", "--center", "0,0,0", "--radius",
-        "1",
+        "probe", "sphere", "--", "1", "2", "x", "0", "0", "1", "0", "0", "0", "1",
     ]);
-    assert_one_line_error(&o, "--origin");
-    let o = rayproof(&[
-        "probe", "sphere", "--origin", "1,2,x", "--dir", "0,0,1", "--center", "0,0,0", "--radius",
-        "1",
-    ]);
-    assert_one_line_error(&o, "--origin");
-    let o = rayproof(&[
-        "probe", "sphere", "--origin", "0,0,0", "--dir", "0,0,1", "--center", "0,0,0", "--radius",
-        "one",
-    ]);
-    assert_one_line_error(&o, "--radius");
+    assert_one_line_error(&o, "oz: 'x'");
+    let o = rayproof(&["probe", "nowhere", "--", "1"]);
+    assert_one_line_error(&o, "unknown shape 'nowhere'");
     let o = rayproof(&["audit", "--cases", "0"]);
     assert_one_line_error(&o, "--cases");
     let o = rayproof(&["audit", "--method", "magic"]);
@@ -159,6 +146,8 @@ fn malformed_arguments_get_one_line_and_exit_2() {
     assert_one_line_error(&o, "--precision");
     let o = rayproof(&["audit", "--class", "nowhere"]);
     assert_one_line_error(&o, "--class");
+    let o = rayproof(&["audit", "--shape", "hexagon"]);
+    assert_one_line_error(&o, "--shape");
     let o = rayproof(&["audit", "--shard", "3/2"]);
     assert_one_line_error(&o, "--shard");
     let o = rayproof(&["audit", "--frobnicate"]);
@@ -209,12 +198,14 @@ fn audit_json_is_byte_identical_for_any_thread_count() {
     assert_eq!(ja, jb, "JSON differs between 1 and 2 threads");
     let v: Value = serde_json::from_slice(&ja).unwrap();
     assert_eq!(v["seed"], 42);
-    assert_eq!(v["rows"].as_array().unwrap().len(), 7 * 2 * 9);
+    let sphere = &v["shapes"][0];
+    assert_eq!(sphere["shape"], "sphere");
+    assert_eq!(sphere["rows"].as_array().unwrap().len(), 7 * 2 * 9);
     let table = std::fs::read_to_string(&md).unwrap();
     assert!(table.contains("| f32 | far_small | algebraic |"));
     // The printed table names every class and the worst cases carry probe lines
     let text = String::from_utf8_lossy(&one.stdout);
-    assert!(text.contains("f32 · far_small") && text.contains("rayproof probe sphere --origin"));
+    assert!(text.contains("f32 · far_small") && text.contains("rayproof probe sphere --precision"));
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -247,6 +238,6 @@ fn shards_cover_the_case_space() {
             shard,
         ]);
         let text = String::from_utf8_lossy(&o.stdout);
-        assert!(text.contains("25 cases × 1 methods"), "{text}");
+        assert!(text.contains("sphere: 25 cases × 1 methods"), "{text}");
     }
 }

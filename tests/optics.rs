@@ -4,8 +4,9 @@
 //! (length and angle of R, Snell's law and unit length of T).
 
 use proptest::prelude::*;
-use rayproof::audit::generic::{self as audit, Options, ShapeReport};
-use rayproof::audit::shape::{Shape, Truth};
+use rayproof::audit::plan::Options;
+use rayproof::audit::{audit_shape, table, ShapeReport};
+use rayproof::audit::{Shape, Truth};
 use rayproof::numerics::Precision;
 use rayproof::shapes::optics::{
     self, reflect_chapter, reflect_fma, refract_chapter, refract_pbrt, refract_wide, Reflect,
@@ -81,14 +82,15 @@ fn report(shape: &'static dyn Shape) -> &'static ShapeReport {
     static R: OnceLock<[ShapeReport; 2]> = OnceLock::new();
     let all = R.get_or_init(|| {
         [&Reflect as &dyn Shape, &Refract].map(|s| {
-            audit::run(
+            audit_shape(
                 s,
                 &Options {
-                    cases: 1000,
+                    cases: Some(1000),
                     seed: 1,
                     precisions: Precision::ALL.to_vec(),
                     methods: vec![],
                     classes: vec![],
+                    ..Default::default()
                 },
             )
             .expect("audit runs")
@@ -108,7 +110,7 @@ fn check_class(shape: &'static dyn Shape, class: &str) {
         ..report(shape).clone()
     };
     assert!(!one.rows.is_empty());
-    let breaks = audit::check(shape, &one);
+    let breaks = &one.failures();
     assert!(breaks.is_empty(), "{}", breaks.join("\n"));
     for r in &one.rows {
         assert_eq!(r.cap_reached, 0);
@@ -155,9 +157,9 @@ class_tests!(
 #[test]
 fn default_seed_audits_pass_their_tables() {
     for s in [&Reflect as &'static dyn Shape, &Refract] {
-        let breaks = audit::check(s, report(s));
+        let breaks = report(s.failures());
         assert!(breaks.is_empty(), "{}", breaks.join("\n"));
-        println!("{}", audit::table(report(s)));
+        println!("{}", table::shape_table(report(s)));
     }
 }
 
@@ -265,9 +267,9 @@ proptest! {
     fn arbitrary_bits_never_panic(bits in proptest::collection::vec(any::<u32>(), 7)) {
         let v: Vec<f64> = bits.iter().map(|&b| f32::from_bits(b) as f64).collect();
         for (shape, robust) in [(&Reflect as &dyn Shape, 1usize), (&Refract, 2)] {
-            let input = &v[..shape.args().len()];
+            let input = &v[..shape.info().args.len()];
             let truth = shape.oracle(input, Precision::F32);
-            for m in 0..shape.methods().len() {
+            for m in 0..shape.info().methods.len() {
                 let a = shape.run(m, input, Precision::F32);
                 if m == robust && truth == Truth::Invalid {
                     prop_assert_eq!(a.count, 0);

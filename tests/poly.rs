@@ -3,12 +3,13 @@
 //! proptest stability suites and invalid inputs.
 
 use proptest::prelude::*;
-use rayproof::audit::generic::{self as audit, Options, Row, ShapeReport};
-use rayproof::audit::shape::{judge, Answer, Shape, Truth};
+use rayproof::audit::plan::Options;
+use rayproof::audit::Judgement;
+use rayproof::audit::{audit_shape, table, Row, ShapeReport};
+use rayproof::audit::{judge, Answer, Shape, Truth};
 use rayproof::numerics::exact::{q, round_q};
 use rayproof::numerics::real::Real;
 use rayproof::numerics::Precision;
-use rayproof::shapes::sphere::Judgement;
 use rayproof::shapes::{poly, recip, roots, sturm};
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
@@ -16,14 +17,15 @@ use std::sync::{Mutex, OnceLock};
 const CASES: u64 = 300;
 
 fn report(shape: &dyn Shape, cases: u64) -> ShapeReport {
-    audit::run(
+    audit_shape(
         shape,
         &Options {
-            cases,
+            cases: Some(cases),
             seed: 1,
             precisions: Precision::ALL.to_vec(),
             methods: vec![],
             classes: vec![],
+            ..Default::default()
         },
     )
     .expect("known selection")
@@ -57,7 +59,12 @@ fn expected(shape: &dyn Shape, input: &[f64], prec: Precision) -> rayproof::audi
 
 fn verdict(shape: &dyn Shape, m: usize, input: &[f64], prec: Precision) -> Judgement {
     let truth = shape.oracle(input, prec);
-    judge(&truth, &shape.run(m, input, prec), shape.metric(), prec)
+    judge(
+        &truth,
+        &shape.run(m, input, prec),
+        shape.info().metric,
+        prec,
+    )
 }
 
 // ---- the oracle on exact cases ----
@@ -262,12 +269,12 @@ fn recip_oracle_exact_cases() {
 
 fn check_shape(shape: &'static dyn Shape) {
     let r = audited(shape);
-    let breaks = audit::check(shape, &r);
+    let breaks = &r.failures();
     assert!(
         breaks.is_empty(),
         "{}\n{}",
         breaks.join("\n"),
-        audit::table(&r)
+        table::shape_table(&r)
     );
     for row in &r.rows {
         let what = format!(
@@ -345,7 +352,7 @@ fn teeth_textbook_quadratic_on_kahan() {
         assert!(
             naive.wrong() > 0 || naive.ulps.max > 100.0,
             "{}",
-            audit::table(&r)
+            table::shape_table(&r)
         );
         assert!(robust.wrong() == 0 && robust.ulps.max <= 4.0);
     }
@@ -355,7 +362,8 @@ fn teeth_textbook_quadratic_on_kahan() {
 fn teeth_ferrari_f32_fails_where_yuksel_does_not() {
     let r = audited(&roots::QUARTIC);
     let failing: Vec<&str> = roots::QUARTIC
-        .classes()
+        .info()
+        .classes
         .iter()
         .copied()
         .filter(|&c| c != roots::INVALID)
@@ -394,7 +402,11 @@ fn teeth_newton_bad_starts_fail() {
         for prec in Precision::ALL {
             let out = row(&r, "x0+newton", prec, recip::START_OUT_OF_BOUND);
             let inb = row(&r, "x0+newton", prec, recip::START_IN_BOUND);
-            assert!(out.wrong() > out.well_posed / 2, "{}", audit::table(&r));
+            assert!(
+                out.wrong() > out.well_posed / 2,
+                "{}",
+                table::shape_table(&r)
+            );
             assert!(inb.wrong() == 0 && inb.ulps.max <= 2.0);
         }
     }
@@ -421,7 +433,7 @@ fn bad_values() -> Vec<f64> {
 #[test]
 fn invalid_inputs_never_panic() {
     for shape in rayproof::shapes::registry() {
-        let n = shape.args().len();
+        let n = shape.info().args.len();
         for prec in Precision::ALL {
             for (i, &b) in bad_values().iter().enumerate() {
                 for k in 0..n {
@@ -439,7 +451,7 @@ fn invalid_inputs_never_panic() {
                         })
                         .collect();
                     let truth = shape.oracle(&input, prec);
-                    for (m, info) in shape.methods().iter().enumerate() {
+                    for (m, info) in shape.info().methods.iter().enumerate() {
                         let a = shape.run(m, &input, prec);
                         if info.robust && truth == Truth::Invalid {
                             assert_eq!(
@@ -460,7 +472,7 @@ fn invalid_inputs_never_panic() {
                     zero[4..].copy_from_slice(&[-1.0, 1.0, 0.0]);
                 }
                 assert_eq!(shape.oracle(&zero, prec), Truth::Invalid);
-                let robust = shape.methods().iter().position(|m| m.robust).unwrap();
+                let robust = shape.info().methods.iter().position(|m| m.robust).unwrap();
                 assert_eq!(shape.run(robust, &zero, prec), Answer::miss());
             }
         }
@@ -522,9 +534,9 @@ proptest! {
         let _ = poly::newton_plain(&c[..4], c[4]);
         let _ = poly::newton_bracketed(&c32[..4], c32[4], c32[0], c32[1]);
         for shape in rayproof::shapes::registry() {
-            let input: Vec<f64> = c32.iter().cycle().take(shape.args().len()).map(|&x| x as f64).collect();
+            let input: Vec<f64> = c32.iter().cycle().take(shape.info().args.len()).map(|&x| x as f64).collect();
             let _ = shape.oracle(&input, Precision::F32);
-            for m in 0..shape.methods().len() {
+            for m in 0..shape.info().methods.len() {
                 let _ = shape.run(m, &input, Precision::F32);
             }
         }
@@ -560,9 +572,9 @@ fn print_tables() {
             continue;
         }
         let r = report(s, n);
-        println!("{}", audit::table(&r));
-        println!("{}", audit::worst_cases(&r, 2));
-        for b in audit::check(s, &r) {
+        println!("{}", table::shape_table(&r));
+        println!("{}", table::worst_cases(&r, 2));
+        for b in &r.failures() {
             println!("CHECK: {b}");
         }
     }

@@ -4,8 +4,9 @@
 //! reintersection.
 
 use proptest::prelude::*;
-use rayproof::audit::generic::{self as audit, Options, Row, ShapeReport};
-use rayproof::audit::shape::{Answer, Shape, Truth};
+use rayproof::audit::plan::Options;
+use rayproof::audit::{audit_shape, table, Row, ShapeReport};
+use rayproof::audit::{Answer, Shape, Truth};
 use rayproof::numerics::exact;
 use rayproof::numerics::Precision;
 use rayproof::shapes::{aabb, quadric, reintersect};
@@ -16,14 +17,15 @@ use std::sync::OnceLock;
 const CASES: u64 = 300;
 
 fn audit_of(shape: &dyn Shape) -> ShapeReport {
-    audit::run(
+    audit_shape(
         shape,
         &Options {
-            cases: CASES,
+            cases: Some(CASES),
             seed: 1,
             precisions: Precision::ALL.to_vec(),
             methods: vec![],
             classes: vec![],
+            ..Default::default()
         },
     )
     .expect("selection is valid")
@@ -216,7 +218,7 @@ fn public_functions_agree_with_the_shapes() {
 // ---- every row of every audit against the tolerance table ----
 
 fn check_report(shape: &dyn Shape, r: &ShapeReport) {
-    let breaks = audit::check(shape, r);
+    let breaks = r.failures();
     assert!(breaks.is_empty(), "{}", breaks.join("\n"));
     for row in &r.rows {
         let what = format!(
@@ -372,7 +374,7 @@ fn every_shape() -> [&'static dyn Shape; 4] {
 /// Runs the oracle and every method; checks the robust methods reject invalid input.
 fn no_panic_and_reject(shape: &dyn Shape, v: &[f64], prec: Precision) {
     let truth = shape.oracle(v, prec);
-    for (m, info) in shape.methods().iter().enumerate() {
+    for (m, info) in shape.info().methods.iter().enumerate() {
         let a: Answer = shape.run(m, v, prec);
         if info.robust {
             if truth == Truth::Invalid {
@@ -391,7 +393,7 @@ fn no_panic_and_reject(shape: &dyn Shape, v: &[f64], prec: Precision) {
 fn invalid_inputs_are_rejected() {
     let specials = [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 0.0, -0.0, -1.0];
     for shape in every_shape() {
-        let n = shape.args().len();
+        let n = shape.info().args.len();
         for prec in Precision::ALL {
             for i in 0..n {
                 for &x in &specials {
@@ -424,7 +426,7 @@ proptest! {
     #[test]
     fn arbitrary_bits_never_panic(bits in prop::collection::vec(any::<u32>(), 12), which in 0usize..4) {
         let shape = every_shape()[which];
-        let v: Vec<f64> = bits[..shape.args().len()].iter().map(|&b| f32::from_bits(b) as f64).collect();
+        let v: Vec<f64> = bits[..shape.info().args.len()].iter().map(|&b| f32::from_bits(b) as f64).collect();
         no_panic_and_reject(shape, &v, Precision::F32);
     }
 
@@ -560,6 +562,6 @@ fn print_tables() {
         cylinder_report(),
         normal_report(),
     ] {
-        println!("{}", audit::table(r));
+        println!("{}", table::shape_table(r));
     }
 }

@@ -733,11 +733,11 @@ fn rays_from_inside_and_degenerate_directions_never_panic() {
 #[test]
 fn renderer_calls_agree_with_the_exact_oracles() {
     use rand::SeedableRng;
-    use rayproof::audit::shape::{judge, Metric, Truth};
+    use rayproof::audit::Judgement;
+    use rayproof::audit::{judge, Metric, Truth};
     use rayproof::numerics::Precision;
     use rayproof::render::geom::{routine_input, sample_rays, solid_hit};
     use rayproof::shapes::shape_by_name;
-    use rayproof::shapes::sphere::Judgement;
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference/scenes/shapes.toml");
     let s = scene::load(&path).unwrap();
     let (geo, _) = rayproof::render::build_geometry(&s);
@@ -771,13 +771,17 @@ fn renderer_calls_agree_with_the_exact_oracles() {
                         worst_line = format!(
                             "{max_ulps} ulps at t = {:?}: {}",
                             answer.values,
-                            rayproof::audit::shape::probe_line(shape, Precision::F64, &input)
+                            rayproof::audit::shape::probe_line(
+                                shape.name(),
+                                Precision::F64,
+                                &input
+                            )
                         );
                     }
                 }
                 j => wrong.push(format!(
                     "{j:?}: {}",
-                    rayproof::audit::shape::probe_line(shape, Precision::F64, &input)
+                    rayproof::audit::shape::probe_line(shape.name(), Precision::F64, &input)
                 )),
             }
         };
@@ -793,13 +797,12 @@ fn renderer_calls_agree_with_the_exact_oracles() {
         // The routine's own bound for its `generic` class (the renderer's rays are generic; the
         // torus table notes that origins close to the surface, as secondary rays have, cost it
         // the most there)
-        let robust = shape.methods().iter().position(|m| m.robust).unwrap();
-        let generic = shape
-            .classes()
-            .iter()
-            .position(|c| *c == "generic")
-            .unwrap();
-        let bound = shape.expect(robust, Precision::F64, generic).max_ulps;
+        let info = shape.info();
+        let robust = info.methods.iter().find(|m| m.robust).unwrap();
+        let bound = rayproof::audit::tolerance::Table::built_in()
+            .rule(info.name, robust.name, Precision::F64, "generic")
+            .and_then(|r| r.max_ulps)
+            .expect("the robust rows hold a bound");
         assert!(
             max_ulps <= bound,
             "{name}: {max_ulps} ulps > {bound}; {worst_line}"

@@ -69,7 +69,7 @@ fn every_shape_audits_deterministically_and_its_examples_replay() {
         let rows = report["rows"].as_array().unwrap();
         assert_eq!(
             rows.len(),
-            shape.methods().len() * 2 * shape.classes().len(),
+            shape.info().methods.len() * 2 * shape.info().classes.len(),
             "{name}"
         );
         for r in rows {
@@ -122,19 +122,19 @@ fn probe_refuses_bad_input_with_one_line() {
         let name = shape.name();
         // Wrong count of values
         let mut args = vec!["probe", name, "--"];
-        args.extend(std::iter::repeat_n("1", shape.args().len() + 1));
+        args.extend(std::iter::repeat_n("1", shape.info().args.len() + 1));
         assert_one_line_error(&rayproof(&args), name);
         // Not a number
         let mut args = vec!["probe", name, "--"];
-        args.extend(std::iter::repeat_n("zz", shape.args().len()));
+        args.extend(std::iter::repeat_n("zz", shape.info().args.len()));
         assert_one_line_error(&rayproof(&args), "not a number");
         // Help names the values
         let o = rayproof(&["probe", name, "--help"]);
         assert_eq!(o.status.code(), Some(0));
-        assert!(text(&o).contains(shape.args()[0]), "{}", text(&o));
+        assert!(text(&o).contains(shape.info().args[0]), "{}", text(&o));
         // NaN everywhere: an answer, never a panic
         let mut args = vec!["probe", name, "--json", "--"];
-        args.extend(std::iter::repeat_n("nan", shape.args().len()));
+        args.extend(std::iter::repeat_n("nan", shape.info().args.len()));
         let o = rayproof(&args);
         assert_eq!(
             o.status.code(),

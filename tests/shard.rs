@@ -1,6 +1,7 @@
 //! `rayproof audit --shard K/N --shard-out FILE` and `rayproof merge`: the merge of a run's
-//! shards is the unsharded run, byte for byte (JSON, Markdown, table, exit status), and a shard
-//! set that is incomplete, inconsistent or corrupt is refused with one line and an exit code.
+//! shards is the unsharded run, byte for byte (JSON, Markdown, table, exit status), for the
+//! sphere, for another shape and for several shapes at once; a shard set that is incomplete,
+//! inconsistent or corrupt is refused with one line and an exit code.
 
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -38,13 +39,15 @@ fn run(args: &[String]) -> Output {
     rayproof(&args.iter().map(String::as_str).collect::<Vec<_>>())
 }
 
-/// An audit selection: small, several methods, precisions and classes.
+/// An audit selection: small, several methods, precisions and classes of the sphere.
 fn selection(seed: u64, cases: u64) -> Vec<String> {
     [
         "--cases",
         &cases.to_string(),
         "--seed",
         &seed.to_string(),
+        "--shape",
+        "sphere",
         "--method",
         "algebraic,rtg7,hearn_baker,interval",
         "--precision",
@@ -54,6 +57,35 @@ fn selection(seed: u64, cases: u64) -> Vec<String> {
     ]
     .map(String::from)
     .to_vec()
+}
+
+/// A selection of another shape: every triangle method on three classes.
+fn triangle_selection(seed: u64, cases: u64) -> Vec<String> {
+    [
+        "--cases",
+        &cases.to_string(),
+        "--seed",
+        &seed.to_string(),
+        "--shape",
+        "triangle",
+        "--class",
+        "vertex,far,invalid",
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
+/// A user tolerance file that the sphere selection breaks at any seed: the textbook
+/// discriminant on far-small f32 spheres held to no wrong verdict.
+fn strict_table(dir: &Path) -> PathBuf {
+    let p = dir.join("strict.toml");
+    std::fs::write(
+        &p,
+        "[[rule]]\nshape = \"sphere\"\nmethod = \"algebraic\"\nprecision = \"f32\"\n\
+         class = \"far_small\"\nwrong = \"none\"\nwhy = \"a test: this row must fail\"\n",
+    )
+    .unwrap();
+    p
 }
 
 /// Writes shard `k/n` of a selection to `path`; the shard run itself must succeed.
@@ -104,12 +136,12 @@ fn unsharded(sel: &[String], dir: &Path, extra: &[&str]) -> Outputs {
     args.extend(extra.iter().map(|e| e.to_string()));
     let o = run(&args);
     assert!(o.status.code().is_some_and(|c| c <= 1), "{}", stderr(&o));
-    let table = without(&stdout(&o), " methods in ", 1);
+    let shapes = stdout(&o).matches(" methods in ").count();
     Outputs {
         code: o.status.code(),
         json: std::fs::read(&json).unwrap(),
         markdown: std::fs::read(&md).unwrap(),
-        table: without(&table, "oracle alone:", 1),
+        table: without(&stdout(&o), " methods in ", shapes),
     }
 }
 
@@ -121,11 +153,12 @@ fn merged(shards: &[&Path], dir: &Path, extra: &[&str]) -> Outputs {
     args.extend(extra.iter().map(|e| e.to_string()));
     let o = run(&args);
     assert!(o.status.code().is_some_and(|c| c <= 1), "{}", stderr(&o));
+    let shapes = stdout(&o).matches(" methods merged from ").count();
     Outputs {
         code: o.status.code(),
         json: std::fs::read(&json).unwrap(),
         markdown: std::fs::read(&md).unwrap(),
-        table: without(&stdout(&o), " methods merged from ", 1),
+        table: without(&stdout(&o), " methods merged from ", shapes),
     }
 }
 
@@ -143,10 +176,16 @@ fn assert_same(full: &Outputs, merge: &Outputs, sel_rows: usize) {
     assert_eq!(full.code, merge.code, "exit status differs");
     let v: Value = serde_json::from_slice(&merge.json).unwrap();
     assert_eq!(v["shard"], "0/1");
-    let rows = v["rows"].as_array().unwrap();
+    let rows: Vec<&Value> = v["shapes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|s| s["rows"].as_array().unwrap())
+        .collect();
     assert_eq!(rows.len(), sel_rows);
     let n = |r: &Value, k: &str| r[k].as_u64().unwrap();
-    assert!(rows.iter().all(|r| n(r, "well_posed") > 0));
+    assert!(rows.iter().all(|r| n(r, "cases") > 0));
+    assert!(rows.iter().all(|r| r["verdict"]["status"].is_string()));
     let wrong: u64 = rows
         .iter()
         .map(|r| n(r, "false_hit") + n(r, "false_miss") + n(r, "wrong_root"))
@@ -158,36 +197,84 @@ fn assert_same(full: &Outputs, merge: &Outputs, sel_rows: usize) {
     assert!(rows
         .iter()
         .any(|r| !r["examples"].as_array().unwrap().is_empty()));
-    assert!(merge.table.contains("rayproof probe sphere --origin"));
-    let md = String::from_utf8_lossy(&merge.markdown);
-    assert!(md.contains("| f32 | far_small | algebraic |"), "{md}");
+    assert!(merge.table.contains("rayproof probe "));
 }
 
 const ROWS: usize = 4 * 2 * 4;
 
 #[test]
 fn merge_of_three_shards_in_any_order_is_the_unsharded_audit() {
-    // Seed 1 passes the tolerance table; seed 2 breaks it (exit 1) at this size
-    for (seed, want_code) in [(1, 0), (2, 1)] {
-        let dir = scratch(&format!("three-{seed}"));
-        let sel = selection(seed, 90);
-        let full = unsharded(&sel, &dir, &[]);
-        assert_eq!(
-            full.code,
-            Some(want_code),
-            "seed {seed}: the tolerance table changed? pick a seed that gives exit {want_code}"
-        );
+    // With the built-in table the selection passes; with the strict user table it fails
+    let dir = scratch("three");
+    let strict = strict_table(&dir);
+    for (extra, want_code) in [
+        (vec![], 0),
+        (vec!["--tolerances", strict.to_str().unwrap()], 1),
+    ] {
+        let sel = selection(1, 90);
+        let full = unsharded(&sel, &dir, &extra);
+        assert_eq!(full.code, Some(want_code), "{extra:?}");
         let shards: Vec<PathBuf> = (0..3).map(|k| dir.join(format!("s{k}.json"))).collect();
         for (k, p) in shards.iter().enumerate() {
             write_shard(&sel, k as u64, 3, p);
         }
-        let merge = merged(&[&shards[2], &shards[0], &shards[1]], &dir, &[]);
+        let merge = merged(&[&shards[2], &shards[0], &shards[1]], &dir, &extra);
         assert_same(&full, &merge, ROWS);
         // and in order
-        let merge = merged(&[&shards[0], &shards[1], &shards[2]], &dir, &[]);
+        let merge = merged(&[&shards[0], &shards[1], &shards[2]], &dir, &extra);
         assert_same(&full, &merge, ROWS);
-        std::fs::remove_dir_all(&dir).ok();
+        let md = String::from_utf8_lossy(&merge.markdown);
+        assert!(md.contains("| f32 | far_small | algebraic |"), "{md}");
     }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn merge_is_the_unsharded_audit_for_another_shape_and_for_several() {
+    let dir = scratch("shapes");
+    // The triangle alone: 4 methods × 2 precisions × 3 classes
+    let sel = triangle_selection(5, 120);
+    let full = unsharded(&sel, &dir, &[]);
+    let shards: Vec<PathBuf> = (0..4).map(|k| dir.join(format!("t{k}.json"))).collect();
+    for (k, p) in shards.iter().enumerate() {
+        write_shard(&sel, k as u64, 4, p);
+    }
+    let merge = merged(&[&shards[3], &shards[1], &shards[0], &shards[2]], &dir, &[]);
+    assert_same(&full, &merge, 4 * 2 * 3);
+    assert!(merge.table.contains("rayproof probe triangle --precision"));
+    // Three shapes in one audit, every method and class
+    let sel: Vec<String> = [
+        "--cases",
+        "60",
+        "--seed",
+        "7",
+        "--shape",
+        "box,refract,quadratic",
+    ]
+    .map(String::from)
+    .to_vec();
+    let full = unsharded(&sel, &dir, &[]);
+    let shards: Vec<PathBuf> = (0..2).map(|k| dir.join(format!("m{k}.json"))).collect();
+    for (k, p) in shards.iter().enumerate() {
+        write_shard(&sel, k as u64, 2, p);
+    }
+    let merge = merged(&[&shards[1], &shards[0]], &dir, &[]);
+    let v: Value = serde_json::from_slice(&merge.json).unwrap();
+    let shapes: Vec<&str> = v["shapes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["shape"].as_str().unwrap())
+        .collect();
+    assert_eq!(shapes, ["box", "refract", "quadratic"]);
+    let rows = v["shapes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["rows"].as_array().unwrap().len())
+        .sum();
+    assert_same(&full, &merge, rows);
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]
@@ -212,7 +299,7 @@ fn shard_files_hold_no_decimal_floats() {
     write_shard(&selection(1, 40), 1, 2, &shard);
     let v: Value = serde_json::from_slice(&std::fs::read(&shard).unwrap()).unwrap();
     assert_eq!(v["format"], "rayproof-audit-shard");
-    assert_eq!(v["format_version"], 1);
+    assert_eq!(v["format_version"], 2);
     assert_eq!(v["shard"]["k"], 1);
     assert_eq!(v["shard"]["n"], 2);
     // Every number is an integer; floats are hex text, so they round-trip exactly
@@ -234,15 +321,16 @@ fn shard_files_hold_no_decimal_floats() {
         numbers > 100 && hex > 100,
         "{numbers} numbers, {hex} hex floats"
     );
-    // Every case of shard 1/2: indices 1, 3, 5, …
-    let g = &v["groups"][0]["cases"];
-    let idx: Vec<u64> = g
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c["index"].as_u64().unwrap())
-        .collect();
-    assert_eq!(idx, (1..40).step_by(2).collect::<Vec<u64>>());
+    // Shard 1/2 of 40 cases: 20 cases in every tally, examples from odd indices only
+    let sphere = &v["shapes"][0];
+    for g in sphere["groups"].as_array().unwrap() {
+        for t in g["tallies"].as_array().unwrap() {
+            assert_eq!(t["cases"], 20);
+            for e in t["examples"].as_array().unwrap() {
+                assert_eq!(e[1]["index"].as_u64().unwrap() % 2, 1, "{e}");
+            }
+        }
+    }
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -288,11 +376,11 @@ fn merge_refuses_a_shard_set_that_is_not_one_audit() {
     write_shard(&selection(1, 31), 1, 3, &p("cases31.json"));
     assert_refused(&dir, &[&s0, &p("cases31.json"), &s2], 3, "cases per class");
     let mut other = selection(1, 30);
-    other[5] = "algebraic,rtg7".into();
+    other[7] = "algebraic,rtg7".into();
     write_shard(&other, 1, 3, &p("methods.json"));
     assert_refused(&dir, &[&s0, &p("methods.json"), &s2], 3, "methods");
     let mut other = selection(1, 30);
-    other[9] = "tangent,far_small,on_surface,invalid".into();
+    other[11] = "tangent,far_small,on_surface,invalid".into();
     write_shard(&other, 1, 3, &p("order.json"));
     assert_refused(&dir, &[&s0, &p("order.json"), &s2], 3, "classes");
     write_shard(&sel, 1, 2, &p("n2.json"));
@@ -332,7 +420,6 @@ fn merge_refuses_corrupt_files_with_one_line() {
         edit(&mut v);
         put(name, &serde_json::to_vec(&v).unwrap())
     };
-    let cases = |v: &mut Value| v["groups"][3]["cases"].as_array_mut().unwrap().clone();
 
     // Unreadable, truncated, empty, binary, and JSON that is not a shard
     assert_refused(&dir, &[&s0, &p("absent.json")], 2, "cannot read");
@@ -363,40 +450,43 @@ fn merge_refuses_corrupt_files_with_one_line() {
         "not a rayproof audit shard",
     );
 
-    // A shard damaged inside: format version, a case removed, an index changed, a sample
-    // missing, a float that is not exact text, an unknown method, an unknown field
+    // A shard damaged inside: format version, a tally's case count, a tally removed, a float
+    // that is not exact text, an unknown shape or class, an unknown field, a bad K/N
     let f = tampered("version.json", &|v| v["format_version"] = 99.into());
     assert_refused(&dir, &[&s0, &f], 2, "format version 99");
-    let f = tampered("dropped.json", &|v| {
-        let mut c = cases(v);
-        c.pop();
-        v["groups"][3]["cases"] = c.into();
+    let f = tampered("count.json", &|v| {
+        v["shapes"][0]["groups"][3]["tallies"][0]["cases"] = 14.into()
     });
-    assert_refused(&dir, &[&s0, &f], 2, "corrupt shard");
-    let f = tampered("index.json", &|v| {
-        v["groups"][3]["cases"][2]["index"] = 4.into()
+    assert_refused(&dir, &[&s0, &f], 2, "14 cases where shard 1/2 of 30 has 15");
+    let f = tampered("tally.json", &|v| {
+        v["shapes"][0]["groups"][3]["tallies"]
+            .as_array_mut()
+            .unwrap()
+            .pop();
     });
-    assert_refused(&dir, &[&s0, &f], 2, "case 4 where 5 belongs");
-    let f = tampered("sample.json", &|v| {
-        let c = &mut v["groups"][3]["cases"][0];
-        c["samples"].as_array_mut().unwrap().pop();
-    });
-    assert_refused(&dir, &[&s0, &f], 2, "samples for 4 methods");
+    assert_refused(&dir, &[&s0, &f], 2, "3 tallies for 4 methods");
     let f = tampered("float.json", &|v| {
-        v["groups"][3]["cases"][0]["oracle_t"] = "0x1.zzp+3".into();
+        v["shapes"][0]["groups"][0]["tallies"][0]["examples"][0][1]["input"][0] =
+            "0x1.zzp+3".into();
     });
     assert_refused(&dir, &[&s0, &f], 2, "not an exact float");
     let f = tampered("number.json", &|v| {
-        v["groups"][3]["cases"][0]["oracle_t"] = 1.5.into();
+        v["shapes"][0]["groups"][0]["tallies"][0]["examples"][0][1]["input"][0] = 1.5.into();
     });
     assert_refused(&dir, &[&s0, &f], 2, "corrupt shard");
-    let f = tampered("method.json", &|v| v["methods"][1] = "magic".into());
-    assert_refused(&dir, &[&s0, &f], 2, "unknown method 'magic'");
+    let f = tampered("shape.json", &|v| v["shapes"][0]["shape"] = "magic".into());
+    assert_refused(&dir, &[&s0, &f], 2, "unknown shape 'magic'");
+    let f = tampered("class.json", &|v| {
+        v["shapes"][0]["classes"][1] = "magic".into()
+    });
+    assert_refused(&dir, &[&s0, &f], 2, "unknown class 'magic'");
     let f = tampered("field.json", &|v| v["extra"] = 1.into());
     assert_refused(&dir, &[&s0, &f], 2, "unknown field");
     let f = tampered("kn.json", &|v| v["shard"]["k"] = 7.into());
     assert_refused(&dir, &[&s0, &f], 2, "shard 7/2");
-    let f = tampered("cases.json", &|v| v["cases_per_class"] = u64::MAX.into());
+    let f = tampered("cases.json", &|v| {
+        v["shapes"][0]["cases_per_class"] = u64::MAX.into()
+    });
     assert_refused(&dir, &[&s0, &f], 2, "corrupt shard");
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -2,30 +2,60 @@
 //! against the tolerance table, the harness's teeth, and proptest stability suites.
 
 use proptest::prelude::*;
-use rayproof::audit::sphere_run::{self as audit, AuditOptions, Report, Row};
+use rayproof::audit::plan::Options;
+use rayproof::audit::run::judge_all;
+use rayproof::audit::tally::Sample;
+use rayproof::audit::tolerance::{Status, Table, Wrong};
+use rayproof::audit::{
+    audit_shape, judge, Answer, Builtin, Judgement, Method, Row, Shape, ShapeReport, Truth,
+};
 use rayproof::numerics::real::Real;
 use rayproof::numerics::Precision;
 use rayproof::shapes::sphere::cases::{self, Class};
-use rayproof::shapes::sphere::methods::{PickPrecision, METHODS};
+use rayproof::shapes::sphere::methods::METHODS;
 use rayproof::shapes::sphere::oracle::{self, Case, Verdict};
-use rayproof::shapes::sphere::{judge, run_case, tolerance, Judgement};
+use rayproof::shapes::sphere::SphereShape;
 use std::sync::OnceLock;
+
+/// The precision of `F`.
+fn precision<F: Real>() -> Precision {
+    if F::MANT_BITS == 24 {
+        Precision::F32
+    } else {
+        Precision::F64
+    }
+}
+
+/// The case as the audit's flat input.
+fn input<F: Real>(c: &Case<F>) -> Vec<f64> {
+    c.scalars().iter().map(|x| x.to_f64()).collect()
+}
+
+/// The oracle and every built-in method (or only the robust ones) on one case, as the audit
+/// judges them: `(truth, [(method, sample)])`.
+fn run_case<F: Real>(c: &Case<F>, robust_only: bool) -> (Truth, Vec<(&'static str, Sample)>) {
+    let all = Builtin::all(&SphereShape);
+    let chosen: Vec<&Builtin> = all.iter().filter(|m| !robust_only || m.robust()).collect();
+    let methods: Vec<&dyn Method> = chosen.iter().map(|m| *m as &dyn Method).collect();
+    let (truth, samples) = judge_all(&SphereShape, &methods, &input(c), precision::<F>());
+    let names = chosen.iter().map(|m| METHODS[m.index].name);
+    (truth, names.zip(samples).collect())
+}
 
 // ---- the default audit, run once for every row test ----
 
 /// The audit the table was measured on: seed 1, 20,000 cases per class, all methods.
-fn default_report() -> &'static Report {
-    static REPORT: OnceLock<Report> = OnceLock::new();
+fn default_report() -> &'static ShapeReport {
+    static REPORT: OnceLock<ShapeReport> = OnceLock::new();
     REPORT.get_or_init(|| {
-        audit::run(&AuditOptions {
-            cases: 20_000,
-            seed: 1,
-            methods: METHODS.iter().collect(),
-            precisions: Precision::ALL.to_vec(),
-            classes: Class::ALL.to_vec(),
-            shard: (0, 1),
-            progress: false,
-        })
+        audit_shape(
+            &SphereShape,
+            &Options {
+                cases: Some(20_000),
+                ..Default::default()
+            },
+        )
+        .expect("a valid selection")
     })
 }
 
@@ -33,19 +63,15 @@ fn row(method: &str, precision: Precision, class: Class) -> &'static Row {
     default_report()
         .rows
         .iter()
-        .find(|r| r.method == method && r.precision == precision && r.class == class)
+        .find(|r| r.method == method && r.precision == precision && r.class == class.name())
         .expect("row present")
 }
 
 /// Checks one row against its tolerance-table entry, and that the oracle behaved.
 fn check_row(method: &str, precision: Precision, class: Class) {
     let r = row(method, precision, class);
-    let single = Report {
-        rows: vec![r.clone()],
-        ..default_report().clone()
-    };
-    let breaks = tolerance::check(&single);
-    assert!(breaks.is_empty(), "{}", breaks.join("\n"));
+    let v = r.verdict.as_ref().expect("judged");
+    assert!(v.status != Status::Fail, "{}", v.reasons.join("\n"));
     assert_eq!(
         r.generator_failures, 0,
         "generator could not fill the class"
@@ -117,12 +143,12 @@ fn teeth_algebraic_f32_fails_on_far_small() {
     assert!(r.false_hit > 0 && r.false_miss > 0);
     // ... and the harness blames the method, not the case: error ≫ the case's sensitivity
     assert!(
-        r.err_over_cond.max > 100.0,
-        "err/cond {}",
-        r.err_over_cond.max
+        r.err_over_cond.as_ref().unwrap().max > 100.0,
+        "err/cond {:?}",
+        r.err_over_cond
     );
     let robust = row("rtg7", Precision::F32, Class::FarSmall);
-    assert!(robust.err_over_cond.max < 8.0);
+    assert!(robust.err_over_cond.as_ref().unwrap().max < 8.0);
     // Every failure is replayable
     let ex = r
         .examples
@@ -130,8 +156,11 @@ fn teeth_algebraic_f32_fails_on_far_small() {
         .find(|e| e.kind == "false_miss")
         .expect("an example");
     assert!(
-        ex.probe.starts_with("rayproof probe sphere --origin 0x")
-            || ex.probe.contains("--origin -0x")
+        ex.probe
+            .starts_with("rayproof probe sphere --precision f32 -- ")
+            && ex.probe.split_whitespace().count() == 16,
+        "{}",
+        ex.probe
     );
 }
 
@@ -162,16 +191,13 @@ fn teeth_seed_methods_fail_near_tangents_in_both_precisions() {
 
 #[test]
 fn teeth_the_table_raises_an_alarm_when_a_known_failure_passes() {
-    let mut r = row("algebraic", Precision::F32, Class::FarSmall).clone();
+    let mut r: Row = row("algebraic", Precision::F32, Class::FarSmall).clone();
     (r.false_hit, r.false_miss, r.wrong_root, r.nonfinite_t) = (0, 0, 0, 0);
-    let report = Report {
-        rows: vec![r],
-        ..default_report().clone()
-    };
-    let breaks = tolerance::check(&report);
+    let v = Table::built_in().verdict("sphere", &r, |_| 0);
+    assert_eq!(v.status, Status::Fail);
     assert!(
-        breaks.iter().any(|b| b.contains("harness broken")),
-        "{breaks:?}"
+        v.reasons.iter().any(|b| b.contains("harness broken")),
+        "{v:?}"
     );
 }
 
@@ -184,16 +210,26 @@ fn teeth_a_wrong_answer_is_judged_wrong() {
         c: [0.0; 3],
         r: 1.0,
     };
-    let t = oracle::truth(&case);
-    let hit = |t: f32| Some(rayproof::shapes::sphere::methods::SphereHit { t, enclosure: None });
-    assert_eq!(judge::<f32>(&t, hit(4.0)), Judgement::Ok { ulps: Some(0) });
+    let (f32_, metric) = (Precision::F32, SphereShape.info().metric);
+    let t = SphereShape.oracle(&input(&case), f32_);
+    let hit = |t: f32| Answer::hit(vec![t as f64]);
     assert_eq!(
-        judge::<f32>(&t, hit(4.0f32.next_up())),
+        judge(&t, &hit(4.0), metric, f32_),
+        Judgement::Ok { ulps: Some(0) }
+    );
+    assert_eq!(
+        judge(&t, &hit(4.0f32.next_up()), metric, f32_),
         Judgement::Ok { ulps: Some(1) }
     );
-    assert_eq!(judge::<f32>(&t, hit(6.0)), Judgement::WrongRoot);
-    assert_eq!(judge::<f32>(&t, None), Judgement::FalseMiss);
-    assert_eq!(judge::<f32>(&t, hit(f32::NAN)), Judgement::NonfiniteT);
+    assert_eq!(judge(&t, &hit(6.0), metric, f32_), Judgement::WrongRoot);
+    assert_eq!(
+        judge(&t, &Answer::miss(), metric, f32_),
+        Judgement::FalseMiss
+    );
+    assert_eq!(
+        judge(&t, &hit(f32::NAN), metric, f32_),
+        Judgement::NonfiniteT
+    );
 }
 
 // ---- oracle on hand-derived cases ----
@@ -282,44 +318,33 @@ fn class_case<F: Real>(class: Class) -> impl Strategy<Value = Case<F>> {
 }
 
 /// Every method whose table entry is strict gives the right verdict, within its bounds.
-fn assert_strict_rows<F: PickPrecision>(
-    case: &Case<F>,
-    class: Class,
-    precision: Precision,
-) -> Result<(), TestCaseError> {
-    let methods: Vec<_> = METHODS.iter().collect();
-    let (truth, rows) = run_case(case, &methods);
-    if truth.ill_posed {
+fn assert_strict_rows<F: Real>(case: &Case<F>, class: Class) -> Result<(), TestCaseError> {
+    let precision = precision::<F>();
+    let (truth, rows) = run_case(case, false);
+    let Truth::Answer(e) = &truth else {
+        return Ok(());
+    };
+    if e.ill_posed {
         return Ok(());
     }
-    let cond = oracle::condition_ulps(case, &truth);
-    for (name, _, j) in rows {
-        let e = tolerance::entry(name, precision, class);
-        if e.max_wrong_rate != Some(0.0) {
+    let probe = rayproof::audit::probe_line("sphere", precision, &input(case));
+    let table = Table::built_in();
+    for (name, s) in rows {
+        let Some(rule) = table.rule("sphere", name, precision, class.name()) else {
+            continue;
+        };
+        if rule.wrong != Some(Wrong::None) {
             continue;
         }
-        prop_assert!(
-            !j.is_wrong(),
-            "{name} {:?}: {:?}\n  rayproof probe sphere {}",
-            precision,
-            j,
-            case.probe_args()
-        );
+        let j = s.judgement;
+        prop_assert!(!j.is_wrong(), "{name} {precision:?}: {j:?}\n  {probe}");
         if let Judgement::Ok { ulps: Some(u) } = j {
-            if let Some(max) = e.max_ulps {
-                prop_assert!(
-                    u <= max,
-                    "{name}: {u} ulps > {max}\n  rayproof probe sphere {}",
-                    case.probe_args()
-                );
+            if let Some(max) = rule.max_ulps {
+                prop_assert!(u <= max, "{name}: {u} ulps > {max}\n  {probe}");
             }
-            if let (Some(max), Some(c)) = (e.max_err_over_cond, cond) {
+            if let (Some(max), Some(c)) = (rule.max_err_over_cond, e.cond) {
                 let rel = u as f64 / c.max(1.0);
-                prop_assert!(
-                    rel <= max,
-                    "{name}: err/cond {rel} > {max}\n  rayproof probe sphere {}",
-                    case.probe_args()
-                );
+                prop_assert!(rel <= max, "{name}: err/cond {rel} > {max}\n  {probe}");
             }
         }
     }
@@ -333,8 +358,8 @@ macro_rules! stability {
                 #![proptest_config(ProptestConfig { cases: 256, failure_persistence: None, ..ProptestConfig::default() })]
                 #[test]
                 fn $name(c32 in class_case::<f32>(Class::$class), c64 in class_case::<f64>(Class::$class)) {
-                    assert_strict_rows(&c32, Class::$class, Precision::F32)?;
-                    assert_strict_rows(&c64, Class::$class, Precision::F64)?;
+                    assert_strict_rows(&c32, Class::$class)?;
+                    assert_strict_rows(&c64, Class::$class)?;
                 }
             }
         )*
@@ -352,14 +377,9 @@ proptest! {
     fn arbitrary_bits_never_panic(b32 in prop::array::uniform10(any::<u32>()), b64 in prop::array::uniform10(any::<u64>())) {
         let c32 = Case::<f32>::from_scalars(b32.map(f32::from_bits));
         let c64 = Case::<f64>::from_scalars(b64.map(f64::from_bits));
-        let methods: Vec<_> = METHODS.iter().collect();
-        for (name, _, j) in run_case(&c32, &methods).1 {
-            let robust = rayproof::shapes::sphere::methods::method_by_name(name).unwrap().robust;
-            prop_assert!(!(robust && matches!(j, Judgement::InvalidHit | Judgement::InvalidNanT)), "{name} f32 {j:?}");
-        }
-        for (name, _, j) in run_case(&c64, &methods).1 {
-            let robust = rayproof::shapes::sphere::methods::method_by_name(name).unwrap().robust;
-            prop_assert!(!(robust && matches!(j, Judgement::InvalidHit | Judgement::InvalidNanT)), "{name} f64 {j:?}");
+        for (name, s) in run_case(&c32, true).1.into_iter().chain(run_case(&c64, true).1) {
+            let j = s.judgement;
+            prop_assert!(!matches!(j, Judgement::InvalidHit | Judgement::InvalidNanT), "{name} {j:?}");
         }
     }
 }
@@ -400,14 +420,14 @@ fn named_invalid_inputs_are_rejected_by_robust_methods() {
             ..base
         },
     ];
-    let methods: Vec<_> = METHODS.iter().filter(|m| m.robust).collect();
     for v in variants {
-        for (name, hit, j) in run_case(&v, &methods).1 {
+        for (name, s) in run_case(&v, true).1 {
             assert_eq!(
-                j,
+                s.judgement,
                 Judgement::Rejected,
-                "{name} on {}: {hit:?}",
-                v.probe_args()
+                "{name} on {}: {:?}",
+                v.probe_args(),
+                s.values
             );
         }
     }

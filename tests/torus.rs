@@ -3,10 +3,12 @@
 //! harness's teeth, reintersection, proptest stability suites, and invalid inputs.
 
 use proptest::prelude::*;
-use rayproof::audit::generic::{self as audit, Options, Row, ShapeReport};
-use rayproof::audit::shape::{judge, Answer, Shape, Truth};
+use rayproof::audit::plan::Options;
+use rayproof::audit::tolerance::Table;
+use rayproof::audit::Judgement;
+use rayproof::audit::{audit_shape, table, Row, ShapeReport};
+use rayproof::audit::{judge, Answer, Shape, Truth};
 use rayproof::numerics::Precision;
-use rayproof::shapes::sphere::Judgement;
 use rayproof::shapes::torus::{
     cases, methods, oracle, reintersect, reintersection, torus_normal, torus_robust,
     torus_robust_hit, Torus, TorusNormal, METHODS,
@@ -21,22 +23,23 @@ const CASES: u64 = 300;
 
 fn opts() -> Options {
     Options {
-        cases: CASES,
+        cases: Some(CASES),
         seed: 1,
         precisions: Precision::ALL.to_vec(),
         methods: vec![],
         classes: vec![],
+        ..Default::default()
     }
 }
 
 fn torus_report() -> &'static ShapeReport {
     static R: OnceLock<ShapeReport> = OnceLock::new();
-    R.get_or_init(|| audit::run(&Torus, &opts()).expect("valid selection"))
+    R.get_or_init(|| audit_shape(&Torus, &opts()).expect("valid selection"))
 }
 
 fn normal_report() -> &'static ShapeReport {
     static R: OnceLock<ShapeReport> = OnceLock::new();
-    R.get_or_init(|| audit::run(&TorusNormal, &opts()).expect("valid selection"))
+    R.get_or_init(|| audit_shape(&TorusNormal, &opts()).expect("valid selection"))
 }
 
 fn row(report: &'static ShapeReport, method: &str, p: Precision, class: &str) -> &'static Row {
@@ -65,7 +68,7 @@ fn check_method(method: &str) {
             rows: rows.clone(),
             ..report.clone()
         };
-        let breaks = audit::check(shape, &single);
+        let breaks = &single.failures();
         assert!(breaks.is_empty(), "{}", breaks.join("\n"));
         for r in &rows {
             assert_eq!(r.generator_failures, 0, "{} {}", shape.name(), r.class);
@@ -121,11 +124,8 @@ fn rows_robust() {
 
 #[test]
 fn default_audit_passes_the_table() {
-    for (shape, report) in [
-        (&Torus as &dyn Shape, torus_report()),
-        (&TorusNormal, normal_report()),
-    ] {
-        let breaks = audit::check(shape, report);
+    for report in [torus_report(), normal_report()] {
+        let breaks = report.failures();
         assert!(breaks.is_empty(), "{}", breaks.join("\n"));
     }
 }
@@ -134,8 +134,8 @@ fn default_audit_passes_the_table() {
 #[test]
 fn print_tables() {
     for report in [torus_report(), normal_report()] {
-        println!("{}", audit::table(report));
-        println!("{}", audit::worst_cases(report, 1));
+        println!("{}", table::shape_table(report));
+        println!("{}", table::worst_cases(report, 1));
     }
     for p in Precision::ALL {
         for r in reintersection(1, REINTERSECT_PER_SCALE, p) {
@@ -218,7 +218,7 @@ fn teeth_the_table_raises_an_alarm_when_a_known_failure_passes() {
         rows: vec![r],
         ..torus_report().clone()
     };
-    let breaks = audit::check(&Torus, &report);
+    let breaks = &report.failures();
     assert!(
         breaks
             .iter()
@@ -232,7 +232,7 @@ fn teeth_the_table_raises_an_alarm_when_a_known_failure_passes() {
         rows: vec![r],
         ..torus_report().clone()
     };
-    assert!(!audit::check(&Torus, &report).is_empty());
+    assert!(!&report.failures().is_empty());
 }
 
 // ---- the oracle on hand-made cases ----
@@ -357,7 +357,7 @@ fn normal_oracle_on_known_points() {
 fn a_wrong_answer_is_judged_wrong() {
     let x = [-10.0, 0.0, 0.0, 1.0, 0.0, 0.0, 2.0, 1.0];
     let t = Torus.oracle(&x, Precision::F32);
-    let j = |a: Answer| judge(&t, &a, Torus.metric(), Precision::F32);
+    let j = |a: Answer| judge(&t, &a, Torus.info().metric, Precision::F32);
     assert_eq!(j(Answer::hit(vec![7.0])), Judgement::Ok { ulps: Some(0) });
     assert_eq!(
         j(Answer::hit(vec![(7.0f32).next_up() as f64])),
@@ -445,7 +445,7 @@ fn reintersection_error_bound_is_measured() {
         let mut worst = 0f64;
         for class in 0..cases::CLASSES.len() - 1 {
             for i in 0..200 {
-                let x = audit::generate(&Torus, 2, class, p, i).expect("case");
+                let x = rayproof::audit::run::generate(&Torus, 2, class, p, i).expect("case");
                 let ratio = match p {
                     Precision::F32 => sdf_ratio::<f32>(&x),
                     Precision::F64 => sdf_ratio::<f64>(&x),
@@ -502,7 +502,7 @@ fn special_values_never_panic_and_robust_rejects_invalid() {
                     for (m, info) in METHODS.iter().enumerate() {
                         let a = shape.run(m, &x, p);
                         if info.robust {
-                            let j = judge(&truth, &a, shape.metric(), p);
+                            let j = judge(&truth, &a, shape.info().metric, p);
                             assert!(!j.is_wrong(), "{} {i} {s} {p:?}: {j:?}", shape.name());
                             if truth == Truth::Invalid {
                                 assert_eq!(a.count, 0);
@@ -537,14 +537,18 @@ fn any_input(p: Precision) -> impl Strategy<Value = Vec<f64>> {
 
 fn class_input(class: usize, p: Precision) -> impl Strategy<Value = Vec<f64>> {
     any::<u64>().prop_filter_map("generator", move |seed| {
-        audit::generate(&Torus, seed, class, p, 0)
+        rayproof::audit::run::generate(&Torus, seed, class, p, 0)
     })
 }
 
 /// The robust tolerance for a case of `class`.
 fn robust_bound(shape: &dyn Shape, p: Precision, class: usize) -> u64 {
-    let m = METHODS.iter().position(|m| m.robust).expect("robust");
-    shape.expect(m, p, class).max_ulps
+    let m = METHODS.iter().find(|m| m.robust).expect("robust");
+    let info = shape.info();
+    Table::built_in()
+        .rule(info.name, m.name, p, info.classes[class])
+        .and_then(|r| r.max_ulps)
+        .expect("the robust rows hold a bound")
 }
 
 proptest! {
@@ -591,15 +595,15 @@ proptest! {
     fn robust_is_stable_on_fresh_cases(seed in any::<u64>()) {
         for class in 0..cases::CLASSES.len() - 1 {
             for p in Precision::ALL {
-                let x = audit::generate(&Torus, seed, class, p, 0).expect("case");
+                let x = rayproof::audit::run::generate(&Torus, seed, class, p, 0).expect("case");
                 for shape in [&Torus as &dyn Shape, &TorusNormal] {
                     let truth = shape.oracle(&x, p);
                     let Truth::Answer(e) = &truth else { prop_assert!(false, "invalid"); unreachable!() };
                     if e.ill_posed {
                         continue;
                     }
-                    let j = judge(&truth, &shape.run(3, &x, p), shape.metric(), p);
-                    let probe = rayproof::audit::shape::probe_line(shape, p, &x);
+                    let j = judge(&truth, &shape.run(3, &x, p), shape.info().metric, p);
+                    let probe = rayproof::audit::shape::probe_line(shape.name(), p, &x);
                     prop_assert!(!j.is_wrong(), "{:?}: {}", j, probe);
                     if let Judgement::Ok { ulps: Some(u) } = j {
                         prop_assert!(u <= robust_bound(shape, p, class), "{} ulps: {}", u, probe);

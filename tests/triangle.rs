@@ -4,8 +4,9 @@
 //! proptest suites (shared edges, arbitrary bit patterns).
 
 use proptest::prelude::*;
-use rayproof::audit::generic::{self as audit, Options, Row, ShapeReport};
-use rayproof::audit::shape::{judge, Shape, Truth};
+use rayproof::audit::plan::Options;
+use rayproof::audit::{audit_shape, table, Row, ShapeReport};
+use rayproof::audit::{judge, Shape, Truth};
 use rayproof::numerics::Precision;
 use rayproof::shapes::triangle::{
     self, exact_tri, moller_trumbore_hit, watertight, watertight_hit, watertight_wide_hit,
@@ -95,14 +96,15 @@ fn oracle_rejects_invalid_input() {
 fn report() -> &'static ShapeReport {
     static R: OnceLock<ShapeReport> = OnceLock::new();
     R.get_or_init(|| {
-        audit::run(
+        audit_shape(
             &Triangle,
             &Options {
-                cases: 300,
+                cases: Some(300),
                 seed: 1,
                 precisions: Precision::ALL.to_vec(),
                 methods: vec![],
                 classes: vec![],
+                ..Default::default()
             },
         )
         .expect("audit runs")
@@ -127,7 +129,7 @@ fn check_class(class: &str) {
         rows: rows(class).into_iter().cloned().collect(),
         ..report().clone()
     };
-    let breaks = audit::check(&Triangle, &one);
+    let breaks = &one.failures();
     assert!(breaks.is_empty(), "{}", breaks.join("\n"));
     for r in &one.rows {
         assert_eq!(r.generator_failures, 0, "{} {class}", r.method);
@@ -166,13 +168,13 @@ fn every_class_has_a_test() {
 
 #[test]
 fn default_seed_audit_passes_the_table() {
-    let breaks = audit::check(&Triangle, report());
+    let breaks = report(.failures());
     assert!(breaks.is_empty(), "{}", breaks.join("\n"));
 }
 
 #[test]
 fn print_audit_table() {
-    println!("{}", audit::table(report()));
+    println!("{}", table::shape_table(report()));
 }
 
 // ---- teeth: the known failures are found ----
@@ -207,7 +209,7 @@ fn teeth_judge_catches_a_planted_false_hit() {
     let v = case([1.0, 1.0, 1.0], [0.0, 0.0, -1.0]);
     let truth = Triangle.oracle(&v, Precision::F64);
     let planted = rayproof::audit::shape::Answer::hit(vec![1.0]);
-    assert!(judge(&truth, &planted, Triangle.metric(), Precision::F64).is_wrong());
+    assert!(judge(&truth, &planted, Triangle.info().metric, Precision::F64).is_wrong());
 }
 
 // ---- watertightness and reintersection ----
@@ -362,18 +364,19 @@ proptest! {
 #[test]
 #[ignore = "measurement: 2,000 cases per class"]
 fn measure_tolerance_table() {
-    let r = audit::run(
+    let r = audit_shape(
         &Triangle,
         &Options {
-            cases: 2000,
+            cases: Some(2000),
             seed: 1,
             precisions: Precision::ALL.to_vec(),
             methods: vec![],
             classes: vec![],
+            ..Default::default()
         },
     )
     .expect("audit runs");
-    println!("{}", audit::table(&r));
-    let breaks = audit::check(&Triangle, &r);
+    println!("{}", table::shape_table(&r));
+    let breaks = &r.failures();
     assert!(breaks.is_empty(), "{}", breaks.join("\n"));
 }

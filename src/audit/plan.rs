@@ -9,7 +9,7 @@ use crate::numerics::Precision;
 use crate::shapes::{registry, robustness, shape_by_name, shape_names};
 
 /// The audit as asked for on the command line.
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Options {
     /// Shape names, or `all` (empty: every shape, or the sphere alone when methods or classes
     /// are named).
@@ -25,6 +25,22 @@ pub struct Options {
     pub seed: u64,
     /// `(k, n)`: only the cases whose index ≡ k (mod n).
     pub shard: (u64, u64),
+}
+
+impl Default for Options {
+    /// Every shape, method, class and precision at each shape's default case count, seed 1,
+    /// unsharded.
+    fn default() -> Options {
+        Options {
+            shapes: vec![],
+            methods: vec![],
+            classes: vec![],
+            precisions: vec![],
+            cases: None,
+            seed: 1,
+            shard: (0, 1),
+        }
+    }
 }
 
 /// One shape's part of the audit.
@@ -80,7 +96,7 @@ impl Plan {
             for name in &o.shapes {
                 let s = shape_by_name(name).ok_or_else(|| {
                     format!(
-                        "unknown shape '{name}' (known: all, {})",
+                        "--shape: unknown shape '{name}' (known: all, {})",
                         shape_names().join(", ")
                     )
                 })?;

@@ -75,27 +75,7 @@ impl Report {
 
     /// Every row out of tolerance, and every robustness goal missed, one line each.
     pub fn failures(&self) -> Vec<String> {
-        let mut out: Vec<String> = self
-            .rows()
-            .filter_map(|(shape, r)| {
-                let v = r.verdict.as_ref()?;
-                (v.status == Status::Fail).then(|| {
-                    let why: Vec<&str> = v
-                        .reasons
-                        .iter()
-                        .map(String::as_str)
-                        .filter(|x| !x.starts_with("known failure shown"))
-                        .collect();
-                    format!(
-                        "{shape} {} {} {}: {}",
-                        r.method,
-                        r.precision.name(),
-                        r.class,
-                        why.join("; ")
-                    )
-                })
-            })
-            .collect();
+        let mut out: Vec<String> = self.shapes.iter().flat_map(|s| s.failures()).collect();
         if let Some(r) = &self.robustness {
             out.extend(crate::shapes::robustness::check(r));
         }

@@ -240,47 +240,55 @@ impl Table {
     /// Reads the built-in table, after the user's rules when given, and checks every name
     /// against `known`. Errors are one line.
     pub fn load(user: Option<(&str, &str)>, known: &Known) -> Result<Table, String> {
-        let (mut rules, mut measured) = match user {
-            Some((file, text)) => parse_table(text, file)?,
-            None => (vec![], vec![]),
+        // The built-in table must hold together on its own
+        let built_in = Table::parse(BUILT_IN, "built-in tolerances.toml", known)?;
+        built_in.check_complete(known)?;
+        let Some((file, text)) = user else {
+            return Ok(built_in);
         };
-        let user_rules = rules.len();
-        let (r, m) = parse_table(BUILT_IN, "built-in tolerances.toml")?;
-        rules.extend(r);
-        // The user's measurements come first and win
-        measured.extend(m);
-        let mut map = BTreeMap::new();
-        for (k, v) in measured {
-            map.entry(k).or_insert(v);
+        // The user's file holds together too; its rules come first
+        let mut table = Table::parse(text, file, known)?;
+        table.check_complete(known)?;
+        table.rules.extend(built_in.rules);
+        for (k, v) in built_in.measured {
+            table.measured.entry(k).or_insert(v);
         }
-        let table = Table {
-            rules,
-            measured: map,
-        };
-        table.check_names(known, user_rules)?;
         Ok(table)
     }
 
-    /// Every shape, method and class named exists; every built-in rule applies to some row.
-    fn check_names(&self, known: &Known, user_rules: usize) -> Result<(), String> {
-        for r in &self.rules {
-            let Some((_, methods, classes)) = known.shapes.iter().find(|(s, _, _)| *s == r.shape)
-            else {
-                let names: Vec<&str> = known.shapes.iter().map(|s| s.0).collect();
-                return Err(format!(
-                    "{}: unknown shape '{}' (known: {})",
-                    r.origin,
-                    r.shape,
-                    names.join(", ")
-                ));
-            };
-            if let Some(m) = r.methods.iter().find(|m| !methods.contains(m)) {
-                return Err(format!(
-                    "{}: shape {} has no method '{m}' (known: {})",
-                    r.origin,
-                    r.shape,
-                    methods.join(", ")
-                ));
+    /// The built-in table alone, checked against every registered shape (a unit test keeps it
+    /// valid).
+    pub fn built_in() -> Table {
+        Table::load(None, &super::plan::known_names(vec![])).expect("the built-in table is valid")
+    }
+
+    /// Reads one file and checks that every shape, method and class it names exists.
+    fn parse(text: &str, file: &str, known: &Known) -> Result<Table, String> {
+        let (rules, measured) = parse_table(text, file)?;
+        let lookup = |origin: &str, shape: &str| {
+            known
+                .shapes
+                .iter()
+                .find(|(s, _, _)| *s == shape)
+                .ok_or_else(|| {
+                    let names: Vec<&str> = known.shapes.iter().map(|s| s.0).collect();
+                    format!(
+                        "{origin}: unknown shape '{shape}' (known: {})",
+                        names.join(", ")
+                    )
+                })
+        };
+        let unknown = |origin: &str, shape: &str, what: &str, name: &str, all: &[&str]| {
+            format!(
+                "{origin}: shape {shape} has no {what} '{name}' (known: {})",
+                all.join(", ")
+            )
+        };
+        for r in &rules {
+            let (_, methods, classes) = lookup(&r.origin, &r.shape)?;
+            let ms: Vec<&str> = methods.iter().map(String::as_str).collect();
+            if let Some(m) = r.methods.iter().find(|m| !ms.contains(&m.as_str())) {
+                return Err(unknown(&r.origin, &r.shape, "method", m, &ms));
             }
             if let Some(c) = r
                 .classes
@@ -288,16 +296,29 @@ impl Table {
                 .flatten()
                 .find(|c| !classes.contains(&c.as_str()))
             {
-                return Err(format!(
-                    "{}: shape {} has no class '{c}' (known: {})",
-                    r.origin,
-                    r.shape,
-                    classes.join(", ")
-                ));
+                return Err(unknown(&r.origin, &r.shape, "class", c, classes));
             }
         }
-        // Every row of every known method, and the rule that applies to it
-        let rows: Vec<(usize, RowKey)> = known
+        for (shape, method, _, class) in measured.iter().map(|(k, _)| k) {
+            let origin = format!("{file} measured \"{shape} {method} … {class}\"");
+            let (_, methods, classes) = lookup(&origin, shape)?;
+            let ms: Vec<&str> = methods.iter().map(String::as_str).collect();
+            if !ms.contains(&method.as_str()) {
+                return Err(unknown(&origin, shape, "method", method, &ms));
+            }
+            if !classes.contains(&class.as_str()) {
+                return Err(unknown(&origin, shape, "class", class, classes));
+            }
+        }
+        Ok(Table {
+            rules,
+            measured: measured.into_iter().collect(),
+        })
+    }
+
+    /// Every row of every known method with the index of the rule that applies to it.
+    fn judged_rows(&self, known: &Known) -> Vec<(usize, RowKey)> {
+        known
             .shapes
             .iter()
             .flat_map(|(shape, methods, classes)| {
@@ -316,9 +337,15 @@ impl Table {
                     .position(|r| r.matches(&k.0, &k.1, k.2, &k.3))?;
                 Some((i, k))
             })
-            .collect();
-        // A built-in rule that no row reaches is dead: an error in the table
-        for (i, r) in self.rules.iter().enumerate().skip(user_rules) {
+            .collect()
+    }
+
+    /// Every rule applies to some row, every measurement is used, every measured rule's row
+    /// has its measurement.
+    fn check_complete(&self, known: &Known) -> Result<(), String> {
+        let rows = self.judged_rows(known);
+        // A rule that no row reaches is dead
+        for (i, r) in self.rules.iter().enumerate() {
             if !rows.iter().any(|(j, _)| *j == i) {
                 return Err(format!(
                     "{}: shadowed by earlier rules, it applies to no row",
@@ -326,14 +353,17 @@ impl Table {
                 ));
             }
         }
-        // Rates and known failures need the row's measurement; every measurement is used
-        for (i, k) in &rows {
-            let r = &self.rules[*i];
-            let needs = matches!(r.wrong, Some(Wrong::Measured | Wrong::Known { .. }));
-            if needs && !self.measured.contains_key(k) {
+        // A measurement that no measured rule uses is dead too
+        let measured_rule = |i: usize| {
+            matches!(
+                self.rules[i].wrong,
+                Some(Wrong::Measured | Wrong::Known { .. })
+            )
+        };
+        for k in self.measured.keys() {
+            if !rows.iter().any(|(i, x)| x == k && measured_rule(*i)) {
                 return Err(format!(
-                    "{}: no measurement for \"{} {} {} {}\" in [measured]",
-                    r.origin,
+                    "measured \"{} {} {} {}\": no row of that name is judged by a measured rule",
                     k.0,
                     k.1,
                     k.2.name(),
@@ -341,17 +371,24 @@ impl Table {
                 ));
             }
         }
-        for k in self.measured.keys() {
-            let used = rows.iter().any(|(i, x)| {
-                x == k
-                    && matches!(
-                        self.rules[*i].wrong,
-                        Some(Wrong::Measured | Wrong::Known { .. })
-                    )
-            });
-            if !used {
+        // Every row judged by a measured rule has its measurement (a known failure: some)
+        for (i, k) in rows {
+            let r = &self.rules[i];
+            let needs = matches!(r.wrong, Some(Wrong::Measured | Wrong::Known { .. }));
+            if let (Some(Wrong::Known { .. }), Some((0, _))) = (r.wrong, self.measured.get(&k)) {
                 return Err(format!(
-                    "measured \"{} {} {} {}\": no row of that name is judged by a measured rule",
+                    "{}: \"{} {} {} {}\" is a known failure measured with no failure",
+                    r.origin,
+                    k.0,
+                    k.1,
+                    k.2.name(),
+                    k.3
+                ));
+            }
+            if needs && !self.measured.contains_key(&k) {
+                return Err(format!(
+                    "{}: no measurement for \"{} {} {} {}\" in [measured]",
+                    r.origin,
                     k.0,
                     k.1,
                     k.2.name(),
@@ -409,7 +446,11 @@ pub struct Verdict {
     /// known failure, in well-posed cases): what `[measured]` records for it.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub count: Option<[u64; 2]>,
+    /// Why the row fails, one line each (empty unless the status is `fail`).
     pub reasons: Vec<String>,
+    /// What else the verdict says (a known failure shown, or too few cases to tell).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub notes: Vec<String>,
 }
 
 /// The one-sided Clopper–Pearson upper bound of a rate measured as `k` of `n`.
@@ -496,6 +537,7 @@ fn verdict(
             rule: None,
             count: None,
             reasons: fail,
+            notes: vec![],
         };
     };
     let (k, n) = (row.wrong(), row.well_posed);
@@ -575,12 +617,12 @@ fn verdict(
     if !fail.is_empty() {
         status = Status::Fail;
     }
-    fail.extend(note);
     Verdict {
         status,
         rule: Some(rule.origin.clone()),
         count,
         reasons: fail,
+        notes: note,
     }
 }
 
@@ -598,5 +640,53 @@ mod tests {
         // None measured: the upper bound is 1 − α^(1/n)
         let u = upper_bound(0, 1000);
         assert!((u - (1.0 - ALPHA.powf(1e-3))).abs() < 1e-9, "{u}");
+    }
+
+    fn known() -> Known<'static> {
+        super::super::plan::known_names(vec![])
+    }
+
+    /// Loads a user file before the built-in table; the error, if any.
+    fn user(text: &str) -> Result<Table, String> {
+        Table::load(Some(("user.toml", text)), &known())
+    }
+
+    #[test]
+    fn the_built_in_table_loads_and_every_rule_says_why() {
+        let t = Table::built_in();
+        assert!(t.rules.len() > 100 && t.measured.len() > 200);
+        assert!(t.rules.iter().all(|r| r.why.len() > 10));
+    }
+
+    #[test]
+    fn names_that_do_not_exist_are_errors_never_ignored() {
+        let rule = |body: &str| format!("[[rule]]\n{body}\nwhy = \"a test\"\n");
+        let cases = [
+            (rule("shape = \"hexagon\"\nmethod = \"x\""), "unknown shape 'hexagon'"),
+            (rule("shape = \"sphere\"\nmethod = \"magic\"\nwrong = \"none\""), "no method 'magic'"),
+            (rule("shape = \"sphere\"\nmethod = \"rtg7\"\nclass = \"nowhere\"\nwrong = \"none\""), "no class 'nowhere'"),
+            (rule("shape = \"sphere\"\nmethod = \"rtg7\"\nprecision = \"f16\""), "unknown precision 'f16'"),
+            (rule("shape = \"sphere\"\nmethod = \"rtg7\"\nmax_ulp = 3"), "unknown field `max_ulp`"),
+            (rule("shape = \"sphere\"\nmethod = \"rtg7\"\nwrong = \"few\""), "wrong = \"few\""),
+            (rule("shape = \"sphere\"\nmethod = \"rtg7\"\nwrong = \"measured\""), "no measurement"),
+            (
+                rule("shape = \"sphere\"\nmethod = \"rtg7\"\nwrong = \"none\"")
+                    + &rule("shape = \"sphere\"\nmethod = \"rtg7\"\nclass = \"inside\"\nwrong = \"none\""),
+                "shadowed",
+            ),
+            ("[measured]\n\"sphere magic f32 inside\" = [1, 2]\n".into(), "no method 'magic'"),
+            ("[measured]\n\"sphere rtg7 f32 inside\" = [1, 2]\n".into(), "no row of that name"),
+            ("[measured]\n\"sphere rtg7 inside\" = [1, 2]\n".into(), "not \"shape method precision class\""),
+        ];
+        for (text, want) in cases {
+            let e = user(&text).expect_err(&text);
+            assert!(e.contains(want), "{want:?} not in {e:?}");
+            assert!(!e.contains('\n'), "not one line: {e}");
+        }
+        // A user rule for an outside method is fine when the audit knows the method
+        let ok = rule("shape = \"sphere\"\nmethod = \"mine\"\nwrong = \"none\"");
+        let with_mine = super::super::plan::known_names(vec![("sphere", "mine".into())]);
+        assert!(Table::load(Some(("user.toml", &ok)), &with_mine).is_ok());
+        assert!(user(&ok).is_err());
     }
 }

@@ -533,7 +533,7 @@ impl Markdown<'_> {
                     .iter()
                     .map(|&c| {
                         let b = tallies
-                        .ulps(m.name, p, c.name())
+                            .ulps(m.name, p, c.name())
                             .into_iter()
                             .map(|u| (1.0 + u as f64).log2())
                             .collect();
