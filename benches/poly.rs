@@ -14,7 +14,7 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use rayproof::audit::run::generate;
-use rayproof::audit::Judgement;
+use rayproof::audit::tolerance::Table;
 use rayproof::audit::{judge, probe_line, Shape, Truth};
 use rayproof::numerics::real::Real;
 use rayproof::numerics::Precision;
@@ -38,18 +38,19 @@ fn batch(shape: &dyn Shape, prec: Precision) -> Vec<(usize, Vec<f64>)> {
 
 /// Judges every method on the batch; panics where the tolerance table forbids a failure.
 fn validate(shape: &dyn Shape, prec: Precision, cases: &[(usize, Vec<f64>)]) {
+    let table = Table::built_in();
     let truths: Vec<Truth> = cases.iter().map(|(_, v)| shape.oracle(v, prec)).collect();
     for (m, info) in shape.info().methods.iter().enumerate() {
         let mut wrong = 0;
         for ((class, input), truth) in cases.iter().zip(&truths) {
             let well_posed = matches!(truth, Truth::Answer(e) if !e.ill_posed);
             let j = judge(truth, &shape.run(m, input, prec), shape.info().metric, prec);
-            let e = shape.expect(m, prec, *class);
-            let too_far = matches!(j, Judgement::Ok { ulps: Some(u) } if u > e.max_ulps);
-            if well_posed && (j.is_wrong() || too_far) {
+            let class = shape.info().classes[*class];
+            let forbidden = table.forbids(shape.name(), info.name, prec, class, j);
+            if well_posed && (j.is_wrong() || forbidden) {
                 wrong += 1;
                 assert!(
-                    e.max_wrong != 0 || e.must_fail,
+                    !forbidden,
                     "refusing to time {} {} {}: {j:?}\n  {}",
                     shape.name(),
                     info.name,

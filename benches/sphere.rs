@@ -12,19 +12,22 @@
 //! criterion's elements/s is tests/s (and time/iteration ÷ length is ns/test).
 //!
 //! Validation comes first, as in libm-test: every method's answer on every well-posed case is
-//! judged against the exact oracle. A wrong verdict where the tolerance table holds the row
-//! (method, precision, class) to zero — `max_wrong_rate == Some(0.0)`, or a false hit where
-//! `max_false_hits == Some(0)` — refuses to time (panics with the replay line). Other wrong
-//! verdicts are counted and printed, so the timing is honest about what it times.
+//! judged against the exact oracle as the audit judges it. A judgement the tolerance table
+//! forbids outright for the row (method, precision, class) — a wrong verdict where none is
+//! allowed, a false hit where `max_false_hits = 0`, an error above `max_ulps` — refuses to
+//! time (panics with the replay line). Other wrong verdicts are counted and printed, so the
+//! timing is honest about what it times.
 
 use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
+use rayproof::audit::tolerance::Table;
+use rayproof::audit::{judge, probe_line, Shape};
 use rayproof::numerics::Precision;
 use rayproof::render::{render, scene, Overrides};
 use rayproof::shapes::sphere::cases::{generate, Class};
 use rayproof::shapes::sphere::methods::{PickPrecision, Ray, Sphere, METHODS};
 use rayproof::shapes::sphere::oracle::{truth, Case, Truth};
-use rayproof::shapes::sphere::{judge, tolerance, Judgement};
+use rayproof::shapes::sphere::SphereShape;
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -114,40 +117,38 @@ fn validate<F: PickPrecision>(b: &Batch<F>) {
     } else {
         Precision::F64
     };
-    for m in METHODS {
-        let f = F::pick(m);
+    let (shape, table) = (&SphereShape, Table::built_in());
+    for (k, m) in METHODS.iter().enumerate() {
         let (mut wrong, mut posed) = (0usize, 0usize);
-        for (i, (class, case, truth)) in b.cases.iter().enumerate() {
+        for (class, case, truth) in &b.cases {
             if truth.ill_posed {
                 continue; // not a failure by definition
             }
             posed += 1;
-            let j = judge(truth, f(&b.rays[i], &b.spheres[i]));
+            let input: Vec<f64> = case.scalars().iter().map(|x| x.to_f64()).collect();
+            let exact = shape.oracle(&input, p);
+            let j = judge(&exact, &shape.run(k, &input, p), shape.info().metric, p);
             if !j.is_wrong() {
                 continue;
             }
             wrong += 1;
-            // The class's tolerance row; a recorded render case has no class, so it is held
-            // to zero only for methods whose every row is zero
-            let holds = |class: Class| {
-                let e = tolerance::entry(m.name, p, class);
-                e.max_wrong_rate == Some(0.0)
-                    || (e.max_false_hits == Some(0) && j == Judgement::FalseHit)
-            };
+            // The class's row forbids it; a recorded render case has no class, so it is held
+            // only by a method whose every row forbids it
+            let forbids = |class: Class| table.forbids("sphere", m.name, p, class.name(), j);
             let held = match class {
-                Some(class) => holds(*class),
-                None => Class::ALL.into_iter().all(holds),
+                Some(class) => forbids(*class),
+                None => Class::ALL.into_iter().all(forbids),
             };
             assert!(
                 !held,
                 "refusing to time sphere/{}: {}/{} gave {} on a well-posed {} case, which the \
-                 tolerance table holds to zero\n  replay: rayproof probe sphere {}",
+                 tolerance table forbids\n  replay: {}",
                 b.name,
                 m.name,
                 F::NAME,
                 j.verdict_word(),
                 class.map_or("recorded render", |c| c.name()),
-                case.probe_args()
+                probe_line("sphere", p, &input)
             );
         }
         eprintln!(

@@ -13,7 +13,7 @@
 use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
 use rayproof::audit::run::generate;
-use rayproof::audit::Judgement;
+use rayproof::audit::tolerance::Table;
 use rayproof::audit::{judge, probe_line, Shape, Truth};
 use rayproof::numerics::real::Real;
 use rayproof::numerics::Precision;
@@ -53,6 +53,7 @@ fn build<F: Real>(p: Precision) -> Batch<F> {
 
 // Validate against the oracle before timing
 fn validate<F: Real>(b: &Batch<F>, p: Precision) {
+    let table = Table::built_in();
     for (m, info) in METHODS.iter().enumerate() {
         let (mut wrong, mut posed) = (0, 0);
         for (class, x, truth) in &b.cases {
@@ -61,14 +62,14 @@ fn validate<F: Real>(b: &Batch<F>, p: Precision) {
             }
             posed += 1;
             let j = judge(truth, &Torus.run(m, x, p), Torus.info().metric, p);
-            let e = Torus.expect(m, p, *class);
-            let beyond = matches!(j, Judgement::Ok { ulps: Some(u) } if u > e.max_ulps);
+            let forbidden = table.forbids("torus", info.name, p, cases::CLASSES[*class], j);
+            let beyond = j.ulps().is_some() && forbidden;
             if !j.is_wrong() && !beyond {
                 continue;
             }
             wrong += 1;
             assert!(
-                e.must_fail || (e.max_wrong == u64::MAX && !beyond),
+                !forbidden,
                 "refusing to time torus {}/{}: {} on a well-posed {} case, which the tolerance \
                  table holds to zero\n  replay: {}",
                 info.name,

@@ -211,28 +211,20 @@ fn teeth_newton_from_the_box_finds_a_wrong_root_or_none() {
 
 #[test]
 fn teeth_the_table_raises_an_alarm_when_a_known_failure_passes() {
+    let table = Table::built_in();
     let mut r = row(torus_report(), "ferrari", Precision::F32, "far").clone();
     (r.false_hit, r.false_miss, r.wrong_root, r.nonfinite_t) = (0, 0, 0, 0);
     r.ulps.max = 0.0;
-    let report = ShapeReport {
-        rows: vec![r],
-        ..torus_report().clone()
-    };
-    let breaks = &report.failures();
+    let v = table.verdict("torus", &r, |_| 0);
     assert!(
-        breaks
-            .iter()
-            .any(|b| b.contains("known failure not reproduced")),
-        "{breaks:?}"
+        v.reasons.iter().any(|b| b.contains("known failure lost")),
+        "{v:?}"
     );
     // And a robust row with one wrong verdict breaks the table
     let mut r = row(torus_report(), "robust", Precision::F64, "far").clone();
     r.false_miss = 1;
-    let report = ShapeReport {
-        rows: vec![r],
-        ..torus_report().clone()
-    };
-    assert!(!&report.failures().is_empty());
+    let v = table.verdict("torus", &r, |_| 0);
+    assert_eq!(v.status, rayproof::audit::tolerance::Status::Fail, "{v:?}");
 }
 
 // ---- the oracle on hand-made cases ----

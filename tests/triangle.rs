@@ -168,7 +168,7 @@ fn every_class_has_a_test() {
 
 #[test]
 fn default_seed_audit_passes_the_table() {
-    let breaks = report(.failures());
+    let breaks = report().failures();
     assert!(breaks.is_empty(), "{}", breaks.join("\n"));
 }
 

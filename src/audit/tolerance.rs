@@ -406,6 +406,27 @@ impl Table {
             .find(|r| r.matches(shape, method, prec, class))
     }
 
+    /// Whether the rule of a row forbids this judgement of one well-posed case outright (for
+    /// benches and tests that check single cases): a wrong verdict where none is allowed, a
+    /// false hit beyond `max_false_hits = 0`, an error above `max_ulps`. Rates and known
+    /// failures forbid nothing on a single case.
+    pub fn forbids(
+        &self,
+        shape: &str,
+        method: &str,
+        prec: Precision,
+        class: &str,
+        j: super::judge::Judgement,
+    ) -> bool {
+        let Some(r) = self.rule(shape, method, prec, class) else {
+            return false;
+        };
+        let strict = r.wrong == Some(Wrong::None);
+        (strict && j.is_wrong())
+            || (r.max_false_hits == Some(0) && j == super::judge::Judgement::FalseHit)
+            || j.ulps().zip(r.max_ulps).is_some_and(|(u, m)| u > m)
+    }
+
     /// The verdict of a row.
     pub fn verdict(&self, shape: &str, row: &Row, ulps_above: impl Fn(u64) -> u64) -> Verdict {
         let rule = self.rule(shape, &row.method, row.precision, &row.class);
