@@ -72,7 +72,7 @@ fn select(names: &[String], all: &[&str], what: &str, shape: &str) -> Result<Vec
         .map(|n| {
             all.iter().position(|a| a == n).ok_or_else(|| {
                 format!(
-                    "unknown {what} '{n}' of {shape} (known: {})",
+                    "--{what}: unknown {what} '{n}' of {shape} (known: {})",
                     all.join(", ")
                 )
             })

@@ -186,15 +186,15 @@ impl Shard {
             Err(e) => {
                 // Tell a file of another kind from a damaged shard
                 let tag = serde_json::from_slice::<FormatTag>(bytes).ok();
-                let json = serde_json::from_slice::<serde::de::IgnoredAny>(bytes).is_ok();
+                let json = serde_json::from_slice::<serde::de::IgnoredAny>(bytes);
                 return Err(match tag {
                     Some(t) if t.format != Some(SHARD_FORMAT.into()) => not_shard(),
                     Some(t) if t.format_version != Some(SHARD_FORMAT_VERSION.into()) => format!(
                         "shard format version {}, but this rayproof reads version {SHARD_FORMAT_VERSION}",
                         t.format_version.map(|v| v.to_string()).unwrap_or("(none)".into())
                     ),
-                    None if json => not_shard(),
-                    _ if e.is_eof() => format!("truncated shard ({e})"),
+                    None if json.is_ok() => not_shard(),
+                    _ if json.is_err_and(|j| j.is_eof()) => format!("truncated shard ({e})"),
                     _ => format!("corrupt shard ({e})"),
                 });
             }
