@@ -149,8 +149,8 @@ fn time_in<F: Real>(c: &mut Criterion, shape: &dyn Shape, prec: Precision) {
 fn benches(c: &mut Criterion) {
     let shapes: [&dyn Shape; 4] = [
         &aabb::BoxShape,
-        &quadric::EllipsoidShape,
-        &quadric::CylinderShape,
+        &quadric::ELLIPSOID,
+        &quadric::CYLINDER,
         &quadric::EllipsoidNormalShape,
     ];
     for shape in shapes {

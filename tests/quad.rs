@@ -40,8 +40,8 @@ macro_rules! report_fn {
     };
 }
 report_fn!(box_report, aabb::BoxShape);
-report_fn!(ellipsoid_report, quadric::EllipsoidShape);
-report_fn!(cylinder_report, quadric::CylinderShape);
+report_fn!(ellipsoid_report, quadric::ELLIPSOID);
+report_fn!(cylinder_report, quadric::CYLINDER);
 report_fn!(normal_report, quadric::EllipsoidNormalShape);
 
 fn row<'a>(r: &'a ShapeReport, method: &str, prec: Precision, class: &str) -> &'a Row {
@@ -118,7 +118,7 @@ fn minus_sqrt(a: f64, b: f64) -> f64 {
 
 #[test]
 fn ellipsoid_oracle_hand_cases() {
-    let e = &quadric::EllipsoidShape;
+    let e = &quadric::ELLIPSOID;
     let case = |o: [f64; 3], d: [f64; 3], p: [f64; 3]| [&o[..], &d[..], &p[..]].concat();
     // x² + 4y² + z² = 4 (r = 2, m = 2, n = 1): along y from −5 hits y = −1 at t = 4
     let v = case([0.0, -5.0, 0.0], [0.0, 1.0, 0.0], [2.0, 2.0, 1.0]);
@@ -151,7 +151,7 @@ fn ellipsoid_oracle_hand_cases() {
 
 #[test]
 fn cylinder_oracle_hand_cases() {
-    let c = &quadric::CylinderShape;
+    let c = &quadric::CYLINDER;
     let case = |o: [f64; 3], d: [f64; 3], p: [f64; 3]| [&o[..], &d[..], &p[..]].concat();
     // x² + y² = 1, 0 ≤ z ≤ 2: from x = −5 at height 1, t = 4
     let v = case([-5.0, 0.0, 1.0], [1.0, 0.0, 0.0], [1.0, 1.0, 2.0]);
@@ -365,8 +365,8 @@ fn teeth_normals() {
 fn every_shape() -> [&'static dyn Shape; 4] {
     [
         &aabb::BoxShape,
-        &quadric::EllipsoidShape,
-        &quadric::CylinderShape,
+        &quadric::ELLIPSOID,
+        &quadric::CYLINDER,
         &quadric::EllipsoidNormalShape,
     ]
 }
@@ -436,7 +436,7 @@ proptest! {
             d in prop::array::uniform3(-1f32..1.0), r in 0.01f32..100.0,
             m in 0.1f32..10.0, n in 0.1f32..10.0) {
         let v = [o[0], o[1], o[2], d[0] as f64, d[1] as f64, d[2] as f64, r as f64, m as f64, n as f64];
-        agrees(&quadric::EllipsoidShape, &v)?;
+        agrees(&quadric::ELLIPSOID, &v)?;
     }
 
     /// The robust cylinder agrees with the oracle on random cases.
@@ -445,7 +445,7 @@ proptest! {
             d in prop::array::uniform3(-1f32..1.0), r in 0.01f32..100.0,
             m in 0.1f32..10.0, h in 0.01f32..100.0) {
         let v = [o[0], o[1], o[2], d[0] as f64, d[1] as f64, d[2] as f64, r as f64, m as f64, h as f64];
-        agrees(&quadric::CylinderShape, &v)?;
+        agrees(&quadric::CYLINDER, &v)?;
     }
 
     /// The robust slab never misses a box the exact oracle says it hits (conservative).

@@ -8,7 +8,7 @@
 use rayproof::audit::plan::{Options, Plan};
 use rayproof::audit::tolerance::{Status, Table};
 use rayproof::audit::{audit_shape, Answer, Builtin, Method, Shape, ShapeReport};
-use rayproof::numerics::real::{Real, Scalar};
+use rayproof::numerics::real::Real;
 use rayproof::numerics::Precision;
 use rayproof::shapes::{roots, shape_by_name, sphere::SphereShape};
 

@@ -46,10 +46,17 @@ pub struct AuditArgs {
     /// the merge, not here).
     #[arg(long, value_name = "FILE")]
     pub shard_out: Option<PathBuf>,
-    /// Tolerance rules tried before the built-in table (TOML, the built-in table's format).
+    #[command(flatten)]
+    pub out: AuditOutput,
+}
+
+/// How `audit` and `merge` judge and write their report.
+#[derive(Args, Debug)]
+pub struct AuditOutput {
+    /// Tolerance rules tried before the built-in table (TOML in the built-in table's format).
     #[arg(long, value_name = "FILE")]
     pub tolerances: Option<PathBuf>,
-    /// Write the full report as JSON.
+    /// Write the full report as JSON (for `merge`: byte-identical to the unsharded audit's).
     #[arg(long)]
     pub json: Option<PathBuf>,
     /// Write the table as Markdown.
@@ -66,18 +73,8 @@ pub struct MergeArgs {
     /// in any order.
     #[arg(required = true, value_name = "SHARD")]
     pub shards: Vec<PathBuf>,
-    /// Tolerance rules tried before the built-in table (as for `audit`).
-    #[arg(long, value_name = "FILE")]
-    pub tolerances: Option<PathBuf>,
-    /// Write the full report as JSON (byte-identical to the unsharded audit's).
-    #[arg(long)]
-    pub json: Option<PathBuf>,
-    /// Write the table as Markdown.
-    #[arg(long)]
-    pub markdown: Option<PathBuf>,
-    /// Replayable worst cases to print per row (0 for none).
-    #[arg(long, default_value_t = 1)]
-    pub worst: usize,
+    #[command(flatten)]
+    pub out: AuditOutput,
 }
 
 /// The tolerance table, with the user's rules first; one line on any error.
@@ -113,8 +110,8 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         shard: a.shard,
     })
     .map_err(|e| anyhow!(e))?;
-    let table = load_table(&a.tolerances, &plan.known())?;
-    check_output_dirs(&[&a.json, &a.markdown, &a.shard_out])?;
+    let table = load_table(&a.out.tolerances, &plan.known())?;
+    check_output_dirs(&[&a.out.json, &a.out.markdown, &a.shard_out])?;
     let shard_label = format!("{}/{}", a.shard.0, a.shard.1);
     // A shard is judged by its merge, not here
     let judge = a.shard_out.is_none() && a.shard == (0, 1);
@@ -127,7 +124,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         crate::audit::run::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
         let t = plan.run_shape(i, std::io::stderr().is_terminal());
         let r = t.report(judge.then_some(&table));
-        print_shape(&r, a.worst);
+        print_shape(&r, a.out.worst);
         let secs = start.elapsed().as_secs_f64();
         let oracle = crate::audit::run::ORACLE_NANOS.load(std::sync::atomic::Ordering::Relaxed)
             as f64
@@ -152,7 +149,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
             shapes: reports,
             robustness: None,
         };
-        write_files(&report, &a.json, &a.markdown)?;
+        write_files(&report, &a.out.json, &a.out.markdown)?;
         let file = Shard::new(TOOL, a.seed, plan.every_shape, a.shard, &runs);
         write_atomic(p, file.to_json().as_bytes())?;
         say!(
@@ -173,8 +170,8 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
             robustness,
         },
         judge,
-        &a.json,
-        &a.markdown,
+        &a.out.json,
+        &a.out.markdown,
     )
 }
 
@@ -185,7 +182,7 @@ fn print_robustness(r: Robustness) -> Robustness {
 }
 
 pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
-    check_output_dirs(&[&m.json, &m.markdown])?;
+    check_output_dirs(&[&m.out.json, &m.out.markdown])?;
     // Read and check each shard on its own (exit 2 on a bad file)
     let mut shards = vec![];
     for p in &m.shards {
@@ -202,12 +199,12 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
         .iter()
         .flat_map(|t| t.methods.iter().map(|x| (t.shape.name(), x.name.clone())))
         .collect();
-    let table = load_table(&m.tolerances, &crate::audit::plan::known_names(extra))?;
+    let table = load_table(&m.out.tolerances, &crate::audit::plan::known_names(extra))?;
     say_raw!("{}", table::legend(merged.seed, "0/1"));
     let mut reports = vec![];
     for t in &merged.shapes {
         let r = t.report(Some(&table));
-        print_shape(&r, m.worst);
+        print_shape(&r, m.out.worst);
         say!(
             "{}: {} cases × {} methods merged from {count} shards",
             r.shape,
@@ -237,8 +234,8 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
             robustness,
         },
         true,
-        &m.json,
-        &m.markdown,
+        &m.out.json,
+        &m.out.markdown,
     )
 }
 

@@ -644,9 +644,6 @@ fn run_t<F: Real>(fs: [QFn<F, F>; 3], m: usize, v: &[f64]) -> Answer {
 
 const CHAPTER_ABOUT: &str = "the chapter's coefficients a, b, c and the textbook quadratic";
 
-/// Ray–ellipsoid `x² + m²y² + n²z² = r²` as an audited routine (§2.3).
-pub struct EllipsoidShape;
-
 const ELLIPSOID_METHODS: &[MethodInfo] = &[
     MethodInfo {
         name: "chapter",
@@ -680,48 +677,17 @@ pub const ELLIPSOID_CLASSES: &[&str] = &[
     "invalid",
 ];
 
-fn ellipsoid_fns<F: Real>() -> [QFn<F, F>; 3] {
-    [ellipsoid_chapter, ellipsoid_perp, ellipsoid_robust_mn]
-}
-
-fn cylinder_fns<F: Real>() -> [QFn<F, F>; 3] {
-    [cylinder_chapter, cylinder_perp, cylinder_robust_m]
+/// The three methods of a kind of quadric.
+fn t_fns<F: Real>(kind: Kind) -> [QFn<F, F>; 3] {
+    match kind {
+        Kind::Ellipsoid => [ellipsoid_chapter, ellipsoid_perp, ellipsoid_robust_mn],
+        Kind::Cylinder => [cylinder_chapter, cylinder_perp, cylinder_robust_m],
+    }
 }
 
 fn normal_fns<F: Real>() -> [QFn<F, V<F>>; 3] {
     [normal_chapter, normal_robust_t, normal_robust]
 }
-
-const ELLIPSOID: ShapeInfo = ShapeInfo {
-    name: "ellipsoid",
-    about: "ray–ellipsoid x² + m²y² + n²z² = r², nearest t > 0 (seed 002 §2.3)",
-    args: &["ox", "oy", "oz", "dx", "dy", "dz", "r", "m", "n"],
-    values: &["t"],
-    classes: ELLIPSOID_CLASSES,
-    methods: ELLIPSOID_METHODS,
-    metric: Metric::Ulps,
-    default_cases: 20_000,
-    reports_cond: false,
-    reports_residual: false,
-};
-
-impl Shape for EllipsoidShape {
-    fn info(&self) -> &ShapeInfo {
-        &ELLIPSOID
-    }
-    fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
-        Some(propose_ellipsoid(ELLIPSOID_CLASSES[class], prec, rng))
-    }
-    fn oracle(&self, input: &[f64], prec: Precision) -> Truth {
-        oracle(Kind::Ellipsoid, input, prec)
-    }
-    fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        crate::in_precision!(prec, F => run_t(ellipsoid_fns::<F>(), m, input))
-    }
-}
-
-/// Ray–cylinder `x² + m²y² = r²`, `0 ≤ z ≤ h`, as an audited routine (§2.4).
-pub struct CylinderShape;
 
 const CYLINDER_METHODS: &[MethodInfo] = &[
     MethodInfo {
@@ -754,31 +720,58 @@ pub const CYLINDER_CLASSES: &[&str] = &[
     "invalid",
 ];
 
-const CYLINDER: ShapeInfo = ShapeInfo {
-    name: "cylinder",
-    about: "ray–cylinder x² + m²y² = r², 0 ≤ z ≤ h, lateral surface (seed 002 §2.4)",
-    args: &["ox", "oy", "oz", "dx", "dy", "dz", "r", "m", "h"],
-    values: &["t"],
-    classes: CYLINDER_CLASSES,
-    methods: CYLINDER_METHODS,
-    metric: Metric::Ulps,
-    default_cases: 20_000,
-    reports_cond: false,
-    reports_residual: false,
+/// A ray–quadric routine: the ellipsoid (§2.3) or the cylinder's lateral surface (§2.4).
+pub struct QuadricShape {
+    kind: Kind,
+    info: ShapeInfo,
+}
+
+/// Ray–ellipsoid `x² + m²y² + n²z² = r²`, nearest `t > 0`.
+pub static ELLIPSOID: QuadricShape = QuadricShape {
+    kind: Kind::Ellipsoid,
+    info: ShapeInfo {
+        name: "ellipsoid",
+        about: "ray–ellipsoid x² + m²y² + n²z² = r², nearest t > 0 (seed 002 §2.3)",
+        args: &["ox", "oy", "oz", "dx", "dy", "dz", "r", "m", "n"],
+        values: &["t"],
+        classes: ELLIPSOID_CLASSES,
+        methods: ELLIPSOID_METHODS,
+        metric: Metric::Ulps,
+        default_cases: 20_000,
+        reports_cond: false,
+        reports_residual: false,
+    },
 };
 
-impl Shape for CylinderShape {
+/// Ray–cylinder `x² + m²y² = r²`, `0 ≤ z ≤ h`, the lateral surface.
+pub static CYLINDER: QuadricShape = QuadricShape {
+    kind: Kind::Cylinder,
+    info: ShapeInfo {
+        name: "cylinder",
+        about: "ray–cylinder x² + m²y² = r², 0 ≤ z ≤ h, lateral surface (seed 002 §2.4)",
+        args: &["ox", "oy", "oz", "dx", "dy", "dz", "r", "m", "h"],
+        classes: CYLINDER_CLASSES,
+        methods: CYLINDER_METHODS,
+        ..ELLIPSOID.info
+    },
+};
+
+impl Shape for QuadricShape {
     fn info(&self) -> &ShapeInfo {
-        &CYLINDER
+        &self.info
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
-        Some(propose_cylinder(CYLINDER_CLASSES[class], prec, rng))
+        let class = self.info.classes[class];
+        Some(match self.kind {
+            Kind::Ellipsoid => propose_ellipsoid(class, prec, rng),
+            Kind::Cylinder => propose_cylinder(class, prec, rng),
+        })
     }
     fn oracle(&self, input: &[f64], prec: Precision) -> Truth {
-        oracle(Kind::Cylinder, input, prec)
+        oracle(self.kind, input, prec)
     }
     fn run(&self, m: usize, input: &[f64], prec: Precision) -> Answer {
-        crate::in_precision!(prec, F => run_t(cylinder_fns::<F>(), m, input))
+        crate::in_precision!(prec, F => run_t(t_fns::<F>(self.kind), m, input))
     }
 }
 
@@ -816,7 +809,7 @@ const ELLIPSOID_NORMAL: ShapeInfo = ShapeInfo {
     values: &["nx", "ny", "nz"],
     methods: NORMAL_METHODS,
     metric: Metric::NormUlps,
-    ..ELLIPSOID
+    ..ELLIPSOID.info
 };
 
 impl Shape for EllipsoidNormalShape {
@@ -824,7 +817,7 @@ impl Shape for EllipsoidNormalShape {
         &ELLIPSOID_NORMAL
     }
     fn generate(&self, class: usize, prec: Precision, rng: &mut ChaCha8Rng) -> Option<Vec<f64>> {
-        EllipsoidShape.generate(class, prec, rng)
+        ELLIPSOID.generate(class, prec, rng)
     }
     fn oracle(&self, input: &[f64], prec: Precision) -> Truth {
         normal_oracle(input, prec)

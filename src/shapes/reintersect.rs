@@ -190,9 +190,9 @@ struct QuadR {
 impl QuadR {
     fn shape(&self) -> &'static dyn Shape {
         if self.cylinder {
-            &quadric::CylinderShape
+            &quadric::CYLINDER
         } else {
-            &quadric::EllipsoidShape
+            &quadric::ELLIPSOID
         }
     }
 }

@@ -135,16 +135,9 @@ impl Shape for Torus {
 const TORUS_NORMAL: ShapeInfo = ShapeInfo {
     name: "torus_normal",
     about: "§3 unit normal (normalised gradient) at the ray–torus hit",
-    args: &ARGS,
     values: &["nx", "ny", "nz"],
-    classes: &cases::CLASSES,
-    methods: &METHODS,
     metric: Metric::NormUlps,
-    // The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
-    // milliseconds per case.
-    default_cases: 500,
-    reports_cond: false,
-    reports_residual: false,
+    ..TORUS
 };
 
 impl Shape for TorusNormal {
