@@ -14,11 +14,13 @@
 //!   seed and any case count;
 //! - [`plan`]: names on the command line resolved to the shapes, methods and classes to run.
 
+pub mod hexfloat;
 pub mod hist;
 pub mod judge;
 pub mod plan;
 pub mod probe;
 pub mod report;
+pub mod row;
 pub mod run;
 pub mod shape;
 pub mod shard;
@@ -27,44 +29,8 @@ pub mod tally;
 pub mod tolerance;
 
 pub use judge::{judge, Judgement};
+pub use plan::audit_shape;
 pub use report::{Report, ShapeReport, TOOL};
+pub use row::Row;
 pub use shape::probe_line;
 pub use shape::{Answer, Builtin, Expected, Method, MethodInfo, Metric, Shape, ShapeInfo, Truth};
-pub use tally::Row;
-
-/// Audits one registered shape with the options' selection of its built-in methods, classes and
-/// precisions, judged by the built-in tolerance table (a shard's rows are not judged).
-pub fn audit_shape(shape: &dyn Shape, opts: &plan::Options) -> Result<ShapeReport, String> {
-    let plan = plan::Plan::new(&plan::Options {
-        shapes: vec![shape.name().to_string()],
-        ..opts.clone()
-    })?;
-    let table = tolerance::Table::load(None, &plan.known())?;
-    let judged = opts.shard == (0, 1);
-    Ok(plan.run_shape(0, false).report(judged.then_some(&table)))
-}
-
-impl ShapeReport {
-    /// Every row out of tolerance, one line each (empty when the shape passes).
-    pub fn failures(&self) -> Vec<String> {
-        self.rows
-            .iter()
-            .filter(|r| {
-                r.verdict
-                    .as_ref()
-                    .is_some_and(|v| v.status == tolerance::Status::Fail)
-            })
-            .map(|r| {
-                let v = r.verdict.as_ref().expect("filtered");
-                format!(
-                    "{} {} {} {}: {}",
-                    self.shape,
-                    r.method,
-                    r.precision.name(),
-                    r.class,
-                    v.reasons.join("; ")
-                )
-            })
-            .collect()
-    }
-}

@@ -2,9 +2,10 @@
 //! (an unknown name is a one-line error), the case count per shape, and whether the
 //! reintersection and watertightness tests run (with every shape).
 
+use super::report::ShapeReport;
 use super::run::{Selection, Tallies};
 use super::shape::{Builtin, Method, Shape};
-use super::tolerance::Known;
+use super::tolerance::{Known, Table};
 use crate::numerics::Precision;
 use crate::shapes::{registry, robustness, shape_by_name, shape_names};
 
@@ -199,5 +200,25 @@ pub fn known_names(extra: Vec<(&'static str, String)>) -> Known<'static> {
                 (info.name, methods, info.classes.to_vec())
             })
             .collect(),
+    }
+}
+
+/// Audits one registered shape with the options' selection of its built-in methods, classes and
+/// precisions, judged by the built-in tolerance table (a shard's rows are not judged).
+pub fn audit_shape(shape: &dyn Shape, opts: &Options) -> Result<ShapeReport, String> {
+    let plan = Plan::new(&Options {
+        shapes: vec![shape.name().to_string()],
+        ..opts.clone()
+    })?;
+    let table = Table::load(None, &plan.known())?;
+    let judged = opts.shard == (0, 1);
+    Ok(plan.run_shape(0, false).report(judged.then_some(&table)))
+}
+
+impl Table {
+    /// The built-in table alone, checked against every registered shape (a unit test keeps it
+    /// valid).
+    pub fn built_in() -> Table {
+        Table::load(None, &known_names(vec![])).expect("the built-in table is valid")
     }
 }

@@ -2,9 +2,9 @@
 //! table's verdict) and the reintersection and watertightness tests of a whole audit. The JSON
 //! of `--json` is this structure; the same seed gives byte-identical JSON.
 
+use super::row::{Row, RowKey, Status};
 use super::run::Tallies;
-use super::tally::{Row, RowKey};
-use super::tolerance::{Status, Table};
+use super::tolerance::Table;
 use crate::shapes::robustness::Robustness;
 use serde::Serialize;
 
@@ -100,6 +100,27 @@ impl Report {
                         .as_ref()
                         .map(|v| v.reasons.join("; "))
                         .unwrap_or_default()
+                )
+            })
+            .collect()
+    }
+}
+
+impl ShapeReport {
+    /// Every row out of tolerance, one line each (empty when the shape passes).
+    pub fn failures(&self) -> Vec<String> {
+        self.rows
+            .iter()
+            .filter(|r| r.verdict.as_ref().is_some_and(|v| v.status == Status::Fail))
+            .map(|r| {
+                let v = r.verdict.as_ref().expect("filtered");
+                format!(
+                    "{} {} {} {}: {}",
+                    self.shape,
+                    r.method,
+                    r.precision.name(),
+                    r.class,
+                    v.reasons.join("; ")
                 )
             })
             .collect()

@@ -3,8 +3,7 @@
 //! left out.
 
 use super::report::{Report, ShapeReport};
-use super::tally::Row;
-use super::tolerance::Status;
+use super::row::{Row, Status};
 use std::fmt::Write;
 
 /// Formats a count compactly: integers below 10⁵, else one decimal of scientific notation.

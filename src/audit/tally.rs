@@ -1,15 +1,14 @@
-//! Aggregation: every judged case of one method × precision × class is added to a [`Tally`],
-//! and a tally becomes one [`Row`] of the report.
+//! Aggregation: every judged case of one method × precision × class is added to a [`Tally`];
+//! a tally becomes one row of the report ([`super::row`]).
 //!
 //! A tally is exact and mergeable: counts add, samples are histograms ([`super::hist`]), and the
 //! examples are chosen by rules that do not depend on the order of the cases (the worst value
 //! error, ties to the lowest index; the lowest index of each failure kind). So a run split in
 //! any way — over threads, or over shards merged later — gives the same rows, byte for byte.
 
-use super::hist::{FloatHist, Hist, Stats};
+use super::hist::{FloatHist, Hist};
 use super::judge::Judgement;
-use super::shape::{hex_text, probe_line, Truth};
-use crate::numerics::Precision;
+use super::shape::Truth;
 use serde::{Deserialize, Serialize};
 
 /// What was recorded of one case for one method.
@@ -55,11 +54,11 @@ impl InvalidStats {
 pub struct Candidate {
     pub index: u64,
     /// The inputs, exactly (hex floats in a shard file).
-    #[serde(with = "super::shard::exact_vec")]
+    #[serde(with = "super::hexfloat::exact_vec")]
     pub input: Vec<f64>,
-    #[serde(with = "super::shard::exact_vec")]
+    #[serde(with = "super::hexfloat::exact_vec")]
     pub method_values: Vec<f64>,
-    #[serde(with = "super::shard::exact_vec")]
+    #[serde(with = "super::hexfloat::exact_vec")]
     pub oracle_values: Vec<f64>,
     pub ulps: Option<u64>,
     /// What the example is worst at, for choosing between candidates: the ulps, or the
@@ -253,147 +252,6 @@ impl Tally {
         self.enclosure_widths.merge(&o.enclosure_widths);
         for (kind, c) in &o.examples {
             self.offer(kind, || c.clone(), c.key, c.index);
-        }
-    }
-}
-
-/// A case worth replaying, with the command that replays it.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct Example {
-    /// One of [`KINDS`].
-    pub kind: String,
-    pub index: u64,
-    pub probe: String,
-    pub method_values: Vec<String>,
-    pub oracle_values: Vec<String>,
-    pub ulps: Option<u64>,
-}
-
-/// Enclosure checks for methods that return one.
-#[derive(Clone, Debug, Default, Serialize, PartialEq)]
-pub struct EnclosureStats {
-    pub checked: u64,
-    pub violations: u64,
-    /// Width `hi − lo` in ulps of the precision.
-    pub width_ulps: Stats,
-}
-
-/// One row: a method in a precision on a class.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct Row {
-    pub method: String,
-    pub robust: bool,
-    pub precision: Precision,
-    pub class: String,
-    pub cases: u64,
-    /// Cases for which the generator found no member (a broken generator shows here).
-    pub generator_failures: u64,
-    pub ill_posed: u64,
-    pub well_posed: u64,
-    /// Well-posed valid cases whose exact count is not 0.
-    pub oracle_hits: u64,
-    /// Oracle precision cap reached (a value's rounding could not be made certain).
-    pub cap_reached: u64,
-    pub false_hit: u64,
-    pub false_miss: u64,
-    pub wrong_root: u64,
-    pub nonfinite_t: u64,
-    /// Wrong verdicts / well-posed valid cases.
-    pub wrong_rate: f64,
-    /// Ill-posed cases on which the method's verdict differs from the exact one (not failures).
-    pub ill_posed_disagree: u64,
-    /// Value error (by the shape's metric) over right-verdict answers of well-posed cases.
-    pub ulps: Stats,
-    /// Herbie's bits of error, log2(1 + ulps).
-    pub bits: Stats,
-    /// Error relative to the case's sensitivity: ulps / max(1, condition ulps). Near 1: as
-    /// accurate as the inputs allow; large: the method lost digits the case did not force it
-    /// to lose. Only for shapes whose oracle gives the sensitivity.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub err_over_cond: Option<Stats>,
-    /// |hit-point residual| in ulps of the shape's size (shapes that report it).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub residual_ulps: Option<Stats>,
-    pub invalid: InvalidStats,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub enclosure: Option<EnclosureStats>,
-    pub examples: Vec<Example>,
-    /// The tolerance table's verdict (not given for a shard, whose merge judges it).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub verdict: Option<super::tolerance::Verdict>,
-}
-
-impl Row {
-    pub fn wrong(&self) -> u64 {
-        self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t
-    }
-}
-
-/// What a row is about, beside its tally.
-pub struct RowKey<'a> {
-    pub shape: &'a str,
-    pub method: &'a str,
-    pub robust: bool,
-    pub precision: Precision,
-    pub class: &'a str,
-    /// The shape's oracle gives the sensitivity (err/cond) / reports residuals.
-    pub has_cond: bool,
-    pub has_residual: bool,
-}
-
-impl Tally {
-    /// The row of this tally.
-    pub fn row(&self, key: &RowKey) -> Row {
-        let mut examples: Vec<&(String, Candidate)> = self.examples.iter().collect();
-        examples.sort_by_key(|(kind, c)| {
-            let rank = KINDS.iter().position(|k| k == kind).unwrap_or(KINDS.len());
-            // The worst first, the residual last, failures by first occurrence between
-            match rank {
-                0 => (0, 0, 0),
-                r if r == KINDS.len() - 1 => (2, 0, 0),
-                r => (1, c.index, r),
-            }
-        });
-        let hex = |v: &[f64]| v.iter().map(|&x| hex_text(x)).collect();
-        Row {
-            method: key.method.to_string(),
-            robust: key.robust,
-            precision: key.precision,
-            class: key.class.to_string(),
-            cases: self.cases,
-            generator_failures: self.generator_failures,
-            ill_posed: self.ill_posed,
-            well_posed: self.well_posed,
-            oracle_hits: self.oracle_hits,
-            cap_reached: self.cap_reached,
-            false_hit: self.false_hit,
-            false_miss: self.false_miss,
-            wrong_root: self.wrong_root,
-            nonfinite_t: self.nonfinite_t,
-            wrong_rate: self.wrong() as f64 / self.well_posed.max(1) as f64,
-            ill_posed_disagree: self.ill_posed_disagree,
-            ulps: self.ulps.stats(),
-            bits: self.ulps.stats_of(|u| (1.0 + u as f64).log2()),
-            err_over_cond: key.has_cond.then(|| self.err_over_cond.stats()),
-            residual_ulps: key.has_residual.then(|| self.residual.stats()),
-            invalid: self.invalid.clone(),
-            enclosure: (self.enclosures > 0).then(|| EnclosureStats {
-                checked: self.enclosures,
-                violations: self.enclosure_violations,
-                width_ulps: self.enclosure_widths.stats(),
-            }),
-            examples: examples
-                .into_iter()
-                .map(|(kind, c)| Example {
-                    kind: kind.clone(),
-                    index: c.index,
-                    probe: probe_line(key.shape, key.precision, &c.input),
-                    method_values: hex(&c.method_values),
-                    oracle_values: hex(&c.oracle_values),
-                    ulps: c.ulps,
-                })
-                .collect(),
-            verdict: None,
         }
     }
 }

@@ -24,9 +24,10 @@
 //! With [`ALPHA`] = 10⁻⁶ per bound, a row whose true rate is unchanged raises a false alarm with
 //! probability at most 2·10⁻⁶ (the measurement's bound, and the row's count).
 
-use super::tally::Row;
+use super::row::Row;
+pub use super::row::{Status, Verdict};
 use crate::numerics::Precision;
-use serde::{Deserialize, Serialize};
+use serde::Deserialize;
 use statrs::distribution::{Beta, Binomial, ContinuousCDF, DiscreteCDF};
 use std::collections::BTreeMap;
 
@@ -256,12 +257,6 @@ impl Table {
         Ok(table)
     }
 
-    /// The built-in table alone, checked against every registered shape (a unit test keeps it
-    /// valid).
-    pub fn built_in() -> Table {
-        Table::load(None, &super::plan::known_names(vec![])).expect("the built-in table is valid")
-    }
-
     /// Reads one file and checks that every shape, method and class it names exists.
     fn parse(text: &str, file: &str, known: &Known) -> Result<Table, String> {
         let (rules, measured) = parse_table(text, file)?;
@@ -438,40 +433,6 @@ impl Table {
         );
         verdict(rule, self.measured.get(&key).copied(), row, ulps_above)
     }
-}
-
-/// The outcome of a row.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum Status {
-    /// Within its rule.
-    Pass,
-    /// A known failure, shown as expected.
-    KnownFailure,
-    /// Too few cases to tell whether a known failure still fails.
-    Undecided,
-    /// No rule applies: reported only.
-    Unchecked,
-    /// Outside its rule.
-    Fail,
-}
-
-/// A row's verdict with its reasons (one line each).
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct Verdict {
-    pub status: Status,
-    /// The rule that applied (`FILE rule N`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub rule: Option<String>,
-    /// The row's own count `[k, n]` under a measured rule (wrong verdicts, or failures of a
-    /// known failure, in well-posed cases): what `[measured]` records for it.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub count: Option<[u64; 2]>,
-    /// Why the row fails, one line each (empty unless the status is `fail`).
-    pub reasons: Vec<String>,
-    /// What else the verdict says (a known failure shown, or too few cases to tell).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub notes: Vec<String>,
 }
 
 /// The one-sided Clopper–Pearson upper bound of a rate measured as `k` of `n`.

@@ -17,7 +17,7 @@
 //! answer between the entry and the exit.
 
 use super::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
-use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;

@@ -16,7 +16,7 @@ pub mod sturm;
 pub mod torus;
 pub mod triangle;
 
-use crate::audit::Shape;
+use crate::audit::shape::Shape;
 
 /// Every routine family: the sphere, then the seed chapter's in its order.
 pub fn registry() -> Vec<&'static dyn Shape> {

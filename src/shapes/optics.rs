@@ -19,7 +19,7 @@
 //! when one of the 7 inputs moves by one ulp (14 single moves, exact); reflection is never
 //! ill-posed (its count is always 1).
 
-use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{self, nudge, q, round_q, sqrt_encl, ziv, ZIV_CAP};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;

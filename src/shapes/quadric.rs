@@ -24,7 +24,7 @@
 //! surface, or the near root crossing a cap plane), as in the sphere's oracle.
 
 use super::sample::{self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
-use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;

@@ -25,7 +25,7 @@
 
 use super::offset::{gamma, spawn_origin, ReintersectRow};
 use super::sample::{self, add, cube, lu, mul, normalize, rp, rpv, sub, unit};
-use crate::audit::{Shape, Truth};
+use crate::audit::shape::{Shape, Truth};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
 use crate::shapes::aabb;

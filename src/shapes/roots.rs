@@ -21,7 +21,7 @@
 
 use super::poly;
 use super::sturm::{self, RealRoot};
-use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{all_finite, nudge, q};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;

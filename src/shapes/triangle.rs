@@ -20,7 +20,7 @@
 
 use super::offset::{gamma, spawn_origin, ReintersectRow};
 use crate::audit::run::generate as gen_case;
-use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{self, nudge, q, round_q};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;

@@ -21,7 +21,7 @@
 pub mod newton;
 
 use self::newton::{BitTrick, Func};
-use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{all_finite, q, round_q, sqrt_encl, ziv, ZIV_CAP};
 use crate::numerics::Precision;
 use rand::Rng;

@@ -11,7 +11,7 @@ pub mod cases;
 pub mod methods;
 pub mod oracle;
 
-use crate::audit::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
 use cases::Class;

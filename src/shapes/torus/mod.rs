@@ -17,7 +17,7 @@ pub mod reintersect;
 pub use methods::{torus_normal, torus_robust, torus_robust_hit};
 pub use reintersect::reintersection;
 
-use crate::audit::{Answer, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
 use rand_chacha::ChaCha8Rng;

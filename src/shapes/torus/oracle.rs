@@ -21,7 +21,7 @@
 //!    (the gradient equals `8·r1·ρ·(p − c)` there), so no normalisation is rounded.
 
 use super::methods::is_valid;
-use crate::audit::{Expected, Truth};
+use crate::audit::shape::{Expected, Truth};
 use crate::numerics::exact::{self, q, ziv, ZIV_CAP};
 use crate::numerics::Precision;
 use crate::shapes::sturm::{self, eval, square_free, RealRoot};
