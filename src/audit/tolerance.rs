@@ -66,6 +66,7 @@ struct RuleText {
     known_failure: Option<bool>,
     known_failure_beyond_ulps: Option<u64>,
     max_false_hits: Option<u64>,
+    max_false_misses: Option<u64>,
     max_ulps: Option<u64>,
     max_err_over_cond: Option<f64>,
     invalid: Option<String>,
@@ -104,6 +105,7 @@ pub struct Rule {
     pub classes: Option<Vec<String>>,
     pub wrong: Option<Wrong>,
     pub max_false_hits: Option<u64>,
+    pub max_false_misses: Option<u64>,
     pub max_ulps: Option<u64>,
     pub max_err_over_cond: Option<f64>,
     pub reject_invalid: bool,
@@ -115,6 +117,7 @@ impl Rule {
     fn checks_nothing(&self) -> bool {
         self.wrong.is_none()
             && self.max_false_hits.is_none()
+            && self.max_false_misses.is_none()
             && self.max_ulps.is_none()
             && self.max_err_over_cond.is_none()
             && !self.reject_invalid
@@ -227,6 +230,7 @@ fn parse_table(text: &str, file: &str) -> Result<(Vec<Rule>, Vec<(RowKey, (u64, 
                 classes: r.class.map(|c| c.list()),
                 wrong,
                 max_false_hits: r.max_false_hits,
+                max_false_misses: r.max_false_misses,
                 max_ulps: r.max_ulps,
                 max_err_over_cond: r.max_err_over_cond,
                 reject_invalid,
@@ -419,6 +423,7 @@ impl Table {
         let strict = r.wrong == Some(Wrong::None);
         (strict && j.is_wrong())
             || (r.max_false_hits == Some(0) && j == super::judge::Judgement::FalseHit)
+            || (r.max_false_misses == Some(0) && j == super::judge::Judgement::FalseMiss)
             || j.ulps().zip(r.max_ulps).is_some_and(|(u, m)| u > m)
     }
 
@@ -578,6 +583,9 @@ fn verdict(
     // Absolute bounds
     if let Some(m) = rule.max_false_hits.filter(|&m| row.false_hit > m) {
         fail.push(format!("{} false hit(s) (allowed {m})", row.false_hit));
+    }
+    if let Some(m) = rule.max_false_misses.filter(|&m| row.false_miss > m) {
+        fail.push(format!("{} false miss(es) (allowed {m})", row.false_miss));
     }
     if let Some(m) = rule.max_ulps.filter(|&m| row.ulps.max > m as f64) {
         fail.push(format!("max error {} ulps (allowed {m})", row.ulps.max));
