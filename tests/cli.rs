@@ -64,11 +64,21 @@ fn probe_json_has_the_documented_shape() {
     assert_eq!(oracle["verdict"], "count 1");
     assert_eq!(oracle["ill_posed"], false);
     assert_eq!(oracle["values"][0], "0x1p+2");
-    let detail = &v["oracle_detail"];
-    assert_eq!(detail["t (f32)"], "0x1p+2");
-    assert_eq!(detail["t (f64)"], "0x1p+2");
+    let detail = |name: &str| {
+        v["oracle_detail"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|d| d["name"] == name)
+            .unwrap()["value"]
+            .as_str()
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(detail("t (f32)"), "0x1p+2");
+    assert_eq!(detail("t (f64)"), "0x1p+2");
     let digits = |s: &str| s.chars().filter(|c| c.is_ascii_digit()).count();
-    let root = detail["root t1"].as_str().unwrap();
+    let root = detail("root t1");
     assert!(digits(root) >= 40 && root.starts_with("4.000000000000000000000000000000000000000"));
     let methods = v["methods"].as_array().unwrap();
     assert_eq!(

@@ -60,10 +60,10 @@ pub fn probe_json(
             "cond_ulps": e.cond,
         }),
     };
-    let detail: serde_json::Map<String, Value> = shape
+    let detail: Vec<Value> = shape
         .oracle_detail(input, prec)
         .into_iter()
-        .map(|(k, v)| (k, Value::String(v)))
+        .map(|(k, v)| json!({ "name": k, "value": v }))
         .collect();
     // Every method's side
     let rows: Vec<Value> = methods
@@ -142,8 +142,12 @@ pub fn probe_text(
         info.values.join(", "),
         strs(&o["values"])
     );
-    for (k, x) in v["oracle_detail"].as_object().into_iter().flatten() {
-        s += &format!("  {k} = {}\n", x.as_str().unwrap_or(""));
+    for d in v["oracle_detail"].as_array().into_iter().flatten() {
+        s += &format!(
+            "  {} = {}\n",
+            d["name"].as_str().unwrap_or(""),
+            d["value"].as_str().unwrap_or("")
+        );
     }
     // Each method
     for r in v["methods"].as_array().into_iter().flatten() {
