@@ -76,7 +76,7 @@ fn validate<F: Real>(b: &Batch<F>, p: Precision) {
                 F::NAME,
                 j.verdict_word(),
                 cases::CLASSES[*class],
-                probe_line(&Torus.name(), p, x)
+                probe_line(Torus.name(), p, x)
             );
         }
         eprintln!(

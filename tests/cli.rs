@@ -79,7 +79,7 @@ fn probe_json_has_the_documented_shape() {
     assert_eq!(detail("t (f64)"), "0x1p+2");
     let digits = |s: &str| s.chars().filter(|c| c.is_ascii_digit()).count();
     let root = detail("root t1");
-    assert!(digits(root) >= 40 && root.starts_with("4.000000000000000000000000000000000000000"));
+    assert!(digits(&root) >= 40 && root.starts_with("4.000000000000000000000000000000000000000"));
     let methods = v["methods"].as_array().unwrap();
     assert_eq!(
         methods.len(),

@@ -158,8 +158,11 @@ fn parse_precision(p: &str, origin: &str) -> Result<Precision, String> {
     }
 }
 
+/// A file's measurements: `(k, n)` per row.
+type Measurements = Vec<(RowKey, (u64, u64))>;
+
 /// Reads one file: its rules in order and its measurements.
-fn parse_table(text: &str, file: &str) -> Result<(Vec<Rule>, Vec<(RowKey, (u64, u64))>), String> {
+fn parse_table(text: &str, file: &str) -> Result<(Vec<Rule>, Measurements), String> {
     let t: TableText = toml::from_str(text).map_err(|e| {
         format!(
             "{file}: {}",

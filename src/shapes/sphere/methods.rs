@@ -9,6 +9,9 @@
 //! Conventions that differ between methods are stated in each doc comment:
 //! origin exactly on the surface (`|o−c| = r`), a zero discriminant (tangent ray), a zero
 //! direction, and whether a unit direction is assumed.
+//!
+//! Some comparisons are written negated (`!(x >= 0)`) on purpose: a NaN must take the miss branch.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 use crate::numerics::interval::Interval;
 use crate::numerics::real::{Real, Scalar};

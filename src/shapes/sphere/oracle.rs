@@ -108,9 +108,7 @@ impl Verdict {
 fn decide(disc: Option<i8>, c: Option<i8>, bh: Option<i8>) -> Option<Verdict> {
     Some(match c? {
         1 => {
-            if bh? >= 0 {
-                Verdict::Miss
-            } else if disc? < 0 {
+            if bh? >= 0 || disc? < 0 {
                 Verdict::Miss
             } else {
                 Verdict::Near
@@ -463,8 +461,8 @@ pub fn condition_ulps<F: Real>(case: &Case<F>, truth: &Truth) -> Option<f64> {
         return None;
     }
     let mut sum = 2.0 * case.r.to_f64() * ulp(case.r);
-    for i in 0..3 {
-        sum += 2.0 * p[i].abs() * (ulp(case.o[i]) + ulp(case.c[i]) + t.abs() * ulp(case.d[i]));
+    for (i, pi) in p.iter().enumerate() {
+        sum += 2.0 * pi.abs() * (ulp(case.o[i]) + ulp(case.c[i]) + t.abs() * ulp(case.d[i]));
     }
     let ut = ulp(F::from_f64(t));
     Some(sum / dfdt.abs() / ut)
