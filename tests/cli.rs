@@ -164,6 +164,44 @@ fn malformed_arguments_get_one_line_and_exit_2() {
     assert_one_line_error(&o, "--frobnicate");
     let o = rayproof(&["audit", "--cases", "10", "--json", "/no/such/dir/out.json"]);
     assert_one_line_error(&o, "/no/such/dir");
+    // A tolerance entry for a method, class or shape that does not exist is an error
+    let dir = std::env::temp_dir().join(format!("rayproof-cli-tol-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    for (body, what) in [
+        ("shape = \"sphere\"\nmethod = \"rtg8\"", "no method 'rtg8'"),
+        (
+            "shape = \"sphere\"\nmethod = \"rtg7\"\nclass = \"sideways\"",
+            "no class 'sideways'",
+        ),
+        (
+            "shape = \"hexagon\"\nmethod = \"rtg7\"",
+            "unknown shape 'hexagon'",
+        ),
+        (
+            "shape = \"sphere\"\nmethod = \"rtg7\"\nmax_ulpz = 1",
+            "max_ulpz",
+        ),
+    ] {
+        let p = dir.join("t.toml");
+        std::fs::write(
+            &p,
+            format!("[[rule]]\n{body}\nwrong = \"none\"\nwhy = \"test\"\n"),
+        )
+        .unwrap();
+        let o = rayproof(&[
+            "audit",
+            "--shape",
+            "sphere",
+            "--cases",
+            "5",
+            "--tolerances",
+            p.to_str().unwrap(),
+        ]);
+        assert_one_line_error(&o, what);
+    }
+    let o = rayproof(&["audit", "--cases", "5", "--tolerances", "/no/such/t.toml"]);
+    assert_one_line_error(&o, "cannot read /no/such/t.toml");
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]

@@ -238,19 +238,14 @@ impl Shard {
 #[error("{0}")]
 pub struct IncompatibleShards(pub String);
 
-/// Combines the shards `0/N … N−1/N` of one audit (each given once, in any order, with a name
-/// for messages).
-pub fn merge(
-    tool: &str,
-    shards: Vec<(String, Shard)>,
-    shape_by_name: impl Fn(&str) -> Option<&'static dyn Shape>,
-) -> Result<Merged, IncompatibleShards> {
+/// Checks that the shards are the shards `0/N … N−1/N` of one audit, each given once.
+fn check_one_audit(tool: &str, shards: &[(String, Shard)]) -> Result<(), IncompatibleShards> {
     let fail = |s: String| Err(IncompatibleShards(s));
     let Some((first_name, first)) = shards.first() else {
         return fail("no shard given".into());
     };
     // Same tool, seed, selection and N everywhere
-    for (name, s) in &shards {
+    for (name, s) in shards {
         if s.tool != tool {
             return fail(format!(
                 "{name} was written by {}, but this is {tool}",
@@ -303,7 +298,7 @@ pub fn merge(
     // Each of 0/N … N−1/N exactly once
     let n = first.shard.n;
     let mut by_k = std::collections::BTreeMap::new();
-    for (name, s) in &shards {
+    for (name, s) in shards {
         let k = s.shard.k;
         if let Some(other) = by_k.insert(k, name) {
             return fail(format!("shard {k}/{n} given twice: {other} and {name}"));
@@ -326,8 +321,19 @@ pub fn merge(
             n - 1
         ));
     }
+    Ok(())
+}
+
+/// Combines the shards `0/N … N−1/N` of one audit (each given once, in any order, with a name
+/// for messages).
+pub fn merge(
+    tool: &str,
+    shards: Vec<(String, Shard)>,
+    shape_by_name: impl Fn(&str) -> Option<&'static dyn Shape>,
+) -> Result<Merged, IncompatibleShards> {
+    check_one_audit(tool, &shards)?;
     // Merge the tallies group by group
-    let (seed, every_shape) = (first.seed, first.every_shape);
+    let (seed, every_shape) = (shards[0].1.seed, shards[0].1.every_shape);
     let mut parts = shards.into_iter().map(|(_, s)| s.shapes);
     let mut shapes: Vec<Tallies> = vec![];
     for s in parts.next().expect("one shard") {

@@ -484,21 +484,10 @@ fn pct(x: f64) -> String {
     format!("{:.4}%", 100.0 * x)
 }
 
-/// Judges a row by its rule (`None`: only the checks every row has).
-fn verdict(
-    rule: Option<&Rule>,
-    measured: Option<(u64, u64)>,
-    row: &Row,
-    ulps_above: impl Fn(u64) -> u64,
-) -> Verdict {
+/// What every row must show, whatever its rule: the generator, the oracle and the enclosures
+/// kept their promises.
+fn promises(row: &Row) -> Vec<String> {
     let mut fail = vec![];
-    let mut status = if rule.is_some_and(|r| !r.checks_nothing()) {
-        Status::Pass
-    } else {
-        Status::Unchecked
-    };
-    let mut note = vec![];
-    // Every row: the generator, the oracle and enclosures keep their promises
     if row.generator_failures > 0 {
         fail.push(format!(
             "the generator found no member for {} case(s)",
@@ -517,73 +506,12 @@ fn verdict(
             e.violations
         ));
     }
-    let Some(rule) = rule else {
-        return Verdict {
-            status: if fail.is_empty() {
-                status
-            } else {
-                Status::Fail
-            },
-            rule: None,
-            count: None,
-            reasons: fail,
-            notes: vec![],
-        };
-    };
-    let (k, n) = (row.wrong(), row.well_posed);
-    let mut count = None;
-    // Wrong verdicts
-    match rule.wrong {
-        Some(Wrong::None) if k > 0 => {
-            fail.push(format!("{k} wrong verdict(s) of {n} (allowed none)"));
-        }
-        Some(Wrong::Measured) => {
-            let (k0, n0) = measured.expect("checked when loaded");
-            count = Some([k, n]);
-            let p = upper_bound(k0, n0);
-            let prob = at_least(k, n, p);
-            if prob <= ALPHA {
-                fail.push(format!(
-                    "{k} wrong of {n} ({}): the measured {k0} of {n0} allows at most {} (P = {prob:.1e})",
-                    pct(k as f64 / n.max(1) as f64),
-                    pct(p)
-                ));
-            }
-        }
-        Some(Wrong::Known { beyond }) => {
-            let (k0, n0) = measured.expect("checked when loaded");
-            let shown = k + if beyond == u64::MAX {
-                0
-            } else {
-                ulps_above(beyond)
-            };
-            count = Some([shown, n]);
-            let floor = lower_bound(k0, n0);
-            let prob = at_most(shown, n, floor);
-            let what = if beyond == u64::MAX {
-                "wrong verdicts".to_string()
-            } else {
-                format!("wrong verdicts or errors above {beyond} ulps")
-            };
-            if prob <= ALPHA {
-                fail.push(format!(
-                    "known failure lost: {shown} {what} of {n}, where the measured {k0} of {n0} means at least {} (P = {prob:.1e}); is the harness broken, or is the table out of date?",
-                    pct(floor)
-                ));
-            } else if shown > 0 {
-                status = Status::KnownFailure;
-                note.push(format!("known failure shown: {shown} {what} of {n}"));
-            } else {
-                let need = (ALPHA.ln() / (1.0 - floor).ln()).ceil();
-                status = Status::Undecided;
-                note.push(format!(
-                    "known failure not shown in {n} cases, too few to tell (needs about {need} well-posed cases)"
-                ));
-            }
-        }
-        _ => {}
-    }
-    // Absolute bounds
+    fail
+}
+
+/// The absolute bounds of a rule that the row breaks.
+fn bounds(rule: &Rule, row: &Row) -> Vec<String> {
+    let mut fail = vec![];
     if let Some(m) = rule.max_false_hits.filter(|&m| row.false_hit > m) {
         fail.push(format!("{} false hit(s) (allowed {m})", row.false_hit));
     }
@@ -607,15 +535,126 @@ fn verdict(
             row.invalid.nonfinite_t + row.invalid.hit
         ));
     }
+    fail
+}
+
+/// The judgement of a row's wrong verdicts by its rule.
+struct WrongJudgement {
+    /// The row's own count `[k, n]` under a measured rule.
+    count: Option<[u64; 2]>,
+    fail: Option<String>,
+    /// A known failure shown, or too few cases to tell.
+    note: Option<(Status, String)>,
+}
+
+/// Judges the wrong verdicts `k` of `n` well-posed cases (and, for a known failure, the errors
+/// above its ulps) against the rule and the row's measurement `(k0, n0)`.
+fn judge_wrong(
+    wrong: Option<Wrong>,
+    measured: Option<(u64, u64)>,
+    (k, n): (u64, u64),
+    ulps_above: impl Fn(u64) -> u64,
+) -> WrongJudgement {
+    let mut out = WrongJudgement {
+        count: None,
+        fail: None,
+        note: None,
+    };
+    match wrong {
+        // Strict: none at all
+        Some(Wrong::None) if k > 0 => {
+            out.fail = Some(format!("{k} wrong verdict(s) of {n} (allowed none)"));
+        }
+        // A rate: incompatible with the measurement's upper bound?
+        Some(Wrong::Measured) => {
+            let (k0, n0) = measured.expect("checked when loaded");
+            out.count = Some([k, n]);
+            let p = upper_bound(k0, n0);
+            let prob = at_least(k, n, p);
+            if prob <= ALPHA {
+                out.fail = Some(format!(
+                    "{k} wrong of {n} ({}): the measured {k0} of {n0} allows at most {} (P = {prob:.1e})",
+                    pct(k as f64 / n.max(1) as f64),
+                    pct(p)
+                ));
+            }
+        }
+        // A known failure: incompatible with the measurement's lower bound?
+        Some(Wrong::Known { beyond }) => {
+            let (k0, n0) = measured.expect("checked when loaded");
+            let strict_ulps = beyond == u64::MAX;
+            let shown = k + if strict_ulps { 0 } else { ulps_above(beyond) };
+            out.count = Some([shown, n]);
+            let floor = lower_bound(k0, n0);
+            let prob = at_most(shown, n, floor);
+            let what = if strict_ulps {
+                "wrong verdicts".to_string()
+            } else {
+                format!("wrong verdicts or errors above {beyond} ulps")
+            };
+            if prob <= ALPHA {
+                out.fail = Some(format!(
+                    "known failure lost: {shown} {what} of {n}, where the measured {k0} of {n0} means at least {} (P = {prob:.1e}); is the harness broken, or is the table out of date?",
+                    pct(floor)
+                ));
+            } else if shown > 0 {
+                out.note = Some((
+                    Status::KnownFailure,
+                    format!("known failure shown: {shown} {what} of {n}"),
+                ));
+            } else {
+                let need = (ALPHA.ln() / (1.0 - floor).ln()).ceil();
+                out.note = Some((
+                    Status::Undecided,
+                    format!("known failure not shown in {n} cases, too few to tell (needs about {need} well-posed cases)"),
+                ));
+            }
+        }
+        _ => {}
+    }
+    out
+}
+
+/// Judges a row by its rule (`None`: only the checks every row has).
+fn verdict(
+    rule: Option<&Rule>,
+    measured: Option<(u64, u64)>,
+    row: &Row,
+    ulps_above: impl Fn(u64) -> u64,
+) -> Verdict {
+    let mut fail = promises(row);
+    let checked = rule.is_some_and(|r| !r.checks_nothing());
+    let mut status = if checked {
+        Status::Pass
+    } else {
+        Status::Unchecked
+    };
+    let mut notes = vec![];
+    let mut count = None;
+    if let Some(rule) = rule {
+        let w = judge_wrong(
+            rule.wrong,
+            measured,
+            (row.wrong(), row.well_posed),
+            ulps_above,
+        );
+        count = w.count;
+        fail.extend(w.fail);
+        if let Some((s, note)) = w.note {
+            status = s;
+            notes.push(note);
+        }
+        fail.extend(bounds(rule, row));
+    }
     if !fail.is_empty() {
         status = Status::Fail;
     }
     Verdict {
         status,
-        rule: Some(rule.origin.clone()),
+        rule: rule.map(|r| r.origin.clone()),
         count,
         reasons: fail,
-        notes: note,
+        notes,
     }
 }
 
