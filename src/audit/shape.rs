@@ -119,6 +119,23 @@ pub struct ShapeInfo {
     pub reports_residual: bool,
 }
 
+impl ShapeInfo {
+    /// What a shape's info starts from (`..ShapeInfo::DEFAULTS`): one value `t`, errors in ulps,
+    /// 20,000 cases per class, no err/cond, no residual.
+    pub const DEFAULTS: ShapeInfo = ShapeInfo {
+        name: "",
+        about: "",
+        args: &[],
+        values: &["t"],
+        classes: &[],
+        methods: &[],
+        metric: Metric::Ulps,
+        default_cases: 20_000,
+        reports_cond: false,
+        reports_residual: false,
+    };
+}
+
 /// A routine family: its methods, oracle and classes. The fixed facts are one [`ShapeInfo`];
 /// the code is `generate`, `oracle` and `run`.
 pub trait Shape: Sync {

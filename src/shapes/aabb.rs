@@ -17,7 +17,7 @@
 //! answer between the entry and the exit.
 
 use super::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
-use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
@@ -308,13 +308,9 @@ const BOX: ShapeInfo = ShapeInfo {
     args: &[
         "ox", "oy", "oz", "dx", "dy", "dz", "lox", "loy", "loz", "hix", "hiy", "hiz",
     ],
-    values: &["t"],
     classes: CLASSES,
     methods: METHODS,
-    metric: Metric::Ulps,
-    default_cases: 20_000,
-    reports_cond: false,
-    reports_residual: false,
+    ..ShapeInfo::DEFAULTS
 };
 
 impl Shape for BoxShape {

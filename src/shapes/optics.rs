@@ -432,9 +432,7 @@ const REFLECT: ShapeInfo = ShapeInfo {
     classes: &REFLECT_CLASSES,
     methods: &REFLECT_METHODS,
     metric: Metric::NormUlps,
-    default_cases: 20_000,
-    reports_cond: false,
-    reports_residual: false,
+    ..ShapeInfo::DEFAULTS
 };
 
 impl Shape for Reflect {
@@ -460,9 +458,7 @@ const REFRACT: ShapeInfo = ShapeInfo {
     classes: &REFRACT_CLASSES,
     methods: &REFRACT_METHODS,
     metric: Metric::NormUlps,
-    default_cases: 20_000,
-    reports_cond: false,
-    reports_residual: false,
+    ..ShapeInfo::DEFAULTS
 };
 
 impl Shape for Refract {

@@ -733,13 +733,9 @@ pub static ELLIPSOID: QuadricShape = QuadricShape {
         name: "ellipsoid",
         about: "ray–ellipsoid x² + m²y² + n²z² = r², nearest t > 0 (seed 002 §2.3)",
         args: &["ox", "oy", "oz", "dx", "dy", "dz", "r", "m", "n"],
-        values: &["t"],
         classes: ELLIPSOID_CLASSES,
         methods: ELLIPSOID_METHODS,
-        metric: Metric::Ulps,
-        default_cases: 20_000,
-        reports_cond: false,
-        reports_residual: false,
+        ..ShapeInfo::DEFAULTS
     },
 };
 

@@ -21,7 +21,7 @@
 
 use super::poly;
 use super::sturm::{self, RealRoot};
-use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{all_finite, nudge, q};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
@@ -110,10 +110,7 @@ pub static QUADRATIC: Roots = Roots {
         values: &["x1", "x2"],
         classes: QUADRATIC_CLASSES,
         methods: QUADRATIC_METHODS,
-        metric: Metric::Ulps,
-        default_cases: 20_000,
-        reports_cond: false,
-        reports_residual: false,
+        ..ShapeInfo::DEFAULTS
     },
 };
 /// The Sturm oracle with one-ulp ill-posedness costs about 0.1 ms per cubic or quartic case:
@@ -541,11 +538,9 @@ const NEWTON_INFO: ShapeInfo = ShapeInfo {
     values: &["x"],
     classes: NEWTON_CLASSES,
     methods: NEWTON_METHODS,
-    metric: Metric::Ulps,
     // The Sturm oracle with one-ulp ill-posedness costs about 0.1 ms per case.
     default_cases: 5_000,
-    reports_cond: false,
-    reports_residual: false,
+    ..ShapeInfo::DEFAULTS
 };
 
 impl Shape for Newton {

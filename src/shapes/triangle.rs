@@ -20,7 +20,7 @@
 
 use super::offset::{gamma, spawn_origin, ReintersectRow};
 use crate::audit::run::generate as gen_case;
-use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{self, nudge, q, round_q};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
@@ -780,13 +780,9 @@ const TRIANGLE: ShapeInfo = ShapeInfo {
     name: "triangle",
     about: "ray–triangle, seed 002 §2.1 (closed triangle, t > 0)",
     args: &ARGS,
-    values: &["t"],
     classes: &CLASSES,
     methods: &METHODS,
-    metric: Metric::Ulps,
-    default_cases: 20_000,
-    reports_cond: false,
-    reports_residual: false,
+    ..ShapeInfo::DEFAULTS
 };
 
 impl Shape for Triangle {

@@ -21,7 +21,7 @@
 pub mod newton;
 
 use self::newton::{BitTrick, Func};
-use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{all_finite, q, round_q, sqrt_encl, ziv, ZIV_CAP};
 use crate::numerics::Precision;
 use rand::Rng;
@@ -44,10 +44,7 @@ const RECIP: ShapeInfo = ShapeInfo {
     values: &["y"],
     classes: CLASSES,
     methods: RCP_METHODS,
-    metric: Metric::Ulps,
-    default_cases: 20_000,
-    reports_cond: false,
-    reports_residual: false,
+    ..ShapeInfo::DEFAULTS
 };
 
 pub static RCP: Recip = Recip {

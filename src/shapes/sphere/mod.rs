@@ -11,7 +11,7 @@ pub mod cases;
 pub mod methods;
 pub mod oracle;
 
-use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
 use cases::Class;
@@ -56,13 +56,11 @@ const INFO: ShapeInfo = ShapeInfo {
     name: "sphere",
     about: "ray–sphere |o + t·d − c| = r, nearest t > 0 (seed 000; seed 002 §2.3)",
     args: &["ox", "oy", "oz", "dx", "dy", "dz", "cx", "cy", "cz", "r"],
-    values: &["t"],
     classes: &CLASS_NAMES,
     methods: &METHOD_INFO,
-    metric: Metric::Ulps,
-    default_cases: 20_000,
     reports_cond: true,
     reports_residual: true,
+    ..ShapeInfo::DEFAULTS
 };
 
 /// The ray–sphere shape.

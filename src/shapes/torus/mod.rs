@@ -106,15 +106,12 @@ const TORUS: ShapeInfo = ShapeInfo {
     name: "torus",
     about: "§2.5 ray–torus, nearest t > 0 (torus around z, radii r1 > r2 > 0)",
     args: &ARGS,
-    values: &["t"],
     classes: &cases::CLASSES,
     methods: &METHODS,
-    metric: Metric::Ulps,
     // The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
     // milliseconds per case.
     default_cases: 500,
-    reports_cond: false,
-    reports_residual: false,
+    ..ShapeInfo::DEFAULTS
 };
 
 impl Shape for Torus {
