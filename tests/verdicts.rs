@@ -197,3 +197,40 @@ fn a_known_failure_too_small_to_show_is_undecided_not_passed() {
     }
     panic!("no seed of 40 left the 3-case row without a failure");
 }
+
+#[test]
+fn a_rate_fails_only_when_its_count_excludes_the_measurement() {
+    // rtg7 f32 tangent: measured 7 wrong of 11,520 well-posed cases at seed 1
+    let r = audit_shape(
+        &SphereShape,
+        &Options {
+            methods: vec!["rtg7".into(), "algebraic".into()],
+            classes: vec!["tangent".into()],
+            precisions: vec![Precision::F32],
+            ..options(1, 50)
+        },
+    )
+    .unwrap();
+    let table = Table::built_in();
+    let with = |method: &str, wrong: u64, well: u64| {
+        let mut row = r.rows.iter().find(|x| x.method == method).unwrap().clone();
+        (row.false_hit, row.false_miss, row.wrong_root, row.nonfinite_t) = (0, wrong, 0, 0);
+        row.well_posed = well;
+        table.verdict("sphere", &row, |_| 0)
+    };
+    // The measured rate itself, and a little more, pass at any size
+    for (k, n) in [(0, 2_000), (7, 11_520), (3, 2_000), (20, 20_000)] {
+        assert_eq!(with("rtg7", k, n).status, Status::Pass, "{k} of {n}");
+    }
+    // Ten times the measured rate's upper bound fails, and says why with its probability
+    let v = with("rtg7", 200, 20_000);
+    assert_eq!(v.status, Status::Fail);
+    assert!(v.reasons[0].contains("the measured 7 of 11520 allows at most"), "{v:?}");
+    // A known failure (algebraic, ~11 % measured): none in 20,000 is an alarm, none in 3 is
+    // undecided, a few are shown
+    assert_eq!(with("algebraic", 0, 20_000).status, Status::Fail);
+    assert_eq!(with("algebraic", 0, 3).status, Status::Undecided);
+    assert_eq!(with("algebraic", 2, 20).status, Status::KnownFailure);
+    // ... and a rate far below the measurement's lower bound is an alarm too
+    assert_eq!(with("algebraic", 5, 20_000).status, Status::Fail);
+}
