@@ -214,7 +214,12 @@ fn a_rate_fails_only_when_its_count_excludes_the_measurement() {
     let table = Table::built_in();
     let with = |method: &str, wrong: u64, well: u64| {
         let mut row = r.rows.iter().find(|x| x.method == method).unwrap().clone();
-        (row.false_hit, row.false_miss, row.wrong_root, row.nonfinite_t) = (0, wrong, 0, 0);
+        (
+            row.false_hit,
+            row.false_miss,
+            row.wrong_root,
+            row.nonfinite_t,
+        ) = (0, wrong, 0, 0);
         row.well_posed = well;
         table.verdict("sphere", &row, |_| 0)
     };
@@ -225,7 +230,10 @@ fn a_rate_fails_only_when_its_count_excludes_the_measurement() {
     // Ten times the measured rate's upper bound fails, and says why with its probability
     let v = with("rtg7", 200, 20_000);
     assert_eq!(v.status, Status::Fail);
-    assert!(v.reasons[0].contains("the measured 7 of 11520 allows at most"), "{v:?}");
+    assert!(
+        v.reasons[0].contains("the measured 7 of 11520 allows at most"),
+        "{v:?}"
+    );
     // A known failure (algebraic, ~11 % measured): none in 20,000 is an alarm, none in 3 is
     // undecided, a few are shown
     assert_eq!(with("algebraic", 0, 20_000).status, Status::Fail);

@@ -12,8 +12,10 @@
 //!   cases; [`probe`] replays one case;
 //! - [`tolerance`]: the one table of what every row must show, with verdicts that hold for any
 //!   seed and any case count;
-//! - [`plan`]: names on the command line resolved to the shapes, methods and classes to run.
+//! - [`plan`]: names on the command line resolved to the shapes, methods and classes to run;
+//! - [`api`]: [`Audit`], auditing a routine written outside the crate from Rust.
 
+pub mod api;
 pub mod hexfloat;
 pub mod hist;
 pub mod judge;
@@ -28,6 +30,7 @@ pub mod table;
 pub mod tally;
 pub mod tolerance;
 
+pub use api::Audit;
 pub use judge::{judge, Judgement};
 pub use plan::audit_shape;
 pub use report::{Report, ShapeReport, TOOL};
