@@ -13,12 +13,14 @@
 //! - [`tolerance`]: the one table of what every row must show, with verdicts that hold for any
 //!   seed and any case count;
 //! - [`plan`]: names on the command line resolved to the shapes, methods and classes to run;
-//! - [`api`]: [`Audit`], auditing a routine written outside the crate from Rust.
+//! - [`api`]: [`Audit`], auditing a routine written outside the crate from Rust;
+//! - [`offline`]: `cases` and `score`, for code that cannot be called.
 
 pub mod api;
 pub mod hexfloat;
 pub mod hist;
 pub mod judge;
+pub mod offline;
 pub mod plan;
 pub mod probe;
 pub mod report;

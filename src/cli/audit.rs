@@ -78,7 +78,7 @@ pub struct MergeArgs {
 }
 
 /// The tolerance table, with the user's rules first; one line on any error.
-fn load_table(user: &Option<PathBuf>, known: &Known) -> Result<Table> {
+pub(super) fn load_table(user: &Option<PathBuf>, known: &Known) -> Result<Table> {
     let text = match user {
         Some(p) => Some(
             std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
@@ -91,7 +91,7 @@ fn load_table(user: &Option<PathBuf>, known: &Known) -> Result<Table> {
 }
 
 /// Prints a shape's table and worst cases.
-fn print_shape(r: &ShapeReport, worst: usize) {
+pub(super) fn print_shape(r: &ShapeReport, worst: usize) {
     say_raw!("{}", table::shape_table(r));
     if worst > 0 {
         say_raw!("{}", table::worst_cases(r, worst));
@@ -252,7 +252,7 @@ fn write_files(report: &Report, json: &Option<PathBuf>, markdown: &Option<PathBu
 
 /// Prints the verdict, writes the files and returns the exit code (the same for `audit` and
 /// `merge`).
-fn finish(
+pub(super) fn finish(
     report: Report,
     judged: bool,
     json: &Option<PathBuf>,

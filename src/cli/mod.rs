@@ -45,6 +45,7 @@ mod audit;
 mod check;
 mod diff;
 mod implicit;
+mod offline;
 mod probe;
 mod render;
 mod report;
@@ -54,6 +55,7 @@ use audit::{AuditArgs, MergeArgs};
 use check::CheckArgs;
 pub use diff::{run_diff, DiffArgs};
 use implicit::ImplicitCheckArgs;
+use offline::{CasesArgs, ScoreArgs};
 use probe::ProbeCommand;
 use render::{DownsampleArgs, ExportArgs, RenderArgs};
 use report::ReportArgs;
@@ -72,6 +74,10 @@ pub enum Command {
     Audit(AuditArgs),
     /// Merge the shard files of `audit --shard K/N --shard-out FILE` into the unsharded report.
     Merge(MergeArgs),
+    /// Write an audit's cases to a file, for code that cannot be called (then `score`).
+    Cases(CasesArgs),
+    /// Judge a file of answers to `cases` with the oracle, as the audit would.
+    Score(ScoreArgs),
     /// Run the oracle and every method on one ray and one shape.
     #[command(subcommand)]
     Probe(ProbeCommand),
@@ -148,6 +154,8 @@ pub fn run(cli: Cli) -> Result<u8> {
     match cli.command {
         Command::Audit(a) => audit::run_audit(a),
         Command::Merge(m) => audit::run_merge(m),
+        Command::Cases(c) => offline::run_cases(c),
+        Command::Score(s) => offline::run_score(s),
         Command::Probe(p) => probe::run_probe(p),
         Command::Render(r) => render::run_render(r),
         Command::Export(e) => render::run_export(e),

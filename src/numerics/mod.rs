@@ -11,7 +11,7 @@ pub mod timing;
 use serde::{Deserialize, Serialize};
 
 /// Which arithmetic a row is about.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, PartialOrd, Ord)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, PartialOrd, Ord)]
 #[serde(rename_all = "snake_case")]
 pub enum Precision {
     F32,
