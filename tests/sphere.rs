@@ -37,7 +37,8 @@ fn run_case<F: Real>(c: &Case<F>, robust_only: bool) -> (Truth, Vec<(&'static st
     let all = Builtin::all(&SphereShape);
     let chosen: Vec<&Builtin> = all.iter().filter(|m| !robust_only || m.robust()).collect();
     let methods: Vec<&dyn Method> = chosen.iter().map(|m| *m as &dyn Method).collect();
-    let (truth, samples) = judge_all(&SphereShape, &methods, &input(c), precision::<F>());
+    let (truth, samples) = judge_all(&SphereShape, &methods, &input(c), precision::<F>())
+        .expect("built-in methods do not fail");
     let names = chosen.iter().map(|m| METHODS[m.index].name);
     (truth, names.zip(samples).collect())
 }

@@ -45,7 +45,7 @@
 use super::plan::{Options, Plan};
 use super::probe::probe_text;
 use super::report::ShapeReport;
-use super::shape::{Answer, Builtin, Method, Shape};
+use super::shape::{Answer, Builtin, Method, PerCase, Shape};
 use super::tolerance::Table;
 use crate::numerics::Precision;
 use crate::shapes::{shape_by_name, shape_names};
@@ -57,7 +57,7 @@ pub struct FnMethod<F> {
     f: F,
 }
 
-impl<F: Fn(&[f64], Precision) -> Answer + Sync> Method for FnMethod<F> {
+impl<F: Fn(&[f64], Precision) -> Answer + Sync> PerCase for FnMethod<F> {
     fn name(&self) -> &str {
         &self.name
     }
@@ -197,7 +197,8 @@ impl Audit {
         let (plan, rules) = self.plan()?;
         let user = rules.as_deref().map(|t| ("tolerances", t));
         let table = Table::load(user, &plan.known())?;
-        Ok(plan.run_shape(0, false).report(Some(&table)))
+        let tallies = plan.run_shape(0, false).map_err(|e| e.0)?;
+        Ok(tallies.report(Some(&table)))
     }
 
     /// The oracle and these methods on one case (what a worst case's replay line prints for
@@ -214,6 +215,6 @@ impl Audit {
                 input.len()
             ));
         }
-        Ok(probe_text(shape, &methods, prec, input))
+        probe_text(shape, &methods, prec, input)
     }
 }

@@ -38,4 +38,6 @@ pub use plan::audit_shape;
 pub use report::{Report, ShapeReport, TOOL};
 pub use row::Row;
 pub use shape::probe_line;
-pub use shape::{Answer, Builtin, Expected, Method, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+pub use shape::{
+    Answer, Builtin, Expected, Method, MethodInfo, Metric, PerCase, Shape, ShapeInfo, Truth,
+};

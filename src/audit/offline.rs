@@ -19,7 +19,7 @@
 
 use super::plan::{Options, Plan};
 use super::run::generate;
-use super::shape::{hex_text, Answer, Method, Shape};
+use super::shape::{hex_text, Answer, PerCase, Shape};
 use crate::numerics::real::parse_f64;
 use crate::numerics::Precision;
 use std::collections::HashMap;
@@ -200,7 +200,7 @@ pub struct Answers {
     by_input: HashMap<(Precision, Vec<u64>), Answer>,
 }
 
-impl Method for Answers {
+impl PerCase for Answers {
     fn name(&self) -> &str {
         &self.name
     }

@@ -157,7 +157,7 @@ impl Plan {
     }
 
     /// Runs shape `i`.
-    pub fn run_shape(&self, i: usize, progress: bool) -> Tallies {
+    pub fn run_shape(&self, i: usize, progress: bool) -> Result<Tallies, super::run::MethodFailed> {
         super::run::run(&self.selection(i), progress)
     }
 
@@ -212,7 +212,8 @@ pub fn audit_shape(shape: &dyn Shape, opts: &Options) -> Result<ShapeReport, Str
     })?;
     let table = Table::load(None, &plan.known())?;
     let judged = opts.shard == (0, 1);
-    Ok(plan.run_shape(0, false).report(judged.then_some(&table)))
+    let tallies = plan.run_shape(0, false).map_err(|e| e.0)?;
+    Ok(tallies.report(judged.then_some(&table)))
 }
 
 impl Table {

@@ -41,9 +41,9 @@ pub fn probe_json(
     methods: &[&dyn Method],
     prec: Precision,
     input: &[f64],
-) -> Value {
+) -> Result<Value, String> {
     let info = shape.info();
-    let (truth, samples) = judge_all(shape, methods, input, prec);
+    let (truth, samples) = judge_all(shape, methods, input, prec)?;
     // The oracle's side
     let hex = |v: &[f64]| v.iter().map(|&x| hex_text(x)).collect::<Vec<_>>();
     let oracle = match &truth {
@@ -89,7 +89,7 @@ pub fn probe_json(
             })
         })
         .collect();
-    json!({
+    Ok(json!({
         "shape": info.name,
         "precision": prec.name(),
         "inputs": info.args.iter().zip(input).map(|(n, &x)| json!({ "name": n, "value": hex_text(x) })).collect::<Vec<_>>(),
@@ -97,7 +97,7 @@ pub fn probe_json(
         "oracle": oracle,
         "oracle_detail": detail,
         "methods": rows,
-    })
+    }))
 }
 
 /// The probe's answer as text.
@@ -106,8 +106,8 @@ pub fn probe_text(
     methods: &[&dyn Method],
     prec: Precision,
     input: &[f64],
-) -> String {
-    let v = probe_json(shape, methods, prec, input);
+) -> Result<String, String> {
+    let v = probe_json(shape, methods, prec, input)?;
     let info = shape.info();
     let strs = |x: &Value| {
         x.as_array()
@@ -180,5 +180,5 @@ pub fn probe_text(
             extra
         );
     }
-    s
+    Ok(s)
 }

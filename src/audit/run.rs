@@ -4,13 +4,19 @@
 //! kept per case, so memory does not grow with the case count.
 
 use super::judge::{enclosure_holds, judge};
-use super::shape::{Method, Shape, Truth};
+use super::shape::{Answer, Method, Shape, Truth};
 use super::tally::{Case, Sample, Tally};
 use crate::numerics::{exact, Precision};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::sync::atomic::{AtomicU64, Ordering};
+
+/// A method under audit failed (a crashed or hung child, a malformed answer): the audit stops
+/// with this one line.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct MethodFailed(pub String);
 
 /// CPU time spent in oracles (all threads), for the terminal summary only (never in a report).
 pub static ORACLE_NANOS: AtomicU64 = AtomicU64::new(0);
@@ -81,26 +87,6 @@ pub fn generate(
     Some(v)
 }
 
-/// Generates, judges and samples one case.
-pub fn evaluate(sel: &Selection, class: usize, prec: Precision, index: u64) -> Case {
-    let shape = sel.shape;
-    let Some(input) = generate(shape, sel.seed, class, prec, index) else {
-        return Case {
-            index,
-            input: vec![],
-            truth: None,
-            samples: vec![],
-        };
-    };
-    let (truth, samples) = judge_all(shape, &sel.methods, &input, prec);
-    Case {
-        index,
-        input,
-        truth: Some(truth),
-        samples,
-    }
-}
-
 /// The indices of shard `(k, n)` among `0..cases`: `k, k + n, k + 2n, …`.
 pub fn shard_indices(cases: u64, (k, n): (u64, u64)) -> impl Iterator<Item = u64> {
     (k..cases).step_by(usize::try_from(n.max(1)).unwrap_or(usize::MAX))
@@ -115,37 +101,163 @@ pub fn shard_len(cases: u64, (k, n): (u64, u64)) -> u64 {
     }
 }
 
-/// Tallies of one precision × class: cases in parallel, tallies merged.
-fn group(sel: &Selection, prec: Precision, class: usize, bar: &ProgressBar) -> Group {
-    let methods = sel.methods.len();
-    let empty = || vec![Tally::default(); methods];
-    let (k, n) = sel.shard;
-    let count = shard_len(sel.cases, sel.shard);
-    let tallies = (0..count)
-        .into_par_iter()
-        .fold(empty, |mut acc, i| {
-            let case = evaluate(sel, class, prec, k + i * n);
-            for (m, t) in acc.iter_mut().enumerate() {
-                t.add(&case, m);
-            }
-            bar.inc(1);
-            acc
-        })
-        .reduce(empty, |mut a, b| {
-            for (x, y) in a.iter_mut().zip(&b) {
-                x.merge(y);
-            }
-            a
-        });
-    Group {
-        precision: prec,
-        class,
-        tallies,
+/// Cases per batch: each method answers this many at once.
+const CHUNK: u64 = 4096;
+
+/// The samples of one case from the methods' answers (residual and enclosure for a
+/// right-verdict hit).
+fn sample(
+    shape: &dyn Shape,
+    truth: &Truth,
+    input: &[f64],
+    answer: Answer,
+    prec: Precision,
+) -> Sample {
+    let judgement = judge(truth, &answer, shape.info().metric, prec);
+    let right_hit = judgement.ulps().is_some();
+    let residual = right_hit
+        .then(|| shape.residual(input, prec, &answer))
+        .flatten();
+    let enclosure = answer
+        .enclosure
+        .filter(|_| right_hit)
+        .map(|e| (enclosure_holds(truth, e), exact::ulps(e[0], e[1], prec)));
+    Sample {
+        judgement,
+        values: answer.values,
+        residual,
+        enclosure,
     }
 }
 
-/// Runs the selection: every precision × class in turn, with a progress bar when asked.
-pub fn run(sel: &Selection, progress: bool) -> Tallies {
+/// The oracle on one case, its CPU time counted in [`ORACLE_NANOS`].
+fn oracle(shape: &dyn Shape, input: &[f64], prec: Precision) -> Truth {
+    let clock = std::time::Instant::now();
+    let truth = shape.oracle(input, prec);
+    ORACLE_NANOS.fetch_add(clock.elapsed().as_nanos() as u64, Ordering::Relaxed);
+    truth
+}
+
+/// Every method's answers to a batch of inputs, checked for their number.
+fn answers(
+    methods: &[&dyn Method],
+    prec: Precision,
+    inputs: &[Vec<f64>],
+) -> Result<Vec<Vec<Answer>>, String> {
+    methods
+        .iter()
+        .map(|m| {
+            let a = m.answer(prec, inputs)?;
+            if a.len() != inputs.len() {
+                return Err(format!(
+                    "{}: {} answers to {} cases",
+                    m.name(),
+                    a.len(),
+                    inputs.len()
+                ));
+            }
+            Ok(a)
+        })
+        .collect()
+}
+
+/// A generated case with the oracle's truth (`None`: the generator found no member).
+struct Posed {
+    index: u64,
+    case: Option<(Vec<f64>, Truth)>,
+}
+
+/// Tallies of one precision × class: in batches, each case generated and judged in parallel,
+/// every method answering the batch, tallies merged.
+fn group(
+    sel: &Selection,
+    prec: Precision,
+    class: usize,
+    bar: &ProgressBar,
+) -> Result<Group, String> {
+    let shape = sel.shape;
+    let empty = || vec![Tally::default(); sel.methods.len()];
+    let (k, n) = sel.shard;
+    let count = shard_len(sel.cases, sel.shard);
+    let mut tallies = empty();
+    for start in (0..count).step_by(CHUNK as usize) {
+        let end = (start + CHUNK).min(count);
+        // Generate and ask the oracle
+        let posed: Vec<Posed> = (start..end)
+            .into_par_iter()
+            .map(|i| {
+                let index = k + i * n;
+                let case = generate(shape, sel.seed, class, prec, index).map(|x| {
+                    let t = oracle(shape, &x, prec);
+                    (x, t)
+                });
+                Posed { index, case }
+            })
+            .collect();
+        // Every method answers the batch of inputs
+        let inputs: Vec<Vec<f64>> = posed
+            .iter()
+            .filter_map(|p| p.case.as_ref().map(|(x, _)| x.clone()))
+            .collect();
+        let answers = answers(&sel.methods, prec, &inputs)?;
+        let mut next = 0;
+        let slots: Vec<Option<usize>> = posed
+            .iter()
+            .map(|p| {
+                p.case.as_ref().map(|_| {
+                    next += 1;
+                    next - 1
+                })
+            })
+            .collect();
+        // Judge and tally
+        let part = posed
+            .into_par_iter()
+            .zip(slots)
+            .fold(empty, |mut acc, (p, slot)| {
+                let case = match (p.case, slot) {
+                    (Some((input, truth)), Some(j)) => Case {
+                        samples: answers
+                            .iter()
+                            .map(|a| sample(shape, &truth, &input, a[j].clone(), prec))
+                            .collect(),
+                        index: p.index,
+                        input,
+                        truth: Some(truth),
+                    },
+                    _ => Case {
+                        index: p.index,
+                        input: vec![],
+                        truth: None,
+                        samples: vec![],
+                    },
+                };
+                for (m, t) in acc.iter_mut().enumerate() {
+                    t.add(&case, m);
+                }
+                acc
+            })
+            .reduce(empty, |mut a, b| {
+                for (x, y) in a.iter_mut().zip(&b) {
+                    x.merge(y);
+                }
+                a
+            });
+        for (x, y) in tallies.iter_mut().zip(&part) {
+            x.merge(y);
+        }
+        bar.inc(end - start);
+    }
+    Ok(Group {
+        precision: prec,
+        class,
+        tallies,
+    })
+}
+
+/// Runs the selection: every precision × class in turn, with a progress bar when asked. An
+/// outside method that fails stops the run with its error.
+pub fn run(sel: &Selection, progress: bool) -> Result<Tallies, MethodFailed> {
     let per_group = shard_len(sel.cases, sel.shard);
     let total = per_group * (sel.classes.len() * sel.precisions.len()) as u64;
     let bar = if progress {
@@ -163,11 +275,11 @@ pub fn run(sel: &Selection, progress: bool) -> Tallies {
     let mut out = vec![];
     for &prec in &sel.precisions {
         for &class in &sel.classes {
-            out.push(group(sel, prec, class, &bar));
+            out.push(group(sel, prec, class, &bar).map_err(MethodFailed)?);
         }
     }
     bar.finish_and_clear();
-    Tallies {
+    Ok(Tallies {
         shape: sel.shape,
         cases: sel.cases,
         methods: sel
@@ -179,41 +291,20 @@ pub fn run(sel: &Selection, progress: bool) -> Tallies {
             })
             .collect(),
         groups: out,
-    }
+    })
 }
 
-/// The oracle's truth and every method's judged sample on one input (the audit's step for
-/// each case, and `probe`'s).
+/// The oracle's truth and every method's judged sample on one input (`probe`'s step).
 pub fn judge_all(
     shape: &dyn Shape,
     methods: &[&dyn Method],
     input: &[f64],
     prec: Precision,
-) -> (Truth, Vec<Sample>) {
-    let clock = std::time::Instant::now();
-    let truth = shape.oracle(input, prec);
-    ORACLE_NANOS.fetch_add(clock.elapsed().as_nanos() as u64, Ordering::Relaxed);
-    let samples = methods
-        .iter()
-        .map(|m| {
-            let answer = m.run(input, prec);
-            let judgement = judge(&truth, &answer, shape.info().metric, prec);
-            // Residual and enclosure of a right-verdict hit
-            let right_hit = judgement.ulps().is_some();
-            let residual = right_hit
-                .then(|| shape.residual(input, prec, &answer))
-                .flatten();
-            let enclosure = answer
-                .enclosure
-                .filter(|_| right_hit)
-                .map(|e| (enclosure_holds(&truth, e), exact::ulps(e[0], e[1], prec)));
-            Sample {
-                judgement,
-                values: answer.values,
-                residual,
-                enclosure,
-            }
-        })
+) -> Result<(Truth, Vec<Sample>), String> {
+    let truth = oracle(shape, input, prec);
+    let samples = answers(methods, prec, &[input.to_vec()])?
+        .into_iter()
+        .map(|mut a| sample(shape, &truth, input, a.remove(0), prec))
         .collect();
-    (truth, samples)
+    Ok((truth, samples))
 }

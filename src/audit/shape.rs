@@ -183,9 +183,9 @@ pub fn case_rng(seed: u64, name: &str, class: &str, prec: Precision, index: u64)
     ChaCha8Rng::from_seed(h.finalize().into())
 }
 
-/// A method under audit: one of a shape's own ([`Builtin`]) or one written outside the crate.
-/// It receives the case's inputs (each exactly representable in `prec`) and answers as the
-/// shape's built-in methods do.
+/// A method under audit: one of a shape's own ([`Builtin`]) or one written outside the crate
+/// (a Rust function, a shared library, a subprocess). It answers a batch of cases of one
+/// precision, in order; each case's inputs are exactly representable in `prec`.
 pub trait Method: Sync {
     fn name(&self) -> &str;
     /// Offered as robust (robust methods must reject invalid input).
@@ -195,7 +195,38 @@ pub trait Method: Sync {
     fn about(&self) -> &str {
         ""
     }
+    /// One answer per input, in order. An error (a crashed or hung child, a malformed
+    /// answer) stops the audit with that one line.
+    fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String>;
+}
+
+/// A method that answers one case at a time and cannot fail (a shape's own, a Rust function):
+/// every `PerCase` is a [`Method`] whose batches run in parallel.
+pub trait PerCase: Sync {
+    fn name(&self) -> &str;
+    fn robust(&self) -> bool {
+        false
+    }
+    fn about(&self) -> &str {
+        ""
+    }
     fn run(&self, input: &[f64], prec: Precision) -> Answer;
+}
+
+impl<T: PerCase> Method for T {
+    fn name(&self) -> &str {
+        PerCase::name(self)
+    }
+    fn robust(&self) -> bool {
+        PerCase::robust(self)
+    }
+    fn about(&self) -> &str {
+        PerCase::about(self)
+    }
+    fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String> {
+        use rayon::prelude::*;
+        Ok(inputs.par_iter().map(|x| self.run(x, prec)).collect())
+    }
 }
 
 /// Built-in method `index` of a shape.
@@ -217,7 +248,7 @@ impl Builtin {
     }
 }
 
-impl Method for Builtin {
+impl PerCase for Builtin {
     fn name(&self) -> &str {
         self.info().name
     }

@@ -122,7 +122,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     for i in 0..plan.shapes.len() {
         let start = Instant::now();
         crate::audit::run::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
-        let t = plan.run_shape(i, std::io::stderr().is_terminal());
+        let t = plan.run_shape(i, std::io::stderr().is_terminal())?;
         let r = t.report(judge.then_some(&table));
         print_shape(&r, a.out.worst);
         let secs = start.elapsed().as_secs_f64();

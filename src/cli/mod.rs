@@ -144,6 +144,11 @@ pub fn error_exit_code(e: &anyhow::Error) -> u8 {
         .is_some()
     {
         3
+    } else if e
+        .downcast_ref::<crate::audit::run::MethodFailed>()
+        .is_some()
+    {
+        4
     } else {
         2
     }

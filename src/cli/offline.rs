@@ -97,7 +97,7 @@ pub(super) fn run_score(a: ScoreArgs) -> Result<u8> {
     // Judged and printed as the audit does
     let table = load_table(&a.out.tolerances, &plan.known())?;
     say_raw!("{}", table::legend(plan.seed, "0/1"));
-    let report = plan.run_shape(0, false).report(Some(&table));
+    let report = plan.run_shape(0, false)?.report(Some(&table));
     print_shape(&report, a.out.worst);
     finish(
         Report {

@@ -74,10 +74,13 @@ pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
     let builtins = Builtin::all(shape);
     let methods: Vec<&dyn Method> = builtins.iter().map(|m| m as &dyn Method).collect();
     if p.json {
-        let v = probe_json(shape, &methods, p.precision, &input);
+        let v = probe_json(shape, &methods, p.precision, &input).map_err(|e| anyhow!(e))?;
         say_raw!("{}", serde_json::to_string_pretty(&v)? + "\n");
     } else {
-        say_raw!("{}", probe_text(shape, &methods, p.precision, &input));
+        say_raw!(
+            "{}",
+            probe_text(shape, &methods, p.precision, &input).map_err(|e| anyhow!(e))?
+        );
     }
     Ok(0)
 }

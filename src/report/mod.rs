@@ -164,7 +164,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
         ..Default::default()
     })
     .map_err(|e| anyhow::anyhow!(e))?;
-    let tallies = plan.run_shape(0, o.progress);
+    let tallies = plan.run_shape(0, o.progress)?;
     let report = tallies.report(None);
     say(o, "timing every method × precision");
     let runs = if o.quick { 3 } else { 9 };
