@@ -17,6 +17,7 @@
 //! - [`offline`]: `cases` and `score`, for code that cannot be called.
 
 pub mod api;
+pub mod exec;
 pub mod hexfloat;
 pub mod hist;
 pub mod judge;

@@ -43,6 +43,7 @@ impl Tallies {
             for (m, t) in self.methods.iter().zip(&g.tallies) {
                 let key = RowKey {
                     shape: info.name,
+                    replay: m.replay.as_deref(),
                     method: &m.name,
                     robust: m.robust,
                     precision: g.precision,

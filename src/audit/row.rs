@@ -2,7 +2,7 @@
 //! tolerance table's [`Verdict`] (given by [`super::tolerance`]).
 
 use super::hist::Stats;
-use super::shape::{hex_text, probe_line};
+use super::shape::{hex_text, probe_line_with};
 use super::tally::{Candidate, InvalidStats, Tally, KINDS};
 use crate::numerics::Precision;
 use serde::Serialize;
@@ -116,6 +116,8 @@ impl Row {
 /// What a row is about, beside its tally.
 pub struct RowKey<'a> {
     pub shape: &'a str,
+    /// The probe arguments that replay an outside method.
+    pub replay: Option<&'a str>,
     pub method: &'a str,
     pub robust: bool,
     pub precision: Precision,
@@ -171,7 +173,7 @@ impl Tally {
                 .map(|(kind, c)| Example {
                     kind: kind.clone(),
                     index: c.index,
-                    probe: probe_line(key.shape, key.precision, &c.input),
+                    probe: probe_line_with(key.shape, key.precision, key.replay, &c.input),
                     method_values: hex(&c.method_values),
                     oracle_values: hex(&c.oracle_values),
                     ulps: c.ulps,

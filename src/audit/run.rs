@@ -39,6 +39,9 @@ pub struct Selection<'a> {
 pub struct MethodTag {
     pub name: String,
     pub robust: bool,
+    /// The probe arguments that replay this method (outside methods only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub replay: Option<String>,
 }
 
 /// The result of a shape's run (or of merged shards): its selection and its tallies.
@@ -288,6 +291,7 @@ pub fn run(sel: &Selection, progress: bool) -> Result<Tallies, MethodFailed> {
             .map(|m| MethodTag {
                 name: m.name().to_string(),
                 robust: m.robust(),
+                replay: m.replay(),
             })
             .collect(),
         groups: out,

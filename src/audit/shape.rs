@@ -195,6 +195,11 @@ pub trait Method: Sync {
     fn about(&self) -> &str {
         ""
     }
+    /// The `rayproof probe` arguments that bring this method into a replay (e.g.
+    /// `--exec 'CMD' --name N`); `None`: the probe knows it (a shape's own method).
+    fn replay(&self) -> Option<String> {
+        None
+    }
     /// One answer per input, in order. An error (a crashed or hung child, a malformed
     /// answer) stops the audit with that one line.
     fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String>;
@@ -292,9 +297,16 @@ pub fn hex_text(x: f64) -> String {
 
 /// The replay command of a case.
 pub fn probe_line(shape: &str, prec: Precision, input: &[f64]) -> String {
+    probe_line_with(shape, prec, None, input)
+}
+
+/// The replay command of a case for a method the probe must be told about (`extra`, e.g.
+/// `--exec 'CMD' --name N`).
+pub fn probe_line_with(shape: &str, prec: Precision, extra: Option<&str>, input: &[f64]) -> String {
     let vals: Vec<String> = input.iter().map(|&x| hex_text(x)).collect();
+    let extra = extra.map(|e| format!(" {e}")).unwrap_or_default();
     format!(
-        "rayproof probe {shape} --precision {} -- {}",
+        "rayproof probe {shape} --precision {}{extra} -- {}",
         prec.name(),
         vals.join(" ")
     )

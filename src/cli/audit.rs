@@ -9,7 +9,7 @@ use crate::audit::{table, Report, ShapeReport, TOOL};
 use crate::numerics::Precision;
 use crate::output::{check_output_dirs, write_atomic};
 use crate::shapes::robustness::{self, Robustness};
-use anyhow::{anyhow, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -47,7 +47,70 @@ pub struct AuditArgs {
     #[arg(long, value_name = "FILE")]
     pub shard_out: Option<PathBuf>,
     #[command(flatten)]
+    pub outside: OutsideArgs,
+    #[command(flatten)]
     pub out: AuditOutput,
+}
+
+/// A method from outside the crate, for `audit` and `probe`.
+#[derive(Args, Debug, Clone)]
+pub struct OutsideArgs {
+    /// Audit a routine run by this command (`sh -c CMD`): cases as lines on its stdin, one
+    /// answer line per case on its stdout (README: "Audit your own code"). With --method, the
+    /// named built-in methods are audited beside it.
+    #[arg(long, value_name = "CMD")]
+    pub exec: Option<String>,
+    /// The name of the --exec method in reports and tolerance rules.
+    #[arg(long, default_value = "exec")]
+    pub name: String,
+    /// Seconds a batch of cases may take before the child is killed.
+    #[arg(long, default_value_t = 60.0, value_parser = parse_seconds)]
+    pub exec_timeout: f64,
+}
+
+impl OutsideArgs {
+    /// The outside method, if one is given, for a shape.
+    pub fn method(&self, shape: &str) -> Option<Box<dyn crate::audit::Method>> {
+        self.exec.as_ref().map(|cmd| {
+            Box::new(crate::audit::exec::Exec {
+                name: self.name.clone(),
+                command: cmd.clone(),
+                shape: shape.to_string(),
+                timeout: std::time::Duration::from_secs_f64(self.exec_timeout),
+            }) as Box<dyn crate::audit::Method>
+        })
+    }
+}
+
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x > 0.0 && x <= 86_400.0 => Ok(x),
+        _ => Err(format!("'{s}' is not a number of seconds in (0, 86400]")),
+    }
+}
+
+/// Puts the outside method, if any, into a single-shape plan: alone, or beside the built-in
+/// methods named with --method.
+pub(super) fn add_outside(plan: &mut Plan, o: &OutsideArgs, named: bool) -> Result<()> {
+    let Some(m) = plan.shapes.first().and_then(|p| o.method(p.shape.name())) else {
+        return Ok(());
+    };
+    if plan.shapes.len() != 1 {
+        bail!("--exec audits one shape's routine: give a single --shape");
+    }
+    let p = &mut plan.shapes[0];
+    if !named {
+        p.methods.clear();
+    }
+    if p.methods.iter().any(|x| x.name() == m.name()) {
+        bail!(
+            "--name {}: a built-in method of {} has that name",
+            m.name(),
+            p.shape.name()
+        );
+    }
+    p.methods.push(m);
+    Ok(())
 }
 
 /// How `audit` and `merge` judge and write their report.
@@ -100,7 +163,7 @@ pub(super) fn print_shape(r: &ShapeReport, worst: usize) {
 
 pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     // Resolve every name and the tolerance table before the long run
-    let plan = Plan::new(&Options {
+    let mut plan = Plan::new(&Options {
         shapes: a.shape.clone(),
         methods: a.method.clone(),
         classes: a.class.clone(),
@@ -110,6 +173,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         shard: a.shard,
     })
     .map_err(|e| anyhow!(e))?;
+    add_outside(&mut plan, &a.outside, !a.method.is_empty())?;
     let table = load_table(&a.out.tolerances, &plan.known())?;
     check_output_dirs(&[&a.out.json, &a.out.markdown, &a.shard_out])?;
     let shard_label = format!("{}/{}", a.shard.0, a.shard.1);

@@ -26,10 +26,17 @@ pub struct ProbeShapeArgs {
     /// Print the JSON object instead of text.
     #[arg(long)]
     pub json: bool,
+    #[command(flatten)]
+    pub outside: super::audit::OutsideArgs,
     /// The input values in the shape's order (decimal or hex floats, each rounded once to the
     /// precision); put them after `--` when the first is negative.
     #[arg(allow_hyphen_values = true)]
     pub values: Vec<String>,
+}
+
+/// An outside method's failure (exit 4).
+fn failed(e: String) -> anyhow::Error {
+    anyhow::Error::new(crate::audit::run::MethodFailed(e))
 }
 
 pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
@@ -72,14 +79,19 @@ pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
     // The oracle and every built-in method on the case
     let input = parse_values(shape, p.precision, &p.values).map_err(|e| anyhow!("{e}"))?;
     let builtins = Builtin::all(shape);
-    let methods: Vec<&dyn Method> = builtins.iter().map(|m| m as &dyn Method).collect();
+    let outside = p.outside.method(info.name);
+    let methods: Vec<&dyn Method> = builtins
+        .iter()
+        .map(|m| m as &dyn Method)
+        .chain(outside.as_deref())
+        .collect();
     if p.json {
-        let v = probe_json(shape, &methods, p.precision, &input).map_err(|e| anyhow!(e))?;
+        let v = probe_json(shape, &methods, p.precision, &input).map_err(failed)?;
         say_raw!("{}", serde_json::to_string_pretty(&v)? + "\n");
     } else {
         say_raw!(
             "{}",
-            probe_text(shape, &methods, p.precision, &input).map_err(|e| anyhow!(e))?
+            probe_text(shape, &methods, p.precision, &input).map_err(failed)?
         );
     }
     Ok(0)

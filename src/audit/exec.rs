@@ -1,0 +1,192 @@
+//! Auditing a routine in any language through a subprocess (`rayproof audit --exec CMD`).
+//!
+//! For every batch of cases rayproof starts `sh -c CMD`, writes the batch to its standard
+//! input and closes it, and reads one answer line per case from its standard output until it
+//! exits. Because the child sees the end of its input, it needs no flushing protocol: a plain
+//! `for line in sys.stdin: print(…)` works.
+//!
+//! **A case line** (child's input): the precision, then the shape's inputs in order as C99 hex
+//! floats (`inf`, `-inf`, `nan` for the invalid class), exact in the precision:
+//! `f32 0x1p+0 -0x1.8p-3 0x0p+0 …`.
+//!
+//! **An answer line** (child's output), one per case in order: the count, then the values, in
+//! decimal or hex (`1 0x1.4p+2`, `2 -1.5 3`, `0`; an f32 answer is rounded once to f32).
+//!
+//! A child that exits with a failure, is killed by a signal, answers a malformed line or the
+//! wrong number of lines, or does not finish a batch within the timeout stops the audit with
+//! one line naming the command and the case ([`super::run::MethodFailed`], exit 4).
+
+use super::shape::{hex_text, probe_line, Answer, Method};
+use crate::numerics::real::parse_f64;
+use crate::numerics::Precision;
+use std::io::{Read, Write};
+use std::os::unix::process::CommandExt;
+use std::process::{Command, Stdio};
+use std::sync::mpsc;
+use std::time::Duration;
+
+/// A routine run by a command.
+pub struct Exec {
+    pub name: String,
+    pub command: String,
+    /// The shape's name, for replay lines in errors.
+    pub shape: String,
+    /// How long one batch may take.
+    pub timeout: Duration,
+}
+
+/// A number of an answer: decimal or hex, `inf`, `-inf`, `nan`.
+fn number(s: &str) -> Option<f64> {
+    match s {
+        "nan" | "NaN" => Some(f64::NAN),
+        _ => parse_f64(s),
+    }
+}
+
+/// Parses one answer line, rounding values once to the precision.
+pub fn parse_answer(line: &str, prec: Precision) -> Result<Answer, String> {
+    let mut w = line.split_whitespace();
+    let first = w.next().ok_or("an empty line")?;
+    let count: u32 = first
+        .parse()
+        .map_err(|_| format!("'{first}' is not a count"))?;
+    let values = w
+        .map(|s| {
+            let v = number(s).ok_or_else(|| format!("'{s}' is not a number"))?;
+            Ok(match prec {
+                Precision::F32 => v as f32 as f64,
+                Precision::F64 => v,
+            })
+        })
+        .collect::<Result<Vec<f64>, String>>()?;
+    if count > 0 && values.is_empty() {
+        return Err(format!("count {count} but no value"));
+    }
+    Ok(Answer {
+        count,
+        values,
+        enclosure: None,
+    })
+}
+
+/// One case as the child reads it.
+pub fn case_line(prec: Precision, input: &[f64]) -> String {
+    let vals: Vec<String> = input.iter().map(|&x| hex_text(x)).collect();
+    format!("{} {}\n", prec.name(), vals.join(" "))
+}
+
+impl Exec {
+    /// Runs the child on one batch: its standard output, or why it failed.
+    fn run_batch(&self, input: String) -> Result<String, String> {
+        let what = format!("exec '{}'", self.command);
+        // Its own process group, so that a timeout kills whatever it started
+        let mut child = Command::new("sh")
+            .arg("-c")
+            .arg(&self.command)
+            .process_group(0)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .map_err(|e| format!("{what}: cannot start: {e}"))?;
+        // Write the batch and close the child's input, while its output is read
+        let mut stdin = child.stdin.take().expect("piped");
+        let writer = std::thread::spawn(move || {
+            let _ = stdin.write_all(input.as_bytes());
+        });
+        let (mut out, mut err) = (
+            child.stdout.take().expect("piped"),
+            child.stderr.take().expect("piped"),
+        );
+        let (tx, rx) = mpsc::channel();
+        let reader = std::thread::spawn(move || {
+            let mut text = String::new();
+            let r = out.read_to_string(&mut text).map(|_| text);
+            let _ = tx.send(r);
+        });
+        let errs = std::thread::spawn(move || {
+            let mut text = String::new();
+            let _ = err.read_to_string(&mut text);
+            text
+        });
+        // The whole batch within the timeout, or the child is killed
+        let out = match rx.recv_timeout(self.timeout) {
+            Ok(r) => r,
+            Err(_) => {
+                // SAFETY: kill(2) on the child's process group; no memory is touched
+                unsafe {
+                    libc::kill(-(child.id() as i32), libc::SIGKILL);
+                }
+                let _ = child.wait();
+                let _ = (writer.join(), reader.join(), errs.join());
+                return Err(format!(
+                    "{what}: no complete answer within {} s (killed)",
+                    self.timeout.as_secs_f64()
+                ));
+            }
+        };
+        let status = child.wait().map_err(|e| format!("{what}: {e}"))?;
+        let _ = (writer.join(), reader.join());
+        let stderr = errs.join().unwrap_or_default();
+        let first_err = stderr.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
+        if !status.success() {
+            return Err(format!(
+                "{what} failed ({status}){}",
+                if first_err.is_empty() {
+                    String::new()
+                } else {
+                    format!(": {first_err}")
+                }
+            ));
+        }
+        out.map_err(|e| format!("{what}: its output is not text: {e}"))
+    }
+}
+
+impl Method for Exec {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn about(&self) -> &str {
+        &self.command
+    }
+    fn replay(&self) -> Option<String> {
+        Some(format!("--exec '{}' --name {}", self.command, self.name))
+    }
+    fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String> {
+        if inputs.is_empty() {
+            return Ok(vec![]);
+        }
+        let batch: String = inputs.iter().map(|x| case_line(prec, x)).collect();
+        let out = self.run_batch(batch)?;
+        let what = format!("exec '{}'", self.command);
+        let lines: Vec<&str> = out.lines().filter(|l| !l.trim().is_empty()).collect();
+        if lines.len() != inputs.len() {
+            let at = inputs
+                .get(lines.len())
+                .or(inputs.last())
+                .expect("not empty");
+            return Err(format!(
+                "{what} answered {} lines to {} cases (the first unanswered: {})",
+                lines.len(),
+                inputs.len(),
+                probe_line(&self.shape, prec, at)
+            ));
+        }
+        lines
+            .iter()
+            .zip(inputs)
+            .enumerate()
+            .map(|(i, (l, x))| {
+                parse_answer(l, prec).map_err(|e| {
+                    format!(
+                        "{what}: answer {} ('{}'): {e} (case: {})",
+                        i + 1,
+                        l.trim(),
+                        probe_line(&self.shape, prec, x)
+                    )
+                })
+            })
+            .collect()
+    }
+}

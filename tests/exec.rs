@@ -1,0 +1,164 @@
+//! `rayproof audit --exec CMD`: a routine in any language, audited through a subprocess.
+//! - A Python textbook ray–sphere is judged exactly as the built-in `algebraic` (the same
+//!   formula in IEEE doubles), and its worst cases replay through `probe --exec`;
+//! - a child that crashes, hangs, answers a malformed line or too few lines stops the audit
+//!   with one line and exit 4, within the timeout, and writes no report.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+fn rayproof(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rayproof-exec-{}-{name}", std::process::id()));
+    std::fs::remove_dir_all(&d).ok();
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn script() -> String {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/outside/sphere_textbook.py");
+    format!("python3 {}", p.display())
+}
+
+#[test]
+fn a_python_routine_is_judged_as_the_same_built_in_formula() {
+    let dir = scratch("python");
+    let json = dir.join("a.json");
+    let o = rayproof(&[
+        "audit",
+        "--shape",
+        "sphere",
+        "--precision",
+        "f64",
+        "--cases",
+        "400",
+        "--seed",
+        "3",
+        "--method",
+        "algebraic",
+        "--exec",
+        &script(),
+        "--name",
+        "py",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        o.status.code().is_some_and(|c| c <= 1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let rows = v["shapes"][0]["rows"].as_array().unwrap();
+    fn of<'a>(rows: &'a [Value], m: &'a str) -> impl Iterator<Item = &'a Value> {
+        rows.iter().filter(move |r| r["method"] == m)
+    }
+    let of = |m: &'static str| of(rows, m);
+    // Row by row the same counts and errors as the built-in method
+    let mut compared = 0;
+    for (a, p) in of("algebraic").zip(of("py")) {
+        for k in [
+            "well_posed",
+            "ill_posed",
+            "false_hit",
+            "false_miss",
+            "wrong_root",
+            "ulps",
+            "invalid",
+        ] {
+            assert_eq!(a[k], p[k], "{} {k}", a["class"]);
+        }
+        compared += 1;
+    }
+    assert_eq!(compared, 9);
+    // The tangent class shows the textbook failure; the worst case replays through the probe
+    let tangent = of("py").find(|r| r["class"] == "tangent").unwrap();
+    assert!(tangent["false_miss"].as_u64().unwrap() + tangent["false_hit"].as_u64().unwrap() > 0);
+    let ex = &tangent["examples"][0];
+    let line = ex["probe"].as_str().unwrap();
+    assert!(
+        line.contains("--exec '") && line.contains("--name py"),
+        "{line}"
+    );
+    // The replay line, with --json before the values
+    let replay = line
+        .replacen("rayproof", env!("CARGO_BIN_EXE_rayproof"), 1)
+        .replacen(" -- ", " --json -- ", 1);
+    let o = Command::new("sh").arg("-c").arg(replay).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let p: Value = serde_json::from_slice(&o.stdout).unwrap();
+    let py = p["methods"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|m| m["method"] == "py")
+        .unwrap();
+    assert_eq!(py["values"], ex["method_values"]);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_failing_child_stops_the_audit_with_one_line_and_exit_4() {
+    let dir = scratch("failing");
+    for (cmd, what) in [
+        ("exit 3", "failed (exit status: 3)"),
+        ("echo broken >&2; kill -9 $$", "failed (signal: 9"),
+        ("sleep 30", "no complete answer within 2 s"),
+        (
+            "while read l; do echo '1 zz'; done",
+            "answer 1 ('1 zz'): 'zz' is not a number (case: rayproof probe sphere",
+        ),
+        (
+            "head -n 2 | while read l; do echo 0; done",
+            "answered 2 lines to 10 cases",
+        ),
+        ("while read l; do echo 1; done", "count 1 but no value"),
+    ] {
+        let json = dir.join("r.json");
+        let start = Instant::now();
+        let o = rayproof(&[
+            "audit",
+            "--shape",
+            "sphere",
+            "--cases",
+            "10",
+            "--class",
+            "random",
+            "--exec",
+            cmd,
+            "--exec-timeout",
+            "2",
+            "--json",
+            json.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(4), "{cmd}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{cmd}: {err}");
+        assert!(err.contains(what), "{cmd}: '{what}' not in {err}");
+        assert!(!json.exists(), "{cmd}: a report was written");
+        assert!(
+            start.elapsed() < Duration::from_secs(20),
+            "{cmd}: took {:?}",
+            start.elapsed()
+        );
+    }
+    // Usage: --exec needs one shape, and its name must not be a built-in method's
+    let o = rayproof(&["audit", "--exec", "cat", "--cases", "5"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("single --shape"));
+    let o = rayproof(&[
+        "audit", "--shape", "sphere", "--method", "rtg7", "--exec", "cat", "--name", "rtg7",
+        "--cases", "5",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--name rtg7"));
+    std::fs::remove_dir_all(&dir).ok();
+}
