@@ -23,6 +23,7 @@ pub mod hist;
 pub mod judge;
 pub mod offline;
 pub mod plan;
+pub mod plugin;
 pub mod probe;
 pub mod report;
 pub mod row;

@@ -117,6 +117,9 @@ pub struct ShapeInfo {
     pub reports_cond: bool,
     /// [`Shape::residual`] is implemented: rows report hit-point residuals.
     pub reports_residual: bool,
+    /// The count is the number of values (the polynomials' distinct real roots); otherwise a
+    /// non-zero count comes with all the values (`t`, or a vector's components).
+    pub count_is_values: bool,
 }
 
 impl ShapeInfo {
@@ -133,6 +136,7 @@ impl ShapeInfo {
         default_cases: 20_000,
         reports_cond: false,
         reports_residual: false,
+        count_is_values: false,
     };
 }
 

@@ -55,30 +55,47 @@ pub struct AuditArgs {
 /// A method from outside the crate, for `audit` and `probe`.
 #[derive(Args, Debug, Clone)]
 pub struct OutsideArgs {
+    /// Audit a routine of a shared library through its C ABI, in batches: PATH:SYMBOL, with
+    /// :f32 or :f64 unless the symbol ends so (repeat for the other precision). `rayproof
+    /// header` prints the C signatures.
+    #[arg(long, value_name = "PATH:SYMBOL")]
+    pub plugin: Vec<String>,
     /// Audit a routine run by this command (`sh -c CMD`): cases as lines on its stdin, one
-    /// answer line per case on its stdout (README: "Audit your own code"). With --method, the
-    /// named built-in methods are audited beside it.
-    #[arg(long, value_name = "CMD")]
+    /// answer line per case on its stdout (README: "Audit your own code").
+    #[arg(long, value_name = "CMD", conflicts_with = "plugin")]
     pub exec: Option<String>,
-    /// The name of the --exec method in reports and tolerance rules.
-    #[arg(long, default_value = "exec")]
-    pub name: String,
-    /// Seconds a batch of cases may take before the child is killed.
+    /// The outside method's name in reports and tolerance rules (default: `exec`, or the
+    /// plugin's symbol without its precision suffix).
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Seconds a batch of cases may take before the --exec child is killed.
     #[arg(long, default_value_t = 60.0, value_parser = parse_seconds)]
     pub exec_timeout: f64,
 }
 
+/// An outside method, and for a plugin the precisions it has symbols for.
+type Outside = (Box<dyn crate::audit::Method>, Option<Vec<Precision>>);
+
 impl OutsideArgs {
-    /// The outside method, if one is given, for a shape.
-    pub fn method(&self, shape: &str) -> Option<Box<dyn crate::audit::Method>> {
-        self.exec.as_ref().map(|cmd| {
-            Box::new(crate::audit::exec::Exec {
-                name: self.name.clone(),
+    /// The outside method, if one is given, for a shape; with a plugin, its precisions.
+    pub fn method(&self, shape: &dyn crate::audit::Shape) -> Result<Option<Outside>> {
+        if let Some(cmd) = &self.exec {
+            let m = crate::audit::exec::Exec {
+                name: self.name.clone().unwrap_or_else(|| "exec".into()),
                 command: cmd.clone(),
-                shape: shape.to_string(),
+                shape: shape.name().to_string(),
                 timeout: std::time::Duration::from_secs_f64(self.exec_timeout),
-            }) as Box<dyn crate::audit::Method>
-        })
+            };
+            return Ok(Some((Box::new(m), None)));
+        }
+        if self.plugin.is_empty() {
+            return Ok(None);
+        }
+        let p =
+            crate::audit::plugin::Plugin::load(&self.plugin, self.name.as_deref(), shape.info())
+                .map_err(|e| anyhow!(e))?;
+        let precisions = p.precisions();
+        Ok(Some((Box::new(p), Some(precisions))))
     }
 }
 
@@ -90,13 +107,33 @@ fn parse_seconds(s: &str) -> Result<f64, String> {
 }
 
 /// Puts the outside method, if any, into a single-shape plan: alone, or beside the built-in
-/// methods named with --method.
-pub(super) fn add_outside(plan: &mut Plan, o: &OutsideArgs, named: bool) -> Result<()> {
-    let Some(m) = plan.shapes.first().and_then(|p| o.method(p.shape.name())) else {
+/// methods named with --method. A plugin is audited in the precisions it has symbols for
+/// (unless --precision asks for some).
+pub(super) fn add_outside(
+    plan: &mut Plan,
+    o: &OutsideArgs,
+    named: bool,
+    precisions_given: bool,
+) -> Result<()> {
+    if o.exec.is_none() && o.plugin.is_empty() {
+        return Ok(());
+    }
+    if plan.shapes.len() != 1 {
+        bail!("--exec and --plugin audit one shape's routine: give a single --shape");
+    }
+    let Some((m, has)) = o.method(plan.shapes[0].shape)? else {
         return Ok(());
     };
-    if plan.shapes.len() != 1 {
-        bail!("--exec audits one shape's routine: give a single --shape");
+    if let Some(has) = has {
+        if !precisions_given {
+            plan.precisions = has;
+        } else if let Some(p) = plan.precisions.iter().find(|p| !has.contains(p)) {
+            bail!(
+                "--plugin has no {} symbol (give --precision, or a :{} symbol)",
+                p.name(),
+                p.name()
+            );
+        }
     }
     let p = &mut plan.shapes[0];
     if !named {
@@ -173,7 +210,12 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         shard: a.shard,
     })
     .map_err(|e| anyhow!(e))?;
-    add_outside(&mut plan, &a.outside, !a.method.is_empty())?;
+    add_outside(
+        &mut plan,
+        &a.outside,
+        !a.method.is_empty(),
+        !a.precision.is_empty(),
+    )?;
     let table = load_table(&a.out.tolerances, &plan.known())?;
     check_output_dirs(&[&a.out.json, &a.out.markdown, &a.shard_out])?;
     let shard_label = format!("{}/{}", a.shard.0, a.shard.1);

@@ -44,6 +44,7 @@ mod args;
 mod audit;
 mod check;
 mod diff;
+mod header;
 mod implicit;
 mod offline;
 mod probe;
@@ -78,6 +79,9 @@ pub enum Command {
     Cases(CasesArgs),
     /// Judge a file of answers to `cases` with the oracle, as the audit would.
     Score(ScoreArgs),
+    /// Print the C header of routines audited with `audit --plugin` (one signature per shape
+    /// and precision).
+    Header,
     /// Run the oracle and every method on one ray and one shape.
     #[command(subcommand)]
     Probe(ProbeCommand),
@@ -161,6 +165,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Merge(m) => audit::run_merge(m),
         Command::Cases(c) => offline::run_cases(c),
         Command::Score(s) => offline::run_score(s),
+        Command::Header => header::run_header(),
         Command::Probe(p) => probe::run_probe(p),
         Command::Render(r) => render::run_render(r),
         Command::Export(e) => render::run_export(e),

@@ -110,6 +110,7 @@ pub static QUADRATIC: Roots = Roots {
         values: &["x1", "x2"],
         classes: QUADRATIC_CLASSES,
         methods: QUADRATIC_METHODS,
+        count_is_values: true,
         ..ShapeInfo::DEFAULTS
     },
 };

@@ -1,0 +1,340 @@
+//! Auditing a routine in a shared library through its C ABI (`rayproof audit --plugin
+//! PATH:SYMBOL`), in batches: arrays in, arrays out, so the call costs nothing per case.
+//!
+//! One signature serves every shape; `rayproof header` prints the C header that names it per
+//! shape and precision. For a shape with `IN` inputs and at most `OUT` output values:
+//!
+//! ```c
+//! int f(size_t n, const float in[][IN], uint32_t count[], float out[][OUT]);   /* f32 */
+//! int f(size_t n, const double in[][IN], uint32_t count[], double out[][OUT]); /* f64 */
+//! ```
+//!
+//! The routine answers the `n` cases: `count[i]` is 0 for a miss (no real root, total internal
+//! reflection) and otherwise the number of values it wrote to `out[i]` (1 for a hit's `t`, the
+//! number of distinct real roots, 3 for a vector); it returns 0, or anything else to report a
+//! failure. rayproof fills `count` with a sentinel before the call, so a count left unwritten or
+//! above `OUT` (a wrong signature) is an error, not an answer.
+//!
+//! A routine that crashes the process (a segmentation fault) is caught by a signal handler
+//! installed around the call: one line naming the library and symbol, exit 4, no report.
+
+use super::shape::{Answer, Method};
+use crate::numerics::Precision;
+use std::ffi::CString;
+use std::sync::Mutex;
+
+/// A batch routine in f32.
+type F32Fn = unsafe extern "C" fn(usize, *const f32, *mut u32, *mut f32) -> i32;
+/// A batch routine in f64.
+type F64Fn = unsafe extern "C" fn(usize, *const f64, *mut u32, *mut f64) -> i32;
+
+/// The count rayproof writes before the call: a routine must overwrite it.
+const UNSET: u32 = u32::MAX;
+
+/// One loaded symbol.
+enum Routine {
+    F32(F32Fn),
+    F64(F64Fn),
+}
+
+/// A routine of a shared library, one symbol per precision.
+pub struct Plugin {
+    name: String,
+    /// `PATH:SYMBOL` per precision, for messages and replay lines.
+    specs: Vec<(Precision, String)>,
+    routines: Vec<(Precision, Routine)>,
+    inputs: usize,
+    outputs: usize,
+    /// The count is the number of values written (the polynomials).
+    counted: bool,
+    /// Keeps the libraries loaded while their symbols are used.
+    _libs: Vec<libloading::Library>,
+}
+
+/// `PATH:SYMBOL[:f32|f64]`, the precision taken from a `_f32`/`_f64` suffix of the symbol when
+/// not given.
+pub fn parse_spec(spec: &str) -> Result<(String, String, Precision), String> {
+    let (rest, given) = match spec.rsplit_once(':') {
+        Some((r, "f32")) => (r, Some(Precision::F32)),
+        Some((r, "f64")) => (r, Some(Precision::F64)),
+        _ => (spec, None),
+    };
+    let (path, symbol) = rest
+        .rsplit_once(':')
+        .filter(|(p, s)| !p.is_empty() && !s.is_empty())
+        .ok_or_else(|| format!("--plugin '{spec}': not PATH:SYMBOL[:f32|f64]"))?;
+    let prec = given
+        .or_else(|| symbol.ends_with("_f32").then_some(Precision::F32))
+        .or_else(|| symbol.ends_with("_f64").then_some(Precision::F64))
+        .ok_or_else(|| {
+            format!("--plugin '{spec}': say the precision (PATH:SYMBOL:f32 or :f64), or name the symbol …_f32 / …_f64")
+        })?;
+    Ok((path.to_string(), symbol.to_string(), prec))
+}
+
+impl Plugin {
+    /// Loads one symbol per spec for a shape with `inputs` inputs and `outputs` values; the
+    /// method's name defaults to the first symbol without its precision suffix.
+    pub fn load(
+        specs: &[String],
+        name: Option<&str>,
+        shape: &super::shape::ShapeInfo,
+    ) -> Result<Plugin, String> {
+        let mut p = Plugin {
+            name: String::new(),
+            specs: vec![],
+            routines: vec![],
+            inputs: shape.args.len(),
+            outputs: shape.values.len(),
+            counted: shape.count_is_values,
+            _libs: vec![],
+        };
+        for spec in specs {
+            let (path, symbol, prec) = parse_spec(spec)?;
+            if p.routines.iter().any(|(q, _)| *q == prec) {
+                return Err(format!("--plugin: two {} symbols", prec.name()));
+            }
+            // A path without a slash would be searched for by the loader: make it explicit
+            let file = if path.contains('/') {
+                path.clone()
+            } else {
+                format!("./{path}")
+            };
+            // SAFETY: loading runs the library's initialisers; the user asked for this library
+            let lib = unsafe { libloading::Library::new(&file) }
+                .map_err(|e| format!("--plugin {path}: cannot load: {e}"))?;
+            let cname =
+                CString::new(symbol.clone()).map_err(|_| format!("--plugin {spec}: bad symbol"))?;
+            // SAFETY: the symbol is used with the documented signature of its precision; a
+            // routine with another signature is caught by the count sentinel or crashes, which
+            // the signal handler reports
+            let routine = unsafe {
+                match prec {
+                    Precision::F32 => lib
+                        .get::<F32Fn>(cname.as_bytes_with_nul())
+                        .map(|f| Routine::F32(*f)),
+                    Precision::F64 => lib
+                        .get::<F64Fn>(cname.as_bytes_with_nul())
+                        .map(|f| Routine::F64(*f)),
+                }
+            }
+            .map_err(|e| format!("--plugin {path}: no symbol '{symbol}': {e}"))?;
+            p.routines.push((prec, routine));
+            p.specs.push((prec, format!("{path}:{symbol}")));
+            p._libs.push(lib);
+            if p.name.is_empty() {
+                p.name = name.map(str::to_string).unwrap_or_else(|| {
+                    symbol
+                        .trim_end_matches("_f32")
+                        .trim_end_matches("_f64")
+                        .to_string()
+                });
+            }
+        }
+        if p.routines.is_empty() {
+            return Err("--plugin: no symbol given".into());
+        }
+        Ok(p)
+    }
+
+    /// The precisions it has a symbol for.
+    pub fn precisions(&self) -> Vec<Precision> {
+        self.routines.iter().map(|(p, _)| *p).collect()
+    }
+
+    fn spec(&self, prec: Precision) -> &str {
+        self.specs
+            .iter()
+            .find(|(p, _)| *p == prec)
+            .map(|(_, s)| s.as_str())
+            .unwrap_or("")
+    }
+}
+
+/// What the crash handler prints: set before each call (the calls are not concurrent).
+static CALLING: Mutex<Option<CString>> = Mutex::new(None);
+/// The message as a raw pointer for the signal handler (which must not lock).
+static MESSAGE: std::sync::atomic::AtomicPtr<libc::c_char> =
+    std::sync::atomic::AtomicPtr::new(std::ptr::null_mut());
+
+/// On a crash inside a plugin: write the message and leave with exit code 4. Only
+/// async-signal-safe calls (`write`, `_exit`).
+extern "C" fn crashed(_sig: libc::c_int) {
+    let msg = MESSAGE.load(std::sync::atomic::Ordering::SeqCst);
+    if !msg.is_null() {
+        // SAFETY: the message is a NUL-terminated string kept alive in CALLING
+        unsafe {
+            let len = libc::strlen(msg);
+            libc::write(2, msg as *const libc::c_void, len);
+        }
+    }
+    // SAFETY: leaving at once, without unwinding or running destructors, is what a crash needs
+    unsafe { libc::_exit(4) }
+}
+
+/// Runs `call` with crash handlers for the signals a bad routine raises, which print `what`.
+fn guarded<T>(what: &str, call: impl FnOnce() -> T) -> T {
+    let text = CString::new(format!("error: {what}\n")).unwrap_or_default();
+    let mut slot = CALLING.lock().unwrap_or_else(|e| e.into_inner());
+    MESSAGE.store(text.as_ptr() as *mut _, std::sync::atomic::Ordering::SeqCst);
+    *slot = Some(text);
+    let signals = [
+        libc::SIGSEGV,
+        libc::SIGBUS,
+        libc::SIGFPE,
+        libc::SIGILL,
+        libc::SIGABRT,
+    ];
+    // SAFETY: plain sigaction calls; the old handlers are restored after the call
+    let old: Vec<libc::sigaction> = signals
+        .iter()
+        .map(|&sig| unsafe {
+            let mut new: libc::sigaction = std::mem::zeroed();
+            new.sa_sigaction = crashed as extern "C" fn(libc::c_int) as usize;
+            let mut old: libc::sigaction = std::mem::zeroed();
+            libc::sigaction(sig, &new, &mut old);
+            old
+        })
+        .collect();
+    let r = call();
+    for (&sig, old) in signals.iter().zip(&old) {
+        // SAFETY: restoring what was there
+        unsafe {
+            libc::sigaction(sig, old, std::ptr::null_mut());
+        }
+    }
+    MESSAGE.store(std::ptr::null_mut(), std::sync::atomic::Ordering::SeqCst);
+    *slot = None;
+    r
+}
+
+impl Method for Plugin {
+    fn name(&self) -> &str {
+        &self.name
+    }
+    fn replay(&self) -> Option<String> {
+        let specs: Vec<String> = self
+            .specs
+            .iter()
+            .map(|(p, s)| format!("--plugin {s}:{}", p.name()))
+            .collect();
+        Some(format!("{} --name {}", specs.join(" "), self.name))
+    }
+    fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String> {
+        let Some((_, routine)) = self.routines.iter().find(|(p, _)| *p == prec) else {
+            return Err(format!(
+                "--plugin: {} has no {} symbol",
+                self.name,
+                prec.name()
+            ));
+        };
+        let n = inputs.len();
+        if n == 0 {
+            return Ok(vec![]);
+        }
+        let spec = self.spec(prec);
+        let what = format!("plugin {spec} crashed answering {n} {} cases", prec.name());
+        let mut count = vec![UNSET; n];
+        // Arrays in, arrays out, one call per batch
+        let (status, values): (i32, Vec<f64>) = match routine {
+            Routine::F32(f) => {
+                let input: Vec<f32> = inputs.iter().flatten().map(|&x| x as f32).collect();
+                let mut out = vec![f32::NAN; n * self.outputs];
+                debug_assert_eq!(input.len(), n * self.inputs);
+                // SAFETY: the buffers have the documented sizes for n cases
+                let s = guarded(&what, || unsafe {
+                    f(n, input.as_ptr(), count.as_mut_ptr(), out.as_mut_ptr())
+                });
+                (s, out.into_iter().map(f64::from).collect())
+            }
+            Routine::F64(f) => {
+                let input: Vec<f64> = inputs.iter().flatten().copied().collect();
+                let mut out = vec![f64::NAN; n * self.outputs];
+                // SAFETY: as above
+                let s = guarded(&what, || unsafe {
+                    f(n, input.as_ptr(), count.as_mut_ptr(), out.as_mut_ptr())
+                });
+                (s, out)
+            }
+        };
+        if status != 0 {
+            return Err(format!(
+                "plugin {spec} returned {status} (a failure) for a batch of {n} cases"
+            ));
+        }
+        // Every count written and within the outputs
+        let answers = count
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| {
+                if c == UNSET {
+                    return Err(format!(
+                        "plugin {spec} left count[{i}] unwritten (a wrong signature? see `rayproof header`)"
+                    ));
+                }
+                let k = match (c, self.counted) {
+                    (0, _) => 0,
+                    (c, true) => c as usize,
+                    _ => self.outputs,
+                };
+                if k > self.outputs || (!self.counted && c > 1) {
+                    return Err(format!(
+                        "plugin {spec}: count[{i}] = {c}, but a case has at most {} values (a wrong signature? see `rayproof header`)",
+                        self.outputs
+                    ));
+                }
+                Ok(Answer {
+                    count: c,
+                    values: values[i * self.outputs..i * self.outputs + k].to_vec(),
+                    enclosure: None,
+                })
+            })
+            .collect::<Result<Vec<Answer>, String>>()?;
+        // Values never written (still the NaN put there before the call) on every hit of a
+        // batch: not an answer but a wrong signature
+        let hits: Vec<&Answer> = answers.iter().filter(|a| a.count > 0).collect();
+        if hits.len() >= 16 && hits.iter().all(|a| a.values.iter().all(|v| v.is_nan())) {
+            return Err(format!(
+                "plugin {spec}: every value of {} hits is NaN (a wrong signature? see `rayproof header`)",
+                hits.len()
+            ));
+        }
+        Ok(answers)
+    }
+}
+
+/// The C header: one typedef per shape and precision.
+pub fn header(shapes: &[&'static dyn super::shape::Shape]) -> String {
+    let mut out = [
+        "/* rayproof.h: the C signatures of routines audited with `rayproof audit --plugin PATH:SYMBOL`.",
+        " * A routine answers n cases at once: in[i] holds case i's inputs in order; it writes",
+        " * count[i] = 0 for a miss (no real root, total internal reflection) and 1 for a hit with",
+        " * every out[i] value written (t, or a vector's components); the polynomial shapes write",
+        " * their number of distinct real roots, ascending in out[i][0 .. count[i]]. It returns 0",
+        " * (anything else reports a failure). Build with -shared -fPIC. */",
+        "#ifndef RAYPROOF_H",
+        "#define RAYPROOF_H",
+        "#include <stddef.h>",
+        "#include <stdint.h>",
+        "",
+    ]
+    .join("\n");
+    for s in shapes {
+        let info = s.info();
+        let (i, o) = (info.args.len(), info.values.len());
+        out += &format!(
+            "\n/* {}: {}\n * in:  {}\n * out: {} */\n",
+            info.name,
+            info.about,
+            info.args.join(" "),
+            info.values.join(" ")
+        );
+        for (t, p) in [("float", "f32"), ("double", "f64")] {
+            out += &format!(
+                "typedef int rayproof_{}_{p}(size_t n, const {t} in[][{i}], uint32_t count[], {t} out[][{o}]);\n",
+                info.name
+            );
+        }
+    }
+    out + "\n#endif\n"
+}

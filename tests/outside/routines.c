@@ -1,0 +1,98 @@
+/* Routines audited through `rayproof audit --plugin` in tests/plugin.rs, with the signatures
+ * of `rayproof header`. Built at test time: cc -O2 -shared -fPIC routines.c -o libroutines.so */
+#include <math.h>
+#include <stddef.h>
+#include <stdint.h>
+#include <string.h>
+
+static float dot3f(const float a[3], const float b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+static double dot3(const double a[3], const double b[3]) { return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]; }
+
+/* The textbook ray–sphere quadratic in float: A t² + B t + C, D = B² − 4AC. */
+int sphere_textbook_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    for (size_t i = 0; i < n; i++) {
+        const float *o = in[i], *d = in[i] + 3, *c = in[i] + 6, r = in[i][9];
+        float f[3] = {o[0] - c[0], o[1] - c[1], o[2] - c[2]};
+        float a = dot3f(d, d), b = 2.0f * dot3f(d, f), cc = dot3f(f, f) - r * r;
+        float disc = b * b - 4.0f * a * cc;
+        count[i] = 0;
+        if (!(disc > 0.0f)) continue;
+        float s = sqrtf(disc), t0 = (-b - s) / (2.0f * a), t1 = (-b + s) / (2.0f * a);
+        float lo = fminf(t0, t1), hi = fmaxf(t0, t1);
+        float t = lo > 0.0f ? lo : hi;
+        if (t > 0.0f) { count[i] = 1; out[i][0] = t; }
+    }
+    return 0;
+}
+
+/* A careful one: the perpendicular discriminant and the stable root pair in double (every f32
+ * input, product and square is exact or nearly so there), rounded once to float. */
+int sphere_careful_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    for (size_t i = 0; i < n; i++) {
+        double o[3], d[3], c[3], r = in[i][9];
+        for (int k = 0; k < 3; k++) { o[k] = in[i][k]; d[k] = in[i][3 + k]; c[k] = in[i][6 + k]; }
+        count[i] = 0;
+        int finite = isfinite(r) && r > 0.0;
+        for (int k = 0; k < 3; k++) finite = finite && isfinite(o[k]) && isfinite(d[k]) && isfinite(c[k]);
+        double f[3] = {o[0] - c[0], o[1] - c[1], o[2] - c[2]};
+        double a = dot3(d, d);
+        if (!finite || !(a > 0.0)) continue;
+        double b = dot3(f, d), p = b / a;
+        double l[3] = {f[0] - p * d[0], f[1] - p * d[1], f[2] - p * d[2]};
+        double disc = (r - sqrt(dot3(l, l))) * (r + sqrt(dot3(l, l)));
+        if (disc < 0.0) continue;
+        double cc = (sqrt(dot3(f, f)) - r) * (sqrt(dot3(f, f)) + r);
+        double q = -(b + copysign(sqrt(a * disc), b));
+        double t0 = cc / q, t1 = q / a;
+        double lo = fmin(t0, t1), hi = fmax(t0, t1);
+        double t = lo > 0.0 ? lo : hi;
+        float tf = (float)t;
+        if (t > 0.0 && tf > 0.0f && isfinite(tf)) { count[i] = 1; out[i][0] = tf; }
+    }
+    return 0;
+}
+
+/* Möller–Trumbore in float with the usual |det| < 1e-6 test. Inputs o d p0 p1 p2. */
+int triangle_mt_f32(size_t n, const float in[][15], uint32_t count[], float out[][1]) {
+    for (size_t i = 0; i < n; i++) {
+        const float *o = in[i], *d = in[i] + 3, *p0 = in[i] + 6, *p1 = in[i] + 9, *p2 = in[i] + 12;
+        float e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+        float e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+        float h[3] = {d[1] * e2[2] - d[2] * e2[1], d[2] * e2[0] - d[0] * e2[2], d[0] * e2[1] - d[1] * e2[0]};
+        float det = dot3f(e1, h);
+        count[i] = 0;
+        if (!(fabsf(det) >= 1e-6f)) continue;
+        float inv = 1.0f / det;
+        float s[3] = {o[0] - p0[0], o[1] - p0[1], o[2] - p0[2]};
+        float u = inv * dot3f(s, h);
+        if (!(u >= 0.0f && u <= 1.0f)) continue;
+        float q[3] = {s[1] * e1[2] - s[2] * e1[1], s[2] * e1[0] - s[0] * e1[2], s[0] * e1[1] - s[1] * e1[0]};
+        float v = inv * dot3f(d, q);
+        if (!(v >= 0.0f && u + v <= 1.0f)) continue;
+        float t = inv * dot3f(e2, q);
+        if (t > 0.0f && isfinite(t)) { count[i] = 1; out[i][0] = t; }
+    }
+    return 0;
+}
+
+/* Bad routines, for the refusals. */
+int crashes_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    volatile int *null = 0;
+    (void)in; (void)out; (void)count;
+    return n > 0 ? *null : 0;
+}
+int fails_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    (void)n; (void)in; (void)count; (void)out;
+    return 7;
+}
+int forgets_counts_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    (void)in; (void)count;
+    for (size_t i = 0; i < n; i++) out[i][0] = 1.0f;
+    return 0;
+}
+/* Written for doubles but loaded as f32: counts are right, values are never written. */
+int nan_values_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    (void)in; (void)out;
+    for (size_t i = 0; i < n; i++) count[i] = 1;
+    return 0;
+}

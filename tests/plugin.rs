@@ -1,0 +1,209 @@
+//! `rayproof audit --plugin PATH:SYMBOL`: C routines in a shared library, built here with the
+//! system C compiler from `tests/outside/routines.c`, audited through their C ABI in batches.
+
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+fn rayproof(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .args(args)
+        .output()
+        .expect("binary runs")
+}
+
+/// The library, built once.
+fn library() -> &'static Path {
+    static LIB: OnceLock<PathBuf> = OnceLock::new();
+    LIB.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("rayproof-plugin-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let lib = dir.join("libroutines.so");
+        let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/outside/routines.c");
+        let o = Command::new("cc")
+            .args(["-O2", "-shared", "-fPIC"])
+            .arg(&src)
+            .arg("-o")
+            .arg(&lib)
+            .arg("-lm")
+            .output()
+            .expect("a C compiler (cc)");
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        lib
+    })
+}
+
+fn plugin(symbol: &str) -> String {
+    format!("{}:{symbol}", library().display())
+}
+
+/// An audit's JSON rows (and its exit code).
+fn audit(args: &[&str]) -> (Option<i32>, Vec<Value>) {
+    static N: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let n = N.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+    let json =
+        std::env::temp_dir().join(format!("rayproof-plugin-{}-{n}.json", std::process::id()));
+    let mut all = vec!["audit"];
+    all.extend(args);
+    all.extend(["--json", json.to_str().unwrap(), "--worst", "0"]);
+    let o = rayproof(&all);
+    assert!(
+        o.status.code().is_some_and(|c| c <= 1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    std::fs::remove_file(&json).ok();
+    (
+        o.status.code(),
+        v["shapes"][0]["rows"].as_array().unwrap().clone(),
+    )
+}
+
+fn wrong(r: &Value) -> u64 {
+    ["false_hit", "false_miss", "wrong_root", "nonfinite_t"]
+        .iter()
+        .map(|k| r[k].as_u64().unwrap())
+        .sum()
+}
+
+#[test]
+fn a_textbook_c_sphere_shows_its_failures_and_a_careful_one_passes() {
+    let dir = std::env::temp_dir().join(format!("rayproof-plugin-t-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // The textbook one beside the built-in `algebraic`, the same formula in f32: the same rows
+    let sel = [
+        "--shape",
+        "sphere",
+        "--class",
+        "far_small,tangent,random,invalid",
+        "--cases",
+        "2000",
+    ];
+    let mut args = sel.to_vec();
+    let spec = plugin("sphere_textbook_f32");
+    args.extend(["--plugin", &spec, "--method", "algebraic"]);
+    let (_, rows) = audit(&args);
+    let of =
+        |m: &str| -> Vec<Value> { rows.iter().filter(|r| r["method"] == m).cloned().collect() };
+    let (c, built_in) = (of("sphere_textbook"), of("algebraic"));
+    assert_eq!(c.len(), 4);
+    for (x, y) in c.iter().zip(&built_in) {
+        for k in [
+            "well_posed",
+            "false_hit",
+            "false_miss",
+            "wrong_root",
+            "ulps",
+            "invalid",
+        ] {
+            assert_eq!(x[k], y[k], "{} {k}", x["class"]);
+        }
+    }
+    let class = |rows: &[Value], c: &str| rows.iter().find(|r| r["class"] == c).unwrap().clone();
+    assert!(wrong(&class(&c, "far_small")) > 100 && wrong(&class(&c, "tangent")) > 20);
+    // Held to what a robust method does, the textbook one fails and the careful one passes
+    for (symbol, want) in [("sphere_textbook_f32", 1), ("sphere_careful_f32", 0)] {
+        let name = symbol.trim_end_matches("_f32");
+        let rules = dir.join(format!("{name}.toml"));
+        std::fs::write(
+            &rules,
+            format!("[[rule]]\nshape = \"sphere\"\nmethod = \"{name}\"\nwrong = \"none\"\nmax_ulps = 1\ninvalid = \"reject\"\nwhy = \"as promote\"\n"),
+        )
+        .unwrap();
+        let spec = plugin(symbol);
+        let mut args = sel.to_vec();
+        args.extend(["--plugin", &spec, "--tolerances", rules.to_str().unwrap()]);
+        let (code, rows) = audit(&args);
+        assert_eq!(code, Some(want), "{symbol}");
+        if want == 0 {
+            assert!(
+                rows.iter()
+                    .all(|r| wrong(r) == 0 && r["ulps"]["max"] == 0.0),
+                "{symbol}"
+            );
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_c_moller_trumbore_fails_on_vertex_and_tiny_triangles() {
+    let spec = plugin("triangle_mt_f32");
+    let (_, rows) = audit(&[
+        "--shape",
+        "triangle",
+        "--class",
+        "vertex,tiny,generic",
+        "--cases",
+        "1000",
+        "--plugin",
+        &spec,
+    ]);
+    let class = |c: &str| rows.iter().find(|r| r["class"] == c).unwrap().clone();
+    assert!(wrong(&class("vertex")) > 10, "{:?}", class("vertex"));
+    assert!(wrong(&class("tiny")) > 10, "{:?}", class("tiny"));
+}
+
+#[test]
+fn bad_libraries_and_routines_get_one_line_and_an_exit_code() {
+    let sel = [
+        "audit", "--shape", "sphere", "--class", "random", "--cases", "50",
+    ];
+    let lib = library().display().to_string();
+    for (spec, code, what) in [
+        ("/no/such/lib.so:f_f32".to_string(), 2, "cannot load"),
+        (format!("{lib}:absent_f32"), 2, "no symbol 'absent_f32'"),
+        (format!("{lib}:sphere_textbook"), 2, "say the precision"),
+        (plugin("crashes_f32"), 4, "crashed answering"),
+        (plugin("fails_f32"), 4, "returned 7"),
+        (plugin("forgets_counts_f32"), 4, "left count[0] unwritten"),
+        (plugin("nan_values_f32"), 4, "is NaN (a wrong signature?"),
+    ] {
+        let json =
+            std::env::temp_dir().join(format!("rayproof-plugin-bad-{}.json", std::process::id()));
+        let mut args = sel.to_vec();
+        args.extend(["--plugin", &spec, "--json", json.to_str().unwrap()]);
+        let o = rayproof(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(code), "{spec}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{spec}: {err}");
+        assert!(err.contains(what), "{spec}: '{what}' not in {err}");
+        assert!(!json.exists(), "{spec}: a report was written");
+    }
+}
+
+#[test]
+fn the_header_declares_every_shape_in_both_precisions() {
+    let o = rayproof(&["header"]);
+    assert!(o.status.success());
+    let h = String::from_utf8_lossy(&o.stdout);
+    for s in rayproof::shapes::registry() {
+        for p in ["f32", "f64"] {
+            assert!(
+                h.contains(&format!("typedef int rayproof_{}_{p}(", s.name())),
+                "{}",
+                s.name()
+            );
+        }
+    }
+    assert!(h.contains("const float in[][10], uint32_t count[], float out[][1]"));
+    // It compiles, and the test routines match their declarations
+    let dir = std::env::temp_dir().join(format!("rayproof-header-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("rayproof.h"), h.as_bytes()).unwrap();
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/outside/routines.c");
+    let check = format!(
+        "#include \"rayproof.h\"\n#include \"{}\"\nrayproof_sphere_f32 *a = sphere_textbook_f32, *b = sphere_careful_f32;\nrayproof_triangle_f32 *c = triangle_mt_f32;\n",
+        src.display()
+    );
+    std::fs::write(dir.join("check.c"), check).unwrap();
+    let o = Command::new("cc")
+        .args(["-fsyntax-only", "-Werror", "-Wincompatible-pointer-types"])
+        .arg(dir.join("check.c"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::remove_dir_all(&dir).ok();
+}
