@@ -142,3 +142,49 @@ fn failed_report_leaves_the_previous_one_and_says_why_in_one_line() {
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }
+
+#[test]
+fn an_outside_routine_joins_the_accuracy_vs_cost_section() {
+    let out = tmp("report-outside");
+    let o = rayproof(&[
+        "report",
+        "--quick",
+        "--cases",
+        "200",
+        "--exec",
+        "python3 tests/outside/sphere_textbook.py",
+        "--name",
+        "py",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let json: Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let cost = json["cost"].as_array().unwrap();
+    assert_eq!(
+        cost.len(),
+        16,
+        "7 built-in methods and py, in two precisions"
+    );
+    let py: Vec<&Value> = cost.iter().filter(|r| r["method"] == "py").collect();
+    assert_eq!(py.len(), 2);
+    // Timed, and judged as the textbook formula it is: wrong verdicts like `algebraic` in f64
+    for r in &py {
+        assert!(r["ns"]["median_ns"].as_f64().unwrap() > 0.0, "{r}");
+    }
+    let f64 = |m: &str| {
+        cost.iter()
+            .find(|r| r["method"] == m && r["precision"] == "f64")
+            .unwrap()["wrong"]
+            .clone()
+    };
+    assert_eq!(f64("py"), f64("algebraic"));
+    let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("| py | f64 |"), "no py row in the report");
+}

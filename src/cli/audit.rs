@@ -74,7 +74,7 @@ pub struct OutsideArgs {
 }
 
 /// An outside method, and for a plugin the precisions it has symbols for.
-type Outside = (Box<dyn crate::audit::Method>, Option<Vec<Precision>>);
+type Outside = (Box<dyn crate::audit::Method + Send>, Option<Vec<Precision>>);
 
 impl OutsideArgs {
     /// The outside method, if one is given, for a shape; with a plugin, its precisions.

@@ -83,7 +83,7 @@ pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
     let methods: Vec<&dyn Method> = builtins
         .iter()
         .map(|m| m as &dyn Method)
-        .chain(outside.as_deref())
+        .chain(outside.as_deref().map(|m| m as &dyn Method))
         .collect();
     if p.json {
         let v = probe_json(shape, &methods, p.precision, &input).map_err(failed)?;

@@ -22,10 +22,24 @@ pub struct ReportArgs {
     /// Small renders, few repeats, strided Newton inputs: a smoke run in seconds.
     #[arg(long)]
     pub quick: bool,
+    /// A ray–sphere routine of yours (--plugin with f32 and f64 symbols, or --exec) beside the
+    /// built-in methods in the accuracy-vs-cost section.
+    #[command(flatten)]
+    pub outside: super::audit::OutsideArgs,
 }
 
 pub(super) fn run_report(r: ReportArgs) -> Result<u8> {
+    // An outside routine answers both precisions
+    let sphere = crate::shapes::shape_by_name("sphere").expect("registered");
+    let outside = match r.outside.method(sphere)? {
+        Some((_, Some(has))) if has.len() < 2 => {
+            anyhow::bail!("report --plugin needs an f32 and an f64 symbol (give --plugin twice)")
+        }
+        Some((m, _)) => Some(std::sync::Arc::from(m)),
+        None => None,
+    };
     crate::report::run(&crate::report::ReportOptions {
+        outside,
         out: r.out.clone(),
         reference: r.reference.clone(),
         seed: r.seed,

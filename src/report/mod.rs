@@ -31,7 +31,6 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 /// What to run.
-#[derive(Clone, Debug)]
 pub struct ReportOptions {
     pub out: PathBuf,
     pub reference: PathBuf,
@@ -41,6 +40,9 @@ pub struct ReportOptions {
     /// Small everything (renders, repeats, strided Newton inputs): for tests and smoke runs.
     pub quick: bool,
     pub progress: bool,
+    /// A ray–sphere routine from outside the crate (a plugin, a subprocess) to put beside the
+    /// built-in methods in the accuracy-vs-cost section, in both precisions.
+    pub outside: Option<std::sync::Arc<dyn crate::audit::Method + Send>>,
 }
 
 /// The classes of the timing batch: the bench's mix.
@@ -49,7 +51,7 @@ use crate::shapes::sphere::batch::MIX;
 /// One method × precision: the audit's errors beside the in-run cost.
 #[derive(Clone, Debug, Serialize)]
 pub struct CostRow {
-    pub method: &'static str,
+    pub method: String,
     pub precision: Precision,
     pub robust: bool,
     pub ns: Timing,
@@ -164,13 +166,21 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
         ..Default::default()
     })
     .map_err(|e| anyhow::anyhow!(e))?;
+    let mut plan = plan;
+    if let Some(m) = &o.outside {
+        plan.shapes[0].methods.push(Box::new(Shared(m.clone())));
+    }
     let tallies = plan.run_shape(0, o.progress)?;
     let report = tallies.report(None);
     say(o, "timing every method × precision");
     let runs = if o.quick { 3 } else { 9 };
     let min_ns = if o.quick { 2e6 } else { 2e7 };
-    let t32 = time_methods::<f32>(o.seed, runs, min_ns);
-    let t64 = time_methods::<f64>(o.seed, runs, min_ns);
+    let mut t32 = time_methods::<f32>(o.seed, runs, min_ns);
+    let mut t64 = time_methods::<f64>(o.seed, runs, min_ns);
+    if let Some(m) = &o.outside {
+        t32.push(time_outside::<f32>(m.as_ref(), o.seed, runs, min_ns)?);
+        t64.push(time_outside::<f64>(m.as_ref(), o.seed, runs, min_ns)?);
+    }
     let cost = cost_rows(&report, &tallies, &t32, &t64);
     // 2. Batched kernel, checked bit-identical before timing
     say(o, "timing the batched kernel");
@@ -259,6 +269,56 @@ fn time_methods<F: PickPrecision>(seed: u64, runs: usize, min_ns: f64) -> Vec<Ti
         .collect()
 }
 
+/// A method shared between the audit and the timing.
+struct Shared(std::sync::Arc<dyn crate::audit::Method + Send>);
+
+impl crate::audit::Method for Shared {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn robust(&self) -> bool {
+        self.0.robust()
+    }
+    fn replay(&self) -> Option<String> {
+        self.0.replay()
+    }
+    fn answer(
+        &self,
+        prec: Precision,
+        inputs: &[Vec<f64>],
+    ) -> std::result::Result<Vec<crate::audit::Answer>, String> {
+        self.0.answer(prec, inputs)
+    }
+}
+
+/// ns per test of an outside method on the same mix: one batch per measurement, so a shared
+/// library's figure is its routine's cost (a subprocess's includes starting it).
+fn time_outside<F: PickPrecision>(
+    m: &dyn crate::audit::Method,
+    seed: u64,
+    runs: usize,
+    min_ns: f64,
+) -> Result<Timing> {
+    let prec = if F::MANT_BITS == 24 {
+        Precision::F32
+    } else {
+        Precision::F64
+    };
+    let inputs: Vec<Vec<f64>> = MIX
+        .iter()
+        .flat_map(|&c| (0..512).filter_map(move |i| generate::<F>(seed, c, i)))
+        .map(|c| c.scalars().iter().map(|x| x.to_f64()).collect())
+        .collect();
+    // A failure shows before timing
+    m.answer(prec, &inputs)
+        .map_err(crate::audit::run::MethodFailed)?;
+    Ok(measure(inputs.len(), runs, min_ns, || {
+        m.answer(prec, std::hint::black_box(&inputs))
+            .map(|a| a.iter().filter(|x| x.count > 0).count())
+            .unwrap_or(0)
+    }))
+}
+
 /// Pools the audit over classes per method × precision and sets it beside the timing.
 fn cost_rows(
     report: &ShapeReport,
@@ -268,7 +328,7 @@ fn cost_rows(
 ) -> Vec<CostRow> {
     let mut out = vec![];
     for p in Precision::ALL {
-        for (k, m) in METHODS.iter().enumerate() {
+        for (k, m) in tallies.methods.iter().enumerate() {
             let rows: Vec<_> = report
                 .rows
                 .iter()
@@ -278,7 +338,7 @@ fn cost_rows(
             let well_posed: u64 = rows.iter().map(|r| r.well_posed).sum();
             let mut bits: Vec<f64> = Class::ALL
                 .iter()
-                .flat_map(|&c| tallies.ulps(m.name, p, c.name()))
+                .flat_map(|&c| tallies.ulps(&m.name, p, c.name()))
                 .map(|u| (1.0 + u as f64).log2())
                 .collect();
             bits.sort_by(f64::total_cmp);
@@ -287,7 +347,7 @@ fn cost_rows(
                 .copied()
                 .unwrap_or(0.0);
             out.push(CostRow {
-                method: m.name,
+                method: m.name.clone(),
                 precision: p,
                 robust: m.robust,
                 ns: if p == Precision::F32 {
@@ -306,9 +366,13 @@ fn cost_rows(
     out
 }
 
-/// A method's position in [`METHODS`] (its colour in every plot).
+/// A method's position in [`METHODS`] (its colour in every plot); an outside method comes
+/// after them.
 fn method_index(name: &str) -> usize {
-    METHODS.iter().position(|m| m.name == name).unwrap_or(0)
+    METHODS
+        .iter()
+        .position(|m| m.name == name)
+        .unwrap_or(METHODS.len())
 }
 
 /// Background colour of a heat-table cell: green at 0, through yellow, to red at ≥ 10 %.
@@ -446,7 +510,7 @@ impl Markdown<'_> {
                     x: r.ns.median_ns,
                     y: y(r),
                     robust: r.robust,
-                    colour: method_index(r.method),
+                    colour: method_index(&r.method),
                     square: r.precision == Precision::F64,
                 })
                 .collect()
@@ -500,7 +564,7 @@ impl Markdown<'_> {
         }
         self.s += "</tr>\n";
         for p in Precision::ALL {
-            for m in METHODS {
+            for m in &tallies.methods {
                 write!(self.s, "<tr><td>{}</td><td>{}</td>", m.name, p.name())?;
                 for c in Class::ALL {
                     match report
@@ -527,13 +591,13 @@ impl Markdown<'_> {
         self.s +=
             "### Bits of error per class\n\nFor each method and precision: the share of right-verdict \
               hits per ⌈log2(1 + ulps)⌉, one line per class (0 = correctly rounded).\n\n";
-        for m in METHODS {
+        for m in &tallies.methods {
             for p in Precision::ALL {
                 let series: Vec<(String, Vec<f64>)> = Class::ALL
                     .iter()
                     .map(|&c| {
                         let b = tallies
-                            .ulps(m.name, p, c.name())
+                            .ulps(&m.name, p, c.name())
                             .into_iter()
                             .map(|u| (1.0 + u as f64).log2())
                             .collect();
@@ -627,7 +691,7 @@ impl Markdown<'_> {
                 x: r.seconds.median_ns,
                 y: r.vs_povray_mean.unwrap_or(r.vs_baseline_mean),
                 robust: r.robust,
-                colour: method_index(r.method),
+                colour: method_index(&r.method),
                 square: r.precision == "f64",
             })
             .collect();
