@@ -691,7 +691,7 @@ impl Markdown<'_> {
                 x: r.seconds.median_ns,
                 y: r.vs_povray_mean.unwrap_or(r.vs_baseline_mean),
                 robust: r.robust,
-                colour: method_index(&r.method),
+                colour: method_index(r.method),
                 square: r.precision == "f64",
             })
             .collect();
