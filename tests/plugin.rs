@@ -146,6 +146,101 @@ fn a_c_moller_trumbore_fails_on_vertex_and_tiny_triangles() {
     assert!(wrong(&class("tiny")) > 10, "{:?}", class("tiny"));
 }
 
+/// A row without the fields that name its method (its verdict and replay lines do).
+fn judged(r: &Value) -> Value {
+    let mut r = r.clone();
+    for k in ["method", "verdict", "examples"] {
+        r.as_object_mut().unwrap().remove(k);
+    }
+    r
+}
+
+#[test]
+fn a_c_quadratic_in_both_precisions_is_judged_exactly_as_the_same_formula_built_in() {
+    // Every class of the quadratic, f32 and f64: counts are numbers of roots, values two
+    let (f32s, f64s) = (
+        plugin("quadratic_textbook_f32"),
+        plugin("quadratic_textbook_f64"),
+    );
+    let (_, rows) = audit(&[
+        "--shape",
+        "quadratic",
+        "--cases",
+        "1500",
+        "--plugin",
+        &f32s,
+        "--plugin",
+        &f64s,
+        "--method",
+        "textbook",
+    ]);
+    let of =
+        |m: &str| -> Vec<Value> { rows.iter().filter(|r| r["method"] == m).cloned().collect() };
+    let (c, built_in) = (of("quadratic_textbook"), of("textbook"));
+    assert_eq!(c.len(), built_in.len());
+    assert!(c.len() >= 16, "both precisions, every class");
+    for (x, y) in c.iter().zip(&built_in) {
+        assert_eq!(judged(x), judged(y), "{} {}", x["precision"], x["class"]);
+    }
+    // The same formula's known failures show: near_zero and huge_range lose most digits in f32
+    let f32_near_zero = c
+        .iter()
+        .find(|r| r["precision"] == "f32" && r["class"] == "near_zero")
+        .unwrap();
+    assert!(f32_near_zero["ulps"]["max"].as_f64().unwrap() > 1e6);
+}
+
+#[test]
+fn a_plugin_audit_in_shards_merges_to_the_unsharded_report() {
+    let dir = std::env::temp_dir().join(format!("rayproof-plugin-shard-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let spec = plugin("triangle_mt_f32");
+    let sel = [
+        "audit",
+        "--shape",
+        "triangle",
+        "--class",
+        "vertex,generic",
+        "--cases",
+        "1200",
+        "--plugin",
+        &spec,
+        "--worst",
+        "2",
+    ];
+    let path = |n: &str| dir.join(n).to_str().unwrap().to_string();
+    // Whole
+    let mut whole = sel.to_vec();
+    let whole_json = path("whole.json");
+    whole.extend(["--json", &whole_json]);
+    let o = rayproof(&whole);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{o:?}");
+    // Three shards, merged
+    let shards: Vec<String> = (0..3).map(|k| path(&format!("{k}.shard"))).collect();
+    for (k, out) in shards.iter().enumerate() {
+        let shard = format!("{k}/3");
+        let mut args = sel.to_vec();
+        args.extend(["--shard", &shard, "--shard-out", out]);
+        let o = rayproof(&args);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    let merged_json = path("merged.json");
+    let mut merge = vec!["merge", "--worst", "2", "--json", &merged_json];
+    merge.extend(shards.iter().map(|s| s.as_str()));
+    let o = rayproof(&merge);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{o:?}");
+    assert_eq!(
+        std::fs::read(&whole_json).unwrap(),
+        std::fs::read(&merged_json).unwrap()
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn bad_libraries_and_routines_get_one_line_and_an_exit_code() {
     let sel = [
@@ -195,7 +290,7 @@ fn the_header_declares_every_shape_in_both_precisions() {
     std::fs::write(dir.join("rayproof.h"), h.as_bytes()).unwrap();
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/outside/routines.c");
     let check = format!(
-        "#include \"rayproof.h\"\n#include \"{}\"\nrayproof_sphere_f32 *a = sphere_textbook_f32, *b = sphere_careful_f32;\nrayproof_triangle_f32 *c = triangle_mt_f32;\n",
+        "#include \"rayproof.h\"\n#include \"{}\"\nrayproof_sphere_f32 *a = sphere_textbook_f32, *b = sphere_careful_f32;\nrayproof_triangle_f32 *c = triangle_mt_f32;\nrayproof_quadratic_f32 *d = quadratic_textbook_f32;\nrayproof_quadratic_f64 *e = quadratic_textbook_f64;\n",
         src.display()
     );
     std::fs::write(dir.join("check.c"), check).unwrap();

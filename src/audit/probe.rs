@@ -149,8 +149,13 @@ pub fn probe_text(
             d["value"].as_str().unwrap_or("")
         );
     }
-    // Each method
-    for r in v["methods"].as_array().into_iter().flatten() {
+    // Each method, in a column that fits the longest name
+    let methods = v["methods"].as_array().map_or(&[][..], |m| m.as_slice());
+    let w = methods
+        .iter()
+        .map(|r| r["method"].as_str().map_or(0, |m| m.chars().count()))
+        .fold(16, usize::max);
+    for r in methods {
         let mut extra = String::new();
         if let Some(u) = r["ulps"].as_u64() {
             extra += &format!("  ({u} ulps)");
@@ -166,7 +171,7 @@ pub fn probe_text(
             };
         }
         s += &format!(
-            "  {:<16} {:<12} values {}{}\n",
+            "  {:<w$} {:<12} values {}{}\n",
             r["method"].as_str().unwrap_or(""),
             r["judgement"].as_str().unwrap_or(""),
             {

@@ -73,6 +73,12 @@ pub fn legend(report_seed: u64, shard: &str) -> String {
 pub fn shape_table(s: &ShapeReport) -> String {
     let cond = s.rows.iter().any(|r| r.err_over_cond.is_some());
     let resid = s.rows.iter().any(|r| r.residual_ulps.is_some());
+    // The method column fits the longest name (an outside method's may be long)
+    let w = s
+        .rows
+        .iter()
+        .map(|r| r.method.chars().count())
+        .fold(16, usize::max);
     let mut out = format!(
         "\n{} — {}  (errors in {}; {} cases per class)\n",
         s.shape, s.about, s.metric, s.cases_per_class
@@ -87,7 +93,7 @@ pub fn shape_table(s: &ShapeReport) -> String {
         if key != Some((r.precision, &r.class)) {
             key = Some((r.precision, &r.class));
             let mut h = format!(
-                "{} · {}\n  {:<16} {:>6} {:>5} {:>17} {:>9} {:>8} {:>7} {:>6}",
+                "{} · {}\n  {:<w$} {:>6} {:>5} {:>17} {:>9} {:>8} {:>7} {:>6}",
                 r.precision.name(),
                 r.class,
                 "method",
@@ -114,7 +120,7 @@ pub fn shape_table(s: &ShapeReport) -> String {
         }
         // The row
         let mut line = format!(
-            "  {:<16} {:>6} {:>5} {:>17} {:>8.4}% {:>8} {:>7} {:>6.1}",
+            "  {:<w$} {:>6} {:>5} {:>17} {:>8.4}% {:>8} {:>7} {:>6.1}",
             r.method,
             r.well_posed,
             r.ill_posed,

@@ -75,6 +75,25 @@ int triangle_mt_f32(size_t n, const float in[][15], uint32_t count[], float out[
     return 0;
 }
 
+/* The quadratic's §1.1 formula in float, in double: D = b² − 4ac, −b/2a when D = 0, else
+ * (−b ± √D)/2a, ascending; count is the number of roots written. Inputs a b c. */
+#define QUADRATIC_TEXTBOOK(NAME, T, SQRT)                                              \
+    int NAME(size_t n, const T in[][3], uint32_t count[], T out[][2]) {                \
+        for (size_t i = 0; i < n; i++) {                                               \
+            T a = in[i][0], b = in[i][1], c = in[i][2];                                \
+            T d = b * b - (T)4 * a * c, two_a = (T)2 * a;                              \
+            count[i] = 0;                                                              \
+            if (d < 0) continue;                                                       \
+            if (d == 0) { count[i] = 1; out[i][0] = -b / two_a; continue; }            \
+            T s = SQRT(d), x0 = (-b - s) / two_a, x1 = (-b + s) / two_a;               \
+            if (x0 > x1) { T x = x0; x0 = x1; x1 = x; }                                \
+            count[i] = 2; out[i][0] = x0; out[i][1] = x1;                              \
+        }                                                                              \
+        return 0;                                                                      \
+    }
+QUADRATIC_TEXTBOOK(quadratic_textbook_f32, float, sqrtf)
+QUADRATIC_TEXTBOOK(quadratic_textbook_f64, double, sqrt)
+
 /* Bad routines, for the refusals. */
 int crashes_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
     volatile int *null = 0;
