@@ -303,8 +303,7 @@ fn side(o: [f32; 3], b: [f32; 3], c: [f32; 3], p: [f32; 3]) -> i32 {
     };
     let [u, v, w] = [rel(b), rel(c), rel(p)];
     let minor = |i: usize, j: usize| Rational::from(&v[i] * &w[j]) - Rational::from(&v[j] * &w[i]);
-    let det = Rational::from(&u[0] * minor(1, 2)) - Rational::from(&u[1] * minor(0, 2))
-        + Rational::from(&u[2] * minor(0, 1));
+    let det = &u[0] * minor(1, 2) - &u[1] * minor(0, 2) + &u[2] * minor(0, 1);
     det.cmp0() as i32
 }
 
