@@ -20,6 +20,7 @@ pub mod images;
 pub mod implicit;
 pub mod numerics;
 pub mod output;
+pub mod process;
 pub mod render;
 pub mod report;
 pub mod shapes;

@@ -1,13 +1,14 @@
-//! `rayproof check` end to end, on a copy of the `diffuse` scene's references: it passes as
-//! committed, fails when a reference is perturbed, refuses a tampered or stale reference,
-//! `--update` rewrites only rayproof's own golden render, and known failures have teeth.
+//! `rayproof check` end to end on rayproof's own suite (`reference/suite.toml`), run on a copy
+//! of the `diffuse` scene's references: it passes as committed, fails when a reference is
+//! perturbed, refuses a tampered or stale reference, `--update` rewrites only rayproof's own
+//! golden render, and known failures have teeth. (Suites for other renderers: tests/suite.rs.)
 
 use rayproof::golden::sha256_file;
 use rayproof::images::{read_image, write_exr_rgb};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// A fresh copy of reference/{scenes/diffuse.toml, diffuse/, thresholds.toml}.
+/// A fresh copy of reference/{scenes/diffuse.toml, diffuse/, suite.toml}.
 fn fixture(tag: &str) -> PathBuf {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference");
     let dir = std::env::temp_dir().join(format!("rayproof-check-{tag}-{}", std::process::id()));
@@ -19,7 +20,7 @@ fn fixture(tag: &str) -> PathBuf {
         dir.join("scenes/diffuse.toml"),
     )
     .unwrap();
-    std::fs::copy(root.join("thresholds.toml"), dir.join("thresholds.toml")).unwrap();
+    std::fs::copy(root.join("suite.toml"), dir.join("suite.toml")).unwrap();
     for f in ["povray.exr", "mitsuba.exr", "rayproof.exr", "manifest.json"] {
         std::fs::copy(root.join("diffuse").join(f), dir.join("diffuse").join(f)).unwrap();
     }
@@ -29,8 +30,13 @@ fn fixture(tag: &str) -> PathBuf {
 fn check(dir: &Path, extra: &[&str]) -> (Option<i32>, String, String) {
     let o: Output = Command::new(env!("CARGO_BIN_EXE_rayproof"))
         .arg("check")
-        .arg("--reference")
-        .arg(dir)
+        .arg("--suite")
+        .arg(dir.join("suite.toml"))
+        .args(if extra.contains(&"--test") {
+            &[][..]
+        } else {
+            &["--test", "diffuse"][..]
+        })
         .args(extra)
         .output()
         .unwrap();
@@ -80,7 +86,7 @@ fn committed_references_pass() {
     let dir = fixture("pass");
     let (code, out, err) = check(&dir, &[]);
     assert_eq!(code, Some(0), "{out}{err}");
-    for r in ["povray", "mitsuba", "rayproof"] {
+    for r in ["povray", "mitsuba", "golden"] {
         assert_eq!(status(&out, r), "PASS", "{out}");
     }
 }
@@ -116,7 +122,7 @@ fn a_tampered_hash_is_refused() {
     bytes[k] ^= 1;
     std::fs::write(&p, bytes).unwrap();
     let (code, out, _) = check(&dir, &[]);
-    assert_eq!(code, Some(1), "{out}");
+    assert_eq!(code, Some(3), "{out}");
     assert_eq!(status(&out, "mitsuba"), "REFUSED", "{out}");
     assert!(out.contains("SHA-256"), "{out}");
     assert_eq!(status(&out, "povray"), "PASS", "{out}");
@@ -133,8 +139,8 @@ fn a_changed_scene_makes_every_reference_stale() {
     )
     .unwrap();
     let (code, out, _) = check(&dir, &[]);
-    assert_eq!(code, Some(1), "{out}");
-    for r in ["povray", "mitsuba", "rayproof"] {
+    assert_eq!(code, Some(3), "{out}");
+    for r in ["povray", "mitsuba", "golden"] {
         assert_eq!(status(&out, r), "REFUSED", "{out}");
     }
     assert!(out.contains("another version of the scene"), "{out}");
@@ -146,26 +152,32 @@ fn update_writes_a_missing_golden_render_and_only_that() {
     std::fs::remove_file(dir.join("diffuse/rayproof.exr")).unwrap();
     let (code, out, _) = check(&dir, &[]);
     assert_eq!(code, Some(1), "{out}");
-    assert_eq!(status(&out, "rayproof"), "NEW", "{out}");
+    assert_eq!(status(&out, "golden"), "NEW", "{out}");
     let pov = std::fs::read(dir.join("diffuse/povray.exr")).unwrap();
     let (code, out, _) = check(&dir, &["--update"]);
     assert_eq!(code, Some(0), "{out}");
+    assert_eq!(status(&out, "golden"), "UPDATED", "{out}");
     assert_eq!(std::fs::read(dir.join("diffuse/povray.exr")).unwrap(), pov);
     // The new golden is hashed in the manifest and passes a plain check
     let (code, out, _) = check(&dir, &[]);
     assert_eq!(code, Some(0), "{out}");
-    assert_eq!(status(&out, "rayproof"), "PASS", "{out}");
+    assert_eq!(status(&out, "golden"), "PASS", "{out}");
 }
 
 #[test]
 fn known_failures_have_teeth() {
     // Listed as failing but passing: XPASS, exit 1
     let dir = fixture("xpass");
-    let t = dir.join("thresholds.toml");
+    let t = dir.join("suite.toml");
     let text = std::fs::read_to_string(&t).unwrap();
+    let entry = r#"{ name = "povray", path = "diffuse/povray.exr" }"#;
+    assert!(text.contains(entry));
     std::fs::write(
         &t,
-        format!("{text}\n[scenes.diffuse.povray]\nknown_failure = \"test entry\"\n"),
+        text.replace(
+            entry,
+            r#"{ name = "povray", path = "diffuse/povray.exr", thresholds = { known_failure = "test entry" } }"#,
+        ),
     )
     .unwrap();
     let (code, out, _) = check(&dir, &[]);
@@ -181,7 +193,9 @@ fn known_failures_have_teeth() {
 #[test]
 fn bad_thresholds_are_one_line_errors() {
     let dir = fixture("badthresholds");
-    std::fs::write(dir.join("thresholds.toml"), "[default]\nfial = 0.1\n").unwrap();
+    let t = dir.join("suite.toml");
+    let text = std::fs::read_to_string(&t).unwrap();
+    std::fs::write(&t, text.replacen("fail = 0.05", "fial = 0.05", 1)).unwrap();
     let (code, out, err) = check(&dir, &[]);
     assert_eq!(code, Some(2), "{out}{err}");
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
@@ -214,14 +228,14 @@ fn shapes_scene_passes_against_povray_mitsuba_and_its_golden_render() {
     // The committed references of the box/cylinder/torus/ellipsoid scene, read in place (no
     // --update: nothing is written)
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference");
-    let (code, out, err) = check(&dir, &["--scene", "shapes"]);
+    let (code, out, err) = check(&dir, &["--test", "shapes"]);
     assert_eq!(code, Some(0), "{out}{err}");
     let rows: Vec<&str> = out
         .lines()
         .filter(|l| l.split_whitespace().next() == Some("shapes"))
         .collect();
     assert_eq!(rows.len(), 3, "{out}");
-    for r in ["povray", "mitsuba", "rayproof"] {
+    for r in ["povray", "mitsuba", "golden"] {
         assert_eq!(status(&out, r), "PASS", "{out}");
     }
 }
@@ -231,7 +245,7 @@ fn shapes_thresholds_catch_an_axis_mixup_in_one_ellipsoid() {
     // Teeth: the ellipsoid's x and z semi-axes swapped (0.55, 0.45 → 0.45, 0.55), as a renderer
     // that confused axes would draw it, fails against both external references under the
     // scene's own rules, while the committed scene passes (the test above)
-    use rayproof::golden::ThresholdFile;
+    use rayproof::golden::Suite;
     use rayproof::images::{compare, Image, Verdict};
     use rayproof::render::{render, scene, Overrides};
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference");
@@ -254,10 +268,16 @@ fn shapes_thresholds_catch_an_axis_mixup_in_one_ellipsoid() {
         r.height,
         r.beauty.iter().flatten().copied().collect(),
     );
-    let th = ThresholdFile::load(&root.join("thresholds.toml")).unwrap();
+    let suite = Suite::load(&root.join("suite.toml")).unwrap();
+    let test = suite.tests.iter().find(|t| t.name == "shapes").unwrap();
     for reference in ["povray", "mitsuba"] {
         let refimg = read_image(&root.join("shapes").join(format!("{reference}.exr"))).unwrap();
-        let rule = th.rule("shapes", reference).unwrap();
+        let rule = &test
+            .references
+            .iter()
+            .find(|r| r.name == reference)
+            .unwrap()
+            .rule;
         let c = compare(&refimg, &img, &rule.idiff).unwrap();
         assert!(
             c.verdict == Verdict::Failure || c.mean_error > rule.max_mean,

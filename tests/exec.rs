@@ -111,7 +111,7 @@ fn a_failing_child_stops_the_audit_with_one_line_and_exit_4() {
     for (cmd, what) in [
         ("exit 3", "failed (exit status: 3)"),
         ("echo broken >&2; kill -9 $$", "failed (signal: 9"),
-        ("sleep 30", "no complete answer within 2 s"),
+        ("sleep 30", "did not finish within 2 s"),
         (
             "while read l; do echo '1 zz'; done",
             "answer 1 ('1 zz'): 'zz' is not a number (case: rayproof probe sphere",

@@ -9,11 +9,11 @@ use rayproof::audit::{audit_shape, table, Row, ShapeReport};
 use rayproof::audit::{judge, Shape, Truth};
 use rayproof::numerics::exact::q;
 use rayproof::numerics::Precision;
-use rug::Rational;
 use rayproof::shapes::triangle::{
     self, exact_tri, moller_trumbore_hit, watertight, watertight_hit, watertight_wide_hit,
     ExactTri, Triangle, CLASSES, METHODS,
 };
+use rug::Rational;
 use std::sync::OnceLock;
 
 // ---- the oracle on hand-made cases ----
@@ -298,9 +298,8 @@ fn r32(v: [f64; 3]) -> [f32; 3] {
 
 /// The exact sign of the orientation of `p` against the plane through `o`, `b`, `c`.
 fn side(o: [f32; 3], b: [f32; 3], c: [f32; 3], p: [f32; 3]) -> i32 {
-    let rel = |v: [f32; 3]| -> [Rational; 3] {
-        std::array::from_fn(|i| q(v[i] as f64) - q(o[i] as f64))
-    };
+    let rel =
+        |v: [f32; 3]| -> [Rational; 3] { std::array::from_fn(|i| q(v[i] as f64) - q(o[i] as f64)) };
     let [u, v, w] = [rel(b), rel(c), rel(p)];
     let minor = |i: usize, j: usize| Rational::from(&v[i] * &w[j]) - Rational::from(&v[j] * &w[i]);
     let det = &u[0] * minor(1, 2) - &u[1] * minor(0, 2) + &u[2] * minor(0, 1);

@@ -19,10 +19,6 @@
 use super::shape::{hex_text, probe_line, Answer, Method};
 use crate::numerics::real::parse_f64;
 use crate::numerics::Precision;
-use std::io::{Read, Write};
-use std::os::unix::process::CommandExt;
-use std::process::{Command, Stdio};
-use std::sync::mpsc;
 use std::time::Duration;
 
 /// A routine run by a command.
@@ -79,67 +75,7 @@ impl Exec {
     /// Runs the child on one batch: its standard output, or why it failed.
     fn run_batch(&self, input: String) -> Result<String, String> {
         let what = format!("exec '{}'", self.command);
-        // Its own process group, so that a timeout kills whatever it started
-        let mut child = Command::new("sh")
-            .arg("-c")
-            .arg(&self.command)
-            .process_group(0)
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::piped())
-            .spawn()
-            .map_err(|e| format!("{what}: cannot start: {e}"))?;
-        // Write the batch and close the child's input, while its output is read
-        let mut stdin = child.stdin.take().expect("piped");
-        let writer = std::thread::spawn(move || {
-            let _ = stdin.write_all(input.as_bytes());
-        });
-        let (mut out, mut err) = (
-            child.stdout.take().expect("piped"),
-            child.stderr.take().expect("piped"),
-        );
-        let (tx, rx) = mpsc::channel();
-        let reader = std::thread::spawn(move || {
-            let mut text = String::new();
-            let r = out.read_to_string(&mut text).map(|_| text);
-            let _ = tx.send(r);
-        });
-        let errs = std::thread::spawn(move || {
-            let mut text = String::new();
-            let _ = err.read_to_string(&mut text);
-            text
-        });
-        // The whole batch within the timeout, or the child is killed
-        let out = match rx.recv_timeout(self.timeout) {
-            Ok(r) => r,
-            Err(_) => {
-                // SAFETY: kill(2) on the child's process group; no memory is touched
-                unsafe {
-                    libc::kill(-(child.id() as i32), libc::SIGKILL);
-                }
-                let _ = child.wait();
-                let _ = (writer.join(), reader.join(), errs.join());
-                return Err(format!(
-                    "{what}: no complete answer within {} s (killed)",
-                    self.timeout.as_secs_f64()
-                ));
-            }
-        };
-        let status = child.wait().map_err(|e| format!("{what}: {e}"))?;
-        let _ = (writer.join(), reader.join());
-        let stderr = errs.join().unwrap_or_default();
-        let first_err = stderr.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
-        if !status.success() {
-            return Err(format!(
-                "{what} failed ({status}){}",
-                if first_err.is_empty() {
-                    String::new()
-                } else {
-                    format!(": {first_err}")
-                }
-            ));
-        }
-        out.map_err(|e| format!("{what}: its output is not text: {e}"))
+        crate::process::run_with_timeout(&what, &self.command, None, input, self.timeout)
     }
 }
 

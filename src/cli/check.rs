@@ -1,4 +1,11 @@
-//! `rayproof check`: golden-image CI over the reference scenes.
+//! `rayproof check`: golden-image CI over a suite file (by default rayproof's own reference
+//! scenes, `reference/suite.toml`).
+//!
+//! Exit codes: 0 every comparison passes (warnings, known failures, skipped optional
+//! references included); 1 some comparison fails (FAILURE, XPASS, a missing golden); 2 bad
+//! usage or a suite file that does not validate (nothing runs); 3 some test was refused (a
+//! renderer command failed, hung or wrote no image; a required reference is missing, tampered,
+//! stale or unreadable): then `--update` writes nothing.
 
 use super::*;
 use crate::numerics::Precision;
@@ -11,32 +18,36 @@ use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct CheckArgs {
-    /// Reference directory: scenes/, NAME/{povray,mitsuba,rayproof}.exr, NAME/manifest.json,
-    /// thresholds.toml.
-    #[arg(long, default_value = "reference")]
-    pub reference: PathBuf,
+    /// The suite file: tests, their images or renderer commands, references and thresholds.
+    #[arg(long, default_value = "reference/suite.toml")]
+    pub suite: PathBuf,
     /// Write an HTML report (index.html and PNGs) into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// Rewrite rayproof's own golden render (NAME/rayproof.exr) where it fails or is missing;
-    /// the POV-Ray and Mitsuba references are never rewritten.
+    /// Write goldens where the golden comparison fails or the golden is missing (each with a
+    /// manifest entry); external references are never written, and nothing is written when a
+    /// test is refused.
     #[arg(long)]
     pub update: bool,
-    /// Also render with these methods (compared with POV-Ray and Mitsuba only).
+    /// Tests rayproof renders: also render with these methods (compared with their external
+    /// references only).
     #[arg(long, value_delimiter = ',', value_parser = parse_method)]
     pub method: Vec<&'static Method>,
     /// Precisions for the extra methods (default: both).
     #[arg(long, value_delimiter = ',', value_parser = parse_precision)]
     pub precision: Vec<Precision>,
-    /// Only these scenes (by name).
-    #[arg(long, value_delimiter = ',')]
-    pub scene: Vec<String>,
-    /// Compute HDR-ꟻLIP even without --report.
+    /// Only these tests (by name).
+    #[arg(long, value_delimiter = ',', alias = "scene")]
+    pub test: Vec<String>,
+    /// Compute HDR-ꟻLIP even without --report or a max_flip rule.
     #[arg(long)]
     pub flip: bool,
     /// Write every row as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Write the rows as JUnit XML (for CI systems).
+    #[arg(long)]
+    pub junit: Option<PathBuf>,
     /// Write the rows as a Markdown table.
     #[arg(long)]
     pub markdown: Option<PathBuf>,
@@ -44,8 +55,8 @@ pub struct CheckArgs {
 
 pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     use crate::golden as check;
-    check_output_dirs(&[&a.json, &a.markdown])?;
-    let th = check::ThresholdFile::load(&a.reference.join("thresholds.toml"))?;
+    check_output_dirs(&[&a.json, &a.junit, &a.markdown])?;
+    let suite = check::Suite::load(&a.suite)?;
     // Extra configurations: each method × each precision
     let precisions = if a.precision.is_empty() {
         Precision::ALL.to_vec()
@@ -63,34 +74,45 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
         })
         .collect();
     let opts = check::Options {
-        reference: a.reference.clone(),
         report: a.report.clone(),
         update: a.update,
         configs,
-        scenes: a.scene.clone(),
+        tests: a.test.clone(),
         flip: a.flip,
     };
+    // Run, then the summary: failures first
     let start = Instant::now();
-    let rows = check::run(&opts, &th)?;
-    say_raw!("{}", check::table(&rows));
-    let failed = rows.iter().filter(|r| r.status.is_failure()).count();
+    let out = check::run(&suite, &opts)?;
+    let rows = &out.rows;
+    say_raw!("{}", check::table(rows));
     say!(
-        "{} comparisons in {:.1} s: {} failing (gated configuration: {})",
+        "{}: {} comparisons in {:.1} s: {} failing, {} refused",
+        suite.name,
         rows.len(),
         start.elapsed().as_secs_f64(),
-        failed,
-        th.gated.label()
+        out.failed() - out.refused(),
+        out.refused()
     );
+    if out.update_withheld {
+        say!("--update wrote nothing: a test was refused (fix it first)");
+    }
+    for g in &out.blessed {
+        say!("updated {}", g.display());
+    }
+    // The reports
     if let Some(dir) = &a.report {
-        let html = check::html(&rows, "rayproof check");
+        let html = check::html(rows, &suite.name);
         write_atomic(&dir.join("index.html"), html.as_bytes())?;
         say!("report: {}", dir.join("index.html").display());
     }
     if let Some(p) = &a.json {
-        write_atomic(p, (serde_json::to_string_pretty(&rows)? + "\n").as_bytes())?;
+        write_atomic(p, (serde_json::to_string_pretty(rows)? + "\n").as_bytes())?;
+    }
+    if let Some(p) = &a.junit {
+        write_atomic(p, check::junit(rows, &suite.name).as_bytes())?;
     }
     if let Some(p) = &a.markdown {
-        write_atomic(p, check::markdown(&rows).as_bytes())?;
+        write_atomic(p, check::markdown(rows).as_bytes())?;
     }
-    Ok(if failed > 0 { 1 } else { 0 })
+    Ok(out.exit_code())
 }

@@ -47,9 +47,14 @@ pub fn html(rows: &[Row], title: &str) -> String {
             ),
             None => String::new(),
         };
+        let warnings: String = r
+            .warnings
+            .iter()
+            .map(|w| format!("<br><small class=\"w\">warning: {}</small>", esc(w)))
+            .collect();
         body += &format!(
-            "<tr class=\"{class}\"><td><b>{}</b><br>vs {} ({})<br>{}<br><b>{}</b><br><small>{}</small></td>{imgs}<td class=\"m\">{metrics}</td></tr>\n",
-            esc(&r.scene),
+            "<tr class=\"{class}\"><td><b>{}</b><br>vs {} ({})<br>{}<br><b>{}</b><br><small>{}</small>{warnings}</td>{imgs}<td class=\"m\">{metrics}</td></tr>\n",
+            esc(&r.test),
             esc(&r.reference),
             esc(&r.renderer),
             esc(&r.config),
@@ -66,7 +71,7 @@ pub fn html(rows: &[Row], title: &str) -> String {
          td, th {{ border: 1px solid #ccc; padding: 4px; vertical-align: top; }}\n\
          img {{ width: 256px; image-rendering: pixelated; background: repeating-conic-gradient(#ddd 0 25%, #fff 0 50%) 0 0 / 16px 16px; }}\n\
          tr.fail {{ background: #f8d7da; }} tr.warn {{ background: #fff3cd; }} tr.xfail {{ background: #e2e3e5; }}\n\
-         td.m {{ font-family: monospace; font-size: 90%; }}\n\
+         td.m {{ font-family: monospace; font-size: 90%; }} small.w {{ color: #8a5a00; }}\n\
          </style></head><body>\n<h1>{title}</h1>\n<p>{} comparisons, {failed} failing. Hover over an image to swap new and reference. \
          Heat map: HDR-ꟻLIP error (magma).</p>\n<table>\n<tr><th>Name</th><th>New</th><th>Reference</th><th>Diff (ꟻLIP)</th><th>Metrics</th></tr>\n{body}</table>\n</body></html>\n",
         rows.len()

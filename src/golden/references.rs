@@ -1,14 +1,14 @@
-//! The references of `rayproof check` and how they are loaded: `reference/thresholds.toml`
-//! ([`ThresholdFile`], one [`Rule`] per scene × reference), each scene's `manifest.json`, and the
-//! SHA-256 checks that refuse a tampered or stale reference. `--update` rewrites rayproof's own
-//! golden render and its manifest entry here.
+//! The references of `rayproof check` and how they are judged and kept: the [`Rule`] of one
+//! comparison (from the suite file's layered tables), the `manifest.json` beside a reference
+//! and the SHA-256 checks that refuse a tampered or stale one, and [`bless`], which writes a
+//! golden and its manifest entry for `--update`.
 
 use crate::images::{self, Image, Thresholds};
 use crate::shapes::sphere::methods::Method;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
 use sha2::{Digest, Sha256};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// A rendering configuration: method and precision.
 #[derive(Clone, Copy, Debug)]
@@ -32,105 +32,54 @@ pub fn sha256_file(path: &Path) -> Result<String> {
         .collect())
 }
 
-/// Thresholds of one comparison: idiff's, plus rayproof's two keys.
+/// Thresholds of one comparison: idiff's, plus rayproof's keys.
 #[derive(Clone, Debug, Serialize)]
 pub struct Rule {
     pub idiff: Thresholds,
     /// Mean absolute error (over pixels × channels) above this fails.
     pub max_mean: f64,
+    /// Mean HDR-ꟻLIP above this fails (computed only when given, or for the report).
+    pub max_flip: Option<f64>,
+    /// The z-test's settings, used when the test gives a variance image.
+    pub significance: f64,
+    pub pixel_success_rate: f64,
     /// Why this comparison is expected to fail.
     pub known_failure: Option<String>,
 }
 
-/// `reference/thresholds.toml`.
-pub struct ThresholdFile {
-    table: toml::Table,
-    /// The configuration the thresholds gate, and that `rayproof.exr` holds.
-    pub gated: Config,
-}
-
-impl ThresholdFile {
-    pub fn load(path: &Path) -> Result<ThresholdFile> {
-        // Read the table and its gated configuration (`[check]`)
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        let table: toml::Table = toml::from_str(&text)
-            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message()))?;
-        let check = table.get("check").and_then(|v| v.as_table());
-        let get = |k: &str, d: &str| {
-            check
-                .and_then(|c| c.get(k))
-                .and_then(|v| v.as_str())
-                .unwrap_or(d)
-                .to_string()
-        };
-        let method = crate::shapes::sphere::methods::method_by_name(&get("method", "rtg7"))
-            .with_context(|| format!("{}: check.method is not a known method", path.display()))?;
-        let precision = match get("precision", "f64").as_str() {
-            "f32" => "f32",
-            "f64" => "f64",
-            p => bail!(
-                "{}: check.precision '{p}' is not f32 or f64",
-                path.display()
-            ),
-        };
-        let tf = ThresholdFile {
-            table,
-            gated: Config { method, precision },
-        };
-        // Every rule must parse
-        let mut names = vec![];
-        if let Some(sc) = tf.table.get("scenes").and_then(|v| v.as_table()) {
-            for (scene, refs) in sc {
-                for r in refs.as_table().into_iter().flat_map(|t| t.keys()) {
-                    names.push((scene.clone(), r.clone()));
-                }
-            }
-        }
-        for (s, r) in names
-            .iter()
-            .map(|(s, r)| (s.as_str(), r.as_str()))
-            .chain([("", "povray"), ("", "rayproof")])
-        {
-            tf.rule(s, r)
-                .with_context(|| format!("{}", path.display()))?;
-        }
-        Ok(tf)
-    }
-
-    /// The rule for `scene` × `reference`: `[default]` (or `[golden]` for rayproof's own render),
-    /// overridden by `[scenes.SCENE.REFERENCE]`.
-    pub fn rule(&self, scene: &str, reference: &str) -> Result<Rule> {
-        let base = if reference == "rayproof" {
-            "golden"
-        } else {
-            "default"
-        };
-        // Merge the base table with the scene × reference entry, which wins
+impl Rule {
+    /// The rule of layered tables (later layers win): rayproof's keys `max_mean`, `max_flip`,
+    /// `significance`, `pixel_success_rate`, `known_failure`; every other key is idiff's.
+    pub fn from_layers(layers: &[&toml::Table]) -> Result<Rule> {
         let mut merged = toml::Table::new();
-        let layers = [
-            self.table.get(base),
-            self.table
-                .get("scenes")
-                .and_then(|s| s.get(scene))
-                .and_then(|s| s.get(reference)),
-        ];
-        for layer in layers.into_iter().flatten() {
-            let t = layer
-                .as_table()
-                .context("a threshold entry is not a table")?;
-            merged.extend(t.clone());
+        for t in layers {
+            merged.extend((*t).clone());
         }
         // Take out rayproof's own keys; the rest are idiff's thresholds
-        let take = |m: &mut toml::Table, k: &str| m.remove(k);
-        let max_mean = match take(&mut merged, "max_mean") {
-            Some(v) => v
-                .as_float()
-                .or(v.as_integer().map(|i| i as f64))
-                .context("max_mean must be a number")?,
-            None => f64::INFINITY,
+        let mut number = |k: &str| -> Result<Option<f64>> {
+            match merged.remove(k) {
+                Some(v) => {
+                    let x = v
+                        .as_float()
+                        .or(v.as_integer().map(|i| i as f64))
+                        .with_context(|| format!("{k} must be a number"))?;
+                    if x.is_nan() || x < 0.0 {
+                        bail!("{k} = {x} is not a non-negative number");
+                    }
+                    Ok(Some(x))
+                }
+                None => Ok(None),
+            }
         };
-        let known_failure = match take(&mut merged, "known_failure") {
+        let max_mean = number("max_mean")?.unwrap_or(f64::INFINITY);
+        let max_flip = number("max_flip")?;
+        let z = crate::images::ZParams::default();
+        let significance = number("significance")?.unwrap_or(z.significance);
+        let pixel_success_rate = number("pixel_success_rate")?.unwrap_or(z.pixel_success_rate);
+        if !(significance > 0.0 && significance < 1.0) || pixel_success_rate > 1.0 {
+            bail!("significance must lie in (0, 1) and pixel_success_rate in [0, 1]");
+        }
+        let known_failure = match merged.remove("known_failure") {
             Some(v) => Some(
                 v.as_str()
                     .context("known_failure must be a string")?
@@ -138,94 +87,143 @@ impl ThresholdFile {
             ),
             None => None,
         };
-        let idiff: Thresholds = merged.try_into().map_err(|e: toml::de::Error| {
-            anyhow::anyhow!("[{scene}.{reference}]: {}", e.message())
-        })?;
+        let idiff: Thresholds = merged
+            .try_into()
+            .map_err(|e: toml::de::Error| anyhow::anyhow!("{}", e.message().trim()))?;
         idiff.validate().map_err(anyhow::Error::msg)?;
         Ok(Rule {
             idiff,
             max_mean,
+            max_flip,
+            significance,
+            pixel_success_rate,
             known_failure,
         })
     }
 }
 
-/// The manifest of a scene's references.
-pub(super) fn manifest(dir: &Path) -> Result<serde_json::Value> {
+/// What a manifest says of one image: who made it, how, at which width and sampling grid.
+#[derive(Clone, Debug, Default)]
+pub struct Provenance {
+    /// `renderer version`, or empty when no manifest describes the image.
+    pub renderer: String,
+    pub width: Option<u32>,
+    pub grid: Option<u32>,
+}
+
+/// The manifest of the images in `dir` (`dir/manifest.json`), if there is one.
+fn manifest(dir: &Path) -> Result<Option<serde_json::Value>> {
     let p = dir.join("manifest.json");
+    if !p.exists() {
+        return Ok(None);
+    }
     let text =
         std::fs::read_to_string(&p).with_context(|| format!("cannot read {}", p.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("{}: malformed JSON", p.display()))
+    let v =
+        serde_json::from_str(&text).with_context(|| format!("{}: malformed JSON", p.display()))?;
+    Ok(Some(v))
 }
 
-/// Loads a reference and proves it is the one the manifest describes, made from this scene.
-pub(super) fn verified_reference(
-    dir: &Path,
-    file: &str,
-    m: &serde_json::Value,
-    scene_sha: &str,
-) -> Result<(Image, String)> {
-    // Check the file's hash and its scene's hash against the manifest
-    let entry = m["files"]
-        .get(file)
-        .with_context(|| format!("{file} has no entry in the manifest"))?;
-    let path = dir.join(file);
-    let sha = sha256_file(&path)?;
-    let want = entry["sha256"].as_str().unwrap_or("");
-    if sha != want {
-        bail!(
-            "{} has SHA-256 {sha}, the manifest says {want}: refusing a reference that was changed outside the scripts",
-            path.display()
-        );
-    }
-    if entry["scene_sha256"].as_str() != Some(scene_sha) {
-        bail!(
-            "{} was made from another version of the scene file: re-render it (scripts/render-references)",
-            path.display()
-        );
-    }
-    // Read it; name its renderer and version
-    let img = images::read_image(&path)?;
-    let who = format!(
-        "{} {}",
-        entry["renderer"].as_str().unwrap_or("?"),
-        entry["version"].as_str().unwrap_or("")
-    );
-    Ok((img, who.trim().to_string()))
+fn dir_and_name(path: &Path) -> (PathBuf, String) {
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."))
+        .to_path_buf();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    (dir, name)
 }
 
-/// Writes rayproof.exr and its manifest entry (only `--update` calls this).
-pub(super) fn update_golden(
-    dir: &Path,
-    scene_path: &Path,
-    scene_sha: &str,
-    img: &Image,
-    cfg: Config,
-    width: u32,
-    grid: u32,
-) -> Result<()> {
+/// Loads a reference and, when the manifest beside it describes it, proves it is that file
+/// (SHA-256) made from this scene (the scene's SHA-256): a tampered or stale reference is an
+/// error. An image with no manifest is read as it is, with an empty provenance.
+pub fn verified_reference(path: &Path, scene_sha: Option<&str>) -> Result<(Image, Provenance)> {
+    let (dir, file) = dir_and_name(path);
+    let mut prov = Provenance::default();
+    if let Some(m) = manifest(&dir)? {
+        let entry = m["files"].get(&file).with_context(|| {
+            format!(
+                "{} has no entry in {}",
+                path.display(),
+                dir.join("manifest.json").display()
+            )
+        })?;
+        // Check the file's hash and its scene's hash against the manifest
+        let sha = sha256_file(path)?;
+        let want = entry["sha256"].as_str().unwrap_or("");
+        if sha != want {
+            bail!(
+                "{} has SHA-256 {sha}, the manifest says {want}: refusing a reference that was changed outside the scripts",
+                path.display()
+            );
+        }
+        if let (Some(want), Some(have)) = (entry["scene_sha256"].as_str(), scene_sha) {
+            if want != have {
+                bail!(
+                    "{} was made from another version of the scene file: re-render it",
+                    path.display()
+                );
+            }
+        }
+        prov = Provenance {
+            renderer: format!(
+                "{} {}",
+                entry["renderer"].as_str().unwrap_or("?"),
+                entry["version"].as_str().unwrap_or("")
+            )
+            .trim()
+            .to_string(),
+            width: entry["width"].as_u64().map(|w| w as u32),
+            grid: entry["grid"].as_u64().map(|g| g as u32),
+        };
+    }
+    let img = images::read_image(path).map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok((img, prov))
+}
+
+/// How a blessed golden was made, for its manifest entry.
+pub struct Blessing<'a> {
+    pub renderer: String,
+    pub command: String,
+    pub width: Option<u32>,
+    pub grid: Option<u32>,
+    pub scene: Option<&'a Path>,
+    pub scene_sha: Option<String>,
+}
+
+/// Writes a golden (a copy of `image`'s bytes) and its entry in the manifest beside it (only
+/// `--update` calls this, after every test of the run was validated).
+pub fn bless(golden: &Path, image: &Path, b: &Blessing) -> Result<()> {
     // Write the image, then its manifest entry (with the new hash)
-    std::fs::create_dir_all(dir)?;
-    let path = dir.join("rayproof.exr");
-    images::write_exr_rgb(&path, img)?;
-    let mut m = manifest(dir).unwrap_or(serde_json::json!({ "files": {} }));
-    if m.get("scene").is_none() {
-        m["scene"] = serde_json::json!(scene_path.display().to_string());
+    let (dir, file) = dir_and_name(golden);
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let bytes = std::fs::read(image).with_context(|| format!("cannot read {}", image.display()))?;
+    crate::output::write_atomic(golden, &bytes)?;
+    let mut m = manifest(&dir)?.unwrap_or(serde_json::json!({ "files": {} }));
+    if let (Some(s), None) = (b.scene, m.get("scene")) {
+        m["scene"] = serde_json::json!(s.display().to_string());
     }
-    m["files"]["rayproof.exr"] = serde_json::json!({
-        "renderer": "rayproof",
-        "version": env!("CARGO_PKG_VERSION"),
-        "commands": [format!(
-            "rayproof render {} --method {} --precision {} --width {width} --spp {} -o rayproof.exr (written by rayproof check --update)",
-            scene_path.display(), cfg.method.name, cfg.precision, grid * grid
-        )],
-        "width": width,
-        "grid": grid,
-        "samples_per_pixel": grid * grid,
+    let mut entry = serde_json::json!({
+        "renderer": b.renderer,
+        "commands": [b.command],
         "date": utc_now(),
-        "scene_sha256": scene_sha,
-        "sha256": sha256_file(&path)?,
+        "sha256": sha256_file(golden)?,
+        "written_by": format!("rayproof {} check --update", env!("CARGO_PKG_VERSION")),
     });
+    if let Some(w) = b.width {
+        entry["width"] = w.into();
+    }
+    if let Some(g) = b.grid {
+        entry["grid"] = g.into();
+        entry["samples_per_pixel"] = (g * g).into();
+    }
+    if let Some(s) = &b.scene_sha {
+        entry["scene_sha256"] = s.clone().into();
+    }
+    m["files"][file] = entry;
     let text = serde_json::to_string_pretty(&m)? + "\n";
     crate::output::write_atomic(&dir.join("manifest.json"), text.as_bytes())
 }

@@ -1,8 +1,8 @@
-//! The results of `rayproof check`: one [`Row`] per scene × reference × configuration, its
+//! The results of `rayproof check`: one [`Row`] per test × reference × configuration, its
 //! [`Status`], and the text and Markdown tables of the rows.
 
 use super::references::Rule;
-use crate::images::Comparison;
+use crate::images::{Comparison, ZTest};
 use serde::Serialize;
 
 /// The judgement of one scene × reference × configuration.
@@ -18,8 +18,12 @@ pub enum Status {
     UnexpectedPass,
     /// The reference could not be used: missing, unreadable, hash mismatch, stale, wrong size.
     Refused,
-    /// No golden render yet (rayproof.exr); `--update` writes it.
+    /// No golden yet; `--update` writes it.
     New,
+    /// An optional reference that is not there.
+    Skipped,
+    /// A failing or missing golden that `--update` wrote.
+    Updated,
 }
 
 impl Status {
@@ -38,21 +42,28 @@ impl Status {
             Status::UnexpectedPass => "XPASS",
             Status::Refused => "REFUSED",
             Status::New => "NEW",
+            Status::Skipped => "SKIPPED",
+            Status::Updated => "UPDATED",
         }
     }
 }
 
-/// One row of the check: a scene × reference × configuration.
+/// One row of the check: a test × reference × configuration.
 #[derive(Clone, Debug, Serialize)]
 pub struct Row {
-    pub scene: String,
+    pub test: String,
     pub reference: String,
+    /// Who made the reference (its manifest's renderer and version).
     pub renderer: String,
     pub config: String,
     pub status: Status,
-    /// Why (refusals, known failures, mean over max_mean).
+    /// Why (refusals, known failures, the key that failed).
     pub note: String,
+    /// What the user should know even when it passes: linear against sRGB-encoded images,
+    /// mismatched sampling grids, NaN/Inf pixels.
+    pub warnings: Vec<String>,
     pub comparison: Option<Comparison>,
+    pub ztest: Option<ZTest>,
     pub rule: Rule,
     pub render_seconds: f64,
     /// Report images, relative to the report directory.
@@ -62,9 +73,10 @@ pub struct Row {
 
 /// The text table: one line per row.
 pub fn table(rows: &[Row]) -> String {
+    let w = rows.iter().map(|r| r.test.len()).max().unwrap_or(0).max(8);
     let mut s = format!(
-        "{:<8} {:<9} {:<12} {:<8} {:>10} {:>10} {:>8} {:>9} {:>9} {:>8}  {}\n",
-        "scene",
+        "{:<w$} {:<9} {:<12} {:<8} {:>10} {:>10} {:>8} {:>9} {:>9} {:>8}  {}\n",
+        "test",
         "reference",
         "config",
         "status",
@@ -80,8 +92,8 @@ pub fn table(rows: &[Row]) -> String {
         let c = r.comparison.as_ref();
         let f = |x: Option<f64>, p: usize| x.map(|v| format!("{v:.p$e}")).unwrap_or("-".into());
         s += &format!(
-            "{:<8} {:<9} {:<12} {:<8} {:>10} {:>10} {:>8} {:>9} {:>9} {:>8}  {}\n",
-            r.scene,
+            "{:<w$} {:<9} {:<12} {:<8} {:>10} {:>10} {:>8} {:>9} {:>9} {:>8}  {}\n",
+            r.test,
             r.reference,
             r.config,
             r.status.label(),
@@ -96,6 +108,9 @@ pub fn table(rows: &[Row]) -> String {
                 .unwrap_or("-".into()),
             r.note
         );
+        for warning in &r.warnings {
+            s += &format!("{:<w$}   warning: {warning}\n", "");
+        }
     }
     s
 }
@@ -104,16 +119,16 @@ pub fn table(rows: &[Row]) -> String {
 pub fn markdown(rows: &[Row]) -> String {
     let mut rows: Vec<&Row> = rows.iter().collect();
     rows.sort_by(|a, b| {
-        (&a.scene, &a.reference, &a.config).cmp(&(&b.scene, &b.reference, &b.config))
+        (&a.test, &a.reference, &a.config).cmp(&(&b.test, &b.reference, &b.config))
     });
     let mut s = String::from(
-        "| scene | reference | method / precision | status | MAE | RMS | PSNR dB | max error | pixels > fail | HDR-FLIP |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| test | reference | method / precision | status | MAE | RMS | PSNR dB | max error | pixels > fail | HDR-FLIP |\n|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in rows {
         let Some(c) = &r.comparison else {
             s += &format!(
                 "| {} | {} | {} | {} | | | | | | |\n",
-                r.scene,
+                r.test,
                 r.reference,
                 r.config,
                 r.status.label()
@@ -122,7 +137,7 @@ pub fn markdown(rows: &[Row]) -> String {
         };
         s += &format!(
             "| {} | {} | {} | {} | {:.2e} | {:.2e} | {:.1} | {:.3} | {:.3} % | {} |\n",
-            r.scene,
+            r.test,
             r.reference,
             r.config,
             r.status.label(),

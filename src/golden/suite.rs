@@ -1,0 +1,375 @@
+//! The suite file of `rayproof check --suite FILE`: which images are under test, how each is
+//! made, what it is compared with and under which thresholds. Read and validated whole before
+//! anything runs: an unknown key, a test without an image source, an unknown placeholder or a
+//! bad threshold is one line naming the file and the test (exit 2).
+//!
+//! ```toml
+//! [suite]
+//! name = "myrender"
+//! renderer = "myrender {scene} -o {out} --spp {spp}"   # tests without their own source use it
+//! timeout = 600                                        # seconds per render command
+//! goldens = "goldens"                                  # where --update writes NAME.exr
+//!
+//! [thresholds]          # every external reference (idiff keys, max_mean, max_flip, …)
+//! fail = 0.05
+//! failpercent = 0.1
+//!
+//! [golden_thresholds]   # the comparison with the test's own golden
+//! fail = 1e-6
+//!
+//! [[test]]
+//! name = "cornell"
+//! scene = "scenes/cornell.toml"        # {scene}; relative to this file
+//! grid = 8                             # {grid}, {spp} = grid²; else the references' manifests'
+//! [[test.reference]]
+//! name = "povray"
+//! path = "refs/cornell/povray.exr"
+//! required = false                     # missing: SKIPPED, not a failure
+//! thresholds = { failpercent = 0.2 }
+//! ```
+//!
+//! A test's image comes from exactly one of `image = "PATH"` (an image already rendered),
+//! `command = "TEMPLATE"` (or the suite's `renderer`), or `rayproof = { method, precision }`
+//! (rayproof renders `scene` itself). Placeholders: `{scene}`, `{out}` (the file the command
+//! must write), `{variance}` (its variance image, for the z-test), `{width}`, `{grid}`, `{spp}`,
+//! `{name}`. Commands run through `sh -c` in the suite file's directory, placeholders shell-quoted.
+
+use super::references::Rule;
+use crate::golden::Config;
+use crate::numerics::Precision;
+use anyhow::{bail, Context, Result};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileSpec {
+    #[serde(default)]
+    suite: HeadSpec,
+    #[serde(default)]
+    thresholds: toml::Table,
+    #[serde(default)]
+    golden_thresholds: toml::Table,
+    #[serde(default)]
+    test: Vec<TestSpec>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct HeadSpec {
+    name: Option<String>,
+    renderer: Option<String>,
+    timeout: Option<f64>,
+    goldens: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TestSpec {
+    name: String,
+    scene: Option<String>,
+    image: Option<String>,
+    command: Option<String>,
+    rayproof: Option<BuiltinSpec>,
+    width: Option<u32>,
+    grid: Option<u32>,
+    variance: Option<String>,
+    variance_spp: Option<u64>,
+    golden: Option<toml::Value>,
+    #[serde(default)]
+    thresholds: toml::Table,
+    #[serde(default)]
+    golden_thresholds: toml::Table,
+    #[serde(default)]
+    reference: Vec<RefSpec>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BuiltinSpec {
+    method: String,
+    precision: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RefSpec {
+    name: String,
+    path: String,
+    #[serde(default = "yes")]
+    required: bool,
+    #[serde(default)]
+    thresholds: toml::Table,
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// How a test's image is made.
+#[derive(Clone, Debug)]
+pub enum Source {
+    /// An image already on disk.
+    Image(PathBuf),
+    /// A renderer command template.
+    Command(String),
+    /// rayproof renders the test's scene itself.
+    Rayproof(Config),
+}
+
+/// One reference image of a test.
+#[derive(Clone, Debug)]
+pub struct Reference {
+    pub name: String,
+    pub path: PathBuf,
+    /// A missing optional reference is SKIPPED; a missing required one is REFUSED.
+    pub required: bool,
+    pub rule: Rule,
+}
+
+/// One test of a suite.
+#[derive(Clone, Debug)]
+pub struct Test {
+    pub name: String,
+    pub scene: Option<PathBuf>,
+    pub source: Source,
+    /// Width and sampling grid the test asks for (else the references' manifests say).
+    pub width: Option<u32>,
+    pub grid: Option<u32>,
+    /// The test image's variance (a path, or a template with `{variance}`), for the z-test.
+    pub variance: Option<String>,
+    pub variance_spp: u64,
+    /// The golden image `--update` may write, with its rule.
+    pub golden: Option<(PathBuf, Rule)>,
+    pub references: Vec<Reference>,
+}
+
+impl Test {
+    /// The configuration label of a row: rayproof's method and precision, or how the image
+    /// was made.
+    pub fn config(&self) -> String {
+        match &self.source {
+            Source::Rayproof(c) => c.label(),
+            Source::Command(_) => "command".into(),
+            Source::Image(_) => "image".into(),
+        }
+    }
+}
+
+/// A whole suite file, validated.
+#[derive(Clone, Debug)]
+pub struct Suite {
+    pub path: PathBuf,
+    /// The suite file's directory: relative paths and commands start there.
+    pub dir: PathBuf,
+    pub name: String,
+    pub timeout: Duration,
+    pub tests: Vec<Test>,
+}
+
+/// The placeholders a command may use.
+pub const PLACEHOLDERS: [&str; 7] = ["scene", "out", "variance", "width", "grid", "spp", "name"];
+
+/// The placeholders in a template; an unknown one or an unclosed brace is an error.
+pub fn placeholders(template: &str) -> Result<Vec<String>, String> {
+    let mut found = vec![];
+    let mut rest = template;
+    while let Some(i) = rest.find('{') {
+        let after = &rest[i + 1..];
+        let j = after
+            .find('}')
+            .ok_or_else(|| format!("'{template}': an unclosed '{{'"))?;
+        let key = &after[..j];
+        if !PLACEHOLDERS.contains(&key) {
+            return Err(format!(
+                "'{template}': unknown placeholder {{{key}}} (known: {})",
+                PLACEHOLDERS.map(|p| format!("{{{p}}}")).join(" ")
+            ));
+        }
+        found.push(key.to_string());
+        rest = &after[j + 1..];
+    }
+    Ok(found)
+}
+
+/// Fills a template, each value shell-quoted.
+pub fn fill(template: &str, values: &[(&str, String)]) -> String {
+    let quote = |s: &str| format!("'{}'", s.replace('\'', r"'\''"));
+    let mut s = template.to_string();
+    for (k, v) in values {
+        s = s.replace(&format!("{{{k}}}"), &quote(v));
+    }
+    s
+}
+
+impl Suite {
+    /// Reads and validates a suite file.
+    pub fn load(path: &Path) -> Result<Suite> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read suite file {}", path.display()))?;
+        let spec: FileSpec = toml::from_str(&text)
+            .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message().trim()))?;
+        let dir = path
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."))
+            .to_path_buf();
+        let at = |p: &str| dir.join(p);
+        let timeout = spec.suite.timeout.unwrap_or(600.0);
+        if !(timeout > 0.0 && timeout.is_finite()) {
+            bail!(
+                "{}: suite.timeout must be a positive number of seconds",
+                path.display()
+            );
+        }
+        let goldens = spec.suite.goldens.as_deref().map(at);
+        let mut tests: Vec<Test> = vec![];
+        for t in spec.test {
+            let ctx = |what: String| format!("{}: test '{}': {what}", path.display(), t.name);
+            // A unique, file-name-safe name
+            if t.name.is_empty()
+                || !t
+                    .name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+            {
+                bail!(ctx("a name must be letters, digits, '-', '_' or '.'".into()));
+            }
+            if tests.iter().any(|o| o.name == t.name) {
+                bail!(ctx("a second test with this name".into()));
+            }
+            // Exactly one image source
+            let source = match (&t.image, &t.command, &t.rayproof, &spec.suite.renderer) {
+                (Some(i), None, None, _) => Source::Image(at(i)),
+                (None, Some(c), None, _) => Source::Command(c.clone()),
+                (None, None, Some(b), _) => {
+                    Source::Rayproof(builtin(b).map_err(|e| anyhow::anyhow!(ctx(e)))?)
+                }
+                (None, None, None, Some(r)) => Source::Command(r.clone()),
+                (None, None, None, None) => bail!(ctx(
+                    "no image: give image, command or rayproof (or suite.renderer)".into()
+                )),
+                _ => bail!(ctx("give only one of image, command and rayproof".into())),
+            };
+            if let Source::Command(c) = &source {
+                let keys = placeholders(c).map_err(|e| anyhow::anyhow!(ctx(e)))?;
+                if !keys.iter().any(|k| k == "out") {
+                    bail!(ctx(format!(
+                        "the command '{c}' has no {{out}}: where does it write?"
+                    )));
+                }
+                if keys.iter().any(|k| k == "scene") && t.scene.is_none() {
+                    bail!(ctx(
+                        "the command uses {scene} but the test has no scene".into()
+                    ));
+                }
+            }
+            if matches!(source, Source::Rayproof(_)) && t.scene.is_none() {
+                bail!(ctx("rayproof renders a scene: give scene".into()));
+            }
+            if let Some(v) = &t.variance {
+                placeholders(v).map_err(|e| anyhow::anyhow!(ctx(e)))?;
+            }
+            if t.grid == Some(0) || t.width == Some(0) {
+                bail!(ctx("width and grid must be at least 1".into()));
+            }
+            // Rules: suite defaults, then the test's, then the reference's own
+            let rule = |layers: &[&toml::Table]| {
+                Rule::from_layers(layers).map_err(|e| anyhow::anyhow!(ctx(format!("{e:#}"))))
+            };
+            let mut references = vec![];
+            for r in &t.reference {
+                if r.name.is_empty() || references.iter().any(|o: &Reference| o.name == r.name) {
+                    bail!(ctx(format!(
+                        "reference name '{}' is empty or repeated",
+                        r.name
+                    )));
+                }
+                references.push(Reference {
+                    name: r.name.clone(),
+                    path: at(&r.path),
+                    required: r.required,
+                    rule: rule(&[&spec.thresholds, &t.thresholds, &r.thresholds])?,
+                });
+            }
+            // The golden: a path, false, or by default GOLDENS/NAME.exr when the suite names a
+            // goldens directory
+            let golden_path = match &t.golden {
+                Some(toml::Value::String(p)) => Some(at(p)),
+                Some(toml::Value::Boolean(false)) => None,
+                Some(toml::Value::Boolean(true)) | None => {
+                    goldens.as_ref().map(|g| g.join(format!("{}.exr", t.name)))
+                }
+                Some(_) => bail!(ctx("golden must be a path or false".into())),
+            };
+            if golden_path.is_some() && references.iter().any(|r| r.name == "golden") {
+                bail!(ctx(
+                    "'golden' is the name of the test's own golden image".into()
+                ));
+            }
+            let golden = match golden_path {
+                Some(p) => Some((p, rule(&[&spec.golden_thresholds, &t.golden_thresholds])?)),
+                None => None,
+            };
+            if golden.is_none() && references.is_empty() {
+                bail!(ctx(
+                    "nothing to compare with: no reference and no golden".into()
+                ));
+            }
+            tests.push(Test {
+                name: t.name.clone(),
+                scene: t.scene.as_deref().map(at),
+                source,
+                width: t.width,
+                grid: t.grid,
+                variance: t.variance.clone(),
+                variance_spp: t.variance_spp.unwrap_or(1).max(1),
+                golden,
+                references,
+            });
+        }
+        if tests.is_empty() {
+            bail!("{}: no [[test]]", path.display());
+        }
+        Ok(Suite {
+            path: path.to_path_buf(),
+            dir,
+            name: spec.suite.name.unwrap_or_else(|| "rayproof check".into()),
+            timeout: Duration::from_secs_f64(timeout),
+            tests,
+        })
+    }
+}
+
+/// `rayproof = { method, precision }`.
+fn builtin(b: &BuiltinSpec) -> Result<Config, String> {
+    let method = crate::shapes::sphere::methods::method_by_name(&b.method)
+        .ok_or_else(|| format!("rayproof.method '{}' is not a ray–sphere method", b.method))?;
+    let precision = Precision::ALL
+        .iter()
+        .find(|p| p.name() == b.precision)
+        .ok_or_else(|| format!("rayproof.precision '{}' is not f32 or f64", b.precision))?;
+    Ok(Config {
+        method,
+        precision: precision.name(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn placeholders_are_checked_and_filled_quoted() {
+        assert_eq!(
+            placeholders("r {scene} -o {out} --spp {spp}").unwrap(),
+            ["scene", "out", "spp"]
+        );
+        assert!(placeholders("r {scen}")
+            .unwrap_err()
+            .contains("unknown placeholder {scen}"));
+        assert!(placeholders("r {out").is_err());
+        assert_eq!(fill("r {out}", &[("out", "a b'c".into())]), r"r 'a b'\''c'");
+    }
+}
