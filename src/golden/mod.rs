@@ -346,6 +346,9 @@ fn row(t: &Test, reference: &str, status: Status, note: String) -> Row {
     }
 }
 
+/// A test's rows, and its image when `--update` may bless it.
+type TestRun = (Vec<Row>, Option<(Made, Frame)>);
+
 /// One test: its references checked, its image made, every comparison judged. Also returns
 /// the image (for `--update`) when the golden comparison failed or the golden is missing.
 fn run_test(
@@ -353,7 +356,7 @@ fn run_test(
     t: &Test,
     o: &Options,
     scratch: &Path,
-) -> Result<(Vec<Row>, Option<(Made, Frame)>)> {
+) -> Result<TestRun> {
     let mut rows = vec![];
     // The scene's hash, for stale references
     let scene_sha = match &t.scene {
