@@ -536,21 +536,24 @@ fn png_16_bit_grey_and_alpha() {
     wide.save_with_format(d.join("w.png"), image::ImageFormat::Png)
         .unwrap();
     let w = read_image(&d.join("w.png")).unwrap();
-    assert_eq!(w.data, vec![0.0, 32768.0 / 65535.0, 1.0]);
+    // Code × (1/max) in float32, as OpenImageIO converts (idiff parity: tests/idiff.rs)
+    let (i8, i16) = (1.0f32 / 255.0, 1.0f32 / 65535.0);
+    assert_eq!(w.data, vec![0.0, 32768.0 * i16, 65535.0 * i16]);
 
     let grey = image::GrayImage::from_raw(2, 1, vec![51, 255]).unwrap();
     grey.save_with_format(d.join("g.png"), image::ImageFormat::Png)
         .unwrap();
     let g = read_image(&d.join("g.png")).unwrap();
     assert_eq!(g.channels, ["R", "G", "B"]);
-    assert_eq!(g.data, vec![0.2, 0.2, 0.2, 1.0, 1.0, 1.0]);
+    let (c51, c255) = (51.0 * i8, 255.0 * i8);
+    assert_eq!(g.data, vec![c51, c51, c51, c255, c255, c255]);
 
     let rgba = image::RgbaImage::from_raw(1, 1, vec![255, 0, 0, 51]).unwrap();
     rgba.save_with_format(d.join("a.png"), image::ImageFormat::Png)
         .unwrap();
     let a = read_image(&d.join("a.png")).unwrap();
     assert_eq!(a.channels, ["R", "G", "B", "A"]);
-    assert_eq!(a.data, vec![1.0, 0.0, 0.0, 0.2]);
+    assert_eq!(a.data, vec![c255, 0.0, 0.0, c51]);
 }
 
 #[test]

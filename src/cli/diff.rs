@@ -15,8 +15,9 @@
 
 use super::emit;
 use crate::images::{
-    abs_diff, abs_error_map, compare, flip_error, heatmap_rgb8, one_line, read_image,
-    write_exr_rgb, write_png_rgb8, z_test, DiffReport, SizeMismatch, Thresholds, ZParams,
+    abs_diff, abs_error_map, compare_as, flip_error, heatmap_rgb8, one_line, read_image,
+    write_exr_rgb, write_png_rgb8, z_test, DiffReport, Semantics, SizeMismatch, Thresholds,
+    ZParams,
 };
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -109,6 +110,12 @@ pub struct DiffArgs {
     /// Print only the verdict line.
     #[arg(short, long)]
     pub quiet: bool,
+    /// idiff 2.4's rules exactly, where rayproof is deliberately stricter: a NaN/Inf mismatch
+    /// only sets the max error the first time (the next ones make mean, RMS and PSNR inf or
+    /// nan), any infinity matches any infinity, and images of different size or channels are
+    /// compared over the union, missing values read as 0 (README: deliberate differences).
+    #[arg(long)]
+    pub idiff_compat: bool,
 }
 
 impl DiffArgs {
@@ -196,8 +203,14 @@ fn diff(a: &DiffArgs) -> Result<u8, Exit> {
     let (rn, tn) = (a.reference.display(), a.test.display());
     let mismatch = |e: SizeMismatch| Exit(3, format!("{rn} and {tn}: {e}"));
 
-    // Metrics, z-test, ꟻLIP
-    let mut c = compare(&reference, &test, &t).map_err(mismatch)?;
+    // Metrics, z-test, ꟻLIP (the last two need images of one shape)
+    let semantics = if a.idiff_compat {
+        Semantics::Idiff
+    } else {
+        Semantics::Rayproof
+    };
+    let mut c = compare_as(&reference, &test, &t, semantics).map_err(mismatch)?;
+    let same_shape = reference.shape() == test.shape();
     let z = match &variance {
         Some(v) => Some(z_test(&reference, &test, v, &a.z_params()).map_err(|e| {
             let vn = a.variance.as_deref().unwrap_or(Path::new("")).display();
@@ -210,7 +223,7 @@ fn diff(a: &DiffArgs) -> Result<u8, Exit> {
         })?),
         None => None,
     };
-    let flip_map = (!a.no_flip).then(|| {
+    let flip_map = (!a.no_flip && same_shape).then(|| {
         let (kind, m, map) = flip_error(&reference, &test);
         (c.flip_kind, c.flip_mean) = (Some(kind), Some(m));
         map

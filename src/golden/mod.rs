@@ -351,12 +351,7 @@ type TestRun = (Vec<Row>, Option<(Made, Frame)>);
 
 /// One test: its references checked, its image made, every comparison judged. Also returns
 /// the image (for `--update`) when the golden comparison failed or the golden is missing.
-fn run_test(
-    suite: &Suite,
-    t: &Test,
-    o: &Options,
-    scratch: &Path,
-) -> Result<TestRun> {
+fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<TestRun> {
     let mut rows = vec![];
     // The scene's hash, for stale references
     let scene_sha = match &t.scene {

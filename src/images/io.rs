@@ -45,7 +45,7 @@ impl Image {
     }
 
     /// `4x3 RGBA`.
-    pub(super) fn shape(&self) -> String {
+    pub fn shape(&self) -> String {
         format!("{}x{} {}", self.width, self.height, self.channels.concat())
     }
 
@@ -209,8 +209,11 @@ fn decode_png(bytes: &[u8]) -> Result<Image, String> {
     Ok(out)
 }
 
+/// Code value × (1 / max) in float32, as OpenImageIO converts (so idiff and rayproof read the
+/// same floats: `x / 255` differs from it in the last bit for some codes).
 fn scale<T: Copy + Into<f32>>(v: &[T], max: f32) -> Vec<f32> {
-    v.iter().map(|&x| x.into() / max).collect()
+    let inv = 1.0 / max;
+    v.iter().map(|&x| x.into() * inv).collect()
 }
 
 /// Writes every channel of `img` as a float32 EXR, atomically.

@@ -142,13 +142,15 @@ impl Verdict {
 }
 
 /// idiff's verdict, in idiff's order (see the [module documentation](crate::images)).
+/// The thresholds are float32 as in idiff (`failpercent` 0.1 is 0.100000001).
 pub fn verdict(n_fail: u64, n_warn: u64, max_error: f64, pixels: u64, t: &Thresholds) -> Verdict {
-    let over = |n: u64, percent: f64| n as f64 > percent / 100.0 * pixels as f64;
+    let f32t = |x: f64| x as f32 as f64;
+    let over = |n: u64, percent: f64| n as f64 > f32t(percent) / 100.0 * pixels as f64;
     if n_fail <= t.allowfailures {
         Verdict::Pass
-    } else if over(n_fail, t.failpercent) || max_error > t.hardfail {
+    } else if over(n_fail, t.failpercent) || max_error > f32t(t.hardfail) {
         Verdict::Failure
-    } else if over(n_warn, t.warnpercent) || max_error > t.hardwarn {
+    } else if over(n_warn, t.warnpercent) || max_error > f32t(t.hardwarn) {
         Verdict::Warning
     } else {
         Verdict::Pass
@@ -189,15 +191,19 @@ pub struct Comparison {
     pub channels: Vec<String>,
     pub pixels: u64,
     /// Σ|d| / (pixels × channels), non-finite mismatches left out of the sum.
+    #[serde(serialize_with = "nonfinite::ser")]
     pub mean_error: f64,
     /// sqrt(Σd² / (pixels × channels)).
+    #[serde(serialize_with = "nonfinite::ser")]
     pub rms_error: f64,
     /// 20·log10(peak / RMS); infinite when RMS = 0.
     #[serde(serialize_with = "nonfinite::ser")]
     pub psnr: f64,
     /// max(1, largest finite |value| of either image).
+    #[serde(serialize_with = "nonfinite::ser")]
     pub peak: f64,
     /// Σ d² / (ref² + 0.01) / (pixels × channels).
+    #[serde(serialize_with = "nonfinite::ser")]
     pub rel_mse: f64,
     /// Largest |d|; infinite if some NaN/Inf mismatches.
     #[serde(serialize_with = "nonfinite::ser")]
@@ -217,6 +223,8 @@ pub struct Comparison {
     /// Mean ꟻLIP, when computed (filled in by the caller: [`flip_error`](crate::images::flip_error)).
     pub flip_mean: Option<f64>,
     pub flip_kind: Option<FlipKind>,
+    /// Whose rules decided NaN/Inf and size mismatches.
+    pub semantics: Semantics,
     pub verdict: Verdict,
 }
 
@@ -225,98 +233,164 @@ pub(super) fn same_nonfinite(a: f64, b: f64) -> bool {
     (a.is_nan() && b.is_nan()) || (a.is_infinite() && a == b)
 }
 
-/// Compares two images of the same size and channels with idiff's rules.
+/// Whose rules decide what idiff leaves to taste.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Semantics {
+    /// rayproof's, stricter for CI: a NaN/Inf mismatch is a failing pixel (also +Inf against
+    /// −Inf) and stays out of the sums; images of different size or channels are refused.
+    #[default]
+    Rayproof,
+    /// idiff 2.4's exactly (`--idiff-compat`): a NaN/Inf mismatch only sets the max error to
+    /// inf the first time, the next ones enter the sums (mean, RMS, PSNR become inf or nan) and
+    /// the counts; NaN matches NaN and any infinity any infinity; images of different size or
+    /// channels are compared over the union, a missing pixel or channel read as 0.
+    Idiff,
+}
+
+/// Compares two images of the same size and channels with idiff's rules (rayproof's
+/// semantics).
 pub fn compare(
     reference: &Image,
     test: &Image,
     t: &Thresholds,
 ) -> Result<Comparison, SizeMismatch> {
-    same_shape(reference, test)?;
-    let nch = reference.channels.len();
-    let pixels = reference.pixels();
-    // Find the peak for PSNR: the largest finite |value| of either image, at least 1
-    let peak = reference
-        .data
-        .iter()
-        .chain(&test.data)
-        .filter(|v| v.is_finite())
-        .fold(1f64, |m, &v| m.max(v.abs() as f64));
+    compare_as(reference, test, t, Semantics::Rayproof)
+}
+
+/// Compares two images with idiff's arithmetic: each difference, its relative size and the
+/// thresholds in float32 as idiff computes them (0.05 is 0.05000000075), sums in double over
+/// batches of 4,096 pixels; `semantics` decides NaN/Inf and size mismatches.
+pub fn compare_as(
+    reference: &Image,
+    test: &Image,
+    t: &Thresholds,
+    semantics: Semantics,
+) -> Result<Comparison, SizeMismatch> {
+    let idiff = semantics == Semantics::Idiff;
+    if !idiff {
+        same_shape(reference, test)?;
+    }
+    // The compared window: the union of both (equal unless idiff's semantics)
+    let (w, h) = (
+        reference.width.max(test.width),
+        reference.height.max(test.height),
+    );
+    let nch = reference.channels.len().max(test.channels.len());
+    let value = |img: &Image, x: usize, y: usize, c: usize| -> f32 {
+        let n = img.channels.len();
+        if x < img.width && y < img.height && c < n {
+            img.data[(y * img.width + x) * n + c]
+        } else {
+            0.0
+        }
+    };
+    let f32t = |x: f64| x as f32 as f64;
+    let (fail, warn) = (f32t(t.fail), f32t(t.warn));
+    let (failrel, warnrel) = (f32t(t.failrelative), f32t(t.warnrelative));
 
     // Accumulate Σ|d|, Σd², relMSE, the largest |d| and the warn/fail counts, pixel by pixel
-    let (mut sum, mut sum2, mut rel) = (0f64, 0f64, 0f64);
-    let (mut max_error, mut max_i) = (0f64, 0usize);
+    let (mut sum, mut sum2, mut rel_sum) = (0f64, 0f64, 0f64);
+    let (mut batch, mut batch2) = (0f64, 0f64);
+    let (mut max_error, mut max_at) = (0f64, (0, 0, 0));
+    let mut peak = 1f32;
     let (mut n_warn, mut n_fail, mut n_nonfinite) = (0u64, 0u64, 0u64);
-    for p in 0..pixels {
+    for p in 0..w * h {
+        let (x, y) = (p % w, p / w);
         let (mut warned, mut failed, mut nonfinite) = (false, false, false);
-        for i in p * nch..(p + 1) * nch {
-            let (a, b) = (reference.data[i] as f64, test.data[i] as f64);
-            // |d|, infinite for a NaN/Inf mismatch
-            let d = if a.is_finite() && b.is_finite() {
-                (a - b).abs()
-            } else if same_nonfinite(a, b) {
-                0.0
-            } else {
+        for c in 0..nch {
+            let (a, b) = (value(reference, x, y, c), value(test, x, y, c));
+            // NaN and Inf
+            if !a.is_finite() || !b.is_finite() {
+                let same = if idiff {
+                    a.is_nan() == b.is_nan() && a.is_infinite() == b.is_infinite()
+                } else {
+                    same_nonfinite(a as f64, b as f64)
+                };
+                if same {
+                    continue;
+                }
                 nonfinite = true;
-                f64::INFINITY
+                if max_error.is_finite() || !idiff {
+                    if max_error.is_finite() {
+                        (max_error, max_at) = (f64::INFINITY, (x, y, c));
+                    }
+                    continue;
+                }
+                // idiff: the second mismatch and on fall through to the arithmetic
+            }
+            // The difference and its relative size, in float32 as idiff has them
+            let f = (a - b).abs() as f64;
+            let (aa, ba) = (a.abs(), b.abs());
+            // OIIO's lerp(|a|, |b|, 0.5): in double, returned as float
+            let meanabs = (0.5 * aa as f64 + 0.5 * ba as f64) as f32;
+            if aa.max(ba) > peak {
+                peak = aa.max(ba);
+            }
+            let rel = if meanabs > 0.0 {
+                f / meanabs as f64
+            } else {
+                0.0
             };
-            if d > max_error {
-                (max_error, max_i) = (d, i);
+            batch += f;
+            batch2 += f * f;
+            rel_sum += f * f / ((a as f64) * (a as f64) + 1e-2);
+            if !(f <= max_error) {
+                (max_error, max_at) = (f, (x, y, c));
             }
-            if !d.is_finite() || d == 0.0 {
-                continue;
-            }
-            sum += d;
-            sum2 += d * d;
-            rel += d * d / (a * a + 1e-2);
-            // rel = |d| / mean(|a|, |b|); here d > 0, so the mean is > 0
-            let r = d / ((a.abs() + b.abs()) / 2.0);
-            warned |= d > t.warn && r > t.warnrelative;
-            failed |= d > t.fail && r > t.failrelative;
+            // As idiff 2.4 counts (measured): a NaN difference never counts, an infinite one
+            // does whatever its (NaN) relative size
+            warned |= f > warn && !(rel <= warnrel);
+            failed |= f > fail && !(rel <= failrel);
         }
         n_nonfinite += nonfinite as u64;
-        n_warn += (warned || nonfinite) as u64;
-        n_fail += (failed || nonfinite) as u64;
+        // rayproof counts every NaN/Inf mismatch as warning and failing
+        n_warn += (warned || (nonfinite && !idiff)) as u64;
+        n_fail += (failed || (nonfinite && !idiff)) as u64;
+        if (p + 1) % 4096 == 0 {
+            (sum, sum2, batch, batch2) = (sum + batch, sum2 + batch2, 0.0, 0.0);
+        }
     }
+    (sum, sum2) = (sum + batch, sum2 + batch2);
 
-    // Compute the means, PSNR and the place of the largest |d|
-    let n = (pixels * nch) as f64;
+    // Means over pixels × channels, PSNR against the peak, the verdict over the reference's
+    // pixels (idiff's npels)
+    let pixels = (w * h) as u64;
+    let n = (pixels as usize * nch) as f64;
     let per = |s: f64| if n > 0.0 { s / n } else { 0.0 };
     let rms_error = per(sum2).sqrt();
-    let (max_x, max_y, max_c) = match nch {
-        0 => (0, 0, 0),
-        _ => (
-            (max_i / nch) % reference.width,
-            max_i / nch / reference.width,
-            max_i % nch,
-        ),
+    let (mx, my, mc) = max_at;
+    let channels = if reference.channels.len() >= test.channels.len() {
+        &reference.channels
+    } else {
+        &test.channels
     };
+    let npels = (reference.width * reference.height).max(1) as u64;
     Ok(Comparison {
-        width: reference.width,
-        height: reference.height,
-        channels: reference.channels.clone(),
-        pixels: pixels as u64,
+        width: w,
+        height: h,
+        channels: channels.clone(),
+        pixels,
         mean_error: per(sum),
         rms_error,
         psnr: if rms_error == 0.0 {
             f64::INFINITY
         } else {
-            20.0 * (peak / rms_error).log10()
+            20.0 * (peak as f64 / rms_error).log10()
         },
-        peak,
-        rel_mse: per(rel),
+        peak: peak as f64,
+        rel_mse: per(rel_sum),
         max_error,
-        max_at: (max_x, max_y, max_c),
-        max_channel: reference.channels.get(max_c).cloned().unwrap_or_default(),
-        max_values: (
-            reference.data.get(max_i).copied().unwrap_or(0.0),
-            test.data.get(max_i).copied().unwrap_or(0.0),
-        ),
+        max_at,
+        max_channel: channels.get(mc).cloned().unwrap_or_default(),
+        max_values: (value(reference, mx, my, mc), value(test, mx, my, mc)),
         n_warn,
         n_fail,
         n_nonfinite_mismatch: n_nonfinite,
         flip_mean: None,
         flip_kind: None,
-        verdict: verdict(n_fail, n_warn, max_error, pixels as u64, t),
+        semantics,
+        verdict: verdict(n_fail, n_warn, max_error, npels, t),
     })
 }
 

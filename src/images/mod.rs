@@ -51,7 +51,8 @@ pub use flip::{flip_error, hdr_flip, heatmap_rgb8, ldr_flip, FlipKind};
 pub(crate) use io::one_line;
 pub use io::{read_image, tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError};
 pub use metrics::{
-    abs_diff, abs_error_map, compare, verdict, Comparison, SizeMismatch, Thresholds, Verdict,
+    abs_diff, abs_error_map, compare, compare_as, verdict, Comparison, Semantics, SizeMismatch,
+    Thresholds, Verdict,
 };
 pub use report::{fmt_g, report_text, DiffReport};
 pub use ztest::{erfc, sidak_alpha, z_test, ZParams, ZTest};

@@ -2,7 +2,7 @@
 //! JSON document of `rayproof diff`, with C's `%g` for the numbers.
 
 use super::flip::FlipKind;
-use super::metrics::{Comparison, Thresholds, Verdict};
+use super::metrics::{Comparison, Semantics, Thresholds, Verdict};
 use super::ztest::ZTest;
 use std::path::Path;
 
@@ -72,9 +72,15 @@ fn report_body(ref_name: &str, test_name: &str, c: &Comparison, t: &Thresholds) 
     );
     if c.n_nonfinite_mismatch > 0 {
         s += &format!(
-            "  {} pixels ({}%) with a NaN/Inf mismatch\n",
+            "  {} pixels ({}%) with a NaN/Inf mismatch{}\n",
             c.n_nonfinite_mismatch,
-            pct(c.n_nonfinite_mismatch)
+            pct(c.n_nonfinite_mismatch),
+            match c.semantics {
+                Semantics::Rayproof => {
+                    " (counted as failing; idiff 2.4 counts neither a NaN nor the first Inf: --idiff-compat)"
+                }
+                Semantics::Idiff => " (idiff's rules: --idiff-compat)",
+            }
         );
     }
     s += &format!("  relMSE = {}\n", g(c.rel_mse));
