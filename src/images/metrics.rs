@@ -261,6 +261,8 @@ pub fn compare(
 /// Compares two images with idiff's arithmetic: each difference, its relative size and the
 /// thresholds in float32 as idiff computes them (0.05 is 0.05000000075), sums in double over
 /// batches of 4,096 pixels; `semantics` decides NaN/Inf and size mismatches.
+// `!(x <= y)` is idiff's own NaN-aware test (true when x is NaN), kept as written
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 pub fn compare_as(
     reference: &Image,
     test: &Image,
