@@ -85,6 +85,7 @@ reference = [{{ name = "ext", path = "refs/c.exr" }}, {{ name = "other", path = 
 
 fn check(dir: &Path, extra: &[&str]) -> (Option<i32>, String, String) {
     let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(dir)
         .arg("check")
         .arg("--suite")
         .arg(dir.join("suite.toml"))
@@ -336,4 +337,47 @@ fn warnings_name_nan_pixels_and_linear_against_srgb() {
         out.contains("the reference is sRGB-encoded (PNG) and the test image scene-linear"),
         "{out}"
     );
+}
+
+#[test]
+fn the_readme_suite_example_works_as_printed() {
+    // The README's mysuite.toml, run where it says (the repository's root: here a directory
+    // that links tests/ to it), with its three commands
+    let readme =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("README.md")).unwrap();
+    let block = readme
+        .split("```toml\n# mysuite.toml\n")
+        .nth(1)
+        .and_then(|s| s.split("```").next())
+        .expect("README has the mysuite.toml example");
+    let dir = std::env::temp_dir().join(format!("rayproof-readme-suite-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    std::os::unix::fs::symlink(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests"),
+        dir.join("tests"),
+    )
+    .unwrap();
+    std::fs::write(dir.join("suite.toml"), block).unwrap();
+    let (code, out, err) = check(&dir, &[]);
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert_eq!(status(&out, "disc", "golden"), "NEW", "{out}");
+    assert_eq!(status(&out, "disc", "pbrt"), "SKIPPED", "{out}");
+    let (code, out, _) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(0), "{out}");
+    assert!(dir.join("goldens/disc.exr").is_file() && dir.join("goldens/manifest.json").is_file());
+    std::fs::create_dir_all(dir.join("out")).unwrap();
+    let (code, out, _) = check(
+        &dir,
+        &[
+            "--report",
+            "out/html",
+            "--json",
+            "out/check.json",
+            "--junit",
+            "out/junit.xml",
+        ],
+    );
+    assert_eq!(code, Some(0), "{out}");
+    assert_eq!(status(&out, "disc", "golden"), "PASS", "{out}");
 }
