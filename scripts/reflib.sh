@@ -1,6 +1,7 @@
 # Shared by the reference scripts (sourced, not run). Defines:
 #   ROOT, RAYPROOF (built on demand), TOOLS (cache for the Mitsuba venv and libLLVM),
-#   parse_ref_args DEFAULT_FILE (SCENE [--width W] [--grid N] [-o OUT]) and record_manifest.
+#   parse_ref_args DEFAULT_FILE (SCENE [--width W] [--grid N] [-o OUT]); the manifest entries
+#   are written by `rayproof reference`, which the scripts run.
 set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 TOOLS="${RAYPROOF_TOOLS:-$HOME/.cache/rayproof}"
@@ -36,41 +37,4 @@ parse_ref_args() {
   else
     OUT="$(cd "$(dirname "$OUT")" && pwd)/$(basename "$OUT")"
   fi
-}
-
-# A command line as recorded: paths under the repository shown relative to it.
-shown() { local out=() a; for a in "$@"; do out+=("${a#"$ROOT"/}"); done; echo "${out[*]}"; }
-
-# record_manifest FILE RENDERER VERSION SECONDS COMMAND...: one entry of reference/NAME/manifest.json
-record_manifest() {
-  [ -n "$MANIFEST" ] || return 0
-  local file="$1" renderer="$2" version="$3" secs="$4"; shift 4
-  ROOT="$ROOT" python3 - "$MANIFEST" "$file" "$renderer" "$version" "$secs" "$SCENE" "$WIDTH" "$GRID" "$@" <<'PY'
-import datetime, hashlib, json, os, sys
-manifest, file, renderer, version, secs, scene, width, grid = sys.argv[1:9]
-commands = sys.argv[9:]
-sha = lambda p: hashlib.sha256(open(p, "rb").read()).hexdigest()
-root = os.environ["ROOT"]
-m = json.load(open(manifest)) if os.path.exists(manifest) else {}
-m.setdefault("scene", os.path.relpath(os.path.abspath(scene), root))
-m.setdefault("files", {})
-m["files"][os.path.basename(file)] = {
-    "renderer": renderer,
-    "version": version,
-    "commands": commands,
-    "width": int(width),
-    "grid": int(grid),
-    "samples_per_pixel": int(grid) ** 2,
-    "date": datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-    "seconds": round(float(secs), 2),
-    "scene_sha256": sha(scene),
-    "sha256": sha(file),
-}
-m["files"] = dict(sorted(m["files"].items()))
-tmp = manifest + ".tmp"
-with open(tmp, "w") as f:
-    json.dump(m, f, indent=2)
-    f.write("\n")
-os.replace(tmp, manifest)
-PY
 }

@@ -7,8 +7,12 @@
 //! - 1: `audit` or `merge` ran, and some row broke its tolerance-table entry (a regression)
 //! - 2: bad usage or input (a malformed argument, an unknown method or class, an unwritable file,
 //!   and for `merge` a shard file that is unreadable, truncated, corrupt or not a shard)
-//! - 3: `merge` only: the shard files are sound but are not one audit's shards 0/N … N−1/N
-//!   (a shard missing or given twice; a different seed, case count, selection, N or version)
+//! - 3: `merge`: the shard files are sound but are not one audit's shards 0/N … N−1/N
+//!   (a shard missing or given twice; a different seed, case count, selection, N or version);
+//!   `check`: a test was refused; `reference`: a renderer is missing or failed
+//! - 4: `audit` or `probe` with `--exec` or `--plugin`: the outside routine failed
+//!
+//! `diff` follows idiff's codes instead (see `cli/diff.rs`).
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -48,6 +52,7 @@ mod header;
 mod implicit;
 mod offline;
 mod probe;
+mod reference;
 mod render;
 mod report;
 
@@ -58,6 +63,7 @@ pub use diff::{run_diff, DiffArgs};
 use implicit::ImplicitCheckArgs;
 use offline::{CasesArgs, ScoreArgs};
 use probe::ProbeCommand;
+use reference::ReferenceArgs;
 use render::{DownsampleArgs, ExportArgs, RenderArgs};
 use report::ReportArgs;
 
@@ -93,8 +99,12 @@ pub enum Command {
     Downsample(DownsampleArgs),
     /// Compare two images as OpenImageIO's idiff does (exit 0 pass, 1 warn, 2 fail, 3 size, 4 file).
     Diff(DiffArgs),
-    /// Render every reference scene and compare it with the POV-Ray, Mitsuba and golden references.
+    /// Golden-image CI: run a suite file's tests (default: rayproof's reference scenes) against
+    /// their references and goldens (exit 0 pass, 1 fail, 2 bad suite, 3 refused).
     Check(CheckArgs),
+    /// Make references for a scene with the real POV-Ray and Mitsuba, each with its manifest
+    /// entry (hashes, commands, width, sampling grid).
+    Reference(ReferenceArgs),
     /// Measure what accuracy costs in time: write DIR/index.html, report.md, report.json and figures.
     Report(ReportArgs),
     /// Render an implicit scene per pixel and by image-space subdivision (seed 004), shadows off
@@ -146,6 +156,8 @@ pub fn one_line(e: &clap::Error) -> String {
 pub fn error_exit_code(e: &anyhow::Error) -> u8 {
     if e.downcast_ref::<crate::audit::shard::IncompatibleShards>()
         .is_some()
+        || e.downcast_ref::<crate::golden::renderers::RendererFailed>()
+            .is_some()
     {
         3
     } else if e
@@ -172,6 +184,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Downsample(d) => render::run_downsample(d),
         Command::Diff(d) => Ok(run_diff(d)),
         Command::Check(c) => check::run_check(c),
+        Command::Reference(r) => reference::run_reference(r),
         Command::Report(r) => report::run_report(r),
         Command::ImplicitCheck(a) => implicit::run_implicit_check(a),
     }

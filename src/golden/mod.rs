@@ -22,6 +22,7 @@
 mod html;
 mod junit;
 mod references;
+pub mod renderers;
 mod rows;
 pub mod suite;
 
@@ -93,27 +94,6 @@ struct Made {
     /// How it was made, for a golden's manifest entry.
     command: String,
     renderer: String,
-}
-
-/// A scratch directory for renders, removed when dropped.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new() -> Result<Scratch> {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.subsec_nanos())
-            .unwrap_or(0);
-        let p = std::env::temp_dir().join(format!("rayproof-check-{}-{nanos}", std::process::id()));
-        std::fs::create_dir_all(&p).with_context(|| format!("cannot create {}", p.display()))?;
-        Ok(Scratch(p))
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
 }
 
 /// The width and sampling grid a test image is made with, and where they came from.
@@ -565,7 +545,7 @@ pub fn run(suite: &Suite, o: &Options) -> Result<Outcome> {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
     // Run every test
-    let scratch = Scratch::new()?;
+    let scratch = crate::output::ScratchDir::new("check")?;
     let mut rows = vec![];
     let mut to_bless = vec![];
     for t in &tests {

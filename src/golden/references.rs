@@ -197,20 +197,10 @@ pub struct Blessing<'a> {
 /// Writes a golden (a copy of `image`'s bytes) and its entry in the manifest beside it (only
 /// `--update` calls this, after every test of the run was validated).
 pub fn bless(golden: &Path, image: &Path, b: &Blessing) -> Result<()> {
-    // Write the image, then its manifest entry (with the new hash)
-    let (dir, file) = dir_and_name(golden);
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let bytes = std::fs::read(image).with_context(|| format!("cannot read {}", image.display()))?;
-    crate::output::write_atomic(golden, &bytes)?;
-    let mut m = manifest(&dir)?.unwrap_or(serde_json::json!({ "files": {} }));
-    if let (Some(s), None) = (b.scene, m.get("scene")) {
-        m["scene"] = serde_json::json!(s.display().to_string());
-    }
     let mut entry = serde_json::json!({
         "renderer": b.renderer,
         "commands": [b.command],
-        "date": utc_now(),
-        "sha256": sha256_file(golden)?,
         "written_by": format!("rayproof {} check --update", env!("CARGO_PKG_VERSION")),
     });
     if let Some(w) = b.width {
@@ -223,6 +213,27 @@ pub fn bless(golden: &Path, image: &Path, b: &Blessing) -> Result<()> {
     if let Some(s) = &b.scene_sha {
         entry["scene_sha256"] = s.clone().into();
     }
+    record(golden, &bytes, entry, b.scene)
+}
+
+/// Writes an image file atomically and its entry in the `manifest.json` beside it: `entry`
+/// plus the date and the file's SHA-256 (the one writer of manifests in the crate).
+pub fn record(
+    path: &Path,
+    bytes: &[u8],
+    mut entry: serde_json::Value,
+    scene: Option<&Path>,
+) -> Result<()> {
+    // Write the image, then its manifest entry (with the new hash)
+    let (dir, file) = dir_and_name(path);
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    crate::output::write_atomic(path, bytes)?;
+    let mut m = manifest(&dir)?.unwrap_or(serde_json::json!({ "files": {} }));
+    if let (Some(s), None) = (scene, m.get("scene")) {
+        m["scene"] = serde_json::json!(s.display().to_string());
+    }
+    entry["date"] = utc_now().into();
+    entry["sha256"] = sha256_file(path)?.into();
     m["files"][file] = entry;
     let text = serde_json::to_string_pretty(&m)? + "\n";
     crate::output::write_atomic(&dir.join("manifest.json"), text.as_bytes())

@@ -1,0 +1,123 @@
+//! `rayproof reference SCENE --with povray`: the real POV-Ray (installed by `.ci/run`) renders
+//! the scene's reference with its manifest entry, and a suite that compares rayproof's render
+//! with it takes the reference's sampling grid from that manifest, so a correct render passes;
+//! one that insists on another grid is warned and fails. A missing renderer is one line with
+//! how to install it, exit 3, and nothing written.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn rayproof(args: &[&str], path: Option<&Path>) -> (Option<i32>, String, String) {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_rayproof"));
+    c.args(args);
+    if let Some(p) = path {
+        c.env("PATH", p);
+    }
+    let o = c.output().unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn scratch(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rayproof-reference-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(d.join("scenes")).unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    std::fs::copy(
+        root.join("reference/scenes/diffuse.toml"),
+        d.join("scenes/diffuse.toml"),
+    )
+    .unwrap();
+    d
+}
+
+#[test]
+fn povray_reference_then_a_suite_that_uses_its_grid() {
+    let d = scratch("pov");
+    let scene = d.join("scenes/diffuse.toml");
+    let (code, out, err) = rayproof(
+        &[
+            "reference",
+            scene.to_str().unwrap(),
+            "--with",
+            "povray",
+            "--width",
+            "64",
+            "--grid",
+            "4",
+        ],
+        None,
+    );
+    assert_eq!(code, Some(0), "{out}{err}");
+    // Beside the scenes directory, with the grid in its manifest
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("diffuse/manifest.json")).unwrap())
+            .unwrap();
+    let e = &m["files"]["povray.exr"];
+    assert_eq!(
+        (e["grid"].as_u64(), e["width"].as_u64()),
+        (Some(4), Some(64)),
+        "{e}"
+    );
+    assert!(e["version"].as_str().unwrap().starts_with("3.7"), "{e}");
+    assert!(
+        e["commands"][1]
+            .as_str()
+            .unwrap()
+            .starts_with("povray +Iscene.pov"),
+        "{e}"
+    );
+    // rayproof's render at the manifest's grid passes against the real POV-Ray
+    let suite = |extra: &str| {
+        format!(
+            "[thresholds]\nfail = 0.05\nfailpercent = 0.1\nmax_mean = 1e-3\n\n[[test]]\nname = \"diffuse\"\nscene = \"scenes/diffuse.toml\"\nrayproof = {{ method = \"promote\", precision = \"f64\" }}\ngolden = false\n{extra}reference = [{{ name = \"povray\", path = \"diffuse/povray.exr\" }}]\n"
+        )
+    };
+    std::fs::write(d.join("suite.toml"), suite("")).unwrap();
+    let s = d.join("suite.toml");
+    let (code, out, _) = rayproof(&["check", "--suite", s.to_str().unwrap()], None);
+    assert_eq!(code, Some(0), "{out}");
+    assert!(
+        out.contains("diffuse  povray    promote f64  PASS"),
+        "{out}"
+    );
+    // A render at grid 1 (the scene's own) is told why it fails
+    std::fs::write(d.join("suite.toml"), suite("grid = 1\n")).unwrap();
+    let (code, out, _) = rayproof(&["check", "--suite", s.to_str().unwrap()], None);
+    assert_eq!(code, Some(1), "{out}");
+    assert!(
+        out.contains("warning: sampling grid: the reference was made with 4×4"),
+        "{out}"
+    );
+}
+
+#[test]
+fn a_missing_renderer_is_one_line_exit_3_and_nothing_written() {
+    let d = scratch("missing");
+    let scene = d.join("scenes/diffuse.toml");
+    // A PATH with only a shell: no povray
+    let bin = d.join("bin");
+    std::fs::create_dir_all(&bin).unwrap();
+    std::os::unix::fs::symlink("/bin/sh", bin.join("sh")).unwrap();
+    let (code, out, err) = rayproof(
+        &["reference", scene.to_str().unwrap(), "--with", "povray"],
+        Some(&bin),
+    );
+    assert_eq!(code, Some(3), "{out}{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("apt-get install povray"), "{err}");
+    assert!(!d.join("diffuse").exists(), "something was written");
+    // Mitsuba through a Python that does not exist
+    let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .args(["reference", scene.to_str().unwrap(), "--with", "mitsuba"])
+        .env("RAYPROOF_MITSUBA_PYTHON", "/nonexistent/python3")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(3), "{err}");
+    assert!(err.contains("pip install mitsuba"), "{err}");
+    assert!(!d.join("diffuse").exists());
+}
