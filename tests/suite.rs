@@ -381,3 +381,37 @@ fn the_readme_suite_example_works_as_printed() {
     assert_eq!(code, Some(0), "{out}");
     assert_eq!(status(&out, "disc", "golden"), "PASS", "{out}");
 }
+
+#[test]
+fn a_variance_image_makes_the_z_test_decide() {
+    // The stand-in writes a per-pixel variance of 1e-4 ({variance}). An unperturbed render
+    // passes the z-test; a +0.2 block fails it (z = 80 at 16 spp); a +0.02 block at 1 spp is
+    // within its noise (z = 2) and passes, although idiff's thresholds alone would fail it
+    for (tag, flags, spp, want) in [
+        ("zpass", "", 16, "PASS"),
+        ("zfail", "--perturb 0.2", 16, "FAILURE"),
+        ("znoise", "--perturb 0.02", 1, "PASS"),
+    ] {
+        let extra = format!(
+            "\n[[test]]\nname = \"z\"\ncommand = \"{} {{out}} --width {{width}} --grid {{grid}} --variance {{variance}} {flags}\"\nvariance = \"{{variance}}\"\nvariance_spp = {spp}\ngolden = false\nreference = [{{ name = \"ext\", path = \"refs/a.exr\" }}]\n",
+            standin()
+        );
+        let dir = fixture(tag, "", &extra);
+        let (_, out, err) = check(&dir, &["--test", "z"]);
+        assert_eq!(status(&out, "z", "ext"), want, "{out}{err}");
+        if want == "FAILURE" {
+            assert!(out.contains("z-test:"), "{out}");
+        }
+        if tag == "znoise" {
+            // Without the variance, the same image fails idiff's thresholds
+            let text = std::fs::read_to_string(dir.join("suite.toml")).unwrap();
+            std::fs::write(
+                dir.join("suite.toml"),
+                text.replace("variance = \"{variance}\"\n", ""),
+            )
+            .unwrap();
+            let (_, out, _) = check(&dir, &["--test", "z"]);
+            assert_eq!(status(&out, "z", "ext"), "FAILURE", "{out}");
+        }
+    }
+}
