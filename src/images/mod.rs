@@ -10,17 +10,23 @@
 //! the pixels or the max error > `hardfail`, else WARNING if nwarn > `warnpercent`% or the max
 //! error > `hardwarn`, else PASS.
 //!
-//! Deliberate differences from `idiff`:
+//! The arithmetic is idiff 2.4's: differences and thresholds in float32, sums in double over
+//! batches of 4,096 pixels, PNG code values × (1/255) in float32. `tests/idiff.rs` checks this
+//! against 210 recorded runs of the real idiff (`scripts/idiff-fixtures`).
+//!
+//! Deliberate differences from `idiff` ([`Semantics::Rayproof`]; `--idiff-compat` selects
+//! [`Semantics::Idiff`], which reproduces idiff on all of them):
 //! - images of different width, height or channel count are refused (exit 3), not compared
-//!   over the union of their data windows;
-//! - +Inf against −Inf is a mismatch (NaN = NaN and Inf = Inf of the same sign stay equal);
-//!   a non-finite mismatch counts as a warning as well as a failure, and is left out of the
-//!   mean, RMS and relMSE sums (whose denominators stay pixels × channels);
+//!   over the union of their data windows with missing values read as 0;
+//! - every NaN/Inf mismatch is a failing (and warning) pixel, left out of the mean, RMS and
+//!   relMSE sums (whose denominators stay pixels × channels); idiff counts none of the NaN ones
+//!   nor the first Inf, and its sums turn inf or nan; +Inf against −Inf is a mismatch (idiff:
+//!   equal); NaN = NaN and Inf = Inf of the same sign stay equal;
 //! - the report is always printed in full; its `Max error` line shows the one channel's two
 //!   values, with enough digits to reproduce them;
 //! - `--diff-exr` writes |REF − TEST| whenever asked, even for identical images;
 //! - only the first layer/part of an EXR and its `R`, `G`, `B` (and `A`) channels are read;
-//!   PNGs are kept display-referred (code value / 255 or / 65535), not linearised;
+//!   PNGs are kept display-referred (not linearised);
 //! - additions: relMSE, mean ꟻLIP, the z-test, `--json`, `--heatmap`.
 //!
 //! Additions:
