@@ -415,3 +415,17 @@ fn a_variance_image_makes_the_z_test_decide() {
         }
     }
 }
+
+#[test]
+fn update_never_blesses_an_image_with_nan() {
+    let dir = fixture("nanbless", "--nan", "");
+    let (code, out, _) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(1), "{out}");
+    assert_eq!(status(&out, "b", "golden"), "FAILURE", "{out}");
+    assert!(
+        out.contains("not blessed: the test image has 1 pixels with NaN or Inf"),
+        "{out}"
+    );
+    let written: Vec<String> = goldens(&dir).into_iter().map(|g| g.0).collect();
+    assert_eq!(written, ["a.exr", "c.exr", "manifest.json"]);
+}

@@ -560,6 +560,18 @@ pub fn run(suite: &Suite, o: &Options) -> Result<Outcome> {
     let mut blessed = vec![];
     if o.update && !refused {
         for (t, golden, (m, frame)) in to_bless {
+            // Never bless an image with NaN or Inf
+            let bad = nonfinite_pixels(&m.image);
+            if bad > 0 {
+                for r in rows.iter_mut().filter(|r| {
+                    r.test == t.name && r.reference == "golden" && r.config == t.config()
+                }) {
+                    r.note =
+                        format!("not blessed: the test image has {bad} pixels with NaN or Inf");
+                    r.status = Status::Failure;
+                }
+                continue;
+            }
             let b = Blessing {
                 renderer: if m.renderer.is_empty() {
                     suite.name.clone()
