@@ -289,7 +289,7 @@ fn check_pov_camera(name: &str, s: &Scene, fr: Frame, n: u32) {
 fn povray_camera_gives_rayproof_primary_rays() {
     for (name, s) in all_scenes() {
         // The scene's own frame, traced at 8× as the render script does
-        let fr = Frame::of(&s, None, None);
+        let fr = Frame::of(&s, None, None).unwrap();
         assert_eq!(
             (fr.width, fr.height),
             (
@@ -299,11 +299,11 @@ fn povray_camera_gives_rayproof_primary_rays() {
         );
         check_pov_camera(&name, &s, fr, 8);
         // The render script's frame: 256 wide with the scene's aspect, 8×8 grid
-        let fr = Frame::of(&s, Some(256), Some(8));
+        let fr = Frame::of(&s, Some(256), Some(8)).unwrap();
         check_pov_camera(&name, &s, fr, fr.grid);
     }
     // The oblique scene at 256 wide is 256×160 (same aspect as 320×200)
-    let fr = Frame::of(&oblique(), Some(256), None);
+    let fr = Frame::of(&oblique(), Some(256), None).unwrap();
     assert_eq!((fr.width, fr.height, fr.grid), (256, 160, 3));
 }
 
@@ -323,7 +323,7 @@ fn povray_cli_matches_the_library_for_width_and_grid() {
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let s = scene::load(&p).expect("floor.toml");
-    let want = povray(&s, Frame::of(&s, Some(256), Some(8)));
+    let want = povray(&s, Frame::of(&s, Some(256), Some(8)).unwrap());
     assert_eq!(String::from_utf8(o.stdout).expect("UTF-8"), want);
     assert!(want.contains("Render at 2048x1536 with -A"), "{want}");
 }
@@ -334,7 +334,7 @@ fn povray_cli_matches_the_library_for_width_and_grid() {
 fn povray_light_fade_gives_inverse_square_over_pi() {
     let mut mirrored_z = false;
     for (name, s) in all_scenes() {
-        let text = povray(&s, Frame::of(&s, None, None));
+        let text = povray(&s, Frame::of(&s, None, None).unwrap());
         let lights = lines_starting(&text, "light_source");
         assert_eq!(
             lights.len(),
@@ -410,7 +410,7 @@ fn povray_opaque_glass_shadows_get_hidden_casters() {
         let s = load(name);
         let glass = glass_spheres(&s);
         assert!(!glass.is_empty(), "{name} has glass spheres");
-        let got = casters(&povray(&s, Frame::of(&s, None, None)));
+        let got = casters(&povray(&s, Frame::of(&s, None, None).unwrap()));
         assert_eq!(
             got.len(),
             glass.len(),
@@ -438,7 +438,7 @@ fn povray_opaque_glass_shadows_get_hidden_casters() {
     )
     .expect("valid scene");
     assert!(!glass_spheres(&s).is_empty());
-    let out = povray(&s, Frame::of(&s, None, None));
+    let out = povray(&s, Frame::of(&s, None, None).unwrap());
     assert!(
         casters(&out).is_empty(),
         "transmissive glass got a caster:\n{out}"
@@ -449,7 +449,7 @@ fn povray_opaque_glass_shadows_get_hidden_casters() {
 #[test]
 fn povray_global_settings_follow_the_recipe() {
     for (name, s) in all_scenes() {
-        let text = povray(&s, Frame::of(&s, None, None));
+        let text = povray(&s, Frame::of(&s, None, None).unwrap());
         assert!(text.contains("#version 3.7;"), "{name}");
         let g = lines_starting(&text, "global_settings");
         assert_eq!(g.len(), 1, "{name}: one global_settings");
@@ -465,9 +465,13 @@ fn povray_global_settings_follow_the_recipe() {
         assert_eq!(num_after(g, "ambient_light"), 0.0, "{name}: {g}");
     }
     // max_trace_level follows the scene (7 in the oblique scene, 1 in far.toml)
-    assert!(povray(&oblique(), Frame::of(&oblique(), None, None)).contains("max_trace_level 7 "));
     assert!(
-        povray(&load("far"), Frame::of(&load("far"), None, None)).contains("max_trace_level 1 ")
+        povray(&oblique(), Frame::of(&oblique(), None, None).unwrap())
+            .contains("max_trace_level 7 ")
+    );
+    assert!(
+        povray(&load("far"), Frame::of(&load("far"), None, None).unwrap())
+            .contains("max_trace_level 1 ")
     );
 }
 
@@ -716,7 +720,7 @@ fn farthest_point(s: &Scene) -> f64 {
 fn mitsuba_export_is_well_formed_and_follows_the_recipe() {
     for (name, s) in all_scenes() {
         let f = &s.file;
-        let fr = Frame::of(&s, None, None);
+        let fr = Frame::of(&s, None, None).unwrap();
         let e = parse_xml(&mitsuba(&s, fr));
         let ctx = |what: &str| format!("{name}: {what}");
         // Integrator
@@ -914,7 +918,7 @@ fn mitsuba_far_clip_reaches_the_far_spheres() {
         far_point > 1e6,
         "far.toml's farthest sphere point is {far_point}"
     );
-    let e = parse_xml(&mitsuba(&s, Frame::of(&s, None, None)));
+    let e = parse_xml(&mitsuba(&s, Frame::of(&s, None, None).unwrap()));
     let far: f64 = value(&e, "float", "far_clip", "sensor").parse().unwrap();
     assert!(
         far.is_finite() && far > 2.0 * far_point,
@@ -933,7 +937,7 @@ fn mitsuba_escapes_material_names() {
     );
     let s = scene::parse(&text, Path::new("escape.toml")).expect("valid scene");
     assert!(s.file.materials.contains_key(name));
-    let xml = mitsuba(&s, Frame::of(&s, None, None));
+    let xml = mitsuba(&s, Frame::of(&s, None, None).unwrap());
     assert!(!xml.contains(name), "raw name in the XML:\n{xml}");
     let e = parse_xml(&xml);
     // The id and the reference both read back as the name
@@ -1178,7 +1182,7 @@ const DIFFUSE: &str = "type = \"diffuse\"\nalbedo = [0.5, 0.5, 0.5]";
 #[test]
 fn povray_writes_native_primitives_mirrored_in_z() {
     let s = solids(DIFFUSE, "opaque");
-    let out = povray(&s, Frame::of(&s, None, None));
+    let out = povray(&s, Frame::of(&s, None, None).unwrap());
     let objects: Vec<&str> = out
         .lines()
         .filter(|l| {
@@ -1211,7 +1215,7 @@ fn povray_glass_solids_get_hidden_casters_inside_them() {
     let glass = "type = \"glass\"\nior = 1.5";
     let out = povray(
         &solids(glass, "opaque"),
-        Frame::of(&solids(glass, "opaque"), None, None),
+        Frame::of(&solids(glass, "opaque"), None, None).unwrap(),
     );
     let casters: Vec<&str> = out.lines().filter(|l| l.contains("no_image")).collect();
     let k = 1.0 - 1e-5;
@@ -1248,7 +1252,7 @@ fn povray_glass_solids_get_hidden_casters_inside_them() {
     }
     // Transmissive glass shadows: none
     let t = solids(glass, "transmissive");
-    assert!(!povray(&t, Frame::of(&t, None, None)).contains("no_image"));
+    assert!(!povray(&t, Frame::of(&t, None, None).unwrap()).contains("no_image"));
 }
 
 /// The PLY files a Mitsuba export refers to, read back: (vertex count, face count, positions,
@@ -1294,7 +1298,7 @@ fn read_ply(path: &Path) -> Ply {
 #[test]
 fn mitsuba_uses_cube_cylinder_disks_and_closed_ply_meshes() {
     let s = solids(DIFFUSE, "opaque");
-    let e = parse_xml(&mitsuba(&s, Frame::of(&s, None, None)));
+    let e = parse_xml(&mitsuba(&s, Frame::of(&s, None, None).unwrap()));
     // Box: the cube [-1, 1]³ scaled to the half extents and moved to the centre
     assert_eq!(of_type(&e, "shape", "cube").len(), 1);
     let cube = e

@@ -77,14 +77,13 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
     let sc = scene::load(&a.scene)?;
     // Refuse before rendering if an output cannot be written
     check_output_dirs(&[&a.output, &a.png])?;
+    // The size and grid asked for, within the documented limits
+    let fr = crate::render::export::Frame::of(&sc, a.width, a.spp).map_err(anyhow::Error::msg)?;
     let ov = render::Overrides {
         method: a.method,
         precision: a.precision.map(|p| p.name()),
         grid: a.spp,
-        size: a.width.map(|w| {
-            let fr = crate::render::export::Frame::of(&sc, Some(w), None);
-            (fr.width, fr.height)
-        }),
+        size: a.width.map(|_| (fr.width, fr.height)),
         force_all_effects: a.all_effects,
         progress: std::io::stderr().is_terminal(),
         flat: a.flat,
@@ -137,7 +136,7 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
 
 pub(super) fn run_export(e: ExportArgs) -> Result<u8> {
     let sc = crate::render::scene::load(&e.scene)?;
-    let fr = crate::render::export::Frame::of(&sc, e.width, e.grid);
+    let fr = crate::render::export::Frame::of(&sc, e.width, e.grid).map_err(anyhow::Error::msg)?;
     if let Some(why) = crate::render::export::unsupported(&sc, &e.to) {
         anyhow::bail!("{}: {why}", e.scene.display());
     }

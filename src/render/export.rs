@@ -32,17 +32,24 @@ pub struct Frame {
 
 impl Frame {
     /// The scene's own frame, or `width` wide with the scene's aspect ratio and an n×n grid.
-    pub fn of(s: &Scene, width: Option<u32>, grid: Option<u32>) -> Frame {
+    /// The frame of a scene at `width` (the height keeps the scene's aspect) and `grid`, within
+    /// the documented limits ([`crate::render::scene::check_frame`]): one line if not.
+    pub fn of(s: &Scene, width: Option<u32>, grid: Option<u32>) -> Result<Frame, String> {
         let (w, h) = (
             *s.file.camera.width.get_ref(),
             *s.file.camera.height.get_ref(),
         );
         let width = width.unwrap_or(w);
-        Frame {
+        let height = (width as f64 * h as f64 / w as f64)
+            .round()
+            .clamp(1.0, u32::MAX as f64) as u32;
+        let grid = grid.unwrap_or(*s.file.camera.grid.get_ref());
+        crate::render::scene::check_frame(width, height, grid)?;
+        Ok(Frame {
             width,
-            height: ((width as f64 * h as f64 / w as f64).round() as u32).max(1),
-            grid: grid.unwrap_or(*s.file.camera.grid.get_ref()),
-        }
+            height,
+            grid,
+        })
     }
 }
 

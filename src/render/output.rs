@@ -83,6 +83,8 @@ pub fn stats_json(r: &Render, scene: &str, lights: usize) -> serde_json::Value {
         "effects": r.effects,
         "rays": r.counts,
         "total_rays": r.counts.total(),
+        // Pixels with NaN or Inf in R, G or B: 0 for every valid scene (tests/hostile.rs)
+        "nonfinite_pixels": r.beauty.iter().filter(|p| p.iter().any(|v| !v.is_finite())).count(),
         "seconds": r.seconds,
         "budget": super::budget_line(r, lights),
     })

@@ -42,6 +42,42 @@
 //! ```
 
 use crate::implicit::field::{BlobComponent, Field, SdfPart};
+
+/// The largest image side, in pixels (a scene's camera, `--width`, or a size an aspect makes).
+pub const MAX_SIDE: u32 = 16_384;
+/// The most pixels of one image (8192 × 8192).
+pub const MAX_PIXELS: u64 = 1 << 26;
+/// The largest n of the n×n sub-pixel grid.
+pub const MAX_GRID: u32 = 64;
+/// The most ray segments per path (`render.max_depth`; POV-Ray's `max_trace_level` stops at 256).
+pub const MAX_DEPTH: u32 = 256;
+
+/// Checks an image's size and sampling grid against the documented limits: one line naming
+/// what is too large.
+pub fn check_frame(width: u32, height: u32, grid: u32) -> Result<(), String> {
+    if width == 0 || height == 0 || grid == 0 {
+        return Err(format!(
+            "an image of {width}×{height} with a {grid}×{grid} grid: every size must be at least 1"
+        ));
+    }
+    if width > MAX_SIDE || height > MAX_SIDE {
+        return Err(format!(
+            "an image of {width}×{height} pixels: each side may be at most {MAX_SIDE}"
+        ));
+    }
+    if width as u64 * height as u64 > MAX_PIXELS {
+        return Err(format!(
+            "an image of {width}×{height} = {} pixels: at most {MAX_PIXELS} (8192²)",
+            width as u64 * height as u64
+        ));
+    }
+    if grid > MAX_GRID {
+        return Err(format!(
+            "a {grid}×{grid} sub-pixel grid: n may be at most {MAX_GRID}"
+        ));
+    }
+    Ok(())
+}
 use crate::implicit::mpu::{Mpu, MpuOptions};
 use serde::Deserialize;
 use std::collections::BTreeMap;
@@ -345,9 +381,36 @@ impl Shape {
                     (!components.iter().any(|c| c.strength > 0.0))
                         .then(|| ("components", "needs a component of positive strength".to_string()))
                 }),
-            _ => None,
+            Shape::Sphere { center, radius, .. } => {
+                finite3("center", center).or_else(|| positive("radius", *radius))
+            }
+            Shape::Disc {
+                center,
+                normal,
+                radius,
+                ..
+            } => finite3("center", center)
+                .or_else(|| nonzero3("normal", normal))
+                .or_else(|| positive("radius", *radius)),
+            Shape::Plane { point, normal, .. } => {
+                finite3("point", point).or_else(|| nonzero3("normal", normal))
+            }
+            Shape::Mesh { .. } | Shape::Mpu { .. } => None,
         }
     }
+}
+
+/// A finite vector that is not zero.
+fn nonzero3(name: &'static str, v: &[f64; 3]) -> Option<(&'static str, String)> {
+    (!(v.iter().all(|x| x.is_finite()) && v.iter().any(|x| *x != 0.0)))
+        .then(|| (name, format!("must be finite and not zero, got {v:?}")))
+}
+
+/// A colour: three finite numbers ≥ 0 (and ≤ 1 for an albedo or a reflectance).
+fn colour_problem(v: &[f64; 3], at_most_one: bool) -> Option<String> {
+    let ok = |x: &f64| x.is_finite() && *x >= 0.0 && (!at_most_one || *x <= 1.0);
+    let range = if at_most_one { "[0, 1]" } else { "[0, ∞)" };
+    (!v.iter().all(ok)).then(|| format!("must be three finite numbers in {range}, got {v:?}"))
 }
 
 /// The field of an implicit scene shape (`None` for other shapes). MPU points are read
@@ -460,6 +523,45 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
             return Err(err(at(&v.span()), format!("{field} must be at least 1")));
         }
     }
+    if let Err(e) = check_frame(
+        *cam.width.get_ref(),
+        *cam.height.get_ref(),
+        *cam.grid.get_ref(),
+    ) {
+        return Err(err(at(&cam.width.span()), format!("camera: {e}")));
+    }
+    let finite = |v: &[f64; 3]| v.iter().all(|x| x.is_finite());
+    for (field, v) in [
+        ("position", &cam.position),
+        ("look_at", &cam.look_at),
+        ("up", &cam.up),
+    ] {
+        if !finite(v) {
+            return Err(err(
+                field_line(text, 0, field),
+                format!("camera.{field} must be finite, got {v:?}"),
+            ));
+        }
+    }
+    let view: Vec<f64> = (0..3).map(|k| cam.look_at[k] - cam.position[k]).collect();
+    if view.iter().all(|x| *x == 0.0) {
+        return Err(err(
+            field_line(text, 0, "look_at"),
+            "camera.look_at must differ from camera.position".into(),
+        ));
+    }
+    let up = cam.up;
+    let cross = [
+        view[1] * up[2] - view[2] * up[1],
+        view[2] * up[0] - view[0] * up[2],
+        view[0] * up[1] - view[1] * up[0],
+    ];
+    if cross.iter().all(|x| *x == 0.0) {
+        return Err(err(
+            field_line(text, 0, "up"),
+            format!("camera.up must be non-zero and not along the view direction, got {up:?}"),
+        ));
+    }
     if !(cam.fov > 0.0 && cam.fov < 180.0) {
         return Err(err(
             0,
@@ -480,8 +582,45 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
             format!("render.precision: '{}' is not f32 or f64", p.get_ref()),
         ));
     }
-    if file.render.max_depth == 0 {
-        return Err(err(0, "render.max_depth must be at least 1".into()));
+    if !(1..=MAX_DEPTH).contains(&file.render.max_depth) {
+        return Err(err(
+            field_line(text, 0, "max_depth"),
+            format!(
+                "render.max_depth must be in 1..={MAX_DEPTH}, got {}",
+                file.render.max_depth
+            ),
+        ));
+    }
+    // Lights and materials
+    for (i, l) in file.lights.iter().enumerate() {
+        if !finite(&l.position) {
+            return Err(err(
+                0,
+                format!("lights[{i}].position must be finite, got {:?}", l.position),
+            ));
+        }
+        if let Some(m) = colour_problem(&l.intensity, false) {
+            return Err(err(0, format!("lights[{i}].intensity {m}")));
+        }
+    }
+    for (name, m) in &file.materials {
+        let problem = match m {
+            Material::Diffuse { albedo } => {
+                colour_problem(albedo, true).map(|e| format!("albedo {e}"))
+            }
+            Material::Mirror { reflectance } => {
+                colour_problem(reflectance, true).map(|e| format!("reflectance {e}"))
+            }
+            Material::Glass { ior } => (!(ior.is_finite() && *ior > 0.0))
+                .then(|| format!("ior must be a finite number > 0, got {ior}")),
+        };
+        if let Some(p) = problem {
+            let header = text
+                .lines()
+                .position(|l| l.trim() == format!("[materials.{name}]"))
+                .map_or(0, |i| i + 1);
+            return Err(err(header, format!("materials.{name}.{p}")));
+        }
     }
     offset_value(&file.render.offset).map_err(|e| err(0, format!("render.offset: {e}")))?;
     if !file
@@ -584,6 +723,15 @@ fn load_obj(path: &Path) -> Result<Vec<[[f64; 3]; 3]>, String> {
                 p[3 * i as usize + 2] as f64,
             ]
         };
+        if let Some(bad) = p.iter().position(|x| !x.is_finite()) {
+            return Err(format!(
+                "{}: vertex {} of '{}' is not finite ({})",
+                path.display(),
+                bad / 3 + 1,
+                m.name,
+                p[bad]
+            ));
+        }
         for f in m.mesh.indices.chunks_exact(3) {
             tris.push([v(f[0]), v(f[1]), v(f[2])]);
         }

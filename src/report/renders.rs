@@ -63,7 +63,8 @@ pub fn run(
     for name in SCENES {
         // Scene and references at their size
         let sc = scene::load(&reference.join("scenes").join(format!("{name}.toml")))?;
-        let fr = Frame::of(&sc, width.or(Some(256)), grid.or(Some(8)));
+        let fr =
+            Frame::of(&sc, width.or(Some(256)), grid.or(Some(8))).map_err(anyhow::Error::msg)?;
         let povray = read_image(&reference.join(name).join("povray.exr"))
             .ok()
             .filter(|i| i.width == fr.width as usize && i.height == fr.height as usize);

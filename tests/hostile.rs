@@ -1,0 +1,239 @@
+//! Hostile scenes (issue 16's reproducers): every bad value is refused at load with one line
+//! naming the file, the line and the field (exit 2), sizes, grids and depths beyond the
+//! documented limits are refused before anything is allocated, and every reference scene
+//! renders without a NaN or Inf pixel.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> &'static Path {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn rayproof(args: &[&str]) -> (Option<i32>, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn scratch(tag: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rayproof-hostile-{tag}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A reference scene with one text replacement, rendered at 16 pixels wide: the exit code and
+/// standard error.
+fn mutated(tag: &str, scene: &str, from: &str, to: &str, extra: &[&str]) -> (Option<i32>, String) {
+    let text = std::fs::read_to_string(root().join("reference/scenes").join(scene)).unwrap();
+    assert!(text.contains(from), "{scene} has no '{from}'");
+    let d = scratch(tag);
+    let s = d.join("s.toml");
+    std::fs::write(&s, text.replacen(from, to, 1)).unwrap();
+    let out = d.join("o.exr");
+    let mut args = vec!["render", s.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    args.extend(extra);
+    let (code, _, err) = rayproof(&args);
+    assert!(
+        !out.exists() || code == Some(0),
+        "{tag}: an output was written on failure"
+    );
+    (code, err)
+}
+
+#[test]
+fn bad_scene_values_are_refused_at_load_with_file_line_and_field() {
+    let cases: &[(&str, &str, &str, &str, &str)] = &[
+        // (tag, scene, from, to, what the one line must say)
+        (
+            "nan-centre",
+            "diffuse.toml",
+            "center = [-1.1, 0.7, 0.0]",
+            "center = [nan, 0.7, 0.0]",
+            "shapes[1].center",
+        ),
+        (
+            "inf-radius",
+            "diffuse.toml",
+            "radius = 0.7",
+            "radius = inf",
+            "radius",
+        ),
+        (
+            "neg-radius",
+            "diffuse.toml",
+            "radius = 0.7",
+            "radius = -0.7",
+            "radius",
+        ),
+        (
+            "nan-light",
+            "diffuse.toml",
+            "position = [3.0, 6.0, 4.0]",
+            "position = [nan, 6.0, 4.0]",
+            "lights[0].position",
+        ),
+        (
+            "inf-intensity",
+            "diffuse.toml",
+            "intensity = [60.0, 60.0, 60.0]",
+            "intensity = [inf, 60.0, 60.0]",
+            "lights[0].intensity",
+        ),
+        (
+            "nan-albedo",
+            "diffuse.toml",
+            "albedo = [0.8, 0.15, 0.1]",
+            "albedo = [nan, 0.15, 0.1]",
+            "albedo",
+        ),
+        (
+            "neg-reflectance",
+            "mirror.toml",
+            "reflectance = [0.9, 0.9, 0.9]",
+            "reflectance = [-0.9, 0.9, 0.9]",
+            "reflectance",
+        ),
+        (
+            "nan-camera",
+            "diffuse.toml",
+            "position = [0.0, 1.6, 6.0]",
+            "position = [nan, 1.6, 6.0]",
+            "camera.position",
+        ),
+        (
+            "zero-up",
+            "diffuse.toml",
+            "up = [0.0, 1.0, 0.0]",
+            "up = [0.0, 0.0, 0.0]",
+            "camera.up",
+        ),
+        (
+            "eye-at-target",
+            "diffuse.toml",
+            "look_at = [0.0, 0.6, 0.0]",
+            "look_at = [0.0, 1.6, 6.0]",
+            "camera.look_at",
+        ),
+        (
+            "depth",
+            "glass.toml",
+            "max_depth = 10",
+            "max_depth = 10000",
+            "render.max_depth",
+        ),
+        (
+            "height",
+            "diffuse.toml",
+            "height = 256",
+            "height = 4294967295",
+            "each side may be at most 16384",
+        ),
+        (
+            "grid",
+            "diffuse.toml",
+            "grid = 8",
+            "grid = 100",
+            "grid: n may be at most 64",
+        ),
+    ];
+    let mut bad = vec![];
+    for (tag, scene, from, to, want) in cases {
+        let (code, err) = mutated(tag, scene, from, to, &["--width", "16"]);
+        let one_line = err.trim_end().lines().count() == 1;
+        let located = err.contains("s.toml:");
+        if code != Some(2) || !one_line || !located || !err.contains(want) {
+            bad.push(format!("{tag}: exit {code:?}, stderr {err:?}"));
+        }
+    }
+    assert!(bad.is_empty(), "{}", bad.join("\n"));
+}
+
+#[test]
+fn a_tall_aspect_with_a_width_override_is_refused_before_allocating() {
+    // 3 × 100,000,000 at --width 16 would be 16 × 533,333,333 pixels (110.9 GB of beauty)
+    let text = std::fs::read_to_string(root().join("reference/scenes/diffuse.toml")).unwrap();
+    let d = scratch("aspect");
+    let s = d.join("s.toml");
+    std::fs::write(
+        &s,
+        text.replacen("width = 256", "width = 3", 1)
+            .replacen("height = 256", "height = 10000", 1),
+    )
+    .unwrap();
+    let (code, _, err) = rayproof(&[
+        "render",
+        s.to_str().unwrap(),
+        "--width",
+        "16",
+        "-o",
+        d.join("o.exr").to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("each side may be at most 16384"), "{err}");
+    let (code, _, err) = rayproof(&[
+        "render",
+        s.to_str().unwrap(),
+        "--spp",
+        "10000",
+        "-o",
+        d.join("o.exr").to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+}
+
+#[test]
+fn a_mesh_with_a_nan_vertex_is_refused() {
+    let d = scratch("obj");
+    std::fs::write(d.join("m.obj"), "v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n").unwrap();
+    let text = std::fs::read_to_string(root().join("reference/scenes/diffuse.toml")).unwrap();
+    let s = d.join("s.toml");
+    std::fs::write(
+        &s,
+        format!("{text}\n[[shapes]]\ntype = \"mesh\"\nfile = \"m.obj\"\nmaterial = \"red\"\n"),
+    )
+    .unwrap();
+    let (code, _, err) = rayproof(&[
+        "render",
+        s.to_str().unwrap(),
+        "--width",
+        "16",
+        "-o",
+        d.join("o.exr").to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("vertex 2") && err.contains("not finite"),
+        "{err}"
+    );
+}
+
+#[test]
+fn every_reference_scene_renders_without_nan_or_inf() {
+    let d = scratch("finite");
+    for e in std::fs::read_dir(root().join("reference/scenes")).unwrap() {
+        let p = e.unwrap().path();
+        let out = d.join(format!("{}.exr", p.file_stem().unwrap().to_str().unwrap()));
+        let (code, _, err) = rayproof(&[
+            "render",
+            p.to_str().unwrap(),
+            "--width",
+            "48",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(code, Some(0), "{}: {err}", p.display());
+        let side: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(format!("{}.json", out.display())).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(side["nonfinite_pixels"], 0, "{}", p.display());
+    }
+}
