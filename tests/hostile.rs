@@ -237,3 +237,52 @@ fn every_reference_scene_renders_without_nan_or_inf() {
         assert_eq!(side["nonfinite_pixels"], 0, "{}", p.display());
     }
 }
+
+/// `bytes` with the data window's xMax and yMax replaced (an EXR header field).
+fn patch_window(bytes: &[u8], xmax: i32, ymax: i32) -> Vec<u8> {
+    let key = b"dataWindow\0box2i\0";
+    let at = bytes.windows(key.len()).position(|w| w == key).unwrap() + key.len() + 4;
+    let mut out = bytes.to_vec();
+    out[at + 8..at + 12].copy_from_slice(&xmax.to_le_bytes());
+    out[at + 12..at + 16].copy_from_slice(&ymax.to_le_bytes());
+    out
+}
+
+#[test]
+fn an_exr_declaring_a_huge_window_is_refused_before_allocating() {
+    let d = scratch("exr");
+    let good = d.join("good.exr");
+    let img = rayproof::images::Image::rgb(16, 16, vec![0.5; 16 * 16 * 3]);
+    rayproof::images::write_exr_rgb(&good, &img).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+    for (tag, xmax, ymax, want) in [
+        (
+            "tera",
+            (1 << 20) - 1,
+            (1 << 20) - 1,
+            "declares 1048576×1048576 pixels",
+        ),
+        ("65536", 65535, 65535, "declares 65536×65536 pixels"),
+        ("ymax", 15, 0x7fff_fff0, "data window"),
+        ("chunks", 15, 40_000, "chunks"),
+    ] {
+        let bad = d.join(format!("{tag}.exr"));
+        std::fs::write(&bad, patch_window(&bytes, xmax, ymax)).unwrap();
+        let (code, _, err) = rayproof(&["diff", good.to_str().unwrap(), bad.to_str().unwrap()]);
+        assert_eq!(code, Some(4), "{tag}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.contains(want), "{tag}: {err}");
+        let out = d.join("down.exr");
+        let (code, _, err) = rayproof(&[
+            "downsample",
+            bad.to_str().unwrap(),
+            "--factor",
+            "2",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(code == Some(2) || code == Some(4), "{tag}: {code:?} {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(!out.exists());
+    }
+}

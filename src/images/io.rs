@@ -138,8 +138,29 @@ fn quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
     })
 }
 
+/// The most pixels rayproof reads from one image (8192²; also the largest image it renders).
+pub const MAX_PIXELS: u64 = 1 << 26;
+
 fn decode_exr(bytes: &[u8]) -> Result<Image, String> {
     use exr::prelude::*;
+    // The declared sizes, against the limit and the file's own length, before any allocation
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
+        .map_err(|e| e.to_string())?;
+    for h in &meta.headers {
+        let (w, ht) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
+        if w * ht > MAX_PIXELS {
+            return Err(format!(
+                "its data window declares {w}×{ht} pixels; at most {MAX_PIXELS} (8192²) are read"
+            ));
+        }
+        if h.chunk_count as u64 * 8 > bytes.len() as u64 {
+            return Err(format!(
+                "it declares {} chunks, whose offset table alone needs more than its {} bytes: truncated or corrupt",
+                h.chunk_count,
+                bytes.len()
+            ));
+        }
+    }
     // Read the first valid layer, all channels, at full resolution
     let image = read()
         .no_deep_data()

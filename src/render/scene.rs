@@ -45,8 +45,8 @@ use crate::implicit::field::{BlobComponent, Field, SdfPart};
 
 /// The largest image side, in pixels (a scene's camera, `--width`, or a size an aspect makes).
 pub const MAX_SIDE: u32 = 16_384;
-/// The most pixels of one image (8192 × 8192).
-pub const MAX_PIXELS: u64 = 1 << 26;
+/// The most pixels of one image (8192 × 8192), rendered or read.
+pub use crate::images::MAX_PIXELS;
 /// The largest n of the n×n sub-pixel grid.
 pub const MAX_GRID: u32 = 64;
 /// The most ray segments per path (`render.max_depth`; POV-Ray's `max_trace_level` stops at 256).
