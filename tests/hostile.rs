@@ -286,3 +286,58 @@ fn an_exr_declaring_a_huge_window_is_refused_before_allocating() {
         assert!(!out.exists());
     }
 }
+
+#[test]
+fn decimal_and_hex_numbers_follow_one_rule_on_the_command_line() {
+    // Too large or too small for the precision: an error naming what was wrong, in both notations
+    for (v, prec, want) in [
+        ("1e400", "f64", "overflows f64"),
+        ("0x1p+1024", "f64", "not a hex float exact in f64"),
+        ("1e-400", "f64", "underflows f64 to 0"),
+        ("0x1p-1100", "f64", "not a hex float exact in f64"),
+        ("1e39", "f32", "overflows f32"),
+        ("0x1p+200", "f32", "overflows f32"),
+        ("1e-50", "f32", "underflows f32 to 0"),
+    ] {
+        let (code, _, err) = rayproof(&[
+            "probe",
+            "sphere",
+            "--precision",
+            prec,
+            "--",
+            v,
+            "0",
+            "0",
+            "1",
+            "0",
+            "0",
+            "0",
+            "0",
+            "5",
+            "1",
+        ]);
+        assert_eq!(code, Some(2), "{v} {prec}: {err}");
+        assert!(err.contains(want) && err.contains(v), "{v} {prec}: {err}");
+    }
+    // Spelled infinities, zeros and subnormals stay values
+    for v in ["inf", "-0", "0x0p+0", "1e-45", "0x1p-149"] {
+        let (code, _, err) = rayproof(&[
+            "probe",
+            "sphere",
+            "--precision",
+            "f32",
+            "--",
+            v,
+            "0",
+            "0",
+            "1",
+            "0",
+            "0",
+            "0",
+            "0",
+            "5",
+            "1",
+        ]);
+        assert_eq!(code, Some(0), "{v}: {err}");
+    }
+}

@@ -26,11 +26,8 @@ pub fn parse_values(
     text.iter()
         .zip(info.args)
         .map(|(s, name)| {
-            let v = match prec {
-                Precision::F32 => <f32 as crate::numerics::real::Real>::parse(s).map(|x| x as f64),
-                Precision::F64 => <f64 as crate::numerics::real::Real>::parse(s),
-            };
-            v.ok_or_else(|| format!("{name}: '{s}' is not a number in {}", prec.name()))
+            crate::numerics::real::parse_number_in(s, prec.name())
+                .map_err(|e| format!("{name}: {e}"))
         })
         .collect()
 }

@@ -91,21 +91,61 @@ pub fn hex_float(x: f64) -> String {
     format!("{sign}0x1{frac}p{exp:+}")
 }
 
-/// Parses decimal or hex-float text to `f64` (exactly rounded). Accepts `inf`, `-inf`, `nan`.
+/// A number as text, decimal or C99 hex float, rounded once to `f64` ([`parse_number_in`]).
 pub fn parse_f64(s: &str) -> Option<f64> {
+    parse_number_in(s, "f64").ok()
+}
+
+/// Parses decimal or C99 hex-float text as a value of precision `prec` ("f32" or "f64"), rounded
+/// once; `inf`, `-inf` and `nan` as spelled. The same rules for both notations: a literal too
+/// large for the precision is an error, not an infinity, and a non-zero literal that would
+/// round to 0 is an error, not a zero; hex text must be exact in `f64`. The error says which.
+pub fn parse_number_in(s: &str, prec: &str) -> Result<f64, String> {
     let t = s.trim();
     let lower = t.to_ascii_lowercase();
     let body = lower.trim_start_matches(['+', '-']);
-    if body.starts_with("0x") {
+    if matches!(body, "inf" | "infinity" | "nan") {
+        return t
+            .parse::<f64>()
+            .map_err(|_| format!("'{s}' is not a number"));
+    }
+    // The value, once rounded, and whether the literal itself is zero
+    let (v, literal_zero) = if body.starts_with("0x") {
         let with_p = if lower.contains('p') {
             lower.clone()
         } else {
             format!("{lower}p0")
         };
-        hexf_parse::parse_hexf64(&with_p, false).ok()
+        let v = hexf_parse::parse_hexf64(&with_p, false).map_err(|_| {
+            format!("'{s}' is not a hex float exact in f64 (too large, too small, too many digits, or malformed)")
+        })?;
+        (v, v == 0.0)
     } else {
-        t.parse::<f64>().ok()
+        let v = t
+            .parse::<f64>()
+            .map_err(|_| format!("'{s}' is not a number"))?;
+        let mantissa = body.split('e').next().unwrap_or("");
+        (v, !mantissa.chars().any(|c| ('1'..='9').contains(&c)))
+    };
+    let v = if prec == "f32" {
+        if body.starts_with("0x") {
+            v as f32 as f64
+        } else {
+            t.parse::<f32>()
+                .map_err(|_| format!("'{s}' is not a number"))? as f64
+        }
+    } else {
+        v
+    };
+    if v.is_infinite() {
+        return Err(format!(
+            "'{s}' overflows {prec} (write inf for an infinity)"
+        ));
     }
+    if v == 0.0 && !literal_zero {
+        return Err(format!("'{s}' underflows {prec} to 0 (write 0 for a zero)"));
+    }
+    Ok(v)
 }
 
 macro_rules! impl_scalar {
@@ -202,15 +242,7 @@ macro_rules! impl_real {
 /// `f32` text parsed with one rounding: decimal through Rust's correctly rounded parser; hex floats
 /// through the exact `f64` value (hex text of at most 53 significant bits), then rounded once.
 fn parse_f32(s: &str) -> Option<f32> {
-    let t = s.trim();
-    if t.to_ascii_lowercase()
-        .trim_start_matches(['+', '-'])
-        .starts_with("0x")
-    {
-        parse_f64(t).map(|x| x as f32)
-    } else {
-        t.parse::<f32>().ok()
-    }
+    parse_number_in(s, "f32").ok().map(|x| x as f32)
 }
 
 impl_real!(f32, u32, glam::Vec3, f64, 24, "f32", parse_f32);
