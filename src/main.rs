@@ -19,6 +19,8 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    // A TERM or INT removes the temporaries of outputs being written
+    rayproof::output::clean_up_on_signals();
     match run(cli) {
         Ok(code) => ExitCode::from(code),
         Err(e) => {

@@ -14,18 +14,147 @@ fn tmp_for(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
 }
 
-/// Runs `write` on the temporary sibling of `path`, then renames it into place; on any error
-/// the temporary file is removed and `path` is left as it was.
-pub fn write_atomic_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+/// The temporaries being written now, removed by [`clean_up_on_signals`]'s handler.
+static LIVE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+fn live(f: impl FnOnce(&mut Vec<PathBuf>)) {
+    if let Ok(mut v) = LIVE.lock() {
+        f(&mut v);
+    }
+}
+
+/// On SIGINT or SIGTERM, removes every temporary being written and exits with 130 (the
+/// shell's code for an interrupted command), so a killed command leaves no `.NAME.tmpPID`.
+/// (A SIGKILL cannot be caught: the next write of the same output removes what it left.)
+pub fn clean_up_on_signals() {
+    let _ = ctrlc::set_handler(|| {
+        live(|v| {
+            for p in v.drain(..) {
+                let _ = std::fs::remove_file(&p).or_else(|_| std::fs::remove_dir_all(&p));
+            }
+        });
+        eprintln!("error: interrupted; temporary files removed");
+        std::process::exit(130);
+    });
+}
+
+/// Runs `f` with `path` (a temporary file or directory) registered for removal on SIGINT or
+/// SIGTERM.
+pub fn tracked<T>(path: &Path, f: impl FnOnce() -> T) -> T {
+    live(|v| v.push(path.to_path_buf()));
+    let r = f();
+    live(|v| v.retain(|p| p != path));
+    r
+}
+
+/// Removes the temporaries an earlier, killed run left beside `path`: `.NAME.KINDPID` (a file
+/// or a directory) whose process no longer exists.
+pub fn remove_stale(path: &Path, kind: &str) {
+    let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
+        return;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!(".{}.{kind}", name.to_string_lossy());
+    for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+        let n = e.file_name().to_string_lossy().into_owned();
+        let Some(pid) = n.strip_prefix(&prefix).and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+            let _ = std::fs::remove_file(e.path()).or_else(|_| std::fs::remove_dir_all(e.path()));
+        }
+    }
+}
+
+/// Refuses an output path that exists and is not a regular file: a directory, a symbolic link,
+/// a FIFO, a device or a socket is never replaced (nor written through).
+fn check_target(path: &Path) -> Result<()> {
     if path.file_name().is_none() {
         bail!("{}: output path has no file name", path.display());
     }
-    let tmp = tmp_for(path);
-    let r = write(&tmp).and_then(|_| Ok(std::fs::rename(&tmp, path)?));
-    if r.is_err() {
-        let _ = std::fs::remove_file(&tmp);
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if !m.file_type().is_file() => {
+            let what = match m.file_type() {
+                t if t.is_dir() => "a directory",
+                t if t.is_symlink() => "a symbolic link",
+                _ => "not a regular file (a FIFO, device or socket)",
+            };
+            bail!(
+                "{}: is {what}; rayproof only replaces regular files",
+                path.display()
+            )
+        }
+        _ => Ok(()),
     }
-    r.with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// Several output files committed together: each is written to its temporary sibling, and
+/// only when every one has been written are they renamed into place. If any write fails, or
+/// the set is dropped uncommitted, every temporary is removed and no output is touched.
+#[derive(Default)]
+pub struct Outputs {
+    staged: Vec<(PathBuf, PathBuf)>,
+}
+
+impl Outputs {
+    pub fn new() -> Outputs {
+        Outputs::default()
+    }
+
+    /// Stages `path`: runs `write` on its temporary sibling.
+    pub fn write_with(
+        &mut self,
+        path: &Path,
+        write: impl FnOnce(&Path) -> Result<()>,
+    ) -> Result<()> {
+        check_target(path)?;
+        remove_stale(path, "tmp");
+        let tmp = tmp_for(path);
+        live(|v| v.push(tmp.clone()));
+        if let Err(e) = write(&tmp) {
+            let _ = std::fs::remove_file(&tmp);
+            live(|v| v.retain(|p| p != &tmp));
+            return Err(e.context(format!("cannot write {}", path.display())));
+        }
+        self.staged.push((tmp, path.to_path_buf()));
+        Ok(())
+    }
+
+    /// Stages `bytes` for `path`.
+    pub fn write(&mut self, path: &Path, bytes: &[u8]) -> Result<()> {
+        self.write_with(path, |tmp| Ok(std::fs::write(tmp, bytes)?))
+    }
+
+    /// Renames every staged file into place.
+    pub fn commit(mut self) -> Result<()> {
+        for (tmp, path) in std::mem::take(&mut self.staged) {
+            let r = std::fs::rename(&tmp, &path);
+            live(|v| v.retain(|p| p != &tmp));
+            r.with_context(|| format!("cannot write {}", path.display()))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Outputs {
+    fn drop(&mut self) {
+        for (tmp, _) in &self.staged {
+            let _ = std::fs::remove_file(tmp);
+            live(|v| v.retain(|p| p != tmp));
+        }
+    }
+}
+
+/// Runs `write` on the temporary sibling of `path`, then renames it into place; on any error
+/// the temporary file is removed and `path` is left as it was.
+pub fn write_atomic_with(path: &Path, write: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+    let mut out = Outputs::new();
+    out.write_with(path, write)?;
+    out.commit()
 }
 
 /// Writes `bytes` to `path` atomically.
@@ -33,8 +162,9 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_with(path, |tmp| Ok(std::fs::write(tmp, bytes)?))
 }
 
-/// Fails with one line if the directory of any given output path does not exist (checked
-/// before a long run, so the run is not wasted).
+/// Fails with one line if the directory of any given output path does not exist, or the path
+/// is not a regular file that may be replaced (checked before a long run, so the run is not
+/// wasted).
 pub fn check_output_dirs(paths: &[&Option<PathBuf>]) -> Result<()> {
     for p in paths.iter().copied().flatten() {
         let dir = p
@@ -48,6 +178,12 @@ pub fn check_output_dirs(paths: &[&Option<PathBuf>]) -> Result<()> {
                 dir.display()
             );
         }
+        check_target(p)?;
+        // Can a temporary sibling be created there? (a read-only directory, /proc, …)
+        let tmp = tmp_for(p);
+        std::fs::File::create(&tmp)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
+        let _ = std::fs::remove_file(&tmp);
     }
     Ok(())
 }

@@ -341,3 +341,149 @@ fn decimal_and_hex_numbers_follow_one_rule_on_the_command_line() {
         assert_eq!(code, Some(0), "{v}: {err}");
     }
 }
+
+/// The names in a directory.
+fn names(d: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn a_failed_multi_file_write_replaces_nothing_and_leaves_no_temporary() {
+    let d = scratch("multi");
+    let scene = root().join("reference/scenes/diffuse.toml");
+    let good = d.join("good.exr");
+    let (code, _, err) = rayproof(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--width",
+        "16",
+        "-o",
+        good.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    let before = (
+        std::fs::read(&good).unwrap(),
+        std::fs::read(d.join("good.exr.json")).unwrap(),
+    );
+    let listing = names(&d);
+    // --png names a directory: refused before rendering, nothing replaced
+    std::fs::create_dir_all(d.join("DIR")).unwrap();
+    let (code, _, err) = rayproof(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--width",
+        "8",
+        "-o",
+        good.to_str().unwrap(),
+        "--png",
+        d.join("DIR").to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("is a directory"), "{err}");
+    assert_eq!(
+        (
+            std::fs::read(&good).unwrap(),
+            std::fs::read(d.join("good.exr.json")).unwrap()
+        ),
+        before
+    );
+    let mut want = listing.clone();
+    want.push("DIR".into());
+    want.sort();
+    assert_eq!(names(&d), want);
+    // A symbolic link and a FIFO are never replaced
+    std::os::unix::fs::symlink(&good, d.join("link.exr")).unwrap();
+    let fifo = d.join("fifo.exr");
+    assert!(Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .unwrap()
+        .success());
+    for (p, what) in [
+        (d.join("link.exr"), "a symbolic link"),
+        (fifo.clone(), "not a regular file"),
+    ] {
+        let (code, _, err) = rayproof(&[
+            "render",
+            scene.to_str().unwrap(),
+            "--width",
+            "8",
+            "-o",
+            p.to_str().unwrap(),
+        ]);
+        assert_eq!(code, Some(2), "{err}");
+        assert!(err.contains(what), "{err}");
+        assert!(
+            std::fs::symlink_metadata(&p)
+                .unwrap()
+                .file_type()
+                .is_symlink()
+                == (what == "a symbolic link")
+        );
+    }
+    assert_eq!(std::fs::read(&good).unwrap(), before.0);
+    // What a killed run left beside an output is removed by the next write of it
+    let stale = d.join(".good.exr.tmp4000000000");
+    std::fs::write(&stale, b"half").unwrap();
+    let (code, _, err) = rayproof(&[
+        "render",
+        scene.to_str().unwrap(),
+        "--width",
+        "16",
+        "-o",
+        good.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(!stale.exists());
+}
+
+#[test]
+fn output_paths_are_checked_before_the_work_starts() {
+    let d = scratch("early");
+    let t0 = std::time::Instant::now();
+    for (target, want) in [
+        (d.to_str().unwrap().to_string(), "is a directory"),
+        ("/proc/version".to_string(), "cannot write /proc/version"),
+    ] {
+        let (code, _, err) = rayproof(&["audit", "--json", &target]);
+        assert_eq!(code, Some(2), "{err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.contains(want) && !err.contains(".tmp"), "{err}");
+    }
+    // Refused at once, not after a minute of auditing
+    assert!(t0.elapsed().as_secs() < 20, "{:?}", t0.elapsed());
+}
+
+#[test]
+fn a_terminated_render_exits_130_and_leaves_nothing() {
+    let d = scratch("term");
+    let scene = root().join("reference/scenes/fan30.toml");
+    let out = d.join("o.exr");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .args([
+            "render",
+            scene.to_str().unwrap(),
+            "--width",
+            "2048",
+            "--spp",
+            "16",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(500));
+    // SAFETY: kill(2) on our own child
+    unsafe {
+        libc::kill(child.id() as i32, libc::SIGTERM);
+    }
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    assert!(names(&d).is_empty(), "{:?}", names(&d));
+}

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::numerics::Precision;
-use crate::output::{check_output_dirs, write_atomic};
+use crate::output::check_output_dirs;
 use crate::shapes::sphere::methods::Method;
 use anyhow::{Context, Result};
 use clap::Args;
@@ -114,23 +114,26 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
     }
     let lights = sc.file.lights.len() + sc.file.directional.len();
     say!("{}", render::budget_line(&r, lights));
+    // The EXR, its sidecar and the PNG: all written, or none replaced
+    let mut files = crate::output::Outputs::new();
     if let Some(out) = &a.output {
         let layers = output::Layers {
             depth: a.layers.iter().any(|l| l == "depth"),
             normal: a.layers.iter().any(|l| l == "normal"),
             rays: a.layers.iter().any(|l| l == "rays"),
         };
-        output::write_exr(&r, out, layers)?;
+        files.write_with(out, |tmp| output::write_exr(&r, tmp, layers))?;
         let stats = output::stats_json(&r, &a.scene.display().to_string(), lights);
         let side = PathBuf::from(format!("{}.json", out.display()));
-        write_atomic(
+        files.write(
             &side,
             (serde_json::to_string_pretty(&stats)? + "\n").as_bytes(),
         )?;
     }
     if let Some(png) = &a.png {
-        output::write_png(&r, png)?;
+        files.write_with(png, |tmp| output::write_png(&r, tmp))?;
     }
+    files.commit()?;
     Ok(0)
 }
 

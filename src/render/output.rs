@@ -15,7 +15,7 @@ pub struct Layers {
     pub rays: bool,
 }
 
-/// Writes the EXR.
+/// Writes the EXR to `path` (a temporary file: the caller stages it, see [`crate::output::Outputs`]).
 pub fn write_exr(r: &Render, path: &Path, layers: Layers) -> Result<()> {
     let ch = |name: &str, f: &dyn Fn(usize) -> f32| {
         AnyChannel::new(
@@ -46,9 +46,7 @@ pub fn write_exr(r: &Render, path: &Path, layers: Layers) -> Result<()> {
         Encoding::FAST_LOSSLESS,
         channels,
     );
-    crate::output::write_atomic_with(path, |tmp| {
-        Ok(Image::from_layer(layer).write().to_file(tmp)?)
-    })
+    Ok(Image::from_layer(layer).write().to_file(path)?)
 }
 
 /// sRGB transfer of a linear value clamped to [0, 1].
@@ -62,14 +60,12 @@ fn srgb(x: f32) -> u8 {
     (v * 255.0 + 0.5) as u8
 }
 
-/// Writes the PNG preview (clamp, sRGB).
+/// Writes the PNG preview (clamp, sRGB) to `path` (a temporary file, staged by the caller).
 pub fn write_png(r: &Render, path: &Path) -> Result<()> {
     let buf: Vec<u8> = r.beauty.iter().flat_map(|p| p.map(srgb)).collect();
     let img =
         image::RgbImage::from_raw(r.width as u32, r.height as u32, buf).context("image size")?;
-    crate::output::write_atomic_with(path, |tmp| {
-        Ok(img.save_with_format(tmp, image::ImageFormat::Png)?)
-    })
+    Ok(img.save_with_format(path, image::ImageFormat::Png)?)
 }
 
 /// The statistics as JSON (also written beside the EXR as `<file>.json`).

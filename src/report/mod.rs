@@ -117,10 +117,12 @@ pub fn run(o: &ReportOptions) -> Result<()> {
     }
     // Build beside the target, rename into place at the end
     // A directory swap: the one rename outside crate::output, whose writers handle files
+    crate::output::remove_stale(&o.out, "partial-");
+    crate::output::remove_stale(&o.out, "old-");
     let tmp = sibling(&o.out, "partial")?;
     std::fs::create_dir_all(tmp.join("img"))
         .with_context(|| format!("cannot create {}", tmp.display()))?;
-    let result = build(o, &tmp);
+    let result = crate::output::tracked(&tmp, || build(o, &tmp));
     if let Err(e) = result {
         let _ = std::fs::remove_dir_all(&tmp);
         return Err(e);
