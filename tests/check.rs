@@ -287,3 +287,24 @@ fn shapes_thresholds_catch_an_axis_mixup_in_one_ellipsoid() {
         );
     }
 }
+
+#[test]
+fn update_with_a_malformed_scene_writes_nothing() {
+    // NaN albedo: refused at load, so the test is refused and --update writes no golden
+    let dir = fixture("nanalbedo");
+    let s = dir.join("scenes/diffuse.toml");
+    let text = std::fs::read_to_string(&s).unwrap();
+    std::fs::write(
+        &s,
+        text.replace("albedo = [0.8, 0.15, 0.1]", "albedo = [nan, 0.15, 0.1]"),
+    )
+    .unwrap();
+    std::fs::remove_file(dir.join("diffuse/rayproof.exr")).unwrap();
+    let manifest = std::fs::read(dir.join("diffuse/manifest.json")).unwrap();
+    let (code, out, _) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(3), "{out}");
+    assert!(out.contains("albedo"), "{out}");
+    assert!(out.contains("--update wrote nothing"), "{out}");
+    assert!(!dir.join("diffuse/rayproof.exr").exists());
+    assert_eq!(std::fs::read(dir.join("diffuse/manifest.json")).unwrap(), manifest);
+}
