@@ -306,5 +306,8 @@ fn update_with_a_malformed_scene_writes_nothing() {
     assert!(out.contains("albedo"), "{out}");
     assert!(out.contains("--update wrote nothing"), "{out}");
     assert!(!dir.join("diffuse/rayproof.exr").exists());
-    assert_eq!(std::fs::read(dir.join("diffuse/manifest.json")).unwrap(), manifest);
+    assert_eq!(
+        std::fs::read(dir.join("diffuse/manifest.json")).unwrap(),
+        manifest
+    );
 }

@@ -487,3 +487,29 @@ fn a_terminated_render_exits_130_and_leaves_nothing() {
     assert_eq!(status.code(), Some(130));
     assert!(names(&d).is_empty(), "{:?}", names(&d));
 }
+
+#[test]
+fn a_terminated_report_leaves_no_staging_directory() {
+    let d = scratch("report");
+    let out = d.join("rep");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(root())
+        .args(["report", "--quick", "--out", out.to_str().unwrap()])
+        .stderr(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait until its staging directory exists, then terminate it
+    let t0 = std::time::Instant::now();
+    while !names(&d).iter().any(|n| n.starts_with(".rep.partial-")) {
+        assert!(t0.elapsed().as_secs() < 30, "no staging directory appeared");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    // SAFETY: kill(2) on our own child
+    unsafe {
+        libc::kill(child.id() as i32, libc::SIGTERM);
+    }
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    assert!(names(&d).is_empty(), "{:?}", names(&d));
+}
