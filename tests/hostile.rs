@@ -287,6 +287,15 @@ fn an_exr_declaring_a_huge_window_is_refused_before_allocating() {
     }
 }
 
+/// `probe sphere` with `x` as the ray origin's x: exit code and standard error.
+fn probe_x(prec: &str, x: &str) -> (Option<i32>, String) {
+    let tail = ["0", "0", "1", "0", "0", "0", "0", "5", "1"];
+    let mut args = vec!["probe", "sphere", "--precision", prec, "--", x];
+    args.extend(tail);
+    let (code, _, err) = rayproof(&args);
+    (code, err)
+}
+
 #[test]
 fn decimal_and_hex_numbers_follow_one_rule_on_the_command_line() {
     // Too large or too small for the precision: an error naming what was wrong, in both notations
@@ -299,47 +308,26 @@ fn decimal_and_hex_numbers_follow_one_rule_on_the_command_line() {
         ("0x1p+200", "f32", "overflows f32"),
         ("1e-50", "f32", "underflows f32 to 0"),
     ] {
-        let (code, _, err) = rayproof(&[
-            "probe",
-            "sphere",
-            "--precision",
-            prec,
-            "--",
-            v,
-            "0",
-            "0",
-            "1",
-            "0",
-            "0",
-            "0",
-            "0",
-            "5",
-            "1",
-        ]);
+        let (code, err) = probe_x(prec, v);
         assert_eq!(code, Some(2), "{v} {prec}: {err}");
         assert!(err.contains(want) && err.contains(v), "{v} {prec}: {err}");
     }
     // Spelled infinities, zeros and subnormals stay values
     for v in ["inf", "-0", "0x0p+0", "1e-45", "0x1p-149"] {
-        let (code, _, err) = rayproof(&[
-            "probe",
-            "sphere",
-            "--precision",
-            "f32",
-            "--",
-            v,
-            "0",
-            "0",
-            "1",
-            "0",
-            "0",
-            "0",
-            "0",
-            "5",
-            "1",
-        ]);
+        let (code, err) = probe_x("f32", v);
         assert_eq!(code, Some(0), "{v}: {err}");
     }
+}
+
+/// Sends SIGTERM to a running rayproof: it must exit 130 and leave `d` empty.
+fn terminate(mut child: std::process::Child, d: &Path) {
+    // SAFETY: kill(2) on our own child
+    unsafe {
+        libc::kill(child.id() as i32, libc::SIGTERM);
+    }
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130));
+    assert!(names(d).is_empty(), "{:?}", names(d));
 }
 
 /// The names in a directory.
@@ -464,7 +452,7 @@ fn a_terminated_render_exits_130_and_leaves_nothing() {
     let d = scratch("term");
     let scene = root().join("reference/scenes/fan30.toml");
     let out = d.join("o.exr");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+    let child = Command::new(env!("CARGO_BIN_EXE_rayproof"))
         .args([
             "render",
             scene.to_str().unwrap(),
@@ -479,20 +467,14 @@ fn a_terminated_render_exits_130_and_leaves_nothing() {
         .spawn()
         .unwrap();
     std::thread::sleep(std::time::Duration::from_millis(500));
-    // SAFETY: kill(2) on our own child
-    unsafe {
-        libc::kill(child.id() as i32, libc::SIGTERM);
-    }
-    let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(130));
-    assert!(names(&d).is_empty(), "{:?}", names(&d));
+    terminate(child, &d);
 }
 
 #[test]
 fn a_terminated_report_leaves_no_staging_directory() {
     let d = scratch("report");
     let out = d.join("rep");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+    let child = Command::new(env!("CARGO_BIN_EXE_rayproof"))
         .current_dir(root())
         .args(["report", "--quick", "--out", out.to_str().unwrap()])
         .stderr(std::process::Stdio::piped())
@@ -505,11 +487,5 @@ fn a_terminated_report_leaves_no_staging_directory() {
         assert!(t0.elapsed().as_secs() < 30, "no staging directory appeared");
         std::thread::sleep(std::time::Duration::from_millis(20));
     }
-    // SAFETY: kill(2) on our own child
-    unsafe {
-        libc::kill(child.id() as i32, libc::SIGTERM);
-    }
-    let status = child.wait().unwrap();
-    assert_eq!(status.code(), Some(130));
-    assert!(names(&d).is_empty(), "{:?}", names(&d));
+    terminate(child, &d);
 }
