@@ -223,7 +223,7 @@ fn f64v(v: [f32; 3]) -> [f64; 3] {
 const E: f64 = f32::EPSILON as f64;
 
 proptest! {
-    #![proptest_config(ProptestConfig { cases: 400, ..ProptestConfig::default() })]
+    #![proptest_config(ProptestConfig { cases: 400, rng_seed: proptest::test_runner::RngSeed::Fixed(400), ..ProptestConfig::default() })]
 
     /// |R| = |L| and N·R = N·L hold exactly for unit N; with inputs rounded to f32 (|N|² within
     /// 3ε of 1) and the f32 evaluation (dot 3ε, then 2 roundings per component), both hold
