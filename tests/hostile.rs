@@ -130,6 +130,13 @@ fn bad_scene_values_are_refused_at_load_with_file_line_and_field() {
             "render.max_depth",
         ),
         (
+            "ior",
+            "glass.toml",
+            "ior = 1.5",
+            "ior = 1e308",
+            "ior must be in [0.01, 100]",
+        ),
+        (
             "height",
             "diffuse.toml",
             "height = 256",

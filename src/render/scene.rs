@@ -49,6 +49,10 @@ pub const MAX_SIDE: u32 = 16_384;
 pub use crate::images::MAX_PIXELS;
 /// The largest n of the n×n sub-pixel grid.
 pub const MAX_GRID: u32 = 64;
+/// The range of a glass's index of refraction (real materials lie within 1–4; beyond 1e154
+/// the refraction's η² overflows and pixels turn NaN, found by tests/fuzz.rs).
+pub const MIN_IOR: f64 = 0.01;
+pub const MAX_IOR: f64 = 100.0;
 /// The most ray segments per path (`render.max_depth`; POV-Ray's `max_trace_level` stops at 256).
 pub const MAX_DEPTH: u32 = 256;
 
@@ -307,7 +311,7 @@ impl Shape {
         };
         let positive = |name: &'static str, x: f64| {
             (!(x.is_finite() && x > 0.0))
-                .then(|| (name, format!("must be a finite number > 0, got {x}")))
+                .then(|| (name, format!("must be a finite number > 0, got {x:?}")))
         };
         match self {
             Shape::Box { min, max, .. } => finite3("min", min)
@@ -345,7 +349,7 @@ impl Shape {
                     (minor >= major).then(|| {
                         (
                             "minor",
-                            format!("must be below major ({major}) for a ring torus, got {minor}"),
+                            format!("must be below major ({major:?}) for a ring torus, got {minor:?}"),
                         )
                     })
                 }),
@@ -354,7 +358,7 @@ impl Shape {
                 .or_else(|| parts.iter().find_map(|p| p.problem().map(|m| ("parts", m))))
                 .or_else(|| {
                     (!(blend.is_finite() && *blend >= 0.0))
-                        .then(|| ("blend", format!("must be a finite number ≥ 0, got {blend}")))
+                        .then(|| ("blend", format!("must be a finite number ≥ 0, got {blend:?}")))
                 }),
             Shape::Blob {
                 threshold,
@@ -372,7 +376,7 @@ impl Shape {
                             .or_else(|| positive("components", c.radius))
                             .or_else(|| {
                                 (!(c.strength.is_finite() && c.strength != 0.0)).then(|| {
-                                    ("components", format!("strength must be finite and non-zero, got {}", c.strength))
+                                    ("components", format!("strength must be finite and non-zero, got {:?}", c.strength))
                                 })
                             })
                     })
@@ -565,7 +569,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
     if !(cam.fov > 0.0 && cam.fov < 180.0) {
         return Err(err(
             0,
-            format!("camera.fov must be in (0, 180) degrees, got {}", cam.fov),
+            format!("camera.fov must be in (0, 180) degrees, got {:?}", cam.fov),
         ));
     }
     let m = &file.render.method;
@@ -611,8 +615,8 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
             Material::Mirror { reflectance } => {
                 colour_problem(reflectance, true).map(|e| format!("reflectance {e}"))
             }
-            Material::Glass { ior } => (!(ior.is_finite() && *ior > 0.0))
-                .then(|| format!("ior must be a finite number > 0, got {ior}")),
+            Material::Glass { ior } => (!(MIN_IOR..=MAX_IOR).contains(ior))
+                .then(|| format!("ior must be in [{MIN_IOR}, {MAX_IOR}], got {ior:?}")),
         };
         if let Some(p) = problem {
             let header = text
