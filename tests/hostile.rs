@@ -29,18 +29,25 @@ fn scratch(tag: &str) -> PathBuf {
     d
 }
 
+/// Writes `text` as `d/s.toml` and renders it to `d/o.exr` with `args`: exit code and stderr.
+fn render_text(d: &Path, text: &str, args: &[&str]) -> (Option<i32>, String) {
+    let s = d.join("s.toml");
+    std::fs::write(&s, text).unwrap();
+    let out = d.join("o.exr");
+    let mut all = vec!["render", s.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    all.extend(args);
+    let (code, _, err) = rayproof(&all);
+    (code, err)
+}
+
 /// A reference scene with one text replacement, rendered at 16 pixels wide: the exit code and
 /// standard error.
 fn mutated(tag: &str, scene: &str, from: &str, to: &str, extra: &[&str]) -> (Option<i32>, String) {
     let text = std::fs::read_to_string(root().join("reference/scenes").join(scene)).unwrap();
     assert!(text.contains(from), "{scene} has no '{from}'");
     let d = scratch(tag);
-    let s = d.join("s.toml");
-    std::fs::write(&s, text.replacen(from, to, 1)).unwrap();
+    let (code, err) = render_text(&d, &text.replacen(from, to, 1), extra);
     let out = d.join("o.exr");
-    let mut args = vec!["render", s.to_str().unwrap(), "-o", out.to_str().unwrap()];
-    args.extend(extra);
-    let (code, _, err) = rayproof(&args);
     assert!(
         !out.exists() || code == Some(0),
         "{tag}: an output was written on failure"
@@ -168,31 +175,13 @@ fn a_tall_aspect_with_a_width_override_is_refused_before_allocating() {
     // 3 × 100,000,000 at --width 16 would be 16 × 533,333,333 pixels (110.9 GB of beauty)
     let text = std::fs::read_to_string(root().join("reference/scenes/diffuse.toml")).unwrap();
     let d = scratch("aspect");
-    let s = d.join("s.toml");
-    std::fs::write(
-        &s,
+    let tall =
         text.replacen("width = 256", "width = 3", 1)
-            .replacen("height = 256", "height = 10000", 1),
-    )
-    .unwrap();
-    let (code, _, err) = rayproof(&[
-        "render",
-        s.to_str().unwrap(),
-        "--width",
-        "16",
-        "-o",
-        d.join("o.exr").to_str().unwrap(),
-    ]);
+            .replacen("height = 256", "height = 10000", 1);
+    let (code, err) = render_text(&d, &tall, &["--width", "16"]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("each side may be at most 16384"), "{err}");
-    let (code, _, err) = rayproof(&[
-        "render",
-        s.to_str().unwrap(),
-        "--spp",
-        "10000",
-        "-o",
-        d.join("o.exr").to_str().unwrap(),
-    ]);
+    let (code, err) = render_text(&d, &tall, &["--spp", "10000"]);
     assert_eq!(code, Some(2), "{err}");
 }
 
@@ -201,20 +190,9 @@ fn a_mesh_with_a_nan_vertex_is_refused() {
     let d = scratch("obj");
     std::fs::write(d.join("m.obj"), "v 0 0 0\nv 1 0 nan\nv 0 1 0\nf 1 2 3\n").unwrap();
     let text = std::fs::read_to_string(root().join("reference/scenes/diffuse.toml")).unwrap();
-    let s = d.join("s.toml");
-    std::fs::write(
-        &s,
-        format!("{text}\n[[shapes]]\ntype = \"mesh\"\nfile = \"m.obj\"\nmaterial = \"red\"\n"),
-    )
-    .unwrap();
-    let (code, _, err) = rayproof(&[
-        "render",
-        s.to_str().unwrap(),
-        "--width",
-        "16",
-        "-o",
-        d.join("o.exr").to_str().unwrap(),
-    ]);
+    let mesh =
+        format!("{text}\n[[shapes]]\ntype = \"mesh\"\nfile = \"m.obj\"\nmaterial = \"red\"\n");
+    let (code, err) = render_text(&d, &mesh, &["--width", "16"]);
     assert_eq!(code, Some(2), "{err}");
     assert!(
         err.contains("vertex 2") && err.contains("not finite"),
