@@ -11,7 +11,7 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 /// Runs `sh -c command` (in `dir` when given) with `input` on its standard input; its standard
-/// output, or one line saying why it failed: it could not start, did not finish within
+/// output (invalid UTF-8 replaced by U+FFFD), or one line saying why it failed: it could not start, did not finish within
 /// `timeout` (then its process group is killed), or exited with a failure (with the first
 /// non-empty line of its standard error). `what` names the command in those lines.
 pub fn run_with_timeout(
@@ -46,8 +46,11 @@ pub fn run_with_timeout(
     );
     let (tx, rx) = mpsc::channel();
     let reader = std::thread::spawn(move || {
-        let mut text = String::new();
-        let r = out.read_to_string(&mut text).map(|_| text);
+        // Bytes that are not UTF-8 (a renderer's progress bar) are kept as U+FFFD, never an error
+        let mut bytes = Vec::new();
+        let r = out
+            .read_to_end(&mut bytes)
+            .map(|_| String::from_utf8_lossy(&bytes).into_owned());
         let _ = tx.send(r);
     });
     let errs = std::thread::spawn(move || {
@@ -86,5 +89,5 @@ pub fn run_with_timeout(
             }
         ));
     }
-    out.map_err(|e| format!("{what}: its output is not text: {e}"))
+    out.map_err(|e| format!("{what}: cannot read its output: {e}"))
 }

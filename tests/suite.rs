@@ -429,3 +429,22 @@ fn update_never_blesses_an_image_with_nan() {
     let written: Vec<String> = goldens(&dir).into_iter().map(|g| g.0).collect();
     assert_eq!(written, ["a.exr", "c.exr", "manifest.json"]);
 }
+
+#[test]
+fn a_renderer_that_prints_bytes_that_are_not_text_is_judged_as_any_other() {
+    // A progress bar in some legacy encoding on stdout and stderr: not a refusal
+    let dir = fixture("bytes", "", "");
+    let text = std::fs::read_to_string(dir.join("suite.toml")).unwrap();
+    std::fs::write(
+        dir.join("suite.toml"),
+        text.replacen(
+            "renderer = \"",
+            "renderer = \"printf '\\\\377\\\\376 50%'; printf '\\\\377' >&2; ",
+            1,
+        ),
+    )
+    .unwrap();
+    let (code, out, err) = check(&dir, &["--test", "a"]);
+    assert_eq!(status(&out, "a", "ext"), "PASS", "{out}{err}");
+    assert_eq!(code, Some(1), "{out}"); // its golden is still NEW
+}
