@@ -1,7 +1,7 @@
 //! Ray–box, ray–ellipsoid, ray–cylinder and ellipsoid normals (seed 002 §2.2–2.4, §3): oracle
 //! checks on hand-made cases, every method × precision × class audited and held to the
-//! tolerance table, the harness's teeth, proptest stability suites, invalid inputs, and
-//! reintersection.
+//! tolerance table, the harness's teeth, proptest stability suites and invalid inputs
+//! (reintersection: `tests/reintersect.rs`).
 
 use proptest::prelude::*;
 use rayproof::audit::plan::Options;
@@ -9,7 +9,7 @@ use rayproof::audit::{audit_shape, table, Row, ShapeReport};
 use rayproof::audit::{Answer, Shape, Truth};
 use rayproof::numerics::exact;
 use rayproof::numerics::Precision;
-use rayproof::shapes::{aabb, quadric, reintersect};
+use rayproof::shapes::{aabb, quadric};
 use rug::{Float, Rational};
 use std::sync::OnceLock;
 
@@ -515,43 +515,6 @@ fn exact_rationals_round_like_floats() {
     // The shared rounding helper the oracles use, on a value the box oracle produces
     let t = Rational::from((7, 3));
     assert_eq!(exact::round_q(&t, Precision::F32), (7.0f32 / 3.0) as f64);
-}
-
-// ---- reintersection ----
-
-#[test]
-fn reintersection_robust_methods_never_rehit() {
-    for prec in Precision::ALL {
-        let rows = reintersect::reintersection_all(1, 12, prec);
-        println!("{}", reintersect::table(&rows));
-        for r in &rows {
-            assert!(r.rays > 0, "{} {} no rays", r.shape, r.method);
-            if r.robust && r.shape != "sphere" {
-                assert_eq!(r.rehits, 0, "{} {} {}", r.shape, r.method, r.precision);
-            }
-        }
-        // The sphere's reprojecting anchor (promote) and the interval method never re-hit
-        for r in rows.iter().filter(|r| r.shape == "sphere") {
-            if r.method == "promote" || r.method == "interval" {
-                assert_eq!(r.rehits, 0, "sphere {} {}", r.method, r.precision);
-            }
-        }
-    }
-}
-
-#[test]
-fn reintersection_control_without_offset_rehits() {
-    // Without the offset rule the same test must see self-intersections
-    let mut total = 0;
-    for prec in Precision::ALL {
-        let rows = reintersect::reintersection_raw_all(1, 12, prec);
-        println!(
-            "control (raw hit, no offset):\n{}",
-            reintersect::table(&rows)
-        );
-        total += rows.iter().map(|r| r.rehits).sum::<u64>();
-    }
-    assert!(total > 0, "the reintersection test has no teeth");
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! Ray–torus (§2.5) and its normal (§3): the oracle on hand-made cases with known exact answers,
 //! every method × precision × class of the default audit against the tolerance table, the
-//! harness's teeth, reintersection, proptest stability suites, and invalid inputs.
+//! harness's teeth, the reintersection error bound, proptest stability suites, and invalid
+//! inputs (reintersection itself: `tests/reintersect.rs`).
 
 use proptest::prelude::*;
 use rayproof::audit::plan::Options;
@@ -10,8 +11,8 @@ use rayproof::audit::{audit_shape, table, Row, ShapeReport};
 use rayproof::audit::{judge, Answer, Shape, Truth};
 use rayproof::numerics::Precision;
 use rayproof::shapes::torus::{
-    cases, methods, oracle, reintersect, reintersection, torus_normal, torus_robust,
-    torus_robust_hit, Torus, TorusNormal, METHODS,
+    cases, methods, oracle, torus_normal, torus_robust, torus_robust_hit, Torus, TorusNormal,
+    ERR_GAMMA, METHODS,
 };
 use rug::{Float, Rational};
 use std::sync::OnceLock;
@@ -136,14 +137,6 @@ fn print_tables() {
     for report in [torus_report(), normal_report()] {
         println!("{}", table::shape_table(report));
         println!("{}", table::worst_cases(report, 1));
-    }
-    for p in Precision::ALL {
-        for r in reintersection(1, REINTERSECT_PER_SCALE, p) {
-            println!(
-                "reintersection {} {:<12} {}: {} re-hits / {} spawned rays",
-                r.shape, r.method, r.precision, r.rehits, r.rays
-            );
-        }
     }
 }
 
@@ -397,38 +390,6 @@ fn public_robust_and_normal() {
 
 // ---- reintersection ----
 
-/// Instances per decade in the reintersection tests.
-const REINTERSECT_PER_SCALE: u64 = 12;
-
-#[test]
-fn reintersection_robust_never_rehits() {
-    for p in Precision::ALL {
-        let rows = reintersection(1, REINTERSECT_PER_SCALE, p);
-        assert_eq!(rows.len(), METHODS.len());
-        let robust = rows.iter().find(|r| r.robust).expect("robust row");
-        assert!(
-            robust.rays >= 8 * REINTERSECT_PER_SCALE * 8 / 2,
-            "{} rays",
-            robust.rays
-        );
-        assert_eq!(robust.rehits, 0, "{robust:?}");
-        for r in &rows {
-            println!(
-                "{} {} {}: {}/{}",
-                r.method, r.precision, r.robust, r.rehits, r.rays
-            );
-        }
-    }
-}
-
-#[test]
-fn reintersection_naive_f32_rehits() {
-    // The chapter's quartic from the spawned origin cannot tell the root at −δ from +δ in f32
-    let rows = reintersection(1, REINTERSECT_PER_SCALE, Precision::F32);
-    let ferrari = rows.iter().find(|r| r.method == "ferrari").expect("row");
-    assert!(ferrari.rehits > 0, "{ferrari:?}");
-}
-
 /// `ERR_GAMMA` is measured: the robust hit point's exact distance to the surface, over every
 /// valid class, stays below half of `γ(K)·(r1 + r2)`.
 #[test]
@@ -446,10 +407,7 @@ fn reintersection_error_bound_is_measured() {
             }
         }
         println!("{p:?}: max |sdf(p)| = {worst:.2} u·(r1 + r2)");
-        assert!(
-            2.0 * worst <= reintersect::ERR_GAMMA as f64,
-            "{p:?}: {worst}"
-        );
+        assert!(2.0 * worst <= ERR_GAMMA as f64, "{p:?}: {worst}");
     }
 }
 

@@ -1,7 +1,6 @@
 //! Ray–triangle: the exact oracle on hand-made cases, one audit test per class (every method ×
 //! precision checked against the tolerance table, the robust method held to zero), the teeth
-//! (known failures are found), the closed-mesh watertightness and reintersection tests, and
-//! proptest suites (shared edges, arbitrary bit patterns).
+//! (known failures are found), the closed-mesh watertightness test, and proptest suites (shared edges, arbitrary bit patterns).
 
 use proptest::prelude::*;
 use rayproof::audit::plan::Options;
@@ -13,6 +12,7 @@ use rayproof::shapes::triangle::{
     self, exact_tri, moller_trumbore_hit, watertight, watertight_hit, watertight_wide_hit,
     ExactTri, Triangle, CLASSES, METHODS,
 };
+use rayproof::shapes::watertight::run as watertight_audit;
 use rug::Rational;
 use std::sync::OnceLock;
 
@@ -214,16 +214,16 @@ fn teeth_judge_catches_a_planted_false_hit() {
     assert!(judge(&truth, &planted, Triangle.info().metric, Precision::F64).is_wrong());
 }
 
-// ---- watertightness and reintersection ----
+// ---- watertightness ----
 
 #[test]
-fn closed_far_mesh_watertight_method_never_leaks() {
+fn watertightness_finds_cracks_and_the_watertight_methods_have_none() {
     for prec in Precision::ALL {
-        let rows = triangle::watertight_test(7, 3000, prec);
+        let rows = watertight_audit(7, 2000, prec);
         for r in &rows {
             println!(
-                "{:<16} {} {:<6} {:>5} rays  {:>4} escaped  {:.4}%  (oracle checked {}, violations {})",
-                r.method, r.precision, r.kind, r.rays, r.escaped, 100.0 * r.rate,
+                "{:<16} {} {:<5} {:<12} {:>5} rays {:>4} escaped {:>4} grazing (oracle checked {}, violations {})",
+                r.method, r.precision, r.mesh, r.kind, r.rays, r.escaped, r.grazing,
                 r.oracle_checked, r.oracle_violations
             );
             assert_eq!(
@@ -231,42 +231,62 @@ fn closed_far_mesh_watertight_method_never_leaks() {
                 "the oracle disagrees: origin not inside?"
             );
             if r.method.starts_with("watertight") {
-                assert_eq!(
-                    r.escaped, 0,
-                    "{} {} {} leaked",
-                    r.method, r.precision, r.kind
-                );
+                assert_eq!(r.escaped, 0, "{r:?}");
             }
+            // Every escape carries its replay line
+            assert_eq!(r.replay.is_some(), r.escaped + r.grazing > 0, "{r:?}");
         }
-        // Teeth: the chapter's method leaks in f32, and Möller–Trumbore through edges/vertices
+        // Teeth: the chapter's method leaks through the far mesh, Möller–Trumbore at edges
+        let esc = |m, mesh, k| {
+            rows.iter()
+                .find(|r| (r.method, r.mesh, r.kind) == (m, mesh, k))
+                .unwrap()
+                .escaped
+        };
         if prec == Precision::F32 {
-            let esc = |m, k| {
-                rows.iter()
-                    .find(|r| r.method == m && r.kind == k)
-                    .unwrap()
-                    .escaped
-            };
-            assert!(esc("chapter", "random") > 0);
-            assert!(esc("chapter", "aimed") > 0);
-            assert!(esc("moller_trumbore", "aimed") > 0);
+            assert!(esc("chapter", "far", "random") > 0);
         }
+        assert!(esc("chapter", "far", "edge") > 0);
+        assert!(
+            esc("moller_trumbore", "far", "edge") + esc("moller_trumbore", "far", "vertex") > 0
+        );
     }
 }
 
+/// Issue 17's shared-edge "leak", reproduced deterministically (the proptest case cc 101eecd…):
+/// the exact oracle hits both triangles of the fold, the f32 watertight method misses both, and
+/// the shared edge is a silhouette seen from the ray's origin, so this is the `grazing` miss the
+/// watertightness audit counts apart, not a crack (the method evaluates each edge function once
+/// for both triangles, so it cannot pass between them where the edge is not a silhouette).
 #[test]
-fn reintersection_robust_methods_never_rehit() {
-    for prec in Precision::ALL {
-        for r in triangle::reintersection(3, 24, prec) {
-            println!(
-                "{:<16} {} robust={} {:>5} spawned rays  {:>3} re-hits",
-                r.method, r.precision, r.robust, r.rays, r.rehits
-            );
-            assert!(r.rays > 0);
-            if r.robust {
-                assert_eq!(r.rehits, 0, "{} {}", r.method, r.precision);
-            }
-        }
-    }
+fn the_shared_edge_case_of_issue_17_is_a_grazing_silhouette_miss() {
+    let a = [4.389724041797666, 5.982470973707235, 3.3312154497454007];
+    let b = [-9.959961968707576, 1.2574197903632554, -6.792091016966494];
+    let c = [-1.7144788538768716, -5.728740143230774, -7.19836920814146];
+    let e = [0.0, 0.0, 9.936290527886866];
+    let o = [-5.944488346071514, 3.0326874459755744, -3.6828205591784964];
+    let u = 0.3276310452225506f64;
+    let e: [f64; 3] = std::array::from_fn(|i| b[i] + c[i] - a[i] + 0.3 * e[i] / 10.0);
+    let [a, b, c, e, o] = [a, b, c, e, o].map(r32);
+    let aim: [f32; 3] = std::array::from_fn(|i| b[i] + (c[i] - b[i]) * u as f32);
+    let d: [f32; 3] = std::array::from_fn(|i| aim[i] - o[i]);
+    let (tri_a, tri_b) = ([a, b, c], [c, b, e]);
+    let flat = |p: [[f32; 3]; 3]| -> Vec<f64> {
+        o.iter()
+            .chain(&d)
+            .chain(p.iter().flatten())
+            .map(|&x| x as f64)
+            .collect()
+    };
+    // The oracle: both hit; the f32 method: both miss; the promoted method: a hit
+    assert!(exact_tri(&flat(tri_a)).t().is_some());
+    assert!(exact_tri(&flat(tri_b)).t().is_some());
+    assert!(watertight(o, d, tri_a).is_none() && watertight(o, d, tri_b).is_none());
+    assert!(
+        watertight_wide_hit(o, d, tri_a).is_some() || watertight_wide_hit(o, d, tri_b).is_some()
+    );
+    // A silhouette: both triangles lie on one side of the plane through o and the edge
+    assert_eq!(side(o, b, c, a), side(o, b, c, e));
 }
 
 #[test]

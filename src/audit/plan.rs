@@ -161,10 +161,18 @@ impl Plan {
         super::run::run(&self.selection(i), progress)
     }
 
-    /// The reintersection and watertightness tests, when every shape is audited.
+    /// The reintersection and watertightness tests of the shapes audited completely (every
+    /// built-in method and class; `None`: none has them).
     pub fn robustness(&self) -> Option<robustness::Robustness> {
-        self.every_shape
-            .then(|| robustness::run(self.seed, &self.precisions))
+        let names: Vec<&str> = self
+            .shapes
+            .iter()
+            .filter(|p| {
+                robustness::complete(p.shape, p.methods.iter().map(|m| m.name()), p.classes.len())
+            })
+            .map(|p| p.shape.name())
+            .collect();
+        robustness::run(self.seed, &names, &self.precisions)
     }
 
     /// The names a tolerance table may use: every registered shape with its methods and

@@ -328,9 +328,19 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
             p
         })
         .unwrap_or_default();
-    let robustness = merged
-        .every_shape
-        .then(|| print_robustness(robustness::run(merged.seed, &precisions)));
+    let names: Vec<&str> = merged
+        .shapes
+        .iter()
+        .filter(|t| {
+            let mut classes: Vec<usize> = t.groups.iter().map(|g| g.class).collect();
+            classes.sort_unstable();
+            classes.dedup();
+            let methods = t.methods.iter().map(|m| m.name.as_str());
+            robustness::complete(t.shape, methods, classes.len())
+        })
+        .map(|t| t.shape.name())
+        .collect();
+    let robustness = robustness::run(merged.seed, &names, &precisions).map(print_robustness);
     finish(
         Report {
             tool: TOOL,

@@ -23,8 +23,9 @@ pub fn error_bound<F: Real>(p: [F; 3], k: u32) -> [F; 3] {
     [g * p[0].abs(), g * p[1].abs(), g * p[2].abs()]
 }
 
-/// The spawned origin for a ray leaving `p` (error `err`) along `w`, given the geometric normal
-/// `n` (any length, either orientation).
+/// The spawned origin for a ray leaving `p` (error `err`) along `w`, given the unit geometric
+/// normal `n` (either orientation; as in pbrt, a longer `n` scales the offset by its squared
+/// length).
 pub fn spawn_origin<F: Real>(p: [F; 3], err: [F; 3], n: [F; 3], w: [F; 3]) -> [F; 3] {
     let d = n[0].abs() * err[0] + n[1].abs() * err[1] + n[2].abs() * err[2];
     let mut off = [d * n[0], d * n[1], d * n[2]];
@@ -44,20 +45,59 @@ pub fn spawn_origin<F: Real>(p: [F; 3], err: [F; 3], n: [F; 3], w: [F; 3]) -> [F
     po
 }
 
-/// One method × precision of a reintersection test: rays spawned from computed hits (with the
-/// rule above) that hit the same surface again although the exact answer says they must not.
+/// How a reintersection test spawns rays: the project's rule, and two controls that must show
+/// re-hits (or the test could not see a broken rule).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rule {
+    /// [`spawn_origin`] with the method's error bound.
+    On,
+    /// The same with the error bound 1000× too small.
+    Weak,
+    /// No offset: the spawned ray starts at the computed hit point.
+    Off,
+}
+
+impl Rule {
+    pub const ALL: [Rule; 3] = [Rule::On, Rule::Weak, Rule::Off];
+    /// The factor on the error bound.
+    pub fn factor(self) -> f64 {
+        match self {
+            Rule::On => 1.0,
+            Rule::Weak => 1e-3,
+            Rule::Off => 0.0,
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            Rule::On => "on",
+            Rule::Weak => "weak",
+            Rule::Off => "off",
+        }
+    }
+}
+
+/// One method × precision × [`Rule`] of the reintersection test: rays spawned from computed hits
+/// that hit the same surface again where the ideal spawned ray does not (see
+/// [`crate::shapes::reintersect`]).
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct ReintersectRow {
     pub shape: &'static str,
     pub method: &'static str,
     pub precision: &'static str,
     pub robust: bool,
+    /// `on`, `weak` (error bound ×1e-3) or `off` (no offset).
+    pub rule: &'static str,
     /// Spawned rays tested.
     pub rays: u64,
-    /// Spawned rays the method reports hitting the surface again (false self-hits).
+    /// Spawned rays the method reports hitting the surface before half the distance to the ideal
+    /// ray's next crossing (false self-hits).
     pub rehits: u64,
-    /// Log10 range of the scales the instances were drawn from.
-    pub scales: [f64; 2],
+    /// Of the re-hits, those on another part of the surface (the other triangle of a hinge) that
+    /// the exact answer for the spawned ray confirms: the offset, applied per part as in pbrt,
+    /// carried the origin across the neighbour. A limit of the rule, not of the method.
+    pub neighbour: u64,
+    /// Reported hits whose ideal crossing lies within the self-hit zone: judged neither way.
+    pub ill_posed: u64,
 }
 
 #[cfg(test)]

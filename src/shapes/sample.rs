@@ -62,6 +62,13 @@ pub fn dot(a: V, b: V) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 /// `|a|`, scaled by its largest component first so that `|a|²` cannot over- or underflow.
+pub fn cross(a: V, b: V) -> V {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
 pub fn norm(a: V) -> f64 {
     let big = a.iter().fold(0f64, |m, x| m.max(x.abs()));
     if big == 0.0 {

@@ -1,7 +1,7 @@
 //! Ray–triangle (seed 002 §2.1): the chapter's plane-then-barycentrics method, Möller–Trumbore,
 //! and the watertight test of Woop, Benthin & Wald (2013) as pbrt-v4 implements it; an exact
 //! oracle; the hard-case classes; the closed-mesh watertightness test (issue 6 item 3) and the
-//! reintersection test (item 8).
+//! hit point the reintersection test ([`crate::shapes::reintersect`]) spawns rays from.
 //!
 //! **Contract.** A case is `o d p0 p1 p2` (15 scalars). The answer is a hit (count 1) when the
 //! ray `o + t·d` meets the *closed* triangle (edges and vertices included) at some `t > 0`;
@@ -18,16 +18,16 @@
 //! up or down (30 single moves, each evaluated exactly; a move that makes the input invalid
 //! counts as a miss). Joint moves of several inputs are not tried.
 
-use super::offset::{gamma, spawn_origin, ReintersectRow};
+use super::offset::gamma;
 use crate::audit::run::generate as gen_case;
 use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
-use crate::numerics::exact::{self, nudge, q, round_q};
+use crate::numerics::exact::{self, nudge, round_q};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
-use rand::{Rng, SeedableRng};
+use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::{Integer, Rational};
-use serde::Serialize;
+
 use std::cmp::Ordering;
 
 type V<S> = [S; 3];
@@ -804,207 +804,7 @@ impl Shape for Triangle {
     }
 }
 
-// ---- watertightness: a closed mesh far from the origin ----
-
-/// One method × precision × ray kind of the watertightness test.
-#[derive(Clone, Debug, Serialize, PartialEq)]
-pub struct WatertightRow {
-    pub method: &'static str,
-    pub precision: &'static str,
-    /// `random` directions, or `aimed` at points of mesh edges and at mesh vertices.
-    pub kind: &'static str,
-    pub rays: u64,
-    /// Rays for which no triangle reported a hit (they leaked through a crack).
-    pub escaped: u64,
-    pub rate: f64,
-    /// Rays checked by the exact oracle (every escaped ray, up to 64, plus 16 others).
-    pub oracle_checked: u64,
-    /// Checked rays the oracle found escaping or with an even crossing count off edges and
-    /// vertices: must be 0 (the origin is inside a closed mesh).
-    pub oracle_violations: u64,
-}
-
-/// A closed mesh: vertices (rounded once to the precision, shared exactly) and index triples.
-pub struct Mesh {
-    pub vertices: Vec<V<f64>>,
-    pub faces: Vec<[usize; 3]>,
-}
-
-/// The subdivided icosahedron of `level` around `center` with radius `radius`, outward faces.
-pub fn icosphere(level: u32, center: V<f64>, radius: f64, prec: Precision) -> Mesh {
-    let g = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut vs: Vec<V<f64>> = [
-        [-1.0, g, 0.0],
-        [1.0, g, 0.0],
-        [-1.0, -g, 0.0],
-        [1.0, -g, 0.0],
-        [0.0, -1.0, g],
-        [0.0, 1.0, g],
-        [0.0, -1.0, -g],
-        [0.0, 1.0, -g],
-        [g, 0.0, -1.0],
-        [g, 0.0, 1.0],
-        [-g, 0.0, -1.0],
-        [-g, 0.0, 1.0],
-    ]
-    .to_vec();
-    let mut faces: Vec<[usize; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    let norm = |v: V<f64>| scale(v, 1.0 / dot(v, v).sqrt());
-    vs = vs.into_iter().map(norm).collect();
-    for _ in 0..level {
-        let mut mid = std::collections::HashMap::new();
-        let mut next = vec![];
-        for f in &faces {
-            let m: Vec<usize> = (0..3)
-                .map(|k| {
-                    let (a, b) = (f[k], f[(k + 1) % 3]);
-                    *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                        vs.push(norm(scale(add(vs[a], vs[b]), 0.5)));
-                        vs.len() - 1
-                    })
-                })
-                .collect();
-            next.extend([
-                [f[0], m[0], m[2]],
-                [f[1], m[1], m[0]],
-                [f[2], m[2], m[1]],
-                [m[0], m[1], m[2]],
-            ]);
-        }
-        faces = next;
-    }
-    let vertices = vs
-        .into_iter()
-        .map(|v| rv(add(center, scale(v, radius)), prec))
-        .collect();
-    Mesh { vertices, faces }
-}
-
-/// The mesh of the watertightness test: level-3 icosphere (1280 triangles) of radius 1 centred
-/// at about 1e5 from the origin, where an `f32` ulp is 1/128 (vertices move by up to 0.4 % of
-/// the radius when rounded).
-pub fn test_mesh(prec: Precision) -> Mesh {
-    icosphere(3, [1.0e5, -0.75e5, 0.5e5], 1.0, prec)
-}
-
-/// Whether method `m` reports any hit of the ray on the mesh.
-fn mesh_hit<F: Real>(f: TriFn<F>, mesh: &[[V<F>; 3]], o: V<F>, d: V<F>) -> bool {
-    mesh.iter().any(|p| f(o, d, *p).is_some())
-}
-
-/// The exact check of one ray: at least one crossing, and an odd number of them unless the ray
-/// touches an edge or a vertex of a triangle it crosses.
-pub fn exact_mesh_ok(mesh: &Mesh, o: V<f64>, d: V<f64>) -> bool {
-    let (mut count, mut boundary) = (0u32, false);
-    for f in &mesh.faces {
-        let p = f.map(|i| mesh.vertices[i]);
-        if let ExactTri::Hit { boundary: b, .. } = exact_tri(&flat(o, d, p)) {
-            count += 1;
-            boundary |= b;
-        }
-    }
-    count > 0 && (boundary || count % 2 == 1)
-}
-
-/// Rays from random origins inside the far mesh (`rays` of each kind): how many escape through
-/// cracks, per method.
-pub fn watertight_test(seed: u64, rays: u64, prec: Precision) -> Vec<WatertightRow> {
-    match prec {
-        Precision::F32 => watertight_in::<f32>(seed, rays, prec),
-        Precision::F64 => watertight_in::<f64>(seed, rays, prec),
-    }
-}
-
-fn watertight_in<F: Real>(seed: u64, rays: u64, prec: Precision) -> Vec<WatertightRow> {
-    let mesh = test_mesh(prec);
-    let tris: Vec<[V<F>; 3]> = mesh
-        .faces
-        .iter()
-        .map(|f| f.map(|i| mesh.vertices[i].map(F::from_f64)))
-        .collect();
-    let center = [1.0e5, -0.75e5, 0.5e5];
-    let mut rows = vec![];
-    for kind in ["random", "aimed"] {
-        // The rays (origin within half the radius of the centre), in f64 and rounded once
-        let mut rng = ChaCha8Rng::seed_from_u64(seed ^ (kind.len() as u64) << 32);
-        let cases: Vec<(V<f64>, V<f64>)> = (0..rays)
-            .map(|_| {
-                let o = rv(add(center, scale(ball(&mut rng), 0.5)), prec);
-                let d = if kind == "random" {
-                    unit(&mut rng)
-                } else {
-                    let f = mesh.faces[rng.random_range(0..mesh.faces.len())];
-                    let (a, b) = (mesh.vertices[f[0]], mesh.vertices[f[1]]);
-                    let u = if rng.random_bool(0.25) {
-                        0.0
-                    } else {
-                        rng.random::<f64>()
-                    };
-                    sub(add(a, scale(sub(b, a), u)), o)
-                };
-                (o, rv(d, prec))
-            })
-            .collect();
-        for (m, info) in METHODS.iter().enumerate() {
-            let f = method::<F>(m);
-            let escaped: Vec<usize> = (0..cases.len())
-                .filter(|&k| {
-                    let (o, d) = cases[k];
-                    !mesh_hit(f, &tris, o.map(F::from_f64), d.map(F::from_f64))
-                })
-                .collect();
-            // The oracle confirms every escape checked, and a sample of the others
-            let sample: Vec<usize> = escaped
-                .iter()
-                .copied()
-                .take(64)
-                .chain((0..16).map(|k| k * cases.len() / 16))
-                .filter(|&k| k < cases.len())
-                .collect();
-            let violations = sample
-                .iter()
-                .filter(|&&k| !exact_mesh_ok(&mesh, cases[k].0, cases[k].1))
-                .count();
-            rows.push(WatertightRow {
-                method: info.name,
-                precision: F::NAME,
-                kind,
-                rays,
-                escaped: escaped.len() as u64,
-                rate: escaped.len() as f64 / rays.max(1) as f64,
-                oracle_checked: sample.len() as u64,
-                oracle_violations: violations as u64,
-            });
-        }
-    }
-    rows
-}
-
-// ---- reintersection ----
-
-/// Spawned rays per computed hit (half on each side of the surface).
-pub const SPAWNS_PER_HIT: usize = 16;
+// ---- the hit point a renderer spawns rays from (reintersection test) ----
 
 /// The hit point and its per-component error bound, as each method can justify them:
 /// - `chapter` evaluates its own point `R = o + t·d`; it has no bound on the error of its `t`,
@@ -1012,7 +812,13 @@ pub const SPAWNS_PER_HIT: usize = 16;
 /// - `moller_trumbore`, `watertight`, `watertight_wide` reproject onto the triangle from their
 ///   barycentrics, `p = Σ bᵢpᵢ` with pbrt's bound `γ(7)·Σ|bᵢpᵢ|` (valid whatever the errors of
 ///   the `bᵢ`, since `Σbᵢ = 1` up to rounding).
-fn hit_point<F: Real>(m: usize, o: V<F>, d: V<F>, p: &[V<F>; 3], h: &TriHit<F>) -> (V<F>, V<F>) {
+pub(crate) fn hit_point<F: Real>(
+    m: usize,
+    o: V<F>,
+    d: V<F>,
+    p: &[V<F>; 3],
+    h: &TriHit<F>,
+) -> (V<F>, V<F>) {
     if m == 0 {
         let td = scale(d, h.t);
         let g = gamma::<F>(2);
@@ -1030,84 +836,6 @@ fn hit_point<F: Real>(m: usize, o: V<F>, d: V<F>, p: &[V<F>; 3], h: &TriHit<F>) 
     (pt, scale(sum_abs, g))
 }
 
-/// pbrt `Triangle.Reintersect` style: per decade of scale in 1e-4 … 1e4, `per_scale` random
-/// triangles (offset from the origin by up to 100× their size) each hit by one random ray; each
-/// computed hit spawns [`SPAWNS_PER_HIT`] rays with [`spawn_origin`] (half towards the side the
-/// ray came from, half through), which the same method tests against the same triangle. A
-/// re-hit is a reported hit that the exact oracle says is a miss, or at a `t` below half the
-/// exact one. One row per method.
-pub fn reintersection(seed: u64, per_scale: u64, prec: Precision) -> Vec<ReintersectRow> {
-    match prec {
-        Precision::F32 => reintersect_in::<f32>(seed, per_scale),
-        Precision::F64 => reintersect_in::<f64>(seed, per_scale),
-    }
-}
-
-fn reintersect_in<F: Real>(seed: u64, per_scale: u64) -> Vec<ReintersectRow> {
-    let prec = if F::MANT_BITS == 24 {
-        Precision::F32
-    } else {
-        Precision::F64
-    };
-    let mut rows: Vec<ReintersectRow> = METHODS
-        .iter()
-        .map(|info| ReintersectRow {
-            shape: "triangle",
-            method: info.name,
-            precision: F::NAME,
-            robust: info.name == "watertight" || info.robust,
-            rays: 0,
-            rehits: 0,
-            scales: [-4.0, 4.0],
-        })
-        .collect();
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    for decade in -4..4 {
-        for _ in 0..per_scale {
-            // A random triangle and a ray aimed inside it
-            let s = lu(&mut rng, decade as f64, decade as f64 + 1.0);
-            let c = std::array::from_fn(|_| s * 100.0 * rng.random_range(-1.0..1.0));
-            let (o, _, p) = general(&mut rng, c, s, 0.0, 1.0);
-            let (u, v) = (rng.random::<f64>(), rng.random::<f64>());
-            let (u, v) = if u + v > 1.0 {
-                (1.0 - u, 1.0 - v)
-            } else {
-                (u, v)
-            };
-            let (o, p) = (rv(o, prec), p.map(|x| rv(x, prec)));
-            let d = rv(sub(bary(&p, u, v), o), prec);
-            let dirs: Vec<V<f64>> = (0..SPAWNS_PER_HIT).map(|_| unit(&mut rng)).collect();
-            for (m, row) in rows.iter_mut().enumerate() {
-                let (rf, pf) = (split::<F>(&flat(o, d, p)), method::<F>(m));
-                let (of, df, tri) = rf;
-                let Some(h) = pf(of, df, tri) else { continue };
-                let (pt, err) = hit_point(m, of, df, &tri, &h);
-                let n = cross(sub(tri[1], tri[0]), sub(tri[2], tri[0]));
-                let back = dot(df, n) > F::ZERO;
-                for (k, w) in dirs.iter().enumerate() {
-                    // Half to the incoming side, half through the surface
-                    let w = w.map(F::from_f64);
-                    let into = (dot(w, n) > F::ZERO) == back;
-                    let w = if into == (k % 2 == 0) {
-                        w
-                    } else {
-                        scale(w, -F::ONE)
-                    };
-                    let po = spawn_origin(pt, err, n, w);
-                    row.rays += 1;
-                    let Some(h2) = pf(po, w, tri) else { continue };
-                    // Is the reported hit really there?
-                    let to64 = |x: V<F>| x.map(|y| y.to_f64());
-                    let ex = exact_tri(&flat(to64(po), to64(w), p));
-                    let real = ex.t().is_some_and(|t| q(h2.t.to_f64()) * 2u32 >= t);
-                    row.rehits += !real as u64;
-                }
-            }
-        }
-    }
-    rows
-}
-
 /// Cases of a class for tests and benches (the audit's own generator, seeded per case).
 pub fn cases(seed: u64, class: &str, prec: Precision, n: u64) -> Vec<Vec<f64>> {
     let k = CLASSES
@@ -1122,7 +850,8 @@ pub fn cases(seed: u64, class: &str, prec: Precision, n: u64) -> Vec<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::Rng;
+    use crate::numerics::exact::q;
+    use rand::{Rng, SeedableRng};
 
     /// The wide fallback's sign of `a·b − c·d` is exact, on products that nearly cancel.
     #[test]
@@ -1150,6 +879,54 @@ mod tests {
             let exact = q(a as f64) * q(b as f64) - q(c as f64) * q(d as f64);
             assert_eq!(dop_wide(a, b, c, d).partial_cmp(&0.0), exact.cmp0().into());
         }
+    }
+
+    /// The wide fallback has teeth. Kahan's FMA `a·b − c·d` has a relative error ≤ 2u
+    /// (Jeannerod, Louvet & Muller 2013), so outside underflow its 0 is an exact 0 and the
+    /// fallback finds the same 0. It decides only where the edge products underflow: an edge
+    /// `b c` a subnormal distance from the ray, with the triangle close enough to the origin
+    /// that pbrt's `Δt` does not reject the hit. A seeded search finds such triangles; wherever
+    /// the answer with the fallback differs from the answer without it, the watertight method
+    /// must agree with the exact oracle, and there must be at least one such triangle.
+    #[test]
+    fn wide_fallback_decides_underflowed_edge_functions() {
+        let mut rng = ChaCha8Rng::seed_from_u64(17);
+        let (mut found, mut decided) = (0, 0);
+        for _ in 0..200_000 {
+            // c tiny, b nearly −k·c: the line b–c passes next to the ray
+            let c: [f32; 2] = std::array::from_fn(|_| rng.random_range(1e-22f32..1e-20));
+            let k: f32 = rng.random_range(0.5..2.0);
+            let b: [f32; 2] = std::array::from_fn(|i| -k * c[i] * rng.random_range(0.99..1.01f32));
+            let exact = (b[0] as f64) * (c[1] as f64) - (b[1] as f64) * (c[0] as f64);
+            if dop_fma(b[0], c[1], b[1], c[0]) != 0.0 || exact == 0.0 {
+                continue;
+            }
+            found += 1;
+            let z: f32 = 10f32.powf(rng.random_range(-25.0..1.0));
+            let dz: f32 = 10f32.powf(rng.random_range(-20.0..0.0));
+            let a: [f32; 2] = [-rng.random_range(1e-21f32..1.0), 0.0];
+            let tri = [[a[0], a[1], z], [b[0], b[1], z], [c[0], c[1], z]];
+            let (o, d) = ([0.0f32; 3], [0.0f32, 0.0, dz]);
+            let v: Vec<f64> = o
+                .iter()
+                .chain(&d)
+                .chain(tri.iter().flatten())
+                .map(|&x| x as f64)
+                .collect();
+            let truth = exact_tri(&v).t().is_some();
+            let eps = 0.5 * 2f64.powi(-23);
+            let without = woop(o, d, tri, eps, true, dop_fma::<f32>, dop_fma::<f32>).is_some();
+            let with = watertight_hit(o, d, tri).is_some();
+            if with != without {
+                decided += 1;
+                assert_eq!(with, truth, "{v:?}");
+            }
+        }
+        println!("{found} underflowed edge functions, {decided} decided by the fallback");
+        assert!(
+            decided > 0,
+            "no case where the fallback decides: the test has no teeth"
+        );
     }
 
     #[test]

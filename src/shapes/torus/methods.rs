@@ -209,6 +209,11 @@ pub fn torus_robust<F: Real>(o: V<F>, d: V<F>, r1: F, r2: F) -> Option<F> {
     torus_robust_hit(o, d, r1, r2).map(|(t, _)| t)
 }
 
+/// `K` of the bound `γ(K)·(r1 + r2)` on every component of [`torus_robust_hit`]'s point (the
+/// reintersection test's error bound): the largest `|sdf(p)|/(ε(r1 + r2))` measured on the
+/// robust hits of every class, with a margin of two (`tests/torus.rs`).
+pub const ERR_GAMMA: u32 = 32;
+
 /// **Robust** hit: `t` and the hit point, computed near the torus.
 ///
 /// 0. Reject invalid input ([`is_valid`]); scale the direction by a power of two to unit size

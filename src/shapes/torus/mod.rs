@@ -1,21 +1,17 @@
-//! Ray–torus (seed 002 §2.5), the torus normal from the gradient (§3), and torus
-//! reintersection (issue 6 items 5, 6, 8).
+//! Ray–torus (seed 002 §2.5) and the torus normal from the gradient (§3) (issue 6 items 5, 6);
+//! its reintersection rows come from [`crate::shapes::reintersect`].
 //!
 //! - [`Torus`] (`torus`): the nearest `t > 0` of the ray `o + t·d` on the torus around the z
 //!   axis (major radius `r1`, minor radius `r2`), by four methods ([`methods`]).
 //! - [`TorusNormal`] (`torus_normal`): the unit normal at that hit, one method per torus method.
-//! - [`reintersect::reintersection`]: rays spawned from computed hits with the project's offset
-//!   rule, counted when a method hits the torus again where the exact answer says it must not.
 //!
 //! The renderer calls [`torus_robust`] and [`torus_normal`].
 
 pub mod cases;
 pub mod methods;
 pub mod oracle;
-pub mod reintersect;
 
-pub use methods::{torus_normal, torus_robust, torus_robust_hit};
-pub use reintersect::reintersection;
+pub use methods::{torus_normal, torus_robust, torus_robust_hit, ERR_GAMMA};
 
 use crate::audit::shape::{Answer, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::real::Real;
