@@ -213,6 +213,7 @@ fn audit_json_is_byte_identical_for_any_thread_count() {
     let args = |p: &std::path::Path| {
         vec![
             "audit".to_string(),
+            "--verbose".into(),
             "--cases".into(),
             "300".into(),
             "--seed".into(),
@@ -285,7 +286,7 @@ fn shards_cover_the_case_space() {
             "--shard",
             shard,
         ]);
-        let text = String::from_utf8_lossy(&o.stdout);
+        let text = String::from_utf8_lossy(&o.stderr);
         assert!(text.contains("sphere: 25 cases × 1 methods"), "{text}");
     }
 }

@@ -417,3 +417,21 @@ fn measure_tolerance_table() {
     let breaks = &r.failures();
     assert!(breaks.is_empty(), "{}", breaks.join("\n"));
 }
+
+#[test]
+fn fold_grazing_misses_of_the_watertight_methods_are_all_ill_posed() {
+    for prec in Precision::ALL {
+        for r in watertight_audit(7, 2000, prec)
+            .iter()
+            .filter(|r| r.mesh == "fold")
+        {
+            println!(
+                "{} {}: {} grazing, {} well-posed",
+                r.method, r.precision, r.grazing, r.grazing_well_posed
+            );
+            if r.method.starts_with("watertight") {
+                assert_eq!(r.grazing_well_posed, 0, "{r:?}");
+            }
+        }
+    }
+}

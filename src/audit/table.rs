@@ -69,6 +69,14 @@ pub fn legend(report_seed: u64, shard: &str) -> String {
     )
 }
 
+/// The summary's legend: one line.
+pub fn short_legend(report_seed: u64, shard: &str) -> String {
+    format!(
+        "rayproof audit — seed {report_seed} (shard {shard}); one line per routine family × precision \
+         (wrong = wrong verdicts on well-posed cases; --verbose or --markdown: the full tables)\n"
+    )
+}
+
 /// One shape's terminal table: a block per precision × class.
 pub fn shape_table(s: &ShapeReport) -> String {
     let cond = s.rows.iter().any(|r| r.err_over_cond.is_some());
@@ -246,6 +254,75 @@ pub fn worst_cases(s: &ShapeReport, per_row: usize) -> String {
                 e.probe
             );
         }
+    }
+    out
+}
+
+/// The one-screen summary of a shape: one line per precision with its cases, the method with
+/// the most wrong verdicts (its rate over well-posed cases and its worst class) and the rows'
+/// verdict (`FAIL` when a row is out of tolerance; unjudged for a shard).
+pub fn summary(s: &ShapeReport) -> String {
+    let mut out = String::new();
+    let mut precisions: Vec<_> = s.rows.iter().map(|r| r.precision).collect();
+    precisions.dedup();
+    for p in precisions {
+        let rows: Vec<&Row> = s.rows.iter().filter(|r| r.precision == p).collect();
+        let Some(first) = rows.first() else { continue };
+        let cases: u64 = rows
+            .iter()
+            .filter(|r| r.method == first.method)
+            .map(|r| r.cases)
+            .sum();
+        let methods = rows.iter().filter(|r| r.class == first.class).count();
+        // The method with the highest overall wrong-verdict rate, and its worst class
+        let mut worst: Option<(f64, &str, &str)> = None;
+        for m in rows
+            .iter()
+            .filter(|r| r.class == first.class)
+            .map(|r| r.method.as_str())
+        {
+            let mine: Vec<&&Row> = rows.iter().filter(|r| r.method == m).collect();
+            let wrong: u64 = mine.iter().map(|r| r.wrong()).sum();
+            let posed: u64 = mine.iter().map(|r| r.well_posed).sum();
+            let rate = wrong as f64 / posed.max(1) as f64;
+            let class = mine
+                .iter()
+                .max_by(|a, b| a.wrong_rate.total_cmp(&b.wrong_rate))
+                .map_or("", |r| r.class.as_str());
+            if worst.is_none_or(|w| rate > w.0) {
+                worst = Some((rate, m, class));
+            }
+        }
+        let count = |st: Status| {
+            rows.iter()
+                .filter(|r| r.verdict.as_ref().is_some_and(|v| v.status == st))
+                .count()
+        };
+        let verdict = if rows.iter().all(|r| r.verdict.is_none()) {
+            "unjudged (shard)".to_string()
+        } else if count(Status::Fail) > 0 {
+            format!("FAIL ({} rows out of tolerance)", count(Status::Fail))
+        } else {
+            format!(
+                "pass ({} rows within their rule, {} known failures)",
+                count(Status::Pass),
+                count(Status::KnownFailure)
+            )
+        };
+        let worst = match worst {
+            Some((rate, m, class)) if rate > 0.0 => {
+                format!("worst {m} {:.3} % wrong (most on {class})", 100.0 * rate)
+            }
+            _ => "no wrong verdict".to_string(),
+        };
+        let _ = writeln!(
+            out,
+            "{:<16} {} {:>9} cases × {} methods  {worst:<52} {verdict}",
+            s.shape,
+            p.name(),
+            cases,
+            methods,
+        );
     }
     out
 }

@@ -162,9 +162,13 @@ pub struct AuditOutput {
     /// Write the table as Markdown.
     #[arg(long)]
     pub markdown: Option<PathBuf>,
-    /// Replayable worst cases to print per row (0 for none).
+    /// Replayable worst cases to print per row with --verbose (0 for none).
     #[arg(long, default_value_t = 1)]
     pub worst: usize,
+    /// Print every shape's full table and the robustness tables, not one line per family ×
+    /// precision.
+    #[arg(long, short)]
+    pub verbose: bool,
 }
 
 #[derive(Args, Debug)]
@@ -190,11 +194,24 @@ pub(super) fn load_table(user: &Option<PathBuf>, known: &Known) -> Result<Table>
     Table::load(file, known).map_err(|e| anyhow!("tolerances: {e}"))
 }
 
-/// Prints a shape's table and worst cases.
-pub(super) fn print_shape(r: &ShapeReport, worst: usize) {
+/// Prints a shape's summary, or with `--verbose` its table and worst cases.
+pub(super) fn print_shape(r: &ShapeReport, out: &AuditOutput) {
+    if !out.verbose {
+        say_raw!("{}", table::summary(r));
+        return;
+    }
     say_raw!("{}", table::shape_table(r));
-    if worst > 0 {
-        say_raw!("{}", table::worst_cases(r, worst));
+    if out.worst > 0 {
+        say_raw!("{}", table::worst_cases(r, out.worst));
+    }
+}
+
+/// The legend: one line, or with `--verbose` the table's.
+pub(super) fn print_legend(seed: u64, shard: &str, out: &AuditOutput) {
+    if out.verbose {
+        say_raw!("{}", table::legend(seed, shard));
+    } else {
+        say_raw!("{}", table::short_legend(seed, shard));
     }
 }
 
@@ -221,7 +238,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     let shard_label = format!("{}/{}", a.shard.0, a.shard.1);
     // A shard is judged by its merge, not here
     let judge = a.shard_out.is_none() && a.shard == (0, 1);
-    say_raw!("{}", table::legend(a.seed, &shard_label));
+    print_legend(a.seed, &shard_label, &a.out);
     // Each shape in turn, printed as it finishes
     let mut runs: Vec<Tallies> = vec![];
     let mut reports = vec![];
@@ -230,13 +247,14 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         crate::audit::run::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
         let t = plan.run_shape(i, std::io::stderr().is_terminal())?;
         let r = t.report(judge.then_some(&table));
-        print_shape(&r, a.out.worst);
+        print_shape(&r, &a.out);
         let secs = start.elapsed().as_secs_f64();
         let oracle = crate::audit::run::ORACLE_NANOS.load(std::sync::atomic::Ordering::Relaxed)
             as f64
             * 1e-9;
         let n = crate::audit::run::shard_len(t.cases, a.shard) * t.groups.len() as u64;
-        say!(
+        // Progress, off the report: one line per finished family on stderr
+        eprintln!(
             "{}: {n} cases × {} methods in {secs:.1} s on {} threads ({:.0} cases/s; the oracle alone {oracle:.1} s of CPU)",
             r.shape,
             t.methods.len(),
@@ -266,7 +284,9 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         );
         return Ok(0);
     }
-    let robustness = plan.robustness().map(print_robustness);
+    let robustness = plan
+        .robustness()
+        .map(|r| print_robustness(r, a.out.verbose));
     finish(
         Report {
             tool: TOOL,
@@ -281,9 +301,13 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     )
 }
 
-/// Runs the reintersection and watertightness tests' table into the output.
-fn print_robustness(r: Robustness) -> Robustness {
-    say_raw!("{}", robustness::table(&r, false));
+/// Prints the reintersection and watertightness tests' summary (with `--verbose`, tables).
+fn print_robustness(r: Robustness, verbose: bool) -> Robustness {
+    if verbose {
+        say_raw!("{}", robustness::table(&r, false));
+    } else {
+        say_raw!("{}", robustness::summary(&r));
+    }
     r
 }
 
@@ -306,12 +330,12 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
         .flat_map(|t| t.methods.iter().map(|x| (t.shape.name(), x.name.clone())))
         .collect();
     let table = load_table(&m.out.tolerances, &crate::audit::plan::known_names(extra))?;
-    say_raw!("{}", table::legend(merged.seed, "0/1"));
+    print_legend(merged.seed, "0/1", &m.out);
     let mut reports = vec![];
     for t in &merged.shapes {
         let r = t.report(Some(&table));
-        print_shape(&r, m.out.worst);
-        say!(
+        print_shape(&r, &m.out);
+        eprintln!(
             "{}: {} cases × {} methods merged from {count} shards",
             r.shape,
             t.cases * t.groups.len() as u64,
@@ -340,7 +364,8 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
         })
         .map(|t| t.shape.name())
         .collect();
-    let robustness = robustness::run(merged.seed, &names, &precisions).map(print_robustness);
+    let robustness = robustness::run(merged.seed, &names, &precisions)
+        .map(|r| print_robustness(r, m.out.verbose));
     finish(
         Report {
             tool: TOOL,
@@ -400,14 +425,15 @@ pub(super) fn finish(
     for u in &undecided {
         say!("  undecided: {u}");
     }
+    // The failures, then the verdict as the last line
+    for f in &failures {
+        say!("  {f}");
+    }
     if failures.is_empty() {
         say!("verdict: pass");
         Ok(0)
     } else {
-        say!("verdict: {} failure(s)", failures.len());
-        for f in &failures {
-            say!("  {f}");
-        }
+        say!("verdict: {} failure(s) (listed above)", failures.len());
         Ok(1)
     }
 }

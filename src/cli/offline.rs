@@ -1,11 +1,11 @@
 //! `rayproof cases` and `rayproof score`: audit code that cannot be called (see
 //! [`crate::audit::offline`] for the two file formats).
 
-use super::audit::{finish, load_table, print_shape, AuditOutput};
+use super::audit::{finish, load_table, print_legend, print_shape, AuditOutput};
 use super::*;
 use crate::audit::offline::{read_answers, read_cases, score_plan, write_cases};
 use crate::audit::plan::{Options, Plan};
-use crate::audit::{table, Report, TOOL};
+use crate::audit::{Report, TOOL};
 use crate::numerics::Precision;
 use crate::output::{check_output_dirs, write_atomic};
 use anyhow::{anyhow, bail, Context, Result};
@@ -96,9 +96,9 @@ pub(super) fn run_score(a: ScoreArgs) -> Result<u8> {
     let plan = score_plan(&cases, answers, &a.method).map_err(|e| anyhow!(e))?;
     // Judged and printed as the audit does
     let table = load_table(&a.out.tolerances, &plan.known())?;
-    say_raw!("{}", table::legend(plan.seed, "0/1"));
+    print_legend(plan.seed, "0/1", &a.out);
     let report = plan.run_shape(0, false)?.report(Some(&table));
-    print_shape(&report, a.out.worst);
+    print_shape(&report, &a.out);
     finish(
         Report {
             tool: TOOL,

@@ -74,6 +74,17 @@ pub fn run(seed: u64, shapes: &[&str], precisions: &[Precision]) -> Option<Robus
     })
 }
 
+/// The surfaces of the rows, each once, in order.
+fn surfaces(rows: &[ReintersectRow]) -> Vec<&'static str> {
+    let mut out = vec![];
+    for x in rows {
+        if !out.contains(&x.shape) {
+            out.push(x.shape);
+        }
+    }
+    out
+}
+
 /// The robust methods' goal: no re-hit and no escaped ray. One line per row that misses it.
 pub fn check(r: &Robustness) -> Vec<String> {
     let robust_tri: Vec<&str> = triangle::METHODS
@@ -99,8 +110,7 @@ pub fn check(r: &Robustness) -> Vec<String> {
         ));
     }
     // Teeth: without the rule (or with it 1000× too weak) some method of each shape must re-hit
-    let mut shapes: Vec<&str> = r.reintersection.iter().map(|x| x.shape).collect();
-    shapes.dedup();
+    let shapes = surfaces(&r.reintersection);
     for shape in shapes {
         for rule in [Rule::Weak, Rule::Off] {
             let rows = || {
@@ -134,6 +144,20 @@ pub fn check(r: &Robustness) -> Vec<String> {
             row.replay.as_deref().unwrap_or("-")
         ));
     }
+    for row in r
+        .watertight
+        .iter()
+        .filter(|x| robust_tri.contains(&x.method) && x.grazing_well_posed > 0)
+    {
+        out.push(format!(
+            "watertight {} {} fold: {} grazing misses on rays the oracle calls well-posed (goal 0); \
+             replay: {}",
+            row.method,
+            row.precision,
+            row.grazing_well_posed,
+            row.replay.as_deref().unwrap_or("-")
+        ));
+    }
     for row in r.watertight.iter().filter(|x| x.oracle_violations > 0) {
         out.push(format!(
             "watertight {} {} {} {}: the oracle found {} rays from inside that do not cross the \
@@ -155,6 +179,48 @@ pub fn check(r: &Robustness) -> Vec<String> {
         );
     }
     out
+}
+
+/// Two summary lines (a section that did not run is left out).
+pub fn summary(r: &Robustness) -> String {
+    let mut s = String::new();
+    let on = |x: &&ReintersectRow| x.rule == Rule::On.name();
+    let rows = &r.reintersection;
+    if !rows.is_empty() {
+        let shapes = surfaces(rows);
+        let sum = |f: &dyn Fn(&ReintersectRow) -> bool,
+                   g: &dyn Fn(&ReintersectRow) -> u64|
+         -> u64 { rows.iter().filter(|x| f(x)).map(g).sum() };
+        let robust = sum(&|x| x.robust && on(&x), &|x| x.rehits - x.neighbour);
+        let neighbour = sum(&|x| x.robust && on(&x), &|x| x.neighbour);
+        let spawned = sum(&|x| on(&x), &|x| x.rays);
+        let weak = sum(&|x| x.rule == Rule::Weak.name(), &|x| x.rehits);
+        let off = sum(&|x| x.rule == Rule::Off.name(), &|x| x.rehits);
+        s += &format!(
+            "reintersection   {} ({spawned} spawned rays per rule): robust methods {robust} re-hits \
+             with the offset rule (goal 0; {neighbour} neighbour crossings at hinges); controls: \
+             {weak} re-hits with it 1000x weak, {off} without\n",
+            shapes.join(", ")
+        );
+    }
+    let w = &r.watertight;
+    if !w.is_empty() {
+        let robust = |x: &&WatertightRow| x.method.starts_with("watertight");
+        let escaped: u64 = w.iter().filter(robust).map(|x| x.escaped).sum();
+        let grazing: u64 = w.iter().filter(robust).map(|x| x.grazing).sum();
+        let leaks: u64 = w.iter().filter(|x| !robust(x)).map(|x| x.escaped).sum();
+        let rays: u64 = w
+            .iter()
+            .filter(|x| x.method == "watertight")
+            .map(|x| x.rays)
+            .sum();
+        s += &format!(
+            "watertightness   {rays} rays per method (closed meshes near and far, folds): watertight \
+             methods {escaped} escapes (goal 0), {grazing} grazing silhouette misses (ill-posed); \
+             chapter and Möller–Trumbore {leaks} escapes\n"
+        );
+    }
+    s
 }
 
 /// The terminal / Markdown table (Markdown when `md`).

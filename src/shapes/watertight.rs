@@ -19,14 +19,16 @@
 //!   both. That is what the method does by design: its edge functions are evaluated once per
 //!   edge and shared by both triangles, so it cannot leak *between* them, but near a silhouette
 //!   both lie on one side of the edge and a rounding of the shear moves the ray off both at once.
-//!   The `grazing` column counts it; its replay line shows it.
+//!   The `grazing` column counts it; its replay line shows it. Every such miss of the
+//!   watertight methods is on a ray the oracle calls ill-posed (a one-ulp move of some input
+//!   changes the answer), and the audit fails if one is not (`grazing_well_posed`).
 //!
 //! A row's `replay` is the `rayproof probe triangle` line of the first escaped (or grazing) ray
 //! and the triangle the exact oracle says it crosses first.
 
 use super::sample::{add, ball, lu, mul, normalize, rpv, sub, unit, V};
-use super::triangle::{exact_tri, method, ExactTri, METHODS};
-use crate::audit::shape::{case_rng, probe_line};
+use super::triangle::{self, exact_tri, method, ExactTri, METHODS};
+use crate::audit::shape::{case_rng, probe_line, Truth};
 use crate::numerics::exact::q;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
@@ -52,6 +54,9 @@ pub struct WatertightRow {
     /// Fold rays across a silhouette edge that the oracle says hit and the method misses
     /// (not a leak; see the module doc).
     pub grazing: u64,
+    /// Of those, rays the oracle does not call ill-posed for either triangle (a one-ulp move of
+    /// no input changes its answer): misses no rounding excuses.
+    pub grazing_well_posed: u64,
     /// Rays checked by the exact oracle (closed meshes: every escape, up to 64, plus 16 others).
     pub oracle_checked: u64,
     /// Checked rays from inside a closed mesh that the oracle finds escaping, or crossing an
@@ -208,6 +213,7 @@ fn row(
         escaped: 0,
         rate: 0.0,
         grazing: 0,
+        grazing_well_posed: 0,
         oracle_checked: 0,
         oracle_violations: 0,
         replay: None,
@@ -312,6 +318,15 @@ fn fold(rng: &mut ChaCha8Rng, prec: Precision) -> ([[V; 3]; 2], V, V) {
     ([[a, b, c], [c, b, e]], o, rpv(prec, sub(aim, o)))
 }
 
+/// Whether the oracle calls the ray ill-posed against either triangle.
+fn ill_posed(prec: Precision, tris: &[[V; 3]; 2], o: V, d: V) -> bool {
+    tris.iter()
+        .any(|p| match triangle::truth(&flat(o, d, *p), prec) {
+            Truth::Answer(e) => e.ill_posed,
+            Truth::Invalid => false,
+        })
+}
+
 /// Rays from outside aimed at the shared edges of folds.
 fn folds(seed: u64, rays: u64, prec: Precision) -> Vec<WatertightRow> {
     // (the fold, the ray, whether the edge is a silhouette from o), for rays the oracle says hit
@@ -343,6 +358,10 @@ fn folds(seed: u64, rays: u64, prec: Precision) -> Vec<WatertightRow> {
             r.escaped = leaks.len() as u64;
             r.rate = r.escaped as f64 / r.rays.max(1) as f64;
             r.grazing = (missed.len() - leaks.len()) as u64;
+            r.grazing_well_posed = missed
+                .iter()
+                .filter(|x| x.3 && !ill_posed(prec, &x.0, x.1, x.2))
+                .count() as u64;
             r.replay = leaks
                 .first()
                 .map(|x| **x)
