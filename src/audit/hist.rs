@@ -94,7 +94,7 @@ impl Hist {
 /// Significant bits kept by [`FloatHist`].
 const FLOAT_BITS: u32 = 8;
 
-/// A histogram of non-negative reals rounded to [`FLOAT_BITS`] significant bits, with the
+/// A histogram of non-negative reals rounded to `FLOAT_BITS` significant bits, with the
 /// exact maximum beside it.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct FloatHist {

@@ -4,7 +4,7 @@
 //! - [`shape`]: what a routine family is ([`Shape`]: fixed facts in a [`ShapeInfo`], plus
 //!   `generate`, `oracle`, `run`) and what a method under audit is ([`Method`]: a shape's own
 //!   [`Builtin`], or one written outside the crate);
-//! - [`judge`]: one rule turns (truth, answer) into a [`Judgement`];
+//! - [`judge()`]: one rule turns (truth, answer) into a [`Judgement`];
 //! - [`run`]: cases generated per `(seed, shape, class, precision, index)`, judged in parallel
 //!   and added to mergeable [`tally::Tally`]s, so reports do not depend on the thread count and
 //!   shards merge exactly ([`shard`]);

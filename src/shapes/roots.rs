@@ -182,7 +182,7 @@ const QUARTIC_METHODS: &[MethodInfo] = &[
     },
 ];
 
-/// Every class; a degree uses the ones that exist for it (see [`Roots::classes`]).
+/// Every class; a degree uses the ones that exist for it (see `Roots::classes`).
 pub const GENERIC: &str = "generic";
 pub const DOUBLE_ROOT: &str = "double_root";
 pub const CLUSTERED: &str = "clustered";

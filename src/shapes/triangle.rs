@@ -292,7 +292,7 @@ fn woop<S: Scalar>(
 /// **Watertight** (Woop, Benthin & Wald 2013; pbrt-v4 `IntersectTriangle`): translate to the
 /// origin, permute so that the largest `|d|` axis is z, shear, FMA edge functions
 /// (`DifferenceOfProducts`); when an edge function is exactly 0 all three are re-evaluated in the
-/// wider type ([`dop_wide`]: `f64` for `f32` as in pbrt, double-double for `f64`); conservative
+/// wider type (`dop_wide`: `f64` for `f32` as in pbrt, double-double for `f64`); conservative
 /// `t > Δt`. Additions to pbrt, for bad input only: non-finite input is rejected up front, and
 /// the `t` test is written NaN-safe.
 pub fn watertight_hit<F: Real>(o: V<F>, d: V<F>, p: [V<F>; 3]) -> Option<TriHit<F>> {
@@ -322,7 +322,7 @@ fn wide_eps<F: Real>() -> f64 {
 /// inputs, double-double for `f64`), `t` and the barycentrics rounded once. The audit's robust
 /// anchor: its rounding errors are ~2⁻²⁹ (f32) or ~2⁻⁴⁷ (f64) of what a one-ulp move of an input
 /// does, so only ill-posed cases can flip; its range covers the huge and tiny classes. Its `Δt`
-/// uses consistent units (see [`woop`]), so tiny directions keep their hits, while rays in the
+/// uses consistent units (see `woop`), so tiny directions keep their hits, while rays in the
 /// plane, whose `det` is rounding noise, are still rejected.
 pub fn watertight_wide_hit<F: Real>(o: V<F>, d: V<F>, p: [V<F>; 3]) -> Option<TriHit<F>> {
     if !all_finite(o, d, &p) {

@@ -1,7 +1,7 @@
 //! Reintersection: rays spawned from a computed hit must not hit their own surface again (issue 6
 //! item 8; issue 17 item 1 gave it teeth). One test for every surface: the box, the ellipsoid, the
 //! cylinder, the sphere, the torus, a single triangle and two triangles sharing an edge
-//! ([`surfaces`]).
+//! (`surfaces.rs`).
 //!
 //! **Instances.** Per precision, `per_scale` instances in each decade of size `10^[-4, 4)` and
 //! each placement: `near` (up to 100 sizes from the origin) and `far` (`10³`–`10⁵` sizes away,
@@ -13,7 +13,7 @@
 //!
 //! **Spawned rays.** Each method's hit gives the point a renderer really has, in the working
 //! precision (the method's own `o + t·d`, or its reprojection onto the surface where the method
-//! or pbrt does that), with a per-component error bound `err` ([`Surface::surface`]). From it,
+//! or pbrt does that), with a per-component error bound `err` (`Surface::surface`). From it,
 //! [`SPAWNED`] rays leave in random directions, half to the reflection side of the computed
 //! normal and half to the transmission side, from [`spawn_origin`] under three rules
 //! ([`Rule`]): the project's rule, the rule 1000× too weak, and no offset at all. The last two

@@ -90,7 +90,7 @@ fn splitmix(mut z: u64) -> u64 {
 const MAX_ATTEMPTS: usize = 200;
 
 /// Generates case `index` of `class`: the first proposal the oracle confirms as a member.
-/// Returns `None` only if [`MAX_ATTEMPTS`] proposals were all rejected (counted by the audit).
+/// Returns `None` only if `MAX_ATTEMPTS` proposals were all rejected (counted by the audit).
 pub fn generate<F: Real>(seed: u64, class: Class, index: u64) -> Option<Case<F>> {
     generate_from(&mut case_rng::<F>(seed, class, index), class)
 }

@@ -228,7 +228,7 @@ pub const ERR_GAMMA: u32 = 32;
 ///    power of two to `r1 ≈ 1` (exact), so no fourth power of a tiny or huge torus leaves the
 ///    format's range.
 /// 3. Solve the shifted quartic with the robust solver ([`poly::poly_roots_robust`]).
-/// 4. Refine each root `t'` (ascending) by Newton on the **signed distance** ([`sdf`]) at
+/// 4. Refine each root `t'` (ascending) by Newton on the **signed distance** (`sdf`) at
 ///    `p = o' + t'·d` (fused): the distance has a unit gradient and none of the cancellation
 ///    between the quartic's large terms, so the far roots of the shifted quartic gain the
 ///    accuracy its Horner form loses. A step is kept only while it shrinks `|sdf|` and moves
