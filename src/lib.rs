@@ -14,7 +14,6 @@
 //!   against one tolerance table ([`audit::tolerance`]).
 
 pub mod audit;
-pub mod cli;
 pub mod golden;
 pub mod images;
 pub mod implicit;

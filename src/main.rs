@@ -1,7 +1,10 @@
-//! The `rayproof` binary: parse, run, map errors to exit codes (see [`rayproof::cli`]).
+//! The `rayproof` binary: parse, run, map errors to exit codes. The command-line layer (`cli/`)
+//! lives here, outside the library's API: one file per command, argument definitions and printing.
 
 use clap::error::ErrorKind;
-use rayproof::cli::{error_exit_code, one_line, parse, run};
+mod cli;
+
+use cli::{error_exit_code, one_line, parse, run};
 use std::process::ExitCode;
 
 fn main() -> ExitCode {

@@ -1,8 +1,8 @@
 //! Value parsers shared by the commands' arguments (each error is one line).
 
-use crate::numerics::Precision;
-use crate::shapes::sphere::methods::{method_by_name, Method, METHODS};
 use anyhow::Result;
+use rayproof::numerics::Precision;
+use rayproof::shapes::sphere::methods::{method_by_name, Method, METHODS};
 
 pub(super) fn parse_spp(s: &str) -> Result<u32, String> {
     let n: u32 = s

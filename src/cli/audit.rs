@@ -1,16 +1,16 @@
 //! `rayproof audit` and `rayproof merge`.
 
 use super::*;
-use crate::audit::plan::{Options, Plan};
-use crate::audit::run::Tallies;
-use crate::audit::shard::{self, Shard};
-use crate::audit::tolerance::{Known, Status, Table};
-use crate::audit::{table, Report, ShapeReport, TOOL};
-use crate::numerics::Precision;
-use crate::output::{check_output_dirs, write_atomic};
-use crate::shapes::robustness::{self, Robustness};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
+use rayproof::audit::plan::{Options, Plan};
+use rayproof::audit::run::Tallies;
+use rayproof::audit::shard::{self, Shard};
+use rayproof::audit::tolerance::{Known, Status, Table};
+use rayproof::audit::{table, Report, ShapeReport, TOOL};
+use rayproof::numerics::Precision;
+use rayproof::output::{check_output_dirs, write_atomic};
+use rayproof::shapes::robustness::{self, Robustness};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -74,13 +74,16 @@ pub struct OutsideArgs {
 }
 
 /// An outside method, and for a plugin the precisions it has symbols for.
-type Outside = (Box<dyn crate::audit::Method + Send>, Option<Vec<Precision>>);
+type Outside = (
+    Box<dyn rayproof::audit::Method + Send>,
+    Option<Vec<Precision>>,
+);
 
 impl OutsideArgs {
     /// The outside method, if one is given, for a shape; with a plugin, its precisions.
-    pub fn method(&self, shape: &dyn crate::audit::Shape) -> Result<Option<Outside>> {
+    pub fn method(&self, shape: &dyn rayproof::audit::Shape) -> Result<Option<Outside>> {
         if let Some(cmd) = &self.exec {
-            let m = crate::audit::exec::Exec {
+            let m = rayproof::audit::exec::Exec {
                 name: self.name.clone().unwrap_or_else(|| "exec".into()),
                 command: cmd.clone(),
                 shape: shape.name().to_string(),
@@ -92,7 +95,7 @@ impl OutsideArgs {
             return Ok(None);
         }
         let p =
-            crate::audit::plugin::Plugin::load(&self.plugin, self.name.as_deref(), shape.info())
+            rayproof::audit::plugin::Plugin::load(&self.plugin, self.name.as_deref(), shape.info())
                 .map_err(|e| anyhow!(e))?;
         let precisions = p.precisions();
         Ok(Some((Box::new(p), Some(precisions))))
@@ -244,15 +247,15 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     let mut reports = vec![];
     for i in 0..plan.shapes.len() {
         let start = Instant::now();
-        crate::audit::run::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
+        rayproof::audit::run::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
         let t = plan.run_shape(i, std::io::stderr().is_terminal())?;
         let r = t.report(judge.then_some(&table));
         print_shape(&r, &a.out);
         let secs = start.elapsed().as_secs_f64();
-        let oracle = crate::audit::run::ORACLE_NANOS.load(std::sync::atomic::Ordering::Relaxed)
+        let oracle = rayproof::audit::run::ORACLE_NANOS.load(std::sync::atomic::Ordering::Relaxed)
             as f64
             * 1e-9;
-        let n = crate::audit::run::shard_len(t.cases, a.shard) * t.groups.len() as u64;
+        let n = rayproof::audit::run::shard_len(t.cases, a.shard) * t.groups.len() as u64;
         // Progress, off the report: one line per finished family on stderr
         eprintln!(
             "{}: {n} cases × {} methods in {secs:.1} s on {} threads ({:.0} cases/s; the oracle alone {oracle:.1} s of CPU)",
@@ -317,19 +320,22 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
     let mut shards = vec![];
     for p in &m.shards {
         let bytes = std::fs::read(p).with_context(|| format!("cannot read {}", p.display()))?;
-        let s = Shard::from_json(&bytes, crate::shapes::shape_by_name)
+        let s = Shard::from_json(&bytes, rayproof::shapes::shape_by_name)
             .map_err(|e| anyhow!("{}: {e}", p.display()))?;
         shards.push((p.display().to_string(), s));
     }
     // Check that they make up one audit (exit 3), merge, and judge as the unsharded run does
     let count = shards.len();
-    let merged = shard::merge(TOOL, shards, crate::shapes::shape_by_name)?;
+    let merged = shard::merge(TOOL, shards, rayproof::shapes::shape_by_name)?;
     let extra = merged
         .shapes
         .iter()
         .flat_map(|t| t.methods.iter().map(|x| (t.shape.name(), x.name.clone())))
         .collect();
-    let table = load_table(&m.out.tolerances, &crate::audit::plan::known_names(extra))?;
+    let table = load_table(
+        &m.out.tolerances,
+        &rayproof::audit::plan::known_names(extra),
+    )?;
     print_legend(merged.seed, "0/1", &m.out);
     let mut reports = vec![];
     for t in &merged.shapes {

@@ -8,11 +8,11 @@
 //! stale or unreadable): then `--update` writes nothing.
 
 use super::*;
-use crate::numerics::Precision;
-use crate::output::{check_output_dirs, write_atomic};
-use crate::shapes::sphere::methods::Method;
 use anyhow::Result;
 use clap::Args;
+use rayproof::numerics::Precision;
+use rayproof::output::{check_output_dirs, write_atomic};
+use rayproof::shapes::sphere::methods::Method;
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -54,7 +54,7 @@ pub struct CheckArgs {
 }
 
 pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
-    use crate::golden as check;
+    use rayproof::golden as check;
     check_output_dirs(&[&a.json, &a.junit, &a.markdown])?;
     let suite = check::Suite::load(&a.suite)?;
     // Extra configurations: each method × each precision

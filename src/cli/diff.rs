@@ -1,4 +1,4 @@
-//! `rayproof diff REF TEST`: the command line of the image comparison in [`crate::images`].
+//! `rayproof diff REF TEST`: the command line of the image comparison in [`rayproof::images`].
 //!
 //! Exit codes of `rayproof diff`:
 //! - 0: PASS
@@ -10,11 +10,11 @@
 //!
 //! Errors are one line on stderr, `error: …`, naming the file.
 //!
-//! Output files are written through [`crate::output`] (a temporary sibling renamed into place);
+//! Output files are written through [`rayproof::output`] (a temporary sibling renamed into place);
 //! their directories are checked before any image is read.
 
 use super::emit;
-use crate::images::{
+use rayproof::images::{
     abs_diff, abs_error_map, compare_as, flip_error, heatmap_rgb8, one_line, read_image,
     write_exr_rgb, write_png_rgb8, z_test, DiffReport, Semantics, SizeMismatch, Thresholds,
     ZParams,
@@ -257,7 +257,7 @@ fn diff(a: &DiffArgs) -> Result<u8, Exit> {
         if json_stdout {
             say_raw!("{text}");
         } else {
-            crate::output::write_atomic(p, text.as_bytes()).map_err(write_err)?;
+            rayproof::output::write_atomic(p, text.as_bytes()).map_err(write_err)?;
         }
     }
 

@@ -6,7 +6,7 @@ use anyhow::Result;
 pub(super) fn run_header() -> Result<u8> {
     say_raw!(
         "{}",
-        crate::audit::plugin::header(&crate::shapes::registry())
+        rayproof::audit::plugin::header(&rayproof::shapes::registry())
     );
     Ok(0)
 }

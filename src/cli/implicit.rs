@@ -1,9 +1,9 @@
 //! `rayproof implicit-check`: per-pixel tracing against image-space subdivision (seed 004).
 
 use super::*;
-use crate::output::{check_output_dirs, write_atomic};
 use anyhow::Result;
 use clap::Args;
+use rayproof::output::{check_output_dirs, write_atomic};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -26,9 +26,9 @@ pub struct ImplicitCheckArgs {
 
 /// `implicit-check`: both renders, the table, exit 1 if the certified mode differs in coverage.
 pub(super) fn run_implicit_check(a: ImplicitCheckArgs) -> Result<u8> {
-    use crate::implicit::{check, subdiv::Mode};
+    use rayproof::implicit::{check, subdiv::Mode};
     check_output_dirs(&[&a.json])?;
-    let sc = crate::render::scene::load(&a.scene)?;
+    let sc = rayproof::render::scene::load(&a.scene)?;
     let r = check::run(
         &sc,
         &check::Options {

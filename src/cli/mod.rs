@@ -115,7 +115,7 @@ pub enum Command {
 /// Parses the command line; `probe --help` lists the routines.
 pub fn parse() -> Result<Cli, clap::Error> {
     use clap::{CommandFactory, FromArgMatches};
-    let list: Vec<String> = crate::shapes::registry()
+    let list: Vec<String> = rayproof::shapes::registry()
         .iter()
         .map(|s| format!("  {:<16} {}", s.name(), s.info().about))
         .collect();
@@ -154,14 +154,14 @@ pub fn one_line(e: &clap::Error) -> String {
 
 /// The exit code of a command that failed with `e` (see the module documentation).
 pub fn error_exit_code(e: &anyhow::Error) -> u8 {
-    if e.downcast_ref::<crate::audit::shard::IncompatibleShards>()
+    if e.downcast_ref::<rayproof::audit::shard::IncompatibleShards>()
         .is_some()
-        || e.downcast_ref::<crate::golden::renderers::RendererFailed>()
+        || e.downcast_ref::<rayproof::golden::renderers::RendererFailed>()
             .is_some()
     {
         3
     } else if e
-        .downcast_ref::<crate::audit::run::MethodFailed>()
+        .downcast_ref::<rayproof::audit::run::MethodFailed>()
         .is_some()
     {
         4

@@ -1,15 +1,15 @@
 //! `rayproof cases` and `rayproof score`: audit code that cannot be called (see
-//! [`crate::audit::offline`] for the two file formats).
+//! [`rayproof::audit::offline`] for the two file formats).
 
 use super::audit::{finish, load_table, print_legend, print_shape, AuditOutput};
 use super::*;
-use crate::audit::offline::{read_answers, read_cases, score_plan, write_cases};
-use crate::audit::plan::{Options, Plan};
-use crate::audit::{Report, TOOL};
-use crate::numerics::Precision;
-use crate::output::{check_output_dirs, write_atomic};
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
+use rayproof::audit::offline::{read_answers, read_cases, score_plan, write_cases};
+use rayproof::audit::plan::{Options, Plan};
+use rayproof::audit::{Report, TOOL};
+use rayproof::numerics::Precision;
+use rayproof::output::{check_output_dirs, write_atomic};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -84,7 +84,7 @@ pub(super) fn run_score(a: ScoreArgs) -> Result<u8> {
         a.cases.display().to_string(),
         a.answers.display().to_string(),
     );
-    let cases = read_cases(&read(&a.cases)?, &cname, crate::shapes::shape_by_name)
+    let cases = read_cases(&read(&a.cases)?, &cname, rayproof::shapes::shape_by_name)
         .map_err(|e| anyhow!(e))?;
     if let Some(s) = a.shape.as_ref().filter(|s| *s != cases.shape.name()) {
         bail!(

@@ -2,11 +2,11 @@
 //! every method's. Every worst case of an audit prints the line that replays it.
 
 use super::*;
-use crate::audit::probe::{parse_values, probe_json, probe_text};
-use crate::audit::{Builtin, Method};
-use crate::numerics::Precision;
 use anyhow::{anyhow, bail, Result};
 use clap::{Parser, Subcommand};
+use rayproof::audit::probe::{parse_values, probe_json, probe_text};
+use rayproof::audit::{Builtin, Method};
+use rayproof::numerics::Precision;
 
 #[derive(Subcommand, Debug)]
 pub enum ProbeCommand {
@@ -36,7 +36,7 @@ pub struct ProbeShapeArgs {
 
 /// An outside method's failure (exit 4).
 fn failed(e: String) -> anyhow::Error {
-    anyhow::Error::new(crate::audit::run::MethodFailed(e))
+    anyhow::Error::new(rayproof::audit::run::MethodFailed(e))
 }
 
 pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
@@ -44,10 +44,10 @@ pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
     let ProbeCommand::Shape(argv) = p;
     // The shape, then its arguments (so that --help names its values)
     let name = argv.first().map(String::as_str).unwrap_or("");
-    let Some(shape) = crate::shapes::shape_by_name(name) else {
+    let Some(shape) = rayproof::shapes::shape_by_name(name) else {
         bail!(
             "probe: unknown shape '{name}' (known: {})",
-            crate::shapes::shape_names().join(", ")
+            rayproof::shapes::shape_names().join(", ")
         );
     };
     let info = shape.info();

@@ -1,14 +1,14 @@
 //! `rayproof reference SCENE --with povray,mitsuba`: references for your own scene, made by the
-//! real renderers, with a manifest entry each (see [`crate::golden::renderers`]).
+//! real renderers, with a manifest entry each (see [`rayproof::golden::renderers`]).
 //!
 //! Exit codes: 0 written; 2 bad usage or a scene that cannot be exported; 3 a renderer is
 //! missing (one line saying how to install it; nothing rendered) or failed (nothing written for
 //! it).
 
 use super::*;
-use crate::golden::renderers::{make, Request};
 use anyhow::Result;
 use clap::Args;
+use rayproof::golden::renderers::{make, Request};
 use std::path::PathBuf;
 use std::time::Duration;
 

@@ -1,11 +1,11 @@
 //! `rayproof render`, `export` and `downsample`.
 
 use super::*;
-use crate::numerics::Precision;
-use crate::output::check_output_dirs;
-use crate::shapes::sphere::methods::Method;
 use anyhow::{Context, Result};
 use clap::Args;
+use rayproof::numerics::Precision;
+use rayproof::output::check_output_dirs;
+use rayproof::shapes::sphere::methods::Method;
 use std::io::IsTerminal;
 use std::path::PathBuf;
 
@@ -73,12 +73,13 @@ pub struct DownsampleArgs {
 }
 
 pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
-    use crate::render::{self, output, scene};
+    use rayproof::render::{self, output, scene};
     let sc = scene::load(&a.scene)?;
     // Refuse before rendering if an output cannot be written
     check_output_dirs(&[&a.output, &a.png])?;
     // The size and grid asked for, within the documented limits
-    let fr = crate::render::export::Frame::of(&sc, a.width, a.spp).map_err(anyhow::Error::msg)?;
+    let fr =
+        rayproof::render::export::Frame::of(&sc, a.width, a.spp).map_err(anyhow::Error::msg)?;
     let ov = render::Overrides {
         method: a.method,
         precision: a.precision.map(|p| p.name()),
@@ -115,7 +116,7 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
     let lights = sc.file.lights.len() + sc.file.directional.len();
     say!("{}", render::budget_line(&r, lights));
     // The EXR, its sidecar and the PNG: all written, or none replaced
-    let mut files = crate::output::Outputs::new();
+    let mut files = rayproof::output::Outputs::new();
     if let Some(out) = &a.output {
         let layers = output::Layers {
             depth: a.layers.iter().any(|l| l == "depth"),
@@ -138,16 +139,17 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
 }
 
 pub(super) fn run_export(e: ExportArgs) -> Result<u8> {
-    let sc = crate::render::scene::load(&e.scene)?;
-    let fr = crate::render::export::Frame::of(&sc, e.width, e.grid).map_err(anyhow::Error::msg)?;
-    if let Some(why) = crate::render::export::unsupported(&sc, &e.to) {
+    let sc = rayproof::render::scene::load(&e.scene)?;
+    let fr =
+        rayproof::render::export::Frame::of(&sc, e.width, e.grid).map_err(anyhow::Error::msg)?;
+    if let Some(why) = rayproof::render::export::unsupported(&sc, &e.to) {
         anyhow::bail!("{}: {why}", e.scene.display());
     }
     say_raw!(
         "{}",
         match e.to.as_str() {
-            "povray" => crate::render::export::povray(&sc, fr),
-            _ => crate::render::export::mitsuba(&sc, fr),
+            "povray" => rayproof::render::export::povray(&sc, fr),
+            _ => rayproof::render::export::mitsuba(&sc, fr),
         }
     );
     Ok(0)
@@ -155,10 +157,10 @@ pub(super) fn run_export(e: ExportArgs) -> Result<u8> {
 
 pub(super) fn run_downsample(d: DownsampleArgs) -> Result<u8> {
     check_output_dirs(&[&Some(d.output.clone())])?;
-    let big = crate::images::read_image(&d.input)?;
-    let small = crate::render::export::downsample(&big, d.factor as usize)
+    let big = rayproof::images::read_image(&d.input)?;
+    let small = rayproof::render::export::downsample(&big, d.factor as usize)
         .with_context(|| d.input.display().to_string())?;
-    crate::images::write_exr_rgb(&d.output, &small)?;
+    rayproof::images::write_exr_rgb(&d.output, &small)?;
     let (w, h) = (small.width, small.height);
     say!(
         "{}: {w}×{h} (mean of {f}×{f} blocks)",

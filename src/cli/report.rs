@@ -30,7 +30,7 @@ pub struct ReportArgs {
 
 pub(super) fn run_report(r: ReportArgs) -> Result<u8> {
     // An outside routine answers both precisions
-    let sphere = crate::shapes::shape_by_name("sphere").expect("registered");
+    let sphere = rayproof::shapes::shape_by_name("sphere").expect("registered");
     let outside = match r.outside.method(sphere)? {
         Some((_, Some(has))) if has.len() < 2 => {
             anyhow::bail!("report --plugin needs an f32 and an f64 symbol (give --plugin twice)")
@@ -38,7 +38,7 @@ pub(super) fn run_report(r: ReportArgs) -> Result<u8> {
         Some((m, _)) => Some(std::sync::Arc::from(m)),
         None => None,
     };
-    crate::report::run(&crate::report::ReportOptions {
+    rayproof::report::run(&rayproof::report::ReportOptions {
         outside,
         out: r.out.clone(),
         reference: r.reference.clone(),

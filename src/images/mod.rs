@@ -54,7 +54,7 @@ mod report;
 mod ztest;
 
 pub use flip::{flip_error, hdr_flip, heatmap_rgb8, ldr_flip, FlipKind};
-pub(crate) use io::one_line;
+pub use io::one_line;
 pub use io::{
     read_image, tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError, MAX_PIXELS,
 };
