@@ -40,15 +40,21 @@ impl Timing {
         (self.max_ns - self.min_ns) / self.median_ns.max(f64::MIN_POSITIVE)
     }
 
+    /// Half the spread in percent, `(±4%)`; beyond ±25 % the median is marked as not to be
+    /// used, `(±547%: too noisy to use)`.
+    pub fn plus_minus(&self) -> String {
+        let h = 50.0 * self.spread();
+        if h <= 25.0 {
+            format!("(±{h:.0}%)")
+        } else {
+            format!("(±{h:.0}%: too noisy to use)")
+        }
+    }
+
     /// "12.3 ns (±4%)", the form reports print (three significant digits below 1 ns).
     pub fn label(&self) -> String {
         let digits = if self.median_ns < 1.0 { 3 } else { 1 };
-        format!(
-            "{:.*} ns (±{:.0}%)",
-            digits,
-            self.median_ns,
-            50.0 * self.spread()
-        )
+        format!("{:.*} ns {}", digits, self.median_ns, self.plus_minus())
     }
 }
 

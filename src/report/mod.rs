@@ -150,16 +150,15 @@ fn sibling(out: &Path, kind: &str) -> Result<PathBuf> {
     Ok(parent.join(format!(".{name}.{kind}-{}", std::process::id())))
 }
 
-fn say(o: &ReportOptions, what: &str) {
-    if o.progress {
-        eprintln!("report: {what}");
-    }
+/// Progress: one line per step on stderr, on a terminal or not (the audit's bar only on one).
+fn say(what: &str) {
+    eprintln!("report: {what}");
 }
 
 fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     let machine = Machine::read();
     // 1. Audit with raw samples, and in-run timing of every method
-    say(o, "auditing every method × precision × class");
+    say("auditing every method × precision × class");
     let plan = Plan::new(&Options {
         shapes: vec!["sphere".into()],
         cases: Some(o.cases),
@@ -174,7 +173,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     }
     let tallies = plan.run_shape(0, o.progress)?;
     let report = tallies.report(None);
-    say(o, "timing every method × precision");
+    say("timing every method × precision");
     let runs = if o.quick { 3 } else { 9 };
     let min_ns = if o.quick { 2e6 } else { 2e7 };
     let mut t32 = time_methods::<f32>(o.seed, runs, min_ns);
@@ -185,7 +184,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     }
     let cost = cost_rows(&report, &tallies, &t32, &t64);
     // 2. Batched kernel, checked bit-identical before timing
-    say(o, "timing the batched kernel");
+    say("timing the batched kernel");
     let mut bopts = crate::shapes::sphere::batch::BatchOpts::report();
     if o.quick {
         bopts.runs = 3;
@@ -193,10 +192,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     let batch = crate::shapes::sphere::batch::throughput_table(&bopts)
         .map_err(|m| anyhow::anyhow!("batched kernel differs from the scalar method: {m}"))?;
     // 3. Render-level trade-off
-    say(
-        o,
-        "rendering fan30, far, floor with every method × precision",
-    );
+    say("rendering fan30, far, floor with every method × precision");
     let (w, g, rruns) = if o.quick {
         (Some(32), Some(2), 1)
     } else {
@@ -204,7 +200,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     };
     let rows = renders::run(&o.reference, &dir.join("img"), w, g, 2, rruns)?;
     // 4. Seed 000's claim
-    say(o, "reproducing seed 000's timing on seed1996");
+    say("reproducing seed 000's timing on seed1996");
     let sc = crate::render::scene::load(&o.reference.join("scenes/seed1996.toml"))?;
     let repro = seed::run(&sc, o.quick.then_some(64), if o.quick { 1 } else { 3 });
     for (label, img) in &repro.images {
@@ -213,10 +209,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
         crate::images::write_png_rgb8(&dir.join("img").join(name), img.width, img.height, &rgb)?;
     }
     // 5. Newton refinement
-    say(
-        o,
-        "measuring rcp/rsqrt Newton refinement over every f32 of the range",
-    );
+    say("measuring rcp/rsqrt Newton refinement over every f32 of the range");
     let newton = crate::shapes::recip::newton::table(&if o.quick {
         crate::shapes::recip::newton::NewtonOpts::fast()
     } else {
@@ -224,7 +217,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     });
     let starts = crate::shapes::recip::newton::start_bound_table();
     // Write
-    say(o, "writing");
+    say("writing");
     let md = markdown(
         &machine, o.seed, &o.cases, &cost, &report, &tallies, &batch, &rows, &repro, &newton,
         &starts, dir,
@@ -672,11 +665,11 @@ impl Markdown<'_> {
         for r in sr {
             writeln!(
                 self.s,
-                "| {} | {} | {:.3} (±{:.0}%) | {} | {:.2e} | {} | {} | {} |",
+                "| {} | {} | {:.3} {} | {} | {:.2e} | {} | {} | {} |",
                 r.method,
                 r.precision,
                 r.seconds.median_ns,
-                50.0 * r.seconds.spread(),
+                r.seconds.plus_minus(),
                 r.rays,
                 r.vs_baseline_mean,
                 pct(r.vs_baseline_fail),

@@ -102,8 +102,10 @@ pub fn pareto_svg(
                 front.iter().map(|p| (p.x, p.y)),
                 ShapeStyle::from(&RGBColor(200, 60, 40)).stroke_width(2),
             ))?;
-            // The points, labelled
-            for (i, p) in pts.iter().enumerate() {
+            // The points, each labelled where no earlier label is (pixel boxes, tried in order:
+            // right-above, right-below, then further away)
+            let mut placed: Vec<(i32, i32, i32, i32)> = vec![];
+            for p in &pts {
                 let colour = COLOURS[p.colour % COLOURS.len()];
                 let style = if p.robust {
                     ShapeStyle::from(colour).filled()
@@ -119,13 +121,24 @@ pub fn pareto_svg(
                 } else {
                     chart.draw_series(std::iter::once(Circle::new((p.x, p.y), 5, style)))?;
                 }
-                // Labels alternate above and below to keep neighbours legible
-                let dy = if i % 2 == 0 { 1.22 } else { 0.7 };
-                chart.draw_series(std::iter::once(Text::new(
+                let (px, py) = chart.backend_coord(&(p.x, p.y));
+                let (w, h) = (6 * p.label.chars().count() as i32 + 2, 13);
+                let free = |b: &(i32, i32, i32, i32)| {
+                    placed
+                        .iter()
+                        .all(|o| b.2 <= o.0 || o.2 <= b.0 || b.3 <= o.1 || o.3 <= b.1)
+                };
+                let spot = [-16, 4, -30, 18, -44, 32, -58, 46]
+                    .iter()
+                    .map(|&dy| (px + 8, py + dy, px + 8 + w, py + dy + h))
+                    .find(free)
+                    .unwrap_or((px + 8, py - 16, px + 8 + w, py - 16 + h));
+                placed.push(spot);
+                root.draw(&Text::new(
                     p.label.clone(),
-                    (p.x * 1.07, p.y * dy),
+                    (spot.0, spot.1),
                     ("sans-serif", 11).into_font().color(&colour),
-                )))?;
+                ))?;
             }
             root.present()?;
             Ok(())
@@ -247,5 +260,26 @@ mod tests {
         assert!(s.starts_with("<svg") && s.contains("geometric/f32") && s.contains("rtg7/f64"));
         let h = bits_histogram_svg("h", &[("inside".into(), vec![0.0, 1.0, 1.0, 3.5])]);
         assert!(h.starts_with("<svg") && h.contains("inside"));
+    }
+
+    /// Points at nearly the same place get labels on different lines (the report's
+    /// `algebraic/f32` once sat on `press/f32`).
+    #[test]
+    fn labels_of_coinciding_points_do_not_overlap() {
+        let names = ["algebraic/f32", "press/f32", "geometric/f32"];
+        let pts: Vec<Point> = names.iter().map(|n| p(n, 3.0, 1e-3)).collect();
+        let s = pareto_svg("t", "x", "y", &pts, 1e-7);
+        // The y of each label's <text> element
+        let ys: Vec<String> = names
+            .iter()
+            .map(|n| {
+                let at = s.find(n).expect("label drawn");
+                let open = s[..at].rfind("<text").unwrap();
+                let tag = &s[open..at];
+                let y = tag.find(" y=\"").unwrap() + 4;
+                tag[y..y + tag[y..].find('"').unwrap()].to_string()
+            })
+            .collect();
+        assert!(ys[0] != ys[1] && ys[1] != ys[2] && ys[0] != ys[2], "{ys:?}");
     }
 }

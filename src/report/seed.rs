@@ -282,12 +282,12 @@ impl SeedRepro {
               |---|---|---|---:|---:|---:|---:|\n";
         for r in &self.runs {
             s += &format!(
-                "| {} | {} | {} | {:.3} (±{:.0}%) | {} | {:.2} | {:.0}% |\n",
+                "| {} | {} | {} | {:.3} {} | {} | {:.2} | {:.0}% |\n",
                 r.method,
                 r.precision,
                 if r.flat { "all 30 (flat)" } else { "BVH" },
                 r.wall_s.median_ns,
-                50.0 * r.wall_s.spread(),
+                r.wall_s.plus_minus(),
                 r.counts.tests.sphere_tests,
                 r.test_ns,
                 100.0 * r.intersect_cpu_s / r.cpu_s
