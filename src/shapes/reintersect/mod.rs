@@ -22,14 +22,18 @@
 //! **Judgement, against the ideal ray.** The reference is the spawned ray a renderer would have
 //! with exact arithmetic: from the exact primary hit `p*` (the exact root, rounded to `f64`) along
 //! the same direction `w`. Its next genuine crossing `L` is found by the exact oracle from
-//! `p* + z·w`, where `z = 256·u·(max|pᵢ| + size)/|w·n|` (`u` the unit roundoff of the working
-//! precision) is the **self-hit zone**: further than any justified offset or rounding error can
-//! carry a point along `w`, and far below the shape's size unless the case is extreme. A
+//! `p* + z₀·w`, `z₀ = 16·2⁻⁵³·(max|pᵢ| + size)/|w·n|` (just past `p*`'s own `f64` error). A
 //! **re-hit** is a hit the method reports on its spawned ray at `t < L/2` (for a reflection ray
 //! off a convex surface or any ray off a single triangle `L = ∞`, so every hit is a re-hit).
-//! A ray whose ideal crossing lies within the zone (`L < 2z`, or another crossing between `p*`
-//! and `p* + z·w`) is **ill-posed** at this precision: rounding alone decides it, so it is
-//! counted apart and judged neither way.
+//! The **self-hit zone** is `z = 4·(reach)/|w·n|`, where the reach is the rule's offset along
+//! the normal plus two ulps of `max|pᵢ|`: as far as a spawned origin can sit from `p*`. A ray
+//! whose ideal crossing lies within it (`L < z`) is **ill-posed** at this precision: rounding
+//! alone decides it, so it is counted apart and judged neither way.
+//!
+//! A re-hit that lands on *another part* of the surface (the other triangle of a hinge) and that
+//! the exact answer for the spawned ray confirms is also counted as `neighbour`: the offset,
+//! applied per triangle as in pbrt, carried the origin across the neighbour. That is a limit of
+//! the rule at shared edges, not an error of the method, and the audit reports it apart.
 //!
 //! Judging the spawned ray from its own, offset origin instead (what this test did before issue
 //! 17) is blind: a point left inside by rounding makes the exact answer a hit at a tiny `t`, so
