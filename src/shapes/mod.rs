@@ -15,6 +15,7 @@ pub mod sphere;
 pub mod sturm;
 pub mod torus;
 pub mod triangle;
+pub mod ulp_box;
 pub mod watertight;
 
 use crate::audit::shape::Shape;

@@ -26,6 +26,7 @@
 use super::sample::{self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
 use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
+use crate::shapes::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
 use crate::shapes::sphere::methods::{ilogb, mul_pow2, nearest_positive, rtg7_roots};
@@ -534,7 +535,68 @@ fn key(kind: Kind, v: &[f64]) -> Option<usize> {
     solve(kind, v).and_then(|(_, k)| k)
 }
 
+/// The answer's root index on the whole one-ulp box of `v` (`Some(None)`: a miss everywhere),
+/// in interval arithmetic, with `Δ = A r² − |S d × S o|²` (Lagrange's identity: no
+/// cancellation far away); `None` when some sign it rests on is uncertain on the box.
+fn box_key(kind: Kind, v: &[f64], prec: Precision) -> Option<Option<usize>> {
+    let b = ulp_box(v, prec)?;
+    // Valid everywhere: every shape parameter > 0, some direction component ≠ 0
+    if !b[6..9].iter().all(|x| x.lo > 0.0) || !b[3..6].iter().any(|&x| sign_on_box(x).is_some()) {
+        return None;
+    }
+    let third = match kind {
+        Kind::Ellipsoid => b[8],
+        Kind::Cylinder => BoxIv::point(0.0),
+    };
+    let s = [BoxIv::point(1.0), b[7], third];
+    let u: [BoxIv; 3] = std::array::from_fn(|i| s[i] * b[i]);
+    let w: [BoxIv; 3] = std::array::from_fn(|i| s[i] * b[3 + i]);
+    let sq = |x: &[BoxIv; 3]| x[0].square() + x[1].square() + x[2].square();
+    let cross = [
+        w[1] * u[2] - w[2] * u[1],
+        w[2] * u[0] - w[0] * u[2],
+        w[0] * u[1] - w[1] * u[0],
+    ];
+    let (a, r2) = (sq(&w), b[6].square());
+    let bh = w[0] * u[0] + w[1] * u[1] + w[2] * u[2];
+    let c = sq(&u) - r2;
+    let disc = a * r2 - sq(&cross);
+    if sign_on_box(a)? < 0 {
+        return None;
+    }
+    // Real roots, and which of them are > 0
+    let candidates: &[usize] = match (sign_on_box(disc)?, sign_on_box(c)?) {
+        (-1, _) => return Some(None),
+        (_, -1) => &[1],
+        _ if sign_on_box(bh)? < 0 => &[0, 1],
+        _ => return Some(None),
+    };
+    if kind == Kind::Ellipsoid {
+        return Some(Some(candidates[0]));
+    }
+    // The cylinder: the first candidate whose z is in [0, h], each decided on the box
+    let root = BoxIv::sqrt(disc);
+    let q = match sign_on_box(bh)? {
+        1 => -(bh + root),
+        _ => root - bh,
+    };
+    let (qa, cq) = (q / a, c / q);
+    let (t0, t1) = if q.hi < 0.0 { (qa, cq) } else { (cq, qa) };
+    for &k in candidates {
+        let z = b[2] + [t0, t1][k] * b[5];
+        match (sign_on_box(z)?, sign_on_box(z - b[8])?) {
+            (1, -1) => return Some(Some(k)),
+            _ => continue,
+        }
+    }
+    Some(None)
+}
+
 fn ill_posed(kind: Kind, v: &[f64], base: Option<usize>, prec: Precision) -> bool {
+    // The whole box first, then one move at a time, each decided exactly
+    if box_key(kind, v, prec) == Some(base) {
+        return false;
+    }
     (0..v.len()).any(|i| {
         [true, false].into_iter().any(|up| {
             let mut m = v.to_vec();

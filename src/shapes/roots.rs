@@ -23,6 +23,7 @@ use super::poly;
 use super::sturm::{self, RealRoot};
 use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{all_finite, nudge, q};
+use crate::shapes::ulp_box::{roots_keep_count, strict_sign as sign_on_box, ulp_box, BoxIv};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
 use rand::Rng;
@@ -352,6 +353,12 @@ fn exact_ascending(input: &[f64]) -> Vec<Rational> {
 /// The number of distinct real roots of `input` (leading first) changes when one coefficient
 /// moves one ulp up or down.
 fn count_unstable(input: &[f64], prec: Precision, count: u32) -> bool {
+    // The whole box first, then one move at a time, each counted exactly
+    if let Some(b) = ulp_box(input, prec) {
+        if roots_keep_count(&b.into_iter().rev().collect::<Vec<_>>()) {
+            return false;
+        }
+    }
     (0..input.len()).any(|i| {
         [true, false].into_iter().any(|up| {
             let mut moved = input.to_vec();
@@ -436,6 +443,20 @@ pub const FAR_START: &str = "far_start";
 pub const MULTIPLE_ROOT: &str = "multiple_root";
 
 const NEWTON_CLASSES: &[&str] = &[NEAR_ROOT, FLAT_START, FAR_START, MULTIPLE_ROOT, INVALID];
+
+/// Whether the number of roots in the bracket is the same everywhere on the one-ulp box of
+/// `a b c d lo hi`: the cubic keeps its count of distinct real roots, none crosses an end of
+/// the bracket (the cubic's sign at each end is certain), and `lo < hi` throughout.
+fn bracket_keeps_count(v: &[f64], prec: Precision) -> bool {
+    let Some(b) = ulp_box(v, prec) else {
+        return false;
+    };
+    let horner = |x: BoxIv| b[1..4].iter().fold(b[0], |acc, &c| acc * x + c);
+    b[4].hi < b[5].lo
+        && sign_on_box(horner(b[4])).is_some()
+        && sign_on_box(horner(b[5])).is_some()
+        && roots_keep_count(&[b[3], b[2], b[1], b[0]])
+}
 
 /// The state of a bracket: roots in it, with 2 standing for "several"; `None` when invalid.
 fn bracket_state(c: &[Rational], lo: f64, hi: f64) -> Option<u32> {
@@ -574,7 +595,9 @@ impl Shape for Newton {
             return Truth::Invalid;
         }
         // Ill-posed: the bracket's root count moves under one-ulp moves of a b c d lo hi
-        let ill_posed = (0..6).any(|i| {
+        // (the whole box first, then one move at a time, each counted exactly)
+        let ill_posed = !bracket_keeps_count(&input[..6], prec)
+            && (0..6).any(|i| {
             [true, false].into_iter().any(|up| {
                 let mut m = input.to_vec();
                 m[i] = nudge(m[i], prec, up);

@@ -24,6 +24,7 @@ use super::methods::is_valid;
 use crate::audit::shape::{Expected, Truth};
 use crate::numerics::exact::{self, q, ziv, ZIV_CAP};
 use crate::numerics::Precision;
+use crate::shapes::ulp_box::{roots_keep_count, strict_sign as sign_on_box, ulp_box, BoxIv};
 use crate::shapes::sturm::{self, eval, square_free, RealRoot};
 use rug::float::Round;
 use rug::{Float, Rational};
@@ -181,8 +182,38 @@ pub fn valid_f64(x: &[f64]) -> bool {
     x.len() == 8 && is_valid([x[0], x[1], x[2]], [x[3], x[4], x[5]], x[6], x[7])
 }
 
+/// Whether the number of distinct positive roots is the same everywhere on the one-ulp box of
+/// `x`: the quartic's coefficients enclosed over the box (as [`quartic_q`] forms them) keep a
+/// non-zero leading coefficient and discriminant (no roots collide or leave) and a non-zero
+/// constant term (no root crosses `t = 0`).
+fn box_keeps_count(x: &[f64], prec: Precision) -> bool {
+    let Some(b) = ulp_box(x, prec) else {
+        return false;
+    };
+    let (o, d) = ([b[0], b[1], b[2]], [b[3], b[4], b[5]]);
+    let dot = |u: [BoxIv; 3], v: [BoxIv; 3]| u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+    let sq = |u: [BoxIv; 3]| u[0].square() + u[1].square() + u[2].square();
+    let k4 = |c: f64| BoxIv::point(c);
+    let (vv, sv) = (sq(d), dot(o, d));
+    let (r1s, r2s) = (b[6].square(), b[7].square());
+    let k = sq(o) - r1s - r2s;
+    let four_r1s = k4(4.0) * r1s;
+    let c = [
+        k.square() - four_r1s * (r2s - o[2].square()),
+        k4(4.0) * sv * k + k4(2.0) * four_r1s * o[2] * d[2],
+        k4(2.0) * vv * k + k4(4.0) * sv.square() + four_r1s * d[2].square(),
+        k4(4.0) * vv * sv,
+        vv.square(),
+    ];
+    sign_on_box(c[0]).is_some() && roots_keep_count(&c)
+}
+
 /// Whether a one-ulp move of one input changes the number of distinct positive roots.
 pub fn ill_posed(x: &[f64], prec: Precision, n: usize) -> bool {
+    // The whole box first, then one move at a time, each counted exactly
+    if box_keeps_count(x, prec) {
+        return false;
+    }
     (0..8).any(|i| {
         [true, false].into_iter().any(|up| {
             let mut y = x.to_vec();
