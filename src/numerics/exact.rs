@@ -10,6 +10,27 @@ pub fn q(x: f64) -> Rational {
     Rational::from_f64(x).expect("finite input")
 }
 
+/// `x = m·2^e` exactly (`m` odd or 0).
+pub fn decompose(x: f64) -> (i64, i32) {
+    if x == 0.0 {
+        return (0, 0);
+    }
+    let bits = x.to_bits();
+    let (eb, frac) = (
+        ((bits >> 52) & 0x7ff) as i32,
+        (bits & ((1u64 << 52) - 1)) as i64,
+    );
+    let (mut m, mut e) = if eb == 0 {
+        (frac, -1074)
+    } else {
+        (frac | (1i64 << 52), eb - 1075)
+    };
+    let tz = m.trailing_zeros() as i32;
+    m >>= tz;
+    e += tz;
+    (if x < 0.0 { -m } else { m }, e)
+}
+
 /// Whether every input is finite (the oracles call this first).
 pub fn all_finite(input: &[f64]) -> bool {
     input.iter().all(|x| x.is_finite())

@@ -19,9 +19,9 @@
 use super::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
 use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
-use crate::shapes::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
+use crate::shapes::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::Rational;
@@ -230,7 +230,11 @@ fn box_crossing(v: &[f64], prec: Precision) -> Option<Crossing> {
             return None;
         }
         let (ta, tb) = ((lo - o) / d, (hi - o) / d);
-        let (a, b) = if sign_on_box(d)? > 0 { (ta, tb) } else { (tb, ta) };
+        let (a, b) = if sign_on_box(d)? > 0 {
+            (ta, tb)
+        } else {
+            (tb, ta)
+        };
         t0 = BoxIv::new(t0.lo.max(a.lo), t0.hi.max(a.hi));
         t1 = BoxIv::new(t1.lo.min(b.lo), t1.hi.min(b.hi));
     }

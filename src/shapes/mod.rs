@@ -6,6 +6,7 @@ pub mod offset;
 pub mod optics;
 pub mod poly;
 pub mod quadric;
+pub mod quick_roots;
 pub mod recip;
 pub mod reintersect;
 pub mod robustness;

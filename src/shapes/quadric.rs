@@ -26,10 +26,10 @@
 use super::sample::{self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
 use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
-use crate::shapes::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
 use crate::shapes::sphere::methods::{ilogb, mul_pow2, nearest_positive, rtg7_roots};
+use crate::shapes::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::float::Round;

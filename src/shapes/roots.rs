@@ -20,12 +20,13 @@
 //! them is a wrong root.
 
 use super::poly;
+use super::quick_roots;
 use super::sturm::{self, RealRoot};
 use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{all_finite, nudge, q};
-use crate::shapes::ulp_box::{roots_keep_count, strict_sign as sign_on_box, ulp_box, BoxIv};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
+use crate::shapes::ulp_box::{roots_keep_count, strict_sign as sign_on_box, ulp_box, BoxIv};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::Rational;
@@ -384,7 +385,10 @@ impl Shape for Roots {
         if sturm::trim(&c).is_empty() {
             return Truth::Invalid;
         }
-        let values = sturm::rounded_roots(&c, prec);
+        // The quick phase proves most cases; the exact Sturm path runs when it cannot
+        let asc: Vec<f64> = input.iter().rev().copied().collect();
+        let values = quick_roots::rounded_roots(&asc, prec)
+            .unwrap_or_else(|| sturm::rounded_roots(&c, prec));
         let count = values.len() as u32;
         Truth::Answer(Expected {
             count,
@@ -598,13 +602,16 @@ impl Shape for Newton {
         // (the whole box first, then one move at a time, each counted exactly)
         let ill_posed = !bracket_keeps_count(&input[..6], prec)
             && (0..6).any(|i| {
-            [true, false].into_iter().any(|up| {
-                let mut m = input.to_vec();
-                m[i] = nudge(m[i], prec, up);
-                m[i].is_finite() && bracket_state(&exact_ascending(&m[..4]), m[4], m[5]) != state
-            })
-        });
-        let all = sturm::rounded_roots(&c, prec);
+                [true, false].into_iter().any(|up| {
+                    let mut m = input.to_vec();
+                    m[i] = nudge(m[i], prec, up);
+                    m[i].is_finite()
+                        && bracket_state(&exact_ascending(&m[..4]), m[4], m[5]) != state
+                })
+            });
+        let asc: Vec<f64> = input[..4].iter().rev().copied().collect();
+        let all = quick_roots::rounded_roots(&asc, prec)
+            .unwrap_or_else(|| sturm::rounded_roots(&c, prec));
         let values = if state == Some(1) {
             // The one root is in (lo, hi], or is lo itself
             let ql = q(lo);

@@ -201,10 +201,27 @@ pub fn real_roots(c: &[Rational]) -> Vec<RealRoot> {
     if p.len() <= 1 {
         return vec![];
     }
-    let s = square_free(&p);
-    let st = Sturm::new(&s);
+    // Multiplicities from the chain of repeated factors
+    let chain = repeated_factors(&p);
+    isolate(&p, &square_free(&p))
+        .into_iter()
+        .map(|(lo, hi)| {
+            let extra = chain.iter().take_while(|g| g.at(&lo) > g.at(&hi)).count();
+            RealRoot {
+                lo,
+                hi,
+                multiplicity: 1 + extra as u32,
+            }
+        })
+        .collect()
+}
+
+/// Intervals `(lo, hi]` each holding one root of `p` (trimmed, degree ≥ 1), ascending, by
+/// Sturm bisection on its square-free part `s`.
+fn isolate(p: &[Rational], s: &[Rational]) -> Vec<(Rational, Rational)> {
+    let st = Sturm::new(s);
     // Bisect (−B, B] down to one root per interval
-    let b = root_bound(&p);
+    let b = root_bound(p);
     let mut out = vec![];
     let mut stack = vec![(
         Rational::from(-&b),
@@ -224,18 +241,7 @@ pub fn real_roots(c: &[Rational]) -> Vec<RealRoot> {
             }
         }
     }
-    // Multiplicities from the chain of repeated factors
-    let chain = repeated_factors(&p);
-    out.into_iter()
-        .map(|(lo, hi)| {
-            let extra = chain.iter().take_while(|g| g.at(&lo) > g.at(&hi)).count();
-            RealRoot {
-                lo,
-                hi,
-                multiplicity: 1 + extra as u32,
-            }
-        })
-        .collect()
+    out
 }
 
 /// Sturm sequences of the square-free parts of `g₁ = gcd(p, p′)`, `g₂ = gcd(g₁, g₁′)`, ….
@@ -250,7 +256,7 @@ fn repeated_factors(p: &[Rational]) -> Vec<Sturm> {
 }
 
 /// Position of a value of the precision on its number line (±0 share 0; ±inf are the ends).
-fn ordinal(x: f64, prec: Precision) -> i64 {
+pub(crate) fn ordinal(x: f64, prec: Precision) -> i64 {
     let (mag, neg) = match prec {
         Precision::F32 => ((x as f32).to_bits() as i64 & 0x7fff_ffff, x < 0.0),
         Precision::F64 => ((x.to_bits() & !(1 << 63)) as i64, x < 0.0),
@@ -262,7 +268,7 @@ fn ordinal(x: f64, prec: Precision) -> i64 {
     }
 }
 
-fn from_ordinal(o: i64, prec: Precision) -> f64 {
+pub(crate) fn from_ordinal(o: i64, prec: Precision) -> f64 {
     let mag = match prec {
         Precision::F32 => f32::from_bits(o.unsigned_abs() as u32) as f64,
         Precision::F64 => f64::from_bits(o.unsigned_abs()),
@@ -299,17 +305,36 @@ fn boundary(a: f64, b: f64, prec: Precision) -> Rational {
 /// Root `r` of `c` (as returned by [`real_roots`]) correctly rounded to the precision, as `f64`
 /// (ties to even; ±inf beyond the largest finite value).
 pub fn round_root(c: &[Rational], r: &RealRoot, prec: Precision) -> f64 {
-    let s = square_free(c);
-    let (mut lo, mut hi) = (r.lo.clone(), r.hi.clone());
+    round_isolated(&square_free(c), r.lo.clone(), r.hi.clone(), prec)
+}
+
+/// The only root of the square-free `s` in `(lo, hi]`, correctly rounded.
+fn round_isolated(s: &[Rational], mut lo: Rational, mut hi: Rational, prec: Precision) -> f64 {
     // Exact roots at the ends (the root is in (lo, hi]: a root at lo is another one, and the
     // sign just right of it is that of s′ there)
-    if lo == hi || sign_at(&s, &hi) == Ordering::Equal {
+    if lo == hi || sign_at(s, &hi) == Ordering::Equal {
         return round_q(&hi, prec);
     }
-    let s_lo = match sign_at(&s, &lo) {
-        Ordering::Equal => sign_at(&derivative(&s), &lo),
+    let s_lo = match sign_at(s, &lo) {
+        Ordering::Equal => sign_at(&derivative(s), &lo),
         o => o,
     };
+    // The floats either side of an f64 estimate, each an exact sign: usually two signs narrow
+    // (lo, hi] to two ulps, where the loop below would have bisected every float between them
+    if let Some(a) = estimate(s, &lo, &hi, s_lo, prec) {
+        let oa = ordinal(a, prec);
+        for x in [from_ordinal(oa - 1, prec), from_ordinal(oa + 1, prec)] {
+            let xq = q(x);
+            if !(x.is_finite() && xq > lo && xq < hi) {
+                continue;
+            }
+            match sign_at(s, &xq) {
+                Ordering::Equal => return x,
+                sx if sx == s_lo => lo = xq,
+                _ => hi = xq,
+            }
+        }
+    }
     loop {
         let (a, b) = (round_q(&lo, prec), round_q(&hi, prec));
         let (oa, ob) = (ordinal(a, prec), ordinal(b, prec));
@@ -319,7 +344,7 @@ pub fn round_root(c: &[Rational], r: &RealRoot, prec: Precision) -> f64 {
         // Adjacent floats: the sign at the rounding boundary decides
         if ob as i128 - oa as i128 == 1 {
             let m = boundary(a, b, prec);
-            return match sign_at(&s, &m) {
+            return match sign_at(s, &m) {
                 Ordering::Equal => round_q(&m, prec),
                 sm if sm == s_lo => b,
                 _ => a,
@@ -328,7 +353,7 @@ pub fn round_root(c: &[Rational], r: &RealRoot, prec: Precision) -> f64 {
         // Otherwise halve the floats between the ends
         let f = from_ordinal(((oa as i128 + ob as i128) / 2) as i64, prec);
         let fq = q(f);
-        match sign_at(&s, &fq) {
+        match sign_at(s, &fq) {
             Ordering::Equal => return f,
             sf if sf == s_lo => lo = fq,
             _ => hi = fq,
@@ -336,11 +361,55 @@ pub fn round_root(c: &[Rational], r: &RealRoot, prec: Precision) -> f64 {
     }
 }
 
+/// The root of `s` in `(lo, hi]` estimated in `f64` (bisection on the `f64` line with signs
+/// evaluated in `f64`: not trusted, only a place to look), rounded to the precision.
+fn estimate(
+    s: &[Rational],
+    lo: &Rational,
+    hi: &Rational,
+    s_lo: Ordering,
+    prec: Precision,
+) -> Option<f64> {
+    let c: Vec<f64> = s.iter().map(|x| x.to_f64()).collect();
+    if !c.iter().all(|x| x.is_finite()) {
+        return None;
+    }
+    let sign = |x: f64| {
+        c.iter()
+            .rev()
+            .fold(0.0, |acc, &k| acc * x + k)
+            .partial_cmp(&0.0)
+    };
+    let (mut a, mut b) = (lo.to_f64(), hi.to_f64());
+    for _ in 0..70 {
+        let (oa, ob) = (ordinal(a, Precision::F64), ordinal(b, Precision::F64));
+        if ob as i128 - oa as i128 <= 1 {
+            break;
+        }
+        let m = from_ordinal(((oa as i128 + ob as i128) / 2) as i64, Precision::F64);
+        if sign(m) == Some(s_lo) {
+            a = m;
+        } else {
+            b = m;
+        }
+    }
+    let r = match prec {
+        Precision::F32 => b as f32 as f64,
+        Precision::F64 => b,
+    };
+    r.is_finite().then_some(r)
+}
+
 /// Every distinct real root correctly rounded, ascending.
 pub fn rounded_roots(c: &[Rational], prec: Precision) -> Vec<f64> {
-    real_roots(c)
-        .iter()
-        .map(|r| round_root(c, r, prec))
+    let p = trim(c);
+    if p.len() <= 1 {
+        return vec![];
+    }
+    let s = square_free(&p);
+    isolate(&p, &s)
+        .into_iter()
+        .map(|(lo, hi)| round_isolated(&s, lo, hi, prec))
         .collect()
 }
 

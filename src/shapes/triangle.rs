@@ -21,10 +21,10 @@
 use super::offset::gamma;
 use crate::audit::run::generate as gen_case;
 use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
-use crate::numerics::exact::{self, nudge, round_q};
-use crate::shapes::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
+use crate::numerics::exact::{self, decompose, nudge, round_q};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
+use crate::shapes::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::{Integer, Rational};
@@ -378,27 +378,6 @@ pub fn method<F: Real>(m: usize) -> TriFn<F> {
 }
 
 // ---- exact oracle ----
-
-/// `x = m·2^e` exactly (`m` odd or 0).
-fn decompose(x: f64) -> (i64, i32) {
-    if x == 0.0 {
-        return (0, 0);
-    }
-    let bits = x.to_bits();
-    let (eb, frac) = (
-        ((bits >> 52) & 0x7ff) as i32,
-        (bits & ((1u64 << 52) - 1)) as i64,
-    );
-    let (mut m, mut e) = if eb == 0 {
-        (frac, -1074)
-    } else {
-        (frac | (1i64 << 52), eb - 1075)
-    };
-    let tz = m.trailing_zeros() as i32;
-    m >>= tz;
-    e += tz;
-    (if x < 0.0 { -m } else { m }, e)
-}
 
 /// Finite inputs as integers after scaling all by one power of two.
 fn scaled_ints(v: &[f64]) -> Vec<Integer> {

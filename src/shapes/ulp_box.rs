@@ -25,8 +25,9 @@ thread_local! {
     static OFF: Cell<bool> = const { Cell::new(false) };
 }
 
-/// Runs `f` with the filter off on this thread, so that every ill-posedness decision is made
-/// exactly, move by move: what the tests compare the filtered oracles against.
+/// Runs `f` with the filters off on this thread (this one, and the quick phase of the roots
+/// oracle, `shapes::quick_roots`), so that every decision is made exactly: what the tests
+/// compare the filtered oracles against.
 pub fn without_filter<T>(f: impl FnOnce() -> T) -> T {
     OFF.with(|off| {
         let was = off.replace(true);
@@ -36,10 +37,15 @@ pub fn without_filter<T>(f: impl FnOnce() -> T) -> T {
     })
 }
 
+/// Whether the oracles' quick phases may run on this thread (see [`without_filter`]).
+pub fn filters_on() -> bool {
+    !OFF.with(Cell::get)
+}
+
 /// Each input widened to `[one ulp down, one ulp up]` in its precision, or `None` when some
 /// input or neighbour is not finite (the filter then has nothing to say) or the filter is off.
 pub fn ulp_box(v: &[f64], prec: Precision) -> Option<Vec<BoxIv>> {
-    if OFF.with(Cell::get) {
+    if !filters_on() {
         return None;
     }
     v.iter()
@@ -58,7 +64,7 @@ fn scale(x: BoxIv, k: i32) -> BoxIv {
 /// The coefficients (ascending) scaled by one power of two so that the largest magnitude is
 /// about 1: the discriminant is homogeneous in them, so its sign is unchanged, and nothing
 /// overflows on the way.
-fn normalised(c: &[BoxIv]) -> Vec<BoxIv> {
+pub(crate) fn normalised(c: &[BoxIv]) -> Vec<BoxIv> {
     let big = c
         .iter()
         .map(|x| x.lo.abs().max(x.hi.abs()))
@@ -72,7 +78,7 @@ fn normalised(c: &[BoxIv]) -> Vec<BoxIv> {
 
 /// An enclosure of the discriminant of the polynomial `Σ cᵢ xⁱ` (ascending, degree 2 to 4,
 /// scaled as [`normalised`] does), by the classical formulas.
-fn discriminant(c: &[BoxIv]) -> BoxIv {
+pub(crate) fn discriminant(c: &[BoxIv]) -> BoxIv {
     let p = |k: f64| Interval::point(k);
     match c.len() {
         3 => {
@@ -81,13 +87,16 @@ fn discriminant(c: &[BoxIv]) -> BoxIv {
         }
         4 => {
             let (d, cc, b, a) = (c[0], c[1], c[2], c[3]);
-            b.square() * cc.square() - p(4.0) * a * cc.square() * cc - p(4.0) * b.square() * b * d
+            b.square() * cc.square()
+                - p(4.0) * a * cc.square() * cc
+                - p(4.0) * b.square() * b * d
                 - p(27.0) * a.square() * d.square()
                 + p(18.0) * a * b * cc * d
         }
         5 => {
             let (e, d, cc, b, a) = (c[0], c[1], c[2], c[3], c[4]);
-            let (a2, b2, c2, d2, e2) = (a.square(), b.square(), cc.square(), d.square(), e.square());
+            let (a2, b2, c2, d2, e2) =
+                (a.square(), b.square(), cc.square(), d.square(), e.square());
             p(256.0) * a2 * a * e2 * e - p(192.0) * a2 * b * d * e2 - p(128.0) * a2 * c2 * e2
                 + p(144.0) * a2 * cc * d2 * e
                 - p(27.0) * a2 * d2.square()
@@ -141,9 +150,18 @@ mod tests {
         assert_eq!(discriminant(&pt(&[-6.0, 11.0, -6.0, 1.0])).sign(), Some(1));
         assert_eq!(discriminant(&pt(&[-1.0, 1.0, -1.0, 1.0])).sign(), Some(-1));
         // (x−1)(x−2)(x−3)(x−4) > 0; (x−1)(x−2)(x²+1) < 0; (x−1)²(x−2)(x−3) = 0
-        assert_eq!(discriminant(&pt(&[24.0, -50.0, 35.0, -10.0, 1.0])).sign(), Some(1));
-        assert_eq!(discriminant(&pt(&[2.0, -3.0, 3.0, -3.0, 1.0])).sign(), Some(-1));
-        assert_eq!(discriminant(&pt(&[6.0, -17.0, 17.0, -7.0, 1.0])).sign(), Some(0));
+        assert_eq!(
+            discriminant(&pt(&[24.0, -50.0, 35.0, -10.0, 1.0])).sign(),
+            Some(1)
+        );
+        assert_eq!(
+            discriminant(&pt(&[2.0, -3.0, 3.0, -3.0, 1.0])).sign(),
+            Some(-1)
+        );
+        assert_eq!(
+            discriminant(&pt(&[6.0, -17.0, 17.0, -7.0, 1.0])).sign(),
+            Some(0)
+        );
     }
 
     #[test]
