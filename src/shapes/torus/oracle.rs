@@ -183,19 +183,33 @@ pub fn valid_f64(x: &[f64]) -> bool {
 }
 
 /// Whether the number of distinct positive roots is the same everywhere on the one-ulp box of
-/// `x`: the quartic's coefficients enclosed over the box (as [`quartic_q`] forms them) keep a
-/// non-zero leading coefficient and discriminant (no roots collide or leave) and a non-zero
-/// constant term (no root crosses `t = 0`).
+/// `x`: over the box, the quartic (as [`quartic_q`] forms it) keeps a non-zero constant term
+/// (no root crosses `t = 0`), and, written for the ray from `o + t₀·d` (`t₀` the point nearest
+/// the torus's centre, so the roots are near 0 and the enclosure does not lose them to
+/// cancellation), a non-zero leading coefficient and discriminant (no roots collide or leave).
 fn box_keeps_count(x: &[f64], prec: Precision) -> bool {
     let Some(b) = ulp_box(x, prec) else {
         return false;
     };
     let (o, d) = ([b[0], b[1], b[2]], [b[3], b[4], b[5]]);
+    let t0 = -(x[0] * x[3] + x[1] * x[4] + x[2] * x[5]) / (x[3] * x[3] + x[4] * x[4] + x[5] * x[5]);
+    if !t0.is_finite() {
+        return false;
+    }
+    let shifted: [BoxIv; 3] = std::array::from_fn(|i| o[i] + BoxIv::point(t0) * d[i]);
+    let (at0, _) = quartic_box(o, d, b[6], b[7]);
+    let (_, c) = quartic_box(shifted, d, b[6], b[7]);
+    sign_on_box(at0).is_some() && roots_keep_count(&c)
+}
+
+/// The constant term and all coefficients (ascending) of [`quartic_q`]'s quartic enclosed over
+/// interval inputs.
+fn quartic_box(o: [BoxIv; 3], d: [BoxIv; 3], r1: BoxIv, r2: BoxIv) -> (BoxIv, [BoxIv; 5]) {
     let dot = |u: [BoxIv; 3], v: [BoxIv; 3]| u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
     let sq = |u: [BoxIv; 3]| u[0].square() + u[1].square() + u[2].square();
-    let k4 = |c: f64| BoxIv::point(c);
+    let k4 = BoxIv::point;
     let (vv, sv) = (sq(d), dot(o, d));
-    let (r1s, r2s) = (b[6].square(), b[7].square());
+    let (r1s, r2s) = (r1.square(), r2.square());
     let k = sq(o) - r1s - r2s;
     let four_r1s = k4(4.0) * r1s;
     let c = [
@@ -205,7 +219,7 @@ fn box_keeps_count(x: &[f64], prec: Precision) -> bool {
         k4(4.0) * vv * sv,
         vv.square(),
     ];
-    sign_on_box(c[0]).is_some() && roots_keep_count(&c)
+    (c[0], c)
 }
 
 /// Whether a one-ulp move of one input changes the number of distinct positive roots.
