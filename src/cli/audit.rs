@@ -287,9 +287,15 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         );
         return Ok(0);
     }
-    let robustness = plan
-        .robustness()
-        .map(|r| print_robustness(r, a.out.verbose));
+    let start = Instant::now();
+    let robustness = plan.robustness().map(|r| {
+        eprintln!(
+            "robustness: reintersection and watertightness in {:.1} s on {} threads",
+            start.elapsed().as_secs_f64(),
+            rayon::current_num_threads()
+        );
+        print_robustness(r, a.out.verbose)
+    });
     finish(
         Report {
             tool: TOOL,

@@ -61,6 +61,10 @@ pub(crate) trait Surface: Sync {
     fn exact(&self, input: &[f64]) -> Option<f64>;
     /// Method `m`'s hit at `t` as the renderer's point, its error bound and the unit normal.
     fn surface<F: PickPrecision>(&self, m: usize, input: &[F], t: F) -> ([F; 3], [F; 3], [F; 3]);
+    /// The largest normal curvature of the instance with these parameters (0: flat parts).
+    fn curvature(&self, _params: &[f64]) -> f64 {
+        0.0
+    }
     /// Whether method `m` hits another part of the surface on the spawned ray (`f64` values)
     /// than on the primary one (surfaces made of several parts only).
     fn other_part<F: PickPrecision>(&self, _m: usize, _primary: &[F], _spawned: &[f64]) -> bool {
@@ -193,6 +197,18 @@ impl Surface for QuadR {
     fn name(&self) -> &'static str {
         self.shape().name()
     }
+    fn curvature(&self, params: &[f64]) -> f64 {
+        // Semi-axes r, r/m (and r/n): an ellipse's curvature peaks at a_max / a_min²
+        let axes = if self.cylinder {
+            vec![params[0], params[0] / params[1]]
+        } else {
+            vec![params[0], params[0] / params[1], params[0] / params[2]]
+        };
+        let (lo, hi) = axes
+            .iter()
+            .fold((f64::INFINITY, 0f64), |(l, h), &a| (l.min(a), h.max(a)));
+        hi / (lo * lo)
+    }
     fn methods(&self) -> Vec<(&'static str, bool)> {
         shape_methods(self.shape())
     }
@@ -267,6 +283,9 @@ impl Surface for SphereR {
     fn name(&self) -> &'static str {
         "sphere"
     }
+    fn curvature(&self, params: &[f64]) -> f64 {
+        1.0 / params[3]
+    }
     fn methods(&self) -> Vec<(&'static str, bool)> {
         SPHERE_METHODS.iter().map(|m| (m.name, m.robust)).collect()
     }
@@ -312,6 +331,10 @@ struct TorusR;
 impl Surface for TorusR {
     fn name(&self) -> &'static str {
         "torus"
+    }
+    fn curvature(&self, params: &[f64]) -> f64 {
+        // The tube's 1/r2, or the inner equator's 1/(r1 − r2)
+        (1.0 / params[1]).max(1.0 / (params[0] - params[1]))
     }
     fn methods(&self) -> Vec<(&'static str, bool)> {
         shape_methods(&torus::Torus)
