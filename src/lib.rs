@@ -12,6 +12,88 @@
 //! - **judgement**: how one method's answer compares with the oracle ([`audit::judge::Judgement`]);
 //! - **audit**: every method × precision × class, aggregated into rows ([`audit`]), checked
 //!   against one tolerance table ([`audit::tolerance`]).
+//!
+//! # Where the reference material is
+//!
+//! The README is the newcomer's guide; the reference material is in the module docs:
+//! - [`audit`]: running an audit, the metrics and the harness's mutation test; the tolerance
+//!   rules in [`audit::tolerance`], sharding in [`audit::shard`], replaying a case in
+//!   [`audit::probe`], outside code in [`audit::api`], [`audit::exec`], [`audit::plugin`] and
+//!   [`audit::offline`];
+//! - [`shapes`]: the routines of Lengyel's ray-tracing chapter, the reintersection and
+//!   watertightness tests and an excerpt of their audit; [`shapes::sphere`]: the ray–sphere
+//!   methods, case classes, findings and benchmarks;
+//! - [`render`]: the renderer, its conventions and speed; [`render::export`]: how POV-Ray,
+//!   Mitsuba and rayproof are made to agree;
+//! - [`golden`]: golden-image CI and rayproof's own references; [`images`]: `rayproof diff`
+//!   and its parity with idiff;
+//! - [`implicit`]: implicit surfaces and Wu & Pan's image-space subdivision, reproduced;
+//! - [`report`]: `rayproof report`, what accuracy costs;
+//! - [`output`]: how every output file is written.
+//!
+//! # Exit codes of the `rayproof` command
+//!
+//! | code | meaning |
+//! |---|---|
+//! | 0 | success; for `audit` and `merge`, no row is out of tolerance (rows too small to tell are listed; a shard run, `--shard K/N` or `--shard-out`, leaves the table to the merge and exits 0) |
+//! | 1 | `audit` or `merge` ran and some row is out of tolerance (a regression, or a known failure that stopped failing) |
+//! | 2 | bad usage or input: one line on stderr names the argument (malformed number, unknown shape, method, class or precision, bad shard, unwritable output, a tolerance file with an unknown name or a dead rule); for `merge`, a shard file that is unreadable, truncated, corrupt or not a shard |
+//! | 3 | `reference`: a renderer is missing (one line saying how to install it; nothing rendered) or failed. `merge`: the shard files are not one audit's shards 0/N … N−1/N (a shard missing or given twice, or a different seed, `--cases`, selection, N or rayproof version) |
+//! | 4 | `audit` or `probe` with `--exec` or `--plugin`: the outside routine failed (the child crashed, hung past `--exec-timeout`, or answered a malformed line or the wrong number of lines; the library routine crashed, returned non-zero or wrote no answer); no report is written |
+//! | 130 | interrupted by SIGINT or SIGTERM: the temporaries of outputs being written are removed, no output is replaced |
+//!
+//! `implicit-check` uses them too: 0 when the certified mode matches per-pixel tracing pixel for
+//! pixel, 1 when it loses or adds a pixel, 2 for bad input. `check` uses 0 when every comparison
+//! passes (warnings, known failures and skipped optional references included), 1 when one fails,
+//! 2 for a suite file that does not validate, and 3 when a test is refused (see [`golden`]).
+//! `diff` follows idiff instead:
+//!
+//! | code | `rayproof diff` |
+//! |---|---|
+//! | 0 | PASS |
+//! | 1 | WARNING |
+//! | 2 | FAILURE (also bad usage, and an output that cannot be written) |
+//! | 3 | the images differ in size or channels |
+//! | 4 | an input is unreadable: missing, empty, truncated, corrupt, or not EXR/PNG |
+//!
+//! How output files are written, and what an interrupted command leaves: [`output`].
+//!
+//! # Limits
+//!
+//! Checked up front, before anything is allocated, with one line naming what is too large (exit 2
+//! for scenes and arguments, 4 for image files):
+//!
+//! | what | limit |
+//! |---|---|
+//! | image side (camera `width`/`height`, `--width`, a height made by an aspect ratio) | 16,384 pixels |
+//! | pixels of one image, rendered or read (an EXR's declared data window too) | 2^26 (8192²) |
+//! | sub-pixel grid n (`camera.grid`, `--spp` = n², `--grid`) | 64 |
+//! | `render.max_depth` (ray segments per path) | 256 (POV-Ray's `max_trace_level` stops at 256) |
+//! | a glass's `ior` | `[0.01, 100]` (beyond about 1e154 its square overflows and pixels turned NaN: found by `tests/fuzz.rs`) |
+//! | an EXR's offset table | must fit in the file (a truncated or corrupt header is refused) |
+//! | `audit --cases` | none: cases are streamed, memory does not grow with it (16 MB peak measured at 10^8 per class) |
+//!
+//! Scene values are validated once, at load, with the file, line and field in the error: every
+//! position, direction and size finite (NaN and ±inf are rejected everywhere), radii and sizes > 0,
+//! normals and `up` non-zero, `look_at` ≠ `position`, light intensities finite ≥ 0, albedo and
+//! reflectance in `[0, 1]`, OBJ vertices finite. A rendered image has no NaN or Inf pixel; its
+//! sidecar counts them (`nonfinite_pixels`). Numbers on the command line follow one rule in decimal
+//! and hex: a literal too large for the precision or a non-zero one that would round to 0 is an
+//! error (`inf`, `nan`, zeros and subnormals are values).
+//!
+//! # The repository around the crate
+//!
+//! - `tests/`: `sphere.rs` (one test per method × class, teeth, hand-derived oracle cases,
+//!   proptest), `verdicts.rs` (other seeds and case counts pass; a robust method made naive
+//!   fails), `shard.rs`, `cli.rs`, `routines.rs`, and one file per other area.
+//! - `benches/`: criterion benchmarks, each validated against the oracle before it times.
+//! - `scripts/`: `audit-excerpt`, `audit-excerpt-routines`, `measure-tolerances`, `bench-render`,
+//!   `bench-outside`, `make-fan30`, `make-seed1996`, the reference scripts (`render-povray`,
+//!   `render-mitsuba`, `render-references`, `verify-references`, `mitsuba_whitted.py`,
+//!   `reflib.sh`), `check-table`, `idiff-fixtures`, `idiff-pairs`, `fetch-bunny`,
+//!   `bench-implicit`, `mutate` (the harness's mutation test, see [`audit`]).
+//! - `reference/`: the scene files, the golden images, their manifests and `suite.toml`;
+//!   `reference/report/`: one full `rayproof report` run, the figures the README shows.
 
 pub mod audit;
 pub mod golden;

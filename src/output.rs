@@ -1,6 +1,15 @@
 //! Writing output files. Every file goes through a temporary sibling (`.NAME.tmpPID`) and a
 //! rename, so a failed or interrupted command never leaves a half-written file and never
 //! replaces a good one. This is the one atomic writer of the crate.
+//!
+//! - A command that writes several files (`render -o X.exr --png Y.png` and its `X.exr.json`)
+//!   renames them only when every one was written.
+//! - An output path that exists and is not a regular file (a directory, a symbolic link, a FIFO, a
+//!   device) is refused, never replaced.
+//! - Output paths are checked before the work starts (their directory exists and takes a
+//!   temporary file).
+//! - SIGINT or SIGTERM removes the temporaries being written and exits with 130; what a SIGKILL
+//!   leaves (`.NAME.tmpPID`) is removed by the next write of the same output.
 
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};

@@ -16,6 +16,23 @@
 //! e.g. `1 0x1.4p+2` or `2 -1.5 3` or `0` (decimal or hex floats, `nan`/`inf` allowed; an f32
 //! answer is rounded once to f32). Blank lines and lines starting with `#` are skipped in both
 //! files.
+//!
+//! # Example
+//!
+//! The judgement is exactly that of a direct audit of the same routine (`tests/offline.rs` checks
+//! the JSON byte for byte):
+//!
+//! ```sh
+//! rayproof cases --shape sphere --class far_small,tangent --precision f32 --cases 2000 -o cases.txt
+//! #   cases.txt: a header, then per case "PRECISION CLASS INDEX INPUT…" in hex floats
+//! your-renderer-test < cases.txt > answers.txt
+//! #   answers.txt: per case, in order, "COUNT VALUE…" (decimal or hex; e.g. "1 0x1.4p+2", "0")
+//! rayproof score --cases cases.txt --answers answers.txt --method mine --tolerances mine.toml
+//! ```
+//!
+//! `score` prints the same table and verdict and takes `--json`, `--markdown` and `--worst`. A
+//! cases file whose case is not the one this rayproof generates, a missing or extra answer, or a
+//! malformed number gives one line naming the file and line, and exit 2.
 
 use super::plan::{Options, Plan};
 use super::run::generate;

@@ -1,5 +1,25 @@
 //! `rayproof probe SHAPE --precision P -- VALUES…`: the oracle and every method on one case,
 //! as text or JSON. Every worst case of an audit prints the line that replays it here.
+//!
+//! ```sh
+//! cargo run --release -- probe sphere --precision f32 --json -- \
+//!     0x1p+0 -1 0  1 0 0  0x1p+20 -1 0  0x1p-3
+//! ```
+//!
+//! One probe serves every shape: `probe SHAPE --precision P [--json] -- VALUES…` with the shape's
+//! inputs in order (`probe SHAPE --help` names them; for the sphere `ox oy oz dx dy dz cx cy cz r`).
+//! Numbers may be decimal or C99 hex floats, each rounded once to the precision. It prints the
+//! oracle's verdict and correctly rounded values, whether the case is ill-posed, the shape's own
+//! detail (for the sphere, both exact roots to 45 significant digits and `t` in f32 and f64), and
+//! each method's values, verdict (`ok`, `false_hit`, `false_miss`, `wrong_root`, `nonfinite_t`,
+//! `invalid`), error in ulps, residual and enclosure. Every worst case in an audit prints its probe
+//! line. In the case above, the sphere is 2^20 away with radius 1/8: in f32 `algebraic` and the
+//! conservative `interval` report a false miss, `geometric` and `press` hit 2 ulps off, and
+//! `hearn_baker`, `rtg7` and `promote` return the correctly rounded root.
+//!
+//! An outside routine replays with it too: `rayproof probe … --exec CMD --name N -- …` or
+//! `rayproof probe … --plugin PATH:SYMBOL:f32 --name N -- …` (see [`super::exec`],
+//! [`super::plugin`]).
 
 use super::judge::Judgement;
 use super::run::judge_all;

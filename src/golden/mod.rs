@@ -18,6 +18,219 @@
 //!
 //! One file per job: `suite` (the suite file), `references` (rules, manifests, hashes, bless),
 //! `rows` (the results and their tables), `html` and `junit` (the reports); this file runs it.
+//!
+//! ```text
+//! rayproof check [--suite FILE] [--report DIR] [--update] [--json FILE] [--junit FILE]
+//!                [--markdown FILE] [--method M,..] [--precision f32,f64] [--test NAME,..] [--flip]
+//! ```
+//!
+//! # Your own suite
+//!
+//! The suite file's format is in [`suite`]; the README has a complete suite that runs from the
+//! repository's root with a stand-in renderer (`tests/suite.rs` runs it as printed).
+//! - **Thresholds** layer: the suite's `[thresholds]`, then the test's `thresholds = {…}`, then the
+//!   reference's own. Keys: idiff's (`fail`, `failrelative`, `failpercent`, `hardfail`,
+//!   `allowfailures`, `warn`, `warnrelative`, `warnpercent`, `hardwarn`), `max_mean`, `max_flip`
+//!   (mean HDR-ꟻLIP), `known_failure`; with `variance = "{variance}"` (your renderer writes the
+//!   per-pixel variance there) or a path, Mitsuba's z-test decides, with `significance` and
+//!   `pixel_success_rate` (see [`crate::images`]). A `known_failure` entry marks a comparison that
+//!   is expected to fail (XFAIL); if it starts to pass, `check` fails (XPASS).
+//! - **Sampling grid.** A reference's manifest entry (as `scripts/render-references`, `rayproof
+//!   reference` ([`renderers`]) and `--update` write: SHA-256, commands, width, grid, date) gives
+//!   the test its `{width}` and `{grid}` (`{spp}` = grid²), so a correct render is made with the
+//!   reference's grid and cannot fail on a sampling mismatch.
+//! - **Warnings** in every report: a linear EXR against an sRGB-encoded PNG (compared as stored),
+//!   mismatched sampling grids, NaN/Inf pixels in either image.
+//! - **Outputs**: the terminal table (failures first, refusals first of all), `--report DIR` (the
+//!   HTML page, in the style of Blender's render report: failures first; tone-mapped new and
+//!   reference images that swap on hover, and an HDR-ꟻLIP heat map; the metrics beside them),
+//!   `--json`, `--markdown`, `--junit` (JUnit XML: failures as `<failure>`, refusals as `<error>`,
+//!   skipped optional references as `<skipped>`).
+//! - **Exit codes** of `check`: 0 every comparison passes (warnings, XFAIL and SKIPPED included);
+//!   1 a comparison fails (FAILURE, XPASS, a missing golden); 2 the suite file does not validate
+//!   or bad usage (one line, nothing runs); 3 a test was refused: its renderer command failed,
+//!   hung past `timeout` or wrote no image, or a required reference is missing, tampered, stale
+//!   or unreadable. A refused test is one line in its row of every report, and then `--update`
+//!   writes nothing at all, no golden and no manifest.
+//!
+//! In CI (GitHub Actions, after installing rayproof and your renderer):
+//!
+//! ```yaml
+//! - name: Golden images
+//!   run: rayproof check --suite tests/render-suite.toml --junit junit.xml --report check-report
+//! - uses: actions/upload-artifact@v4
+//!   if: always()
+//!   with: { name: check-report, path: check-report }
+//! - uses: mikepenz/action-junit-report@v4
+//!   if: always()
+//!   with: { report_paths: junit.xml }
+//! ```
+//!
+//! # rayproof's own references
+//!
+//! rayproof's renders are checked against reference images from the real **POV-Ray 3.7** (Debian)
+//! and **Mitsuba 3** (PyPI), rendered from the same scene files (exported as
+//! [`crate::render::export`] describes). The references, their manifests and the thresholds are
+//! committed under `reference/` (see `reference/README.md`).
+//!
+//! `rayproof check` without `--suite` runs `reference/suite.toml`: it renders every scene of
+//! `reference/scenes/` with the gated configuration (`promote` f64) at the references' size and
+//! grid (256 wide, 8×8), and compares the render with:
+//! - `povray.exr` and `mitsuba.exr`, under the per-scene thresholds: fail above 0.05 for more than
+//!   0.1 % of pixels, and a mean error of at most 1e-3;
+//! - `rayproof.exr`, rayproof's own previous render, to 1e-6.
+//!
+//! A reference whose SHA-256 does not match its manifest is refused, and so is one made from
+//! another version of the scene file. `--update` rewrites only failing or missing `rayproof.exr`
+//! goldens, never the POV-Ray or Mitsuba files. CI runs `check` after the tests; here it took 90 s
+//! for the 24 comparisons (2 cores; `fan30` at 1024² is most of it).
+//!
+//! **Scripts** (they install nothing silently):
+//! - `scripts/render-povray SCENE`: says how to get `povray` if it is missing.
+//! - `scripts/render-mitsuba SCENE`: makes a venv with `mitsuba` and `numpy` in
+//!   `~/.cache/rayproof`, fetches libLLVM 19 with `apt-get download` for the llvm variant, and
+//!   falls back to `scalar_rgb`.
+//! - `scripts/render-references [NAME..]`: runs both renderers for every scene. It writes
+//!   `reference/NAME/{povray,mitsuba}.exr` and the manifest entries: renderer, version, exact
+//!   commands, grid, date, seconds, the file's SHA-256 and the scene file's SHA-256.
+//! - `scripts/verify-references [NAME]`: re-renders one scene (default `glass`) with both real
+//!   renderers and diffs the result against the committed files. It is not part of CI. Last run:
+//!   both bit-identical (mean error 0).
+//! - `scripts/check-table`: produces the table below.
+//!
+//! # What the references show
+//!
+//! - POV-Ray and rayproof `promote`/f64 agree to a mean error of about 1e-6 on every scene. Mitsuba
+//!   agrees to about 1e-5: Mitsuba traces in float32.
+//! - Mitsuba's `llvm_ad_rgb` variant intersects spheres in float32. On `floor` (a sphere of radius
+//!   1e6) about half the floor is self-shadowed (MAE 0.08). The `floor` reference therefore uses
+//!   `scalar_rgb`, which intersects spheres in float64.
+//! - At the image level, Fan et al.'s methods fail in **f64 as well as f32**. `algebraic` and
+//!   `geometric` in f64 speckle the spheres: 1.3–4 % of pixels are off by more than 0.05, against
+//!   0.1–0.3 % in f32. The cause is the ray offset, not the primary hits. With `offset = 1e-6`
+//!   both match POV-Ray to a mean error of 1.3e-6 (measured). With the automatic offset,
+//!   16 ulps × max(1, |p|), a shadow or reflection ray starts so close to the sphere that these
+//!   methods' error in the small root exceeds the offset, and the ray re-hits the sphere it
+//!   leaves. In f32 the same rule gives a distance 2^29 times larger, which hides the error.
+//! - `rtg7` f64 passes every scene except `floor`: 16.8 % of pixels fail against POV-Ray. Its
+//!   primary hits are exact (`rayproof probe` shows 0 ulps for a camera ray to the floor). But a
+//!   ray leaving the floor forms o − c with |c| = 1e6, which f64 resolves only to 1.2e-10, so the
+//!   offset of about 1e-14 is too small. With `offset = 1e-9` it matches POV-Ray (mean error
+//!   1.1e-6). Only `promote`, which forms o − c exactly, passes everywhere with the automatic
+//!   offset. A size-aware offset rule (pbrt-style error bounds) was left for the reintersection
+//!   work of issue 6, which made it [`crate::shapes::offset`]; the renderer's `auto` offset is
+//!   still the 16-ulp rule.
+//!
+//! # The comparison table
+//!
+//! From `scripts/check-table` (one `rayproof check --json --markdown` run): 102 comparisons, 6
+//! scenes × 2 references × 8 method/precision pairs, plus the goldens. FAILURE rows are expected
+//! outside the gated `promote f64`.
+//!
+//! | scene | reference | method / precision | status | MAE | RMS | PSNR dB | max error | pixels > fail | HDR-FLIP |
+//! |---|---|---|---|---|---|---|---|---|---|
+//! | diffuse | mitsuba | algebraic f32 | FAILURE | 4.41e-4 | 2.83e-3 | 50.9 | 0.086 | 0.127 % | 0.0095 |
+//! | diffuse | mitsuba | algebraic f64 | FAILURE | 1.16e-3 | 6.46e-3 | 43.8 | 0.144 | 1.334 % | 0.0208 |
+//! | diffuse | mitsuba | geometric f32 | FAILURE | 5.74e-4 | 3.46e-3 | 49.2 | 0.093 | 0.206 % | 0.0119 |
+//! | diffuse | mitsuba | geometric f64 | FAILURE | 1.83e-3 | 9.73e-3 | 40.2 | 0.179 | 3.543 % | 0.0307 |
+//! | diffuse | mitsuba | promote f32 | PASS | 9.19e-7 | 4.85e-5 | 86.3 | 0.004 | 0.000 % | 0.0001 |
+//! | diffuse | mitsuba | promote f64 | PASS | 9.19e-7 | 4.85e-5 | 86.3 | 0.004 | 0.000 % | 0.0001 |
+//! | diffuse | mitsuba | rtg7 f32 | PASS | 9.20e-7 | 4.85e-5 | 86.3 | 0.004 | 0.000 % | 0.0001 |
+//! | diffuse | mitsuba | rtg7 f64 | PASS | 9.19e-7 | 4.85e-5 | 86.3 | 0.004 | 0.000 % | 0.0001 |
+//! | diffuse | povray | algebraic f32 | FAILURE | 4.41e-4 | 2.83e-3 | 51.0 | 0.086 | 0.127 % | 0.0094 |
+//! | diffuse | povray | algebraic f64 | FAILURE | 1.16e-3 | 6.46e-3 | 43.8 | 0.144 | 1.332 % | 0.0206 |
+//! | diffuse | povray | geometric f32 | FAILURE | 5.75e-4 | 3.46e-3 | 49.2 | 0.093 | 0.206 % | 0.0118 |
+//! | diffuse | povray | geometric f64 | FAILURE | 1.83e-3 | 9.73e-3 | 40.2 | 0.179 | 3.545 % | 0.0306 |
+//! | diffuse | povray | promote f32 | PASS | 1.26e-6 | 2.75e-6 | 111.2 | 0.000 | 0.000 % | 0.0001 |
+//! | diffuse | povray | promote f64 | PASS | 1.26e-6 | 2.75e-6 | 111.2 | 0.000 | 0.000 % | 0.0001 |
+//! | diffuse | povray | rtg7 f32 | PASS | 1.26e-6 | 2.75e-6 | 111.2 | 0.000 | 0.000 % | 0.0001 |
+//! | diffuse | povray | rtg7 f64 | PASS | 1.26e-6 | 2.75e-6 | 111.2 | 0.000 | 0.000 % | 0.0001 |
+//! | diffuse | rayproof | promote f64 | PASS | 0.00e0 | 0.00e0 | inf | 0.000 | 0.000 % | 0.0000 |
+//! | fan30 | mitsuba | algebraic f32 | FAILURE | 1.44e-3 | 7.44e-3 | 42.6 | 0.151 | 1.131 % | 0.0387 |
+//! | fan30 | mitsuba | algebraic f64 | FAILURE | 2.43e-3 | 1.21e-2 | 38.3 | 0.246 | 2.002 % | 0.0563 |
+//! | fan30 | mitsuba | geometric f32 | FAILURE | 1.88e-3 | 9.28e-3 | 40.6 | 0.175 | 1.608 % | 0.0491 |
+//! | fan30 | mitsuba | geometric f64 | FAILURE | 3.01e-3 | 1.31e-2 | 37.7 | 0.230 | 2.780 % | 0.0694 |
+//! | fan30 | mitsuba | promote f32 | PASS | 7.20e-6 | 9.12e-5 | 80.8 | 0.007 | 0.000 % | 0.0015 |
+//! | fan30 | mitsuba | promote f64 | PASS | 7.31e-6 | 9.22e-5 | 80.7 | 0.007 | 0.000 % | 0.0015 |
+//! | fan30 | mitsuba | rtg7 f32 | PASS | 7.19e-6 | 9.11e-5 | 80.8 | 0.007 | 0.000 % | 0.0015 |
+//! | fan30 | mitsuba | rtg7 f64 | PASS | 7.31e-6 | 9.22e-5 | 80.7 | 0.007 | 0.000 % | 0.0015 |
+//! | fan30 | povray | algebraic f32 | FAILURE | 1.43e-3 | 7.43e-3 | 42.6 | 0.151 | 1.129 % | 0.0384 |
+//! | fan30 | povray | algebraic f64 | FAILURE | 2.43e-3 | 1.21e-2 | 38.3 | 0.246 | 2.000 % | 0.0561 |
+//! | fan30 | povray | geometric f32 | FAILURE | 1.88e-3 | 9.28e-3 | 40.6 | 0.176 | 1.610 % | 0.0488 |
+//! | fan30 | povray | geometric f64 | FAILURE | 3.01e-3 | 1.31e-2 | 37.7 | 0.230 | 2.782 % | 0.0691 |
+//! | fan30 | povray | promote f32 | PASS | 1.33e-6 | 1.20e-5 | 98.4 | 0.001 | 0.000 % | 0.0005 |
+//! | fan30 | povray | promote f64 | PASS | 1.15e-6 | 3.08e-6 | 110.2 | 0.000 | 0.000 % | 0.0004 |
+//! | fan30 | povray | rtg7 f32 | PASS | 1.33e-6 | 1.16e-5 | 98.7 | 0.001 | 0.000 % | 0.0005 |
+//! | fan30 | povray | rtg7 f64 | PASS | 1.15e-6 | 3.08e-6 | 110.2 | 0.000 | 0.000 % | 0.0004 |
+//! | fan30 | rayproof | promote f64 | PASS | 0.00e0 | 0.00e0 | inf | 0.000 | 0.000 % | 0.0000 |
+//! | far | mitsuba | algebraic f32 | FAILURE | 1.52e-2 | 5.01e-2 | 26.0 | 0.706 | 15.411 % | 0.3794 |
+//! | far | mitsuba | algebraic f64 | FAILURE | 4.28e-3 | 1.51e-2 | 36.4 | 0.168 | 6.891 % | 0.1278 |
+//! | far | mitsuba | geometric f32 | FAILURE | 1.90e-2 | 5.56e-2 | 25.1 | 0.598 | 18.979 % | 0.4192 |
+//! | far | mitsuba | geometric f64 | FAILURE | 4.67e-3 | 1.68e-2 | 35.5 | 0.182 | 7.150 % | 0.1380 |
+//! | far | mitsuba | promote f32 | PASS | 6.28e-7 | 2.20e-6 | 113.2 | 0.000 | 0.000 % | 0.0011 |
+//! | far | mitsuba | promote f64 | PASS | 5.51e-8 | 2.53e-7 | 131.9 | 0.000 | 0.000 % | 0.0005 |
+//! | far | mitsuba | rtg7 f32 | PASS | 1.22e-6 | 5.94e-6 | 104.5 | 0.000 | 0.000 % | 0.0014 |
+//! | far | mitsuba | rtg7 f64 | PASS | 5.51e-8 | 2.53e-7 | 131.9 | 0.000 | 0.000 % | 0.0005 |
+//! | far | povray | algebraic f32 | FAILURE | 1.52e-2 | 5.01e-2 | 26.0 | 0.706 | 15.411 % | 0.3794 |
+//! | far | povray | algebraic f64 | FAILURE | 4.28e-3 | 1.51e-2 | 36.4 | 0.168 | 6.891 % | 0.1278 |
+//! | far | povray | geometric f32 | FAILURE | 1.90e-2 | 5.56e-2 | 25.1 | 0.598 | 18.979 % | 0.4192 |
+//! | far | povray | geometric f64 | FAILURE | 4.67e-3 | 1.68e-2 | 35.5 | 0.181 | 7.150 % | 0.1380 |
+//! | far | povray | promote f32 | PASS | 6.57e-7 | 2.35e-6 | 112.6 | 0.000 | 0.000 % | 0.0012 |
+//! | far | povray | promote f64 | PASS | 1.87e-7 | 9.35e-7 | 120.6 | 0.000 | 0.000 % | 0.0006 |
+//! | far | povray | rtg7 f32 | PASS | 1.25e-6 | 6.00e-6 | 104.4 | 0.000 | 0.000 % | 0.0016 |
+//! | far | povray | rtg7 f64 | PASS | 1.87e-7 | 9.35e-7 | 120.6 | 0.000 | 0.000 % | 0.0006 |
+//! | far | rayproof | promote f64 | PASS | 0.00e0 | 0.00e0 | inf | 0.000 | 0.000 % | 0.0000 |
+//! | floor | mitsuba | algebraic f32 | FAILURE | 1.39e-3 | 6.03e-3 | 44.4 | 0.133 | 0.897 % | 0.0283 |
+//! | floor | mitsuba | algebraic f64 | FAILURE | 1.80e-2 | 2.64e-2 | 31.6 | 0.121 | 7.336 % | 0.1354 |
+//! | floor | mitsuba | geometric f32 | FAILURE | 1.63e-3 | 7.16e-3 | 42.9 | 0.133 | 1.632 % | 0.0321 |
+//! | floor | mitsuba | geometric f64 | FAILURE | 1.86e-2 | 2.75e-2 | 31.2 | 0.156 | 8.651 % | 0.1427 |
+//! | floor | mitsuba | promote f32 | PASS | 1.48e-4 | 1.52e-3 | 56.4 | 0.037 | 0.000 % | 0.0021 |
+//! | floor | mitsuba | promote f64 | PASS | 1.48e-4 | 1.52e-3 | 56.4 | 0.037 | 0.000 % | 0.0021 |
+//! | floor | mitsuba | rtg7 f32 | FAILURE | 7.32e-4 | 3.94e-3 | 48.1 | 0.106 | 0.144 % | 0.0153 |
+//! | floor | mitsuba | rtg7 f64 | FAILURE | 2.19e-2 | 3.32e-2 | 29.6 | 0.150 | 16.522 % | 0.1346 |
+//! | floor | povray | algebraic f32 | FAILURE | 1.46e-3 | 6.48e-3 | 43.8 | 0.140 | 0.966 % | 0.0290 |
+//! | floor | povray | algebraic f64 | FAILURE | 1.82e-2 | 2.66e-2 | 31.5 | 0.121 | 7.674 % | 0.1360 |
+//! | floor | povray | geometric f32 | FAILURE | 1.71e-3 | 7.59e-3 | 42.4 | 0.140 | 1.713 % | 0.0328 |
+//! | floor | povray | geometric f64 | FAILURE | 1.88e-2 | 2.78e-2 | 31.1 | 0.156 | 9.017 % | 0.1432 |
+//! | floor | povray | promote f32 | PASS | 1.15e-6 | 2.40e-6 | 112.4 | 0.000 | 0.000 % | 0.0001 |
+//! | floor | povray | promote f64 | PASS | 1.15e-6 | 2.40e-6 | 112.4 | 0.000 | 0.000 % | 0.0001 |
+//! | floor | povray | rtg7 f32 | FAILURE | 7.11e-4 | 4.38e-3 | 47.2 | 0.119 | 0.218 % | 0.0155 |
+//! | floor | povray | rtg7 f64 | FAILURE | 2.20e-2 | 3.33e-2 | 29.5 | 0.150 | 16.793 % | 0.1351 |
+//! | floor | rayproof | promote f64 | PASS | 0.00e0 | 0.00e0 | inf | 0.000 | 0.000 % | 0.0000 |
+//! | glass | mitsuba | algebraic f32 | FAILURE | 3.90e-4 | 2.71e-3 | 51.4 | 0.086 | 0.127 % | 0.0087 |
+//! | glass | mitsuba | algebraic f64 | FAILURE | 1.01e-3 | 6.15e-3 | 44.2 | 0.144 | 1.266 % | 0.0179 |
+//! | glass | mitsuba | geometric f32 | FAILURE | 6.41e-4 | 3.61e-3 | 48.9 | 0.094 | 0.256 % | 0.0193 |
+//! | glass | mitsuba | geometric f64 | FAILURE | 2.01e-3 | 9.99e-3 | 40.0 | 0.179 | 3.586 % | 0.0452 |
+//! | glass | mitsuba | promote f32 | PASS | 1.28e-5 | 1.67e-4 | 75.5 | 0.008 | 0.000 % | 0.0015 |
+//! | glass | mitsuba | promote f64 | PASS | 1.29e-5 | 1.68e-4 | 75.5 | 0.008 | 0.000 % | 0.0015 |
+//! | glass | mitsuba | rtg7 f32 | PASS | 1.28e-5 | 1.67e-4 | 75.5 | 0.008 | 0.000 % | 0.0015 |
+//! | glass | mitsuba | rtg7 f64 | PASS | 1.29e-5 | 1.68e-4 | 75.5 | 0.008 | 0.000 % | 0.0015 |
+//! | glass | povray | algebraic f32 | FAILURE | 3.79e-4 | 2.70e-3 | 51.4 | 0.086 | 0.127 % | 0.0076 |
+//! | glass | povray | algebraic f64 | FAILURE | 1.00e-3 | 6.15e-3 | 44.2 | 0.144 | 1.265 % | 0.0167 |
+//! | glass | povray | geometric f32 | FAILURE | 6.36e-4 | 3.61e-3 | 48.9 | 0.094 | 0.258 % | 0.0191 |
+//! | glass | povray | geometric f64 | FAILURE | 2.01e-3 | 9.99e-3 | 40.0 | 0.179 | 3.586 % | 0.0449 |
+//! | glass | povray | promote f32 | PASS | 1.44e-6 | 2.09e-5 | 93.6 | 0.003 | 0.000 % | 0.0003 |
+//! | glass | povray | promote f64 | PASS | 1.32e-6 | 1.82e-5 | 94.8 | 0.003 | 0.000 % | 0.0002 |
+//! | glass | povray | rtg7 f32 | PASS | 1.45e-6 | 2.14e-5 | 93.4 | 0.003 | 0.000 % | 0.0003 |
+//! | glass | povray | rtg7 f64 | PASS | 1.32e-6 | 1.82e-5 | 94.8 | 0.003 | 0.000 % | 0.0002 |
+//! | glass | rayproof | promote f64 | PASS | 0.00e0 | 0.00e0 | inf | 0.000 | 0.000 % | 0.0000 |
+//! | mirror | mitsuba | algebraic f32 | FAILURE | 8.03e-4 | 4.24e-3 | 47.5 | 0.086 | 0.143 % | 0.0137 |
+//! | mirror | mitsuba | algebraic f64 | FAILURE | 1.67e-3 | 7.79e-3 | 42.2 | 0.144 | 1.447 % | 0.0264 |
+//! | mirror | mitsuba | geometric f32 | FAILURE | 1.02e-3 | 5.20e-3 | 45.7 | 0.103 | 0.302 % | 0.0176 |
+//! | mirror | mitsuba | geometric f64 | FAILURE | 2.53e-3 | 1.14e-2 | 38.9 | 0.179 | 4.109 % | 0.0386 |
+//! | mirror | mitsuba | promote f32 | PASS | 1.34e-6 | 5.67e-5 | 84.9 | 0.004 | 0.000 % | 0.0002 |
+//! | mirror | mitsuba | promote f64 | PASS | 1.34e-6 | 5.67e-5 | 84.9 | 0.004 | 0.000 % | 0.0002 |
+//! | mirror | mitsuba | rtg7 f32 | PASS | 1.34e-6 | 5.67e-5 | 84.9 | 0.004 | 0.000 % | 0.0002 |
+//! | mirror | mitsuba | rtg7 f64 | PASS | 1.34e-6 | 5.67e-5 | 84.9 | 0.004 | 0.000 % | 0.0002 |
+//! | mirror | povray | algebraic f32 | FAILURE | 8.03e-4 | 4.24e-3 | 47.5 | 0.086 | 0.143 % | 0.0136 |
+//! | mirror | povray | algebraic f64 | FAILURE | 1.67e-3 | 7.79e-3 | 42.2 | 0.144 | 1.445 % | 0.0263 |
+//! | mirror | povray | geometric f32 | FAILURE | 1.02e-3 | 5.19e-3 | 45.7 | 0.103 | 0.302 % | 0.0174 |
+//! | mirror | povray | geometric f64 | FAILURE | 2.53e-3 | 1.14e-2 | 38.9 | 0.179 | 4.111 % | 0.0385 |
+//! | mirror | povray | promote f32 | PASS | 1.28e-6 | 2.79e-6 | 111.1 | 0.000 | 0.000 % | 0.0001 |
+//! | mirror | povray | promote f64 | PASS | 1.28e-6 | 2.79e-6 | 111.1 | 0.000 | 0.000 % | 0.0001 |
+//! | mirror | povray | rtg7 f32 | PASS | 1.28e-6 | 2.79e-6 | 111.1 | 0.000 | 0.000 % | 0.0001 |
+//! | mirror | povray | rtg7 f64 | PASS | 1.28e-6 | 2.79e-6 | 111.1 | 0.000 | 0.000 % | 0.0001 |
+//! | mirror | rayproof | promote f64 | PASS | 0.00e0 | 0.00e0 | inf | 0.000 | 0.000 % | 0.0000 |
 
 mod html;
 mod junit;

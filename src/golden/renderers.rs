@@ -14,6 +14,15 @@
 //!
 //! Every renderer asked for is found first; a missing one is one line with how to install it
 //! (exit 3) and nothing is rendered or written.
+//!
+//! ```sh
+//! rayproof reference scenes/mine.toml --with povray,mitsuba --width 256 --grid 8
+//! ```
+//!
+//! exports `scenes/mine.toml`, renders it with both, and writes `scenes/../mine/{povray,mitsuba}.exr`
+//! with their manifest entries (`--dir` puts them elsewhere). Mitsuba's Python needs the `mitsuba`
+//! package. `scripts/render-povray` and `scripts/render-mitsuba` (which also set up a Mitsuba venv
+//! and libLLVM 19) run it for rayproof's own scenes.
 
 use super::references::{record, sha256_file};
 use crate::render::{export, scene};

@@ -1,8 +1,22 @@
 //! `rayproof diff REF TEST`: image comparison with OpenImageIO `idiff`'s semantics, plus relMSE,
 //! HDR-ꟻLIP and an optional noise-aware per-pixel z-test.
 //!
-//! The command line of `rayproof diff`, its exit codes and its output files are in `cli/diff.rs`;
-//! this module does not depend on it.
+//! ```text
+//! rayproof diff REF TEST [--fail F --failrelative R --failpercent P --hardfail H --allowfailures N]
+//!                        [--warn F --warnrelative R --warnpercent P --hardwarn H]
+//!                        [--diff-exr FILE] [--heatmap FILE.png] [--json FILE|-] [--no-flip] [-q]
+//!                        [--variance REF_VAR.exr [--spp N] [--significance A] [--pixel-success-rate S]]
+//!                        [--idiff-compat]
+//! ```
+//!
+//! The command line of `rayproof diff` and its output files are in `cli/diff.rs`; this module does
+//! not depend on it. Its exit codes follow idiff (0 PASS, 1 WARNING, 2 FAILURE, 3 size or channels
+//! differ, 4 an unreadable input; in full in the [crate documentation](crate)).
+//!
+//! It prints what OpenImageIO's `idiff` prints: mean error, RMS, PSNR; the max error @ (x, y,
+//! channel) with both values; the pixels over warn and over fail. It adds relMSE and mean
+//! HDR-ꟻLIP (NVIDIA's exposure range and ACES tone mapper over the `nv-flip` crate, keeping the
+//! per-pixel maximum over exposures).
 //!
 //! The metrics and the verdict follow `idiff` (OIIO `idiff.cpp`, `imagebufalgo_compare.cpp`):
 //! a pixel fails if any channel has |a−b| > `fail` and |a−b|/mean(|a|,|b|) > `failrelative`;
@@ -10,9 +24,22 @@
 //! the pixels or the max error > `hardfail`, else WARNING if nwarn > `warnpercent`% or the max
 //! error > `hardwarn`, else PASS.
 //!
-//! The arithmetic is idiff 2.4's: differences and thresholds in float32, sums in double over
-//! batches of 4,096 pixels, PNG code values × (1/255) in float32. `tests/idiff.rs` checks this
-//! against 210 recorded runs of the real idiff (`scripts/idiff-fixtures`).
+//! The arithmetic is idiff 2.4's: differences and thresholds in float32 (`--fail 0.05` is
+//! 0.05000000075), sums in double over batches of 4,096 pixels, PNG code values × (1/255) in
+//! float32 as OpenImageIO converts them.
+//!
+//! **Parity with the real idiff.** `scripts/idiff-fixtures` runs OpenImageIO 2.4.7's `idiff`
+//! (Debian's `openimageio-tools`) on 21 pairs of images (`scripts/idiff-pairs`: noise offsets,
+//! relative changes, HDR, negative and tiny values, a threshold edge, NaN and Inf pixels, RGB
+//! against RGBA, different sizes, 8-bit PNGs) under 10 option sets, and records its exit codes and
+//! printed numbers in `tests/idiff/fixtures.json`. `tests/idiff.rs` regenerates the pairs, proves
+//! them byte-identical to the ones idiff saw (SHA-256), and checks `rayproof diff` against all 210
+//! runs: with `--idiff-compat` it matches every exit code, both pixel counts, and mean, RMS, PSNR
+//! and max error (value and place) as idiff prints them; without it, it matches the same way on
+//! every pair except those of the deliberate differences below, where it is deliberately stricter
+//! for CI. The table of those pairs (`nan1`, `nan2`, `inf1`, `inf2`, `infsign`, `rgba`, `size`),
+//! with what idiff 2.4 and `rayproof diff` give on each at idiff's defaults, is in the README's
+//! golden-image section, because `tests/idiff.rs` checks it there row by row.
 //!
 //! Deliberate differences from `idiff` ([`Semantics::Rayproof`]; `--idiff-compat` selects
 //! [`Semantics::Idiff`], which reproduces idiff on all of them):
@@ -22,8 +49,9 @@
 //!   relMSE sums (whose denominators stay pixels × channels); idiff counts none of the NaN ones
 //!   nor the first Inf, and its sums turn inf or nan; +Inf against −Inf is a mismatch (idiff:
 //!   equal); NaN = NaN and Inf = Inf of the same sign stay equal;
-//! - the report is always printed in full; its `Max error` line shows the one channel's two
-//!   values, with enough digits to reproduce them;
+//! - the report is always printed in full, and a NaN/Inf mismatch line says how it was counted;
+//!   its `Max error` line shows the one channel's two values, with enough digits to reproduce
+//!   them;
 //! - `--diff-exr` writes |REF − TEST| whenever asked, even for identical images;
 //! - only the first layer/part of an EXR and its `R`, `G`, `B` (and `A`) channels are read;
 //!   PNGs are kept display-referred (not linearised);
@@ -36,7 +64,9 @@
 //!   can vanish. A PNG compared with an EXR is compared as stored, with a note;
 //! - `--variance VAR.exr [--spp N]`: Mitsuba's z-test ([`z_test`]); the variance is the
 //!   per-sample variance when N > 1, the variance of the test pixel itself when N = 1 (the
-//!   default). The verdict is then the z-test's, PASS or FAILURE;
+//!   default). z = |img − ref|·sqrt(spp / max(var, 1e-4)), with a Šidák-corrected
+//!   α = 1 − (1 − 0.01)^(1/pixels), passing when ≥ 99.75 % of channel tests pass (the defaults of
+//!   `--significance` and `--pixel-success-rate`). The verdict is then the z-test's, PASS or FAILURE;
 //! - `--heatmap`: magma map of the ꟻLIP error, or with `--no-flip` of the largest channel
 //!   |d| × 16 clamped to 1 (like Blender's `idiff … --mulc 16`);
 //! - `--json FILE`: the comparison, thresholds and z-test; `--json -` prints the JSON on

@@ -267,6 +267,16 @@ fn ill_posed(v: &[f64], base: Crossing, prec: Precision) -> bool {
     })
 }
 
+/// The exact first surface crossing `t > 0` of an `f64` case rounded to `f64` (`None`: a miss
+/// or invalid input), without the truth's ill-posedness: what the reintersection test asks.
+pub fn first_crossing_f64(v: &[f64]) -> Option<f64> {
+    match crossing(v) {
+        (Crossing::Entry, Some((t0, _))) => Some(exact::round_q(&t0, Precision::F64)),
+        (Crossing::Exit, Some((_, t1))) => Some(exact::round_q(&t1, Precision::F64)),
+        _ => None,
+    }
+}
+
 /// The exact answer of a box case.
 pub fn oracle(v: &[f64], prec: Precision) -> Truth {
     if !valid_f64(v) {

@@ -606,6 +606,16 @@ fn ill_posed(kind: Kind, v: &[f64], base: Option<usize>, prec: Precision) -> boo
     })
 }
 
+impl QuadricShape {
+    /// The exact first hit `t > 0` of an `f64` case rounded to `f64` (`None`: a miss or invalid
+    /// input), without the truth's ill-posedness and other root: what the reintersection test
+    /// asks of its spawned rays.
+    pub fn first_hit_f64(&self, v: &[f64]) -> Option<f64> {
+        let (qd, k) = solve(self.kind, v)?;
+        qd.round_root(k?, Precision::F64)
+    }
+}
+
 /// The exact answer of an ellipsoid or cylinder case.
 fn oracle(kind: Kind, v: &[f64], prec: Precision) -> Truth {
     let Some((qd, k)) = solve(kind, v) else {

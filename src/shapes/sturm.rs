@@ -216,6 +216,23 @@ pub fn real_roots(c: &[Rational]) -> Vec<RealRoot> {
         .collect()
 }
 
+/// The distinct real roots isolated as [`real_roots`] does, without their multiplicities (which
+/// cost a chain of gcds), and the square-free part: for callers that only count or round.
+pub fn isolated(c: &[Rational]) -> (Vec<(Rational, Rational)>, Poly) {
+    let p = trim(c);
+    if p.len() <= 1 {
+        return (vec![], p);
+    }
+    let s = square_free(&p);
+    (isolate(&p, &s), s)
+}
+
+/// The only root of the square-free `s` in `(lo, hi]` (as [`isolated`] gives them), correctly
+/// rounded as [`round_root`] does.
+pub fn round_in(s: &[Rational], lo: &Rational, hi: &Rational, prec: Precision) -> f64 {
+    round_isolated(s, lo.clone(), hi.clone(), prec)
+}
+
 /// Intervals `(lo, hi]` each holding one root of `p` (trimmed, degree ≥ 1), ascending, by
 /// Sturm bisection on its square-free part `s`.
 fn isolate(p: &[Rational], s: &[Rational]) -> Vec<(Rational, Rational)> {

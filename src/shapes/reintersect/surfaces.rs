@@ -22,7 +22,7 @@
 //! The harness adds `γ₂(|p| + |c|)` for a world translation `c`.
 
 use super::{point, Instance};
-use crate::audit::shape::{Shape, Truth};
+use crate::audit::shape::Shape;
 use crate::numerics::exact::q;
 use crate::numerics::exact::round_q;
 use crate::numerics::real::Real;
@@ -101,12 +101,6 @@ fn shape_run<F: Real>(shape: &dyn Shape, m: usize, input: &[F]) -> Option<F> {
 }
 
 /// A routine's exact first root, rounded to `f64`.
-fn shape_exact(shape: &dyn Shape, input: &[f64]) -> Option<f64> {
-    match shape.oracle(input, Precision::F64) {
-        Truth::Answer(e) if e.count > 0 => Some(e.values[0]),
-        _ => None,
-    }
-}
 
 fn shape_methods(shape: &dyn Shape) -> Vec<(&'static str, bool)> {
     shape
@@ -154,7 +148,7 @@ impl Surface for BoxR {
         shape_run(&aabb::BoxShape, m, input)
     }
     fn exact(&self, input: &[f64]) -> Option<f64> {
-        shape_exact(&aabb::BoxShape, input)
+        aabb::first_crossing_f64(input)
     }
     fn surface<F: PickPrecision>(&self, m: usize, input: &[F], t: F) -> ([F; 3], [F; 3], [F; 3]) {
         let (o, d, lo, hi) = (v3(input, 0), v3(input, 3), v3(input, 6), v3(input, 9));
@@ -238,7 +232,12 @@ impl Surface for QuadR {
         shape_run(self.shape(), m, input)
     }
     fn exact(&self, input: &[f64]) -> Option<f64> {
-        shape_exact(self.shape(), input)
+        let shape = if self.cylinder {
+            &quadric::CYLINDER
+        } else {
+            &quadric::ELLIPSOID
+        };
+        shape.first_hit_f64(input)
     }
     fn surface<F: PickPrecision>(&self, _m: usize, input: &[F], t: F) -> ([F; 3], [F; 3], [F; 3]) {
         let (o, d) = (v3(input, 0), v3(input, 3));
@@ -369,10 +368,10 @@ impl Surface for TorusR {
             r2: q(input[7]),
         };
         let p = quartic_q(&case);
-        let (roots, _) = positive_roots(&p);
+        let (roots, sf) = positive_roots(&p);
         roots
             .first()
-            .map(|r| sturm::round_root(&p, r, Precision::F64))
+            .map(|(lo, hi)| sturm::round_in(&sf, lo, hi, Precision::F64))
     }
     fn surface<F: PickPrecision>(&self, m: usize, input: &[F], t: F) -> ([F; 3], [F; 3], [F; 3]) {
         let (o, d, r1, r2) = (v3(input, 0), v3(input, 3), input[6], input[7]);

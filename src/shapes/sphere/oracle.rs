@@ -16,6 +16,16 @@
 //!    `q = −(B' + sign(B')√Δ)`, roots `q/A` and `C/q`, so there is no cancellation) at rising
 //!    precision until the enclosure of the answer rounds to one `f32` and one `f64`
 //!    (Ziv's strategy). If [`PREC_CAP`] bits do not suffice, `cap_reached` is set.
+//!
+//! # Why it is fast
+//!
+//! The sphere is a small part of the default audit's time (the README's per-family timing lines),
+//! while the routines' exact oracles use nearly all of its CPU time. Three reasons:
+//! - The exact verdict first goes through the outward-rounded `f64` interval filter. GMP integers
+//!   are used only when the filter cannot decide a sign.
+//! - The ill-posedness check evaluates all 20 one-ulp moves at once as one interval box, and
+//!   decides them one by one, exactly, only when the box is undecided.
+//! - MPFR starts at 2·p + 64 bits and doubles only when the rounding is still uncertain.
 
 use super::methods::{Ray, Sphere};
 use crate::numerics::interval::Interval;

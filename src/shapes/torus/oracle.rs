@@ -4,9 +4,9 @@
 //!    [`Truth::Invalid`].
 //! 2. **Roots**: the chapter's quartic (§2.5) with exact rational coefficients from the exact
 //!    binary inputs ([`quartic_q`]); its distinct real roots isolated exactly by
-//!    [`sturm::real_roots`]; the positive ones kept (an isolating interval that straddles 0 is
+//!    [`sturm::isolated`]; the positive ones kept (an isolating interval that straddles 0 is
 //!    decided by the sign of the square-free part at 0); the first correctly rounded by
-//!    [`sturm::round_root`], the others reported as `others` (an answer nearer one of them is a
+//!    [`sturm::round_in`], the others reported as `others` (an answer nearer one of them is a
 //!    wrong root).
 //! 3. **Ill-posedness**: each of the eight inputs is moved one ulp of the precision up and down
 //!    (sixteen moves, one input at a time; moves that leave the valid domain, e.g. `r2` onto
@@ -24,7 +24,7 @@ use super::methods::is_valid;
 use crate::audit::shape::{Expected, Truth};
 use crate::numerics::exact::{self, q, ziv, ZIV_CAP};
 use crate::numerics::Precision;
-use crate::shapes::sturm::{self, eval, square_free, RealRoot};
+use crate::shapes::sturm::{self, eval};
 use crate::shapes::ulp_box::{roots_keep_count, strict_sign as sign_on_box, ulp_box, BoxIv};
 use rug::float::Round;
 use rug::{Float, Rational};
@@ -79,7 +79,7 @@ fn sign(x: &Rational) -> Ordering {
 }
 
 /// An isolated simple root of a square-free polynomial, narrowed on demand by bisection. As in
-/// [`sturm::real_roots`], the root is the only one in `(lo, hi]` (`lo` may be another root).
+/// [`sturm::isolated`], the root is the only one in `(lo, hi]` (`lo` may be another root).
 pub struct Encloser {
     sf: Vec<Rational>,
     pub lo: Rational,
@@ -139,25 +139,26 @@ impl Encloser {
     }
 }
 
-/// The distinct positive real roots of `p` (exact, ascending), with the square-free part.
-pub fn positive_roots(p: &[Rational]) -> (Vec<RealRoot>, Vec<Rational>) {
-    let sf = square_free(p);
-    let roots = sturm::real_roots(p)
+/// The distinct positive real roots of `p` (exact, ascending), each the only root of the
+/// square-free part in `(lo, hi]`, with the square-free part.
+pub fn positive_roots(p: &[Rational]) -> (Vec<(Rational, Rational)>, Vec<Rational>) {
+    let (roots, sf) = sturm::isolated(p);
+    let roots = roots
         .into_iter()
-        .filter(|r| is_positive(&sf, r))
+        .filter(|(lo, hi)| is_positive(&sf, lo, hi))
         .collect();
     (roots, sf)
 }
 
 /// Whether an isolated root (the only one in `(lo, hi]`) is `> 0`, decided exactly.
-fn is_positive(sf: &[Rational], r: &RealRoot) -> bool {
-    if r.lo == r.hi {
-        return r.lo > 0;
+fn is_positive(sf: &[Rational], lo: &Rational, hi: &Rational) -> bool {
+    if lo == hi {
+        return *lo > 0;
     }
-    if r.lo >= 0 {
+    if *lo >= 0 {
         return true;
     }
-    if r.hi <= 0 {
+    if *hi <= 0 {
         return false;
     }
     // lo < 0 < hi: the root is 0 itself, or on the side of 0 where the sign changes
@@ -165,7 +166,7 @@ fn is_positive(sf: &[Rational], r: &RealRoot) -> bool {
     if at0 == Ordering::Equal {
         return false;
     }
-    let at_hi = sign(&eval(sf, &r.hi));
+    let at_hi = sign(&eval(sf, hi));
     at_hi == Ordering::Equal || at_hi != at0
 }
 
@@ -243,11 +244,11 @@ pub fn truth(x: &[f64], prec: Precision) -> Truth {
         return Truth::Invalid;
     }
     let p = quartic_q(&ExactCase::new(x));
-    let (roots, _) = positive_roots(&p);
+    let (roots, sf) = positive_roots(&p);
     let ill = ill_posed(x, prec, roots.len());
     let rounded: Vec<f64> = roots
         .iter()
-        .map(|r| sturm::round_root(&p, r, prec))
+        .map(|(lo, hi)| sturm::round_in(&sf, lo, hi, prec))
         .collect();
     Truth::Answer(Expected {
         count: (!roots.is_empty()) as u32,
@@ -274,9 +275,9 @@ pub fn first_hit(x: &[f64], prec: Precision) -> Option<FirstHit> {
     let case = ExactCase::new(x);
     let p = quartic_q(&case);
     let (roots, sf) = positive_roots(&p);
-    let r = roots.first()?;
-    let t = sturm::round_root(&p, r, prec);
-    let mut root = Encloser::new(sf, r.lo.clone(), r.hi.clone());
+    let (lo, hi) = roots.first()?;
+    let t = sturm::round_in(&sf, lo, hi, prec);
+    let mut root = Encloser::new(sf, lo.clone(), hi.clone());
     for c in rational_candidates(&case) {
         root.try_exact(&c);
     }
