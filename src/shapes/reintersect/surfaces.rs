@@ -100,8 +100,6 @@ fn shape_run<F: Real>(shape: &dyn Shape, m: usize, input: &[F]) -> Option<F> {
     (a.count > 0).then(|| F::from_f64(a.values[0]))
 }
 
-/// A routine's exact first root, rounded to `f64`.
-
 fn shape_methods(shape: &dyn Shape) -> Vec<(&'static str, bool)> {
     shape
         .info()
