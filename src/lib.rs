@@ -2,6 +2,21 @@
 //!
 //! Tells, with proof, how accurate and how fast ray-tracing numerics are.
 //!
+//! ```
+//! use rayproof::audit::{audit_shape, plan::Options};
+//! use rayproof::shapes::shape_by_name;
+//!
+//! // The chapter's quadratic solvers, 300 cases per class and precision, seed 1, judged by
+//! // the built-in tolerance table (what `rayproof audit --shape quadratic --cases 300` does)
+//! let shape = shape_by_name("quadratic").unwrap();
+//! let opts = Options { cases: Some(300), seed: 1, ..Default::default() };
+//! let report = audit_shape(shape, &opts).unwrap();
+//! assert!(report.failures().is_empty(), "{:?}", report.failures());
+//! // Every row carries its counts: the textbook formula's wrong verdicts are known failures
+//! let textbook = report.rows.iter().filter(|r| r.method == "textbook");
+//! assert!(textbook.count() > 0);
+//! ```
+//!
 //! Terminology (after libm-test):
 //! - **method**: one way to intersect a ray with a shape, written once over [`numerics::real::Real`]
 //!   (e.g. [`shapes::sphere::methods::algebraic`]), instantiated for `f32` and `f64`;

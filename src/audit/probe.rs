@@ -117,7 +117,22 @@ pub fn probe_json(
     }))
 }
 
-/// The probe's answer as text.
+/// The probe's answer as text: the oracle's verdict, correctly rounded values and
+/// ill-posedness, then each method's answer and error (what `rayproof probe` prints).
+///
+/// ```
+/// use rayproof::audit::probe::probe_text;
+/// use rayproof::audit::{Builtin, Method};
+/// use rayproof::numerics::Precision;
+/// use rayproof::shapes::sphere::SphereShape;
+///
+/// // From the origin along +x, a sphere of radius 1 at (4, 0, 0): t = 3 = 0x1.8p+1
+/// let builtins = Builtin::all(&SphereShape);
+/// let methods: Vec<&dyn Method> = builtins.iter().map(|b| b as &dyn Method).collect();
+/// let input = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 4.0, 0.0, 0.0, 1.0];
+/// let text = probe_text(&SphereShape, &methods, Precision::F64, &input).unwrap();
+/// assert!(text.contains("0x1.8p+1"), "{text}");
+/// ```
 pub fn probe_text(
     shape: &dyn Shape,
     methods: &[&dyn Method],

@@ -115,7 +115,7 @@ pub fn table(rows: &[Row]) -> String {
     s
 }
 
-/// A Markdown table (for the README), from the same rows.
+/// A Markdown table (for the module docs of `golden`), from the same rows.
 pub fn markdown(rows: &[Row]) -> String {
     let mut rows: Vec<&Row> = rows.iter().collect();
     rows.sort_by(|a, b| {

@@ -249,7 +249,19 @@ pub enum Semantics {
 }
 
 /// Compares two images of the same size and channels with idiff's rules (rayproof's
-/// semantics).
+/// semantics): what `rayproof diff` computes.
+///
+/// ```
+/// use rayproof::images::{compare, Image, Thresholds};
+///
+/// // Two 2×1 RGB images; one channel of one pixel differs by 0.5
+/// let a = Image::new(2, 1, &["R", "G", "B"], vec![0.2; 6]);
+/// let mut b = a.clone();
+/// b.data[0] = 0.7;
+/// let c = compare(&a, &b, &Thresholds::default()).unwrap();
+/// assert_eq!(c.n_fail, 1); // |0.5| is over idiff's default fail threshold
+/// assert!((c.mean_error - 0.5 / 6.0).abs() < 1e-9);
+/// ```
 pub fn compare(
     reference: &Image,
     test: &Image,

@@ -447,7 +447,45 @@ pub fn build_geometry(s: &Scene) -> (Geometry, Vec<Material>) {
     )
 }
 
-/// Renders a scene with the integrator specialised to its effects.
+/// Renders a scene with the integrator specialised to its effects: what `rayproof render`
+/// runs.
+///
+/// ```
+/// use rayproof::render::{render, scene, Overrides};
+/// use std::path::Path;
+///
+/// // One diffuse sphere and a light, rendered at 8×8 with one sample per pixel
+/// let text = r#"
+/// [camera]
+/// position = [0.0, 0.0, 5.0]
+/// look_at = [0.0, 0.0, 0.0]
+/// up = [0.0, 1.0, 0.0]
+/// fov = 40.0
+/// width = 8
+/// height = 8
+/// grid = 1
+///
+/// [[lights]]
+/// position = [3.0, 3.0, 5.0]
+/// intensity = [30.0, 30.0, 30.0]
+///
+/// [materials.red]
+/// type = "diffuse"
+/// albedo = [0.8, 0.1, 0.1]
+///
+/// [[shapes]]
+/// type = "sphere"
+/// center = [0.0, 0.0, 0.0]
+/// radius = 1.0
+/// material = "red"
+/// "#;
+/// let scene = scene::parse(text, Path::new("example.toml")).unwrap();
+/// let image = render(&scene, &Overrides::default());
+/// assert_eq!((image.width, image.height), (8, 8));
+/// // The centre pixel sees the lit sphere: red dominates
+/// let [r, g, _] = image.beauty[4 * 8 + 4];
+/// assert!(r > g && r > 0.0);
+/// ```
 pub fn render(s: &Scene, ov: &Overrides) -> Render {
     let effects = if ov.force_all_effects {
         Effects::all(s)
