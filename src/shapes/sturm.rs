@@ -341,8 +341,11 @@ fn round_isolated(s: &[Rational], mut lo: Rational, mut hi: Rational, prec: Prec
     if let Some(a) = estimate(s, &lo, &hi, s_lo, prec) {
         let oa = ordinal(a, prec);
         for x in [from_ordinal(oa - 1, prec), from_ordinal(oa + 1, prec)] {
+            if !x.is_finite() {
+                continue;
+            }
             let xq = q(x);
-            if !(x.is_finite() && xq > lo && xq < hi) {
+            if !(xq > lo && xq < hi) {
                 continue;
             }
             match sign_at(s, &xq) {
