@@ -160,7 +160,10 @@ mod tests {
         );
         // An exact zero is enclosed, never given a strict sign
         let zero = discriminant(&pt(&[6.0, -17.0, 17.0, -7.0, 1.0]));
-        assert!(zero.contains(0.0) && strict_sign(zero).is_none(), "{zero:?}");
+        assert!(
+            zero.contains(0.0) && strict_sign(zero).is_none(),
+            "{zero:?}"
+        );
     }
 
     #[test]
