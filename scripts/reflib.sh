@@ -1,5 +1,5 @@
 # Shared by the reference scripts (sourced, not run). Defines:
-#   ROOT, RAYPROOF (built on demand), TOOLS (cache for the Mitsuba venv and libLLVM),
+#   ROOT, RAYPROOF (built on demand), TOOLS (cache for the Mitsuba venv and libLLVM), mitsuba_setup,
 #   parse_ref_args DEFAULT_FILE (SCENE [--width W] [--grid N] [-o OUT]); the manifest entries
 #   are written by `rayproof reference`, which the scripts run.
 set -euo pipefail
@@ -36,5 +36,34 @@ parse_ref_args() {
     MANIFEST="$out/manifest.json"
   else
     OUT="$(cd "$(dirname "$OUT")" && pwd)/$(basename "$OUT")"
+  fi
+}
+
+# mitsuba_setup [VARIANT]: sets MITSUBA_PY (a venv's python with mitsuba and numpy, made on first
+# use in $TOOLS/mitsuba-venv), MITSUBA_VARIANT (VARIANT, default llvm_ad_rgb, or scalar_rgb when
+# libLLVM 19 cannot be had) and exports DRJIT_LIBLLVM_PATH for the llvm variant.
+mitsuba_setup() {
+  MITSUBA_VARIANT="${1:-llvm_ad_rgb}"
+  MITSUBA_PY="$TOOLS/mitsuba-venv/bin/python"
+  # The venv with Mitsuba
+  if ! "$MITSUBA_PY" -c "import mitsuba, numpy" 2>/dev/null; then
+    echo "setting up $TOOLS/mitsuba-venv (pip install mitsuba numpy)" >&2
+    mkdir -p "$TOOLS"
+    python3 -m venv "$TOOLS/mitsuba-venv"
+    "$TOOLS/mitsuba-venv/bin/pip" install --quiet mitsuba numpy
+  fi
+  # libLLVM 19 for the llvm variant (Debian's default LLVM aborts with "Cannot select fmaximum")
+  local llvm
+  llvm="$(find "$TOOLS/llvm19" -name 'libLLVM.so.19*' 2>/dev/null | head -n1 || true)"
+  if [ -z "$llvm" ]; then
+    echo "fetching libLLVM 19 (apt-get download libllvm19) into $TOOLS/llvm19" >&2
+    ( cd "$TOOLS" && apt-get download libllvm19 >/dev/null 2>&1 && dpkg -x libllvm19_*.deb llvm19 ) || true
+    llvm="$(find "$TOOLS/llvm19" -name 'libLLVM.so.19*' 2>/dev/null | head -n1 || true)"
+  fi
+  if [ -n "$llvm" ]; then
+    export DRJIT_LIBLLVM_PATH="$llvm"
+  elif [ "$MITSUBA_VARIANT" != scalar_rgb ]; then
+    echo "warning: no libLLVM 19; falling back to the scalar_rgb variant (slow)" >&2
+    MITSUBA_VARIANT=scalar_rgb
   fi
 }
