@@ -53,9 +53,10 @@ fn quick_report_has_every_part_with_measured_numbers() {
     }
     let json: Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
-    // Accuracy vs cost: 7 methods × 2 precisions, each timed, the naive ones caught
+    // Accuracy vs cost: every method × 2 precisions, each timed, the naive ones caught
+    let n_methods = rayproof::shapes::sphere::methods::METHODS.len();
     let cost = json["cost"].as_array().unwrap();
-    assert_eq!(cost.len(), 14);
+    assert_eq!(cost.len(), 2 * n_methods);
     assert!(cost
         .iter()
         .all(|r| r["ns"]["median_ns"].as_f64().unwrap() > 0.0));
@@ -70,10 +71,15 @@ fn quick_report_has_every_part_with_measured_numbers() {
         "teeth: naive f32 fails"
     );
     assert_eq!(row("promote", "f64")["wrong"].as_u64(), Some(0));
+    // certified is on the plot, right everywhere: no wrong verdict, the correctly rounded t
+    for p in ["f32", "f64"] {
+        assert_eq!(row("certified", p)["wrong"].as_u64(), Some(0));
+        assert_eq!(row("certified", p)["max_ulps"].as_f64(), Some(0.0));
+    }
     assert!(row("algebraic", "f32")["max_ulps"].as_f64().unwrap() > 1e3);
-    // Render trade-off: 3 scenes × 14 configurations, the baseline has zero error to itself
+    // Render trade-off: 3 scenes × every configuration, the baseline has zero error to itself
     let renders = json["renders"].as_array().unwrap();
-    assert_eq!(renders.len(), 42);
+    assert_eq!(renders.len(), 3 * 2 * n_methods);
     let base = renders
         .iter()
         .find(|r| r["scene"] == "fan30" && r["method"] == "promote" && r["precision"] == "f64")
@@ -169,8 +175,8 @@ fn an_outside_routine_joins_the_accuracy_vs_cost_section() {
     let cost = json["cost"].as_array().unwrap();
     assert_eq!(
         cost.len(),
-        16,
-        "7 built-in methods and py, in two precisions"
+        2 * (rayproof::shapes::sphere::methods::METHODS.len() + 1),
+        "the built-in methods and py, in two precisions"
     );
     let py: Vec<&Value> = cost.iter().filter(|r| r["method"] == "py").collect();
     assert_eq!(py.len(), 2);

@@ -13,6 +13,7 @@
 //! Some comparisons are written negated (`!(x >= 0)`) on purpose: a NaN must take the miss branch.
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub use super::certified::certified;
 use crate::numerics::interval::Interval;
 use crate::numerics::real::{Real, Scalar};
 
@@ -444,6 +445,11 @@ pub const METHODS: &[Method] = &[
         promote,
         true,
         "rtg7 in f64 (for f32) or double-double (for f64), rounded once"
+    ),
+    method!(
+        certified,
+        true,
+        "exact verdict and correctly rounded t: a quick f64 phase with a rigorous error bound, the exact oracle's path when it cannot decide"
     ),
     method!(
         interval,

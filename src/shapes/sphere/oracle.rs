@@ -378,37 +378,90 @@ pub fn truth<F: Real>(case: &Case<F>) -> Truth {
     }
     out.ill_posed = ill_posed(case, v);
     let ex = Exact::new(case);
+    if let Some(z) = ziv(&ex, v, F::MANT_BITS) {
+        out.roots = Some(z.roots);
+        out.prec = z.prec;
+        if let Some((t_f32, t_f64)) = z.t {
+            out.t_f32 = Some(t_f32);
+            out.t_f64 = Some(t_f64);
+        }
+        out.cap_reached = z.cap_reached;
+    }
+    out
+}
+
+/// Both roots, and the answer root of a hit rounded by Ziv's loop.
+struct Rounded {
+    /// Both roots `t₁ ≤ t₂` to about 17 digits.
+    roots: [f64; 2],
+    /// The answer root correctly rounded to `f32` and `f64` (a hit only).
+    t: Option<(f32, f64)>,
+    /// The precision at which both roundings became certain (or [`PREC_CAP`]).
+    prec: u32,
+    cap_reached: bool,
+}
+
+/// Ziv's loop: `None` when there are no two real roots to enclose (`Δ < 0`, or `B' = Δ = 0`);
+/// otherwise both roots, and for a hit verdict `v` the answer root, starting at
+/// `2·mant_bits + 64` bits and doubling until its enclosure rounds to one `f32` and one `f64`.
+fn ziv(ex: &Exact, v: Verdict, mant_bits: u32) -> Option<Rounded> {
     if ex.disc.cmp0() == Ordering::Less
         || (ex.bh.cmp0() == Ordering::Equal && ex.disc.cmp0() == Ordering::Equal)
     {
-        return out;
+        return None;
     }
-    // Ziv's loop on the answer root
-    let mut prec = 2 * F::MANT_BITS + 64;
+    let mut prec = 2 * mant_bits + 64;
     loop {
-        let (t1, t2) = root_enclosures(&ex, prec);
-        out.roots = Some([t1.mid().to_f64(), t2.mid().to_f64()]);
-        out.prec = prec;
+        let (t1, t2) = root_enclosures(ex, prec);
+        let roots = [t1.mid().to_f64(), t2.mid().to_f64()];
         let ans = match v {
             Verdict::Near => t1,
             Verdict::Far => t2,
-            _ => return out,
+            _ => {
+                return Some(Rounded {
+                    roots,
+                    t: None,
+                    prec,
+                    cap_reached: false,
+                })
+            }
         };
-        let (r32, r64) = (ans.round32(), ans.round64());
-        if let (Some(a), Some(b)) = (r32, r64) {
-            out.t_f32 = Some(a);
-            out.t_f64 = Some(b);
-            return out;
+        if let (Some(a), Some(b)) = (ans.round32(), ans.round64()) {
+            return Some(Rounded {
+                roots,
+                t: Some((a, b)),
+                prec,
+                cap_reached: false,
+            });
         }
         if prec >= PREC_CAP {
-            out.cap_reached = true;
             let m = ans.mid();
-            out.t_f32 = Some(m.to_f32());
-            out.t_f64 = Some(m.to_f64());
-            return out;
+            return Some(Rounded {
+                roots,
+                t: Some((m.to_f32(), m.to_f64())),
+                prec,
+                cap_reached: true,
+            });
         }
         prec *= 2;
     }
+}
+
+/// The exact verdict and the correctly rounded nearest root with `t > 0`, in the case's own
+/// precision: the accurate phase of [`super::certified`]. `None` for a miss, invalid input,
+/// or a root that rounds to zero or overflows in `F`.
+pub fn nearest_root<F: Real>(case: &Case<F>) -> Option<F> {
+    let v = verdict(case);
+    if !v.is_hit() {
+        return None;
+    }
+    let (t32, t64) = ziv(&Exact::new(case), v, F::MANT_BITS)?.t?;
+    let t = if F::MANT_BITS == 24 {
+        F::from_f64(t32 as f64)
+    } else {
+        F::from_f64(t64)
+    };
+    (t > F::ZERO && t.is_finite()).then_some(t)
 }
 
 /// Both exact roots as decimal strings with `digits` significant digits.

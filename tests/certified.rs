@@ -1,0 +1,260 @@
+//! The `certified` ray–sphere method: the exact verdict and the correctly rounded `t` on every
+//! case of every class, ill-posed ones included (the audit's rows judge only the well-posed),
+//! its quick phase's enclosures checked against MPFR enclosures of the exact root, the test's
+//! teeth (a bound made too small is caught), and the share of each class that reaches the
+//! accurate phase (printed: the README and the module docs quote it).
+
+use rayproof::numerics::real::Real;
+use rayproof::shapes::sphere::cases::{generate, Class};
+use rayproof::shapes::sphere::certified::{certified, quick_phase, Quick};
+use rayproof::shapes::sphere::oracle::{root_enclosures, truth, Case, Exact, Verdict};
+
+const SEED: u64 = 11;
+const PER_CLASS: u64 = 4000;
+
+/// Every class's cases (the generator may decline an index).
+fn cases<F: Real>(class: Class) -> impl Iterator<Item = Case<F>> {
+    (0..PER_CLASS).filter_map(move |i| generate::<F>(SEED, class, i))
+}
+
+/// certified against the oracle on every case, ill-posed included: the same verdict, and the
+/// same bits of t (the oracle's correctly rounded root in the case's precision).
+fn agrees_everywhere<F: Real>() {
+    for class in Class::ALL {
+        let (mut n, mut ill) = (0, 0);
+        for case in cases::<F>(class) {
+            let want = truth(&case);
+            let got = certified(&case.ray(), &case.sphere());
+            let want_t = if want.verdict.is_hit() {
+                want.t_in::<F>().filter(|t| *t > F::ZERO && t.is_finite())
+            } else {
+                None
+            };
+            assert_eq!(
+                got.map(|h| h.t.to_bits_u64()),
+                want_t.map(|t| t.to_bits_u64()),
+                "certified {} on a {} case ({:?}, ill-posed {}): got {:?}, the oracle {:?}\n  replay: rayproof probe sphere {}",
+                F::NAME,
+                class.name(),
+                want.verdict,
+                want.ill_posed,
+                got.map(|h| h.t.hex()),
+                want_t.map(|t| t.hex()),
+                case.probe_args()
+            );
+            n += 1;
+            ill += want.ill_posed as usize;
+        }
+        assert!(
+            n > PER_CLASS as usize / 4,
+            "{}: only {n} cases",
+            class.name()
+        );
+        eprintln!(
+            "certified {} {}: {n} cases ({ill} ill-posed) all exact",
+            F::NAME,
+            class.name()
+        );
+    }
+}
+
+#[test]
+fn exact_verdict_and_correctly_rounded_t_on_every_case_f32() {
+    agrees_everywhere::<f32>();
+}
+
+#[test]
+fn exact_verdict_and_correctly_rounded_t_on_every_case_f64() {
+    agrees_everywhere::<f64>();
+}
+
+/// The quick phase's claims checked against the exact root: a claimed miss is a miss, a claimed
+/// hit's enclosure `[th + tl − err·shrink, th + tl + err·shrink]` contains MPFR's enclosure of the
+/// root. Returns (hits checked, violations, median err / actual error).
+fn check_enclosures<F: Real>(shrink: f64) -> (usize, usize, f64) {
+    use rug::Float;
+    let (mut checked, mut bad) = (0, 0);
+    let mut slack = vec![];
+    for class in Class::ALL {
+        for case in cases::<F>(class).take(1500) {
+            let q = quick_phase(&case);
+            let exact = Exact::new(&case);
+            let v = if case.is_valid() {
+                exact.verdict()
+            } else {
+                Verdict::Invalid
+            };
+            match q {
+                Quick::Miss => assert!(
+                    !v.is_hit(),
+                    "quick phase claims a miss on a {:?} case\n  replay: rayproof probe sphere {}",
+                    v,
+                    case.probe_args()
+                ),
+                Quick::Hit { th, tl, err } => {
+                    assert!(v.is_hit(), "quick phase claims a hit on a {v:?} case");
+                    let (t1, t2) = root_enclosures(&exact, 400);
+                    let root = if v == Verdict::Near { t1 } else { t2 };
+                    let centre = Float::with_val(400, th) + tl;
+                    let e = err * shrink;
+                    let lo = Float::with_val(400, &centre - e);
+                    let hi = Float::with_val(400, &centre + e);
+                    checked += 1;
+                    if !(lo <= root.lo && root.hi <= hi) {
+                        bad += 1;
+                        if bad <= 5 && shrink == 1.0 {
+                            let actual = Float::with_val(400, &root.mid() - &centre).to_f64();
+                            eprintln!("  miss: {} {} th {:e} tl {:e} err {:e} actual {:e} ({:?})\n    rayproof probe sphere {}", F::NAME, class.name(), th, tl, err, actual, v, case.probe_args());
+                        }
+                    }
+                    let actual = Float::with_val(400, &root.mid() - &centre).abs().to_f64();
+                    if actual > 0.0 {
+                        slack.push(err / actual);
+                    }
+                }
+                Quick::Unsure => {}
+            }
+        }
+    }
+    slack.sort_by(f64::total_cmp);
+    (
+        checked,
+        bad,
+        slack.get(slack.len() / 2).copied().unwrap_or(f64::NAN),
+    )
+}
+
+#[test]
+fn quick_phase_enclosures_contain_the_exact_root() {
+    for (name, (n, bad, med)) in [
+        ("f32", check_enclosures::<f32>(1.0)),
+        ("f64", check_enclosures::<f64>(1.0)),
+    ] {
+        eprintln!("{name}: {n} quick-phase hits, {bad} enclosures missing the root; bound / actual error: median {med:.1}");
+        assert!(n > 4000, "{name}: only {n} quick-phase hits checked");
+        assert_eq!(
+            bad, 0,
+            "{name}: a quick-phase enclosure misses the exact root"
+        );
+    }
+}
+
+/// Teeth: the same check with every bound cut to 1/1000 finds enclosures that miss the root,
+/// so the check above would see a bound that is too small.
+#[test]
+fn a_bound_too_small_is_caught() {
+    for (name, (n, bad, _)) in [
+        ("f32", check_enclosures::<f32>(1e-3)),
+        ("f64", check_enclosures::<f64>(1e-3)),
+    ] {
+        eprintln!("{name}: with bounds / 1000, {bad} of {n} enclosures miss the root");
+        assert!(
+            bad > n / 100,
+            "{name}: shrunken bounds went unnoticed ({bad} of {n})"
+        );
+    }
+}
+
+/// The share of each class the quick phase answers alone, printed per precision; the
+/// accurate phase is the exception on the classes a renderer meets.
+#[test]
+fn accurate_phase_share_per_class() {
+    fn shares<F: Real>() -> Vec<(Class, f64)> {
+        Class::ALL
+            .into_iter()
+            .map(|class| {
+                let (mut n, mut slow) = (0usize, 0usize);
+                for case in cases::<F>(class) {
+                    n += 1;
+                    slow +=
+                        !rayproof::shapes::sphere::certified::quick_phase_decides(&case) as usize;
+                }
+                (class, slow as f64 / n as f64)
+            })
+            .collect()
+    }
+    for (name, s) in [("f32", shares::<f32>()), ("f64", shares::<f64>())] {
+        let line: Vec<String> = s
+            .iter()
+            .map(|(c, x)| format!("{} {:.2} %", c.name(), 100.0 * x))
+            .collect();
+        eprintln!("certified {name}: accurate phase on {}", line.join(", "));
+        for (c, x) in s {
+            if matches!(
+                c,
+                Class::Random | Class::Inside | Class::Behind | Class::FarSmall
+            ) {
+                assert!(
+                    x < 0.01,
+                    "{name} {}: the accurate phase ran on {:.2} %",
+                    c.name(),
+                    100.0 * x
+                );
+            }
+        }
+    }
+}
+
+/// The first look (`f32`): the share of each class it answers, that every answer is the
+/// oracle's, and teeth: with its bounds cut to 1/10⁶ it gives wrong roundings.
+#[test]
+fn first_look_answers_most_cases_and_a_bound_too_small_is_caught() {
+    use rayproof::shapes::sphere::certified::{first_look, FirstLook};
+    let mut line = vec![];
+    let mut weak_wrong = 0;
+    for class in Class::ALL {
+        let (mut n, mut answered) = (0usize, 0usize);
+        for case in cases::<f32>(class) {
+            n += 1;
+            let want = truth(&case);
+            let want_t = want
+                .t_in::<f32>()
+                .filter(|t| want.verdict.is_hit() && *t > 0.0 && t.is_finite());
+            match first_look(&case, 1.0) {
+                FirstLook::Miss => {
+                    answered += 1;
+                    assert_eq!(
+                        want_t,
+                        None,
+                        "first look: a false miss\n  {}",
+                        case.probe_args()
+                    );
+                }
+                FirstLook::Hit(t) => {
+                    answered += 1;
+                    assert_eq!(
+                        Some(t),
+                        want_t,
+                        "first look: wrong t\n  {}",
+                        case.probe_args()
+                    );
+                }
+                FirstLook::Unsure => {}
+            }
+            if let FirstLook::Hit(t) = first_look(&case, 1e-6) {
+                weak_wrong += (Some(t) != want_t) as usize;
+            }
+        }
+        line.push(format!(
+            "{} {:.1} %",
+            class.name(),
+            100.0 * answered as f64 / n as f64
+        ));
+        if matches!(
+            class,
+            Class::Random | Class::Inside | Class::Behind | Class::Grazing
+        ) {
+            assert!(
+                answered * 100 > n * 95,
+                "{}: the first look answered {answered} of {n}",
+                class.name()
+            );
+        }
+    }
+    eprintln!("certified f32 first look answers: {}", line.join(", "));
+    eprintln!("with bounds / 10^6: {weak_wrong} wrong roundings");
+    assert!(
+        weak_wrong > 10,
+        "teeth: shrunken first-look bounds went unnoticed"
+    );
+}
