@@ -110,6 +110,7 @@
 //! - `reference/`: the scene files, the golden images, their manifests and `suite.toml`;
 //!   `reference/report/`: one full `rayproof report` run, the figures the README shows.
 
+#![warn(missing_docs)]
 pub mod audit;
 pub mod golden;
 pub mod images;

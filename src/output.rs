@@ -110,6 +110,7 @@ pub struct Outputs {
 }
 
 impl Outputs {
+    /// An empty set of staged outputs.
     pub fn new() -> Outputs {
         Outputs::default()
     }
@@ -202,6 +203,7 @@ pub fn check_output_dirs(paths: &[&Option<PathBuf>]) -> Result<()> {
 pub struct ScratchDir(pub PathBuf);
 
 impl ScratchDir {
+    /// Creates `rayproof-TAG-PID-NANOS` under the system's temp directory.
     pub fn new(tag: &str) -> Result<ScratchDir> {
         let nanos = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)

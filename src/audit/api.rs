@@ -155,6 +155,7 @@ impl Audit {
         self
     }
 
+    /// The seed of the case streams (default 1): the same seed gives the same cases and rows.
     pub fn seed(mut self, seed: u64) -> Audit {
         self.options.seed = seed;
         self

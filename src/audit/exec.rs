@@ -43,7 +43,9 @@ use std::time::Duration;
 
 /// A routine run by a command.
 pub struct Exec {
+    /// The method's name in rows and replay lines.
     pub name: String,
+    /// The command, run under `sh -c`: case lines on its stdin, one answer line per case on its stdout.
     pub command: String,
     /// The shape's name, for replay lines in errors.
     pub shape: String,

@@ -27,9 +27,11 @@ pub fn parse_exact(s: &str) -> Option<f64> {
 /// `Vec<f64>` fields written as [`exact_text`].
 pub mod exact_vec {
     use serde::{de::Error, Deserialize, Deserializer, Serializer};
+    /// Writes each value as its exact text.
     pub fn serialize<S: Serializer>(v: &[f64], s: S) -> Result<S::Ok, S::Error> {
         s.collect_seq(v.iter().map(|&x| super::exact_text(x)))
     }
+    /// Reads values written by [`serialize`] (hex or decimal floats, `inf`, `nan`).
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Vec<f64>, D::Error> {
         Vec::<std::borrow::Cow<str>>::deserialize(d)?
             .iter()

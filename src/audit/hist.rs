@@ -13,10 +13,15 @@ use std::collections::BTreeMap;
 /// Summary of a sample of non-negative numbers.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct Stats {
+    /// Number of values.
     pub count: u64,
+    /// Largest value (0 for none).
     pub max: f64,
+    /// Median value.
     pub median: f64,
+    /// 99th percentile.
     pub p99: f64,
+    /// Mean value.
     pub mean: f64,
 }
 
@@ -59,17 +64,21 @@ fn summarise(runs: impl Iterator<Item = (f64, u64)> + Clone, max: f64) -> Stats 
 pub struct Hist(BTreeMap<u64, u64>);
 
 impl Hist {
+    /// Counts one value.
     pub fn add(&mut self, v: u64) {
         *self.0.entry(v).or_insert(0) += 1;
     }
+    /// Adds another histogram's counts (merging is exact: order does not matter).
     pub fn merge(&mut self, other: &Hist) {
         for (&v, &c) in &other.0 {
             *self.0.entry(v).or_insert(0) += c;
         }
     }
+    /// Number of values counted.
     pub fn count(&self) -> u64 {
         self.0.values().sum()
     }
+    /// Largest value counted (`None` when empty).
     pub fn max(&self) -> Option<u64> {
         self.0.keys().next_back().copied()
     }
@@ -77,6 +86,7 @@ impl Hist {
     pub fn above(&self, v: u64) -> u64 {
         self.0.range(v.saturating_add(1)..).map(|(_, c)| c).sum()
     }
+    /// `(value, count)` pairs, ascending by value.
     pub fn runs(&self) -> impl Iterator<Item = (u64, u64)> + Clone + '_ {
         self.0.iter().map(|(&v, &c)| (v, c))
     }
@@ -122,6 +132,7 @@ impl FloatHist {
         *self.runs.entry(round_bits(x).to_bits()).or_insert(0) += 1;
         self.max = self.max.max(x.to_bits());
     }
+    /// Adds another histogram's counts (merging is exact: order does not matter).
     pub fn merge(&mut self, other: &FloatHist) {
         for (&v, &c) in &other.runs {
             *self.runs.entry(v).or_insert(0) += c;

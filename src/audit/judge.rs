@@ -10,7 +10,10 @@ use serde::{Deserialize, Serialize};
 #[serde(rename_all = "snake_case")]
 pub enum Judgement {
     /// Right verdict; for a hit, `ulps` from the correctly rounded value(s) by the metric.
-    Ok { ulps: Option<u64> },
+    Ok {
+        /// The value error by the shape's metric (`None` for a miss or an invalid case).
+        ulps: Option<u64>,
+    },
     /// Hit (or more roots) reported where the exact answer has fewer.
     FalseHit,
     /// Miss (or fewer roots) reported where the exact answer has more.

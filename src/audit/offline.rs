@@ -73,8 +73,11 @@ pub fn write_cases(plan: &Plan) -> String {
 
 /// A cases file, read back.
 pub struct CasesFile {
+    /// The shape the cases are for.
     pub shape: &'static dyn Shape,
+    /// The seed the cases were drawn with.
     pub seed: u64,
+    /// Cases per class and precision.
     pub cases: u64,
     /// `(precision, class index, case index, inputs)` per line, in file order.
     pub lines: Vec<(Precision, usize, u64, Vec<f64>)>,

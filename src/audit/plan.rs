@@ -23,6 +23,7 @@ pub struct Options {
     pub precisions: Vec<Precision>,
     /// Cases per class (`None`: each shape's default).
     pub cases: Option<u64>,
+    /// Seed of the case streams.
     pub seed: u64,
     /// `(k, n)`: only the cases whose index ≡ k (mod n).
     pub shard: (u64, u64),
@@ -46,18 +47,25 @@ impl Default for Options {
 
 /// One shape's part of the audit.
 pub struct ShapePlan {
+    /// The shape.
     pub shape: &'static dyn Shape,
     /// The methods under audit: the shape's own, or any [`Method`] from outside the crate.
     pub methods: Vec<Box<dyn Method>>,
+    /// Class indices to run.
     pub classes: Vec<usize>,
+    /// Cases per class and precision.
     pub cases: u64,
 }
 
 /// The resolved audit.
 pub struct Plan {
+    /// Each shape's part, in audit order.
     pub shapes: Vec<ShapePlan>,
+    /// Precisions to run.
     pub precisions: Vec<Precision>,
+    /// Seed of the case streams.
     pub seed: u64,
+    /// `(k, n)`: only the cases whose index ≡ k (mod n); `(0, 1)` is the whole run.
     pub shard: (u64, u64),
     /// Every shape is audited: the reintersection and watertightness tests run too.
     pub every_shape: bool,

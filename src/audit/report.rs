@@ -14,22 +14,30 @@ pub const TOOL: &str = concat!("rayproof ", env!("CARGO_PKG_VERSION"));
 /// One shape's rows.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct ShapeReport {
+    /// The shape's name.
     pub shape: String,
+    /// One line: what the shape computes and where it comes from.
     pub about: String,
     /// How value errors are measured: `ulps` or `norm_ulps`.
     pub metric: &'static str,
+    /// Cases per class and precision.
     pub cases_per_class: u64,
+    /// One row per method × precision × class, in that order.
     pub rows: Vec<Row>,
 }
 
 /// The whole audit.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Report {
+    /// The tool and its version: `rayproof X.Y.Z`.
     pub tool: &'static str,
+    /// Seed of the case streams.
     pub seed: u64,
     /// `K/N` for a shard's own report; `0/1` for a whole run and for a merge.
     pub shard: String,
+    /// One report per shape, in audit order.
     pub shapes: Vec<ShapeReport>,
+    /// The reintersection and watertightness tests (run when every shape is audited).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub robustness: Option<Robustness>,
 }

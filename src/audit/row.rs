@@ -26,6 +26,7 @@ pub enum Status {
 /// A row's verdict with its reasons (one line each).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Verdict {
+    /// Within tolerance, a known failure shown, too few cases to tell, not checked, or failed.
     pub status: Status,
     /// The rule that applied (`FILE rule N`).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -46,17 +47,24 @@ pub struct Verdict {
 pub struct Example {
     /// One of [`KINDS`].
     pub kind: String,
+    /// Index of the case in its class's stream.
     pub index: u64,
+    /// The `rayproof probe` line that replays the case.
     pub probe: String,
+    /// The method's values, as hex floats.
     pub method_values: Vec<String>,
+    /// The oracle's correctly rounded values, as hex floats.
     pub oracle_values: Vec<String>,
+    /// The method's error by the shape's metric (`None` for a wrong verdict).
     pub ulps: Option<u64>,
 }
 
 /// Enclosure checks for methods that return one.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct EnclosureStats {
+    /// Enclosures checked (hits on well-posed cases).
     pub checked: u64,
+    /// Enclosures that did not contain the exact value.
     pub violations: u64,
     /// Width `hi − lo` in ulps of the precision.
     pub width_ulps: Stats,
@@ -65,22 +73,33 @@ pub struct EnclosureStats {
 /// One row: a method in a precision on a class.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Row {
+    /// Method name.
     pub method: String,
+    /// Offered as robust: held to the strict rows of the tolerance table.
     pub robust: bool,
+    /// Precision of the inputs and the arithmetic.
     pub precision: Precision,
+    /// Case class name.
     pub class: String,
+    /// Cases run (valid and invalid).
     pub cases: u64,
     /// Cases for which the generator found no member (a broken generator shows here).
     pub generator_failures: u64,
+    /// Valid cases that a one-ulp move of one input flips (reported apart, not judged).
     pub ill_posed: u64,
+    /// Valid cases that no one-ulp move flips (the row judges these).
     pub well_posed: u64,
     /// Well-posed valid cases whose exact count is not 0.
     pub oracle_hits: u64,
     /// Oracle precision cap reached (a value's rounding could not be made certain).
     pub cap_reached: u64,
+    /// Well-posed cases answered with more hits or roots than the exact answer has.
     pub false_hit: u64,
+    /// Well-posed cases answered with fewer hits or roots than the exact answer has.
     pub false_miss: u64,
+    /// Well-posed cases whose first value is nearer another root than the right one.
     pub wrong_root: u64,
+    /// Well-posed cases answered with a NaN or infinite value.
     pub nonfinite_t: u64,
     /// Wrong verdicts / well-posed valid cases.
     pub wrong_rate: f64,
@@ -98,9 +117,12 @@ pub struct Row {
     /// |hit-point residual| in ulps of the shape's size (shapes that report it).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub residual_ulps: Option<Stats>,
+    /// What the method did on invalid inputs.
     pub invalid: InvalidStats,
+    /// Enclosure checks (methods that return an enclosure).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub enclosure: Option<EnclosureStats>,
+    /// Cases worth replaying, one per kind of [`crate::audit::tally::KINDS`] that occurred.
     pub examples: Vec<Example>,
     /// The tolerance table's verdict (not given for a shard, whose merge judges it).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -108,6 +130,7 @@ pub struct Row {
 }
 
 impl Row {
+    /// Wrong verdicts on well-posed cases: false hits, false misses, wrong roots, non-finite values.
     pub fn wrong(&self) -> u64 {
         self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t
     }
@@ -115,15 +138,21 @@ impl Row {
 
 /// What a row is about, beside its tally.
 pub struct RowKey<'a> {
+    /// Shape name.
     pub shape: &'a str,
     /// The probe arguments that replay an outside method.
     pub replay: Option<&'a str>,
+    /// Method name.
     pub method: &'a str,
+    /// Offered as robust.
     pub robust: bool,
+    /// Precision of the row.
     pub precision: Precision,
+    /// Case class name.
     pub class: &'a str,
     /// The shape's oracle gives the sensitivity (err/cond) / reports residuals.
     pub has_cond: bool,
+    /// The shape reports hit-point residuals.
     pub has_residual: bool,
 }
 

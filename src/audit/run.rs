@@ -23,12 +23,17 @@ pub static ORACLE_NANOS: AtomicU64 = AtomicU64::new(0);
 
 /// What to run of one shape.
 pub struct Selection<'a> {
+    /// The shape.
     pub shape: &'static dyn Shape,
+    /// The methods under audit.
     pub methods: Vec<&'a dyn Method>,
+    /// Precisions to run.
     pub precisions: Vec<Precision>,
     /// Class indices.
     pub classes: Vec<usize>,
+    /// Cases per class and precision.
     pub cases: u64,
+    /// Seed of the case streams.
     pub seed: u64,
     /// `(k, n)`: only cases whose index ≡ k (mod n); `(0, 1)` is the whole run.
     pub shard: (u64, u64),
@@ -37,7 +42,9 @@ pub struct Selection<'a> {
 /// A method's name and whether it is offered as robust (what a report needs of it).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct MethodTag {
+    /// Method name.
     pub name: String,
+    /// Offered as robust.
     pub robust: bool,
     /// The probe arguments that replay this method (outside methods only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -46,9 +53,13 @@ pub struct MethodTag {
 
 /// The result of a shape's run (or of merged shards): its selection and its tallies.
 pub struct Tallies {
+    /// The shape.
     pub shape: &'static dyn Shape,
+    /// Cases per class and precision.
     pub cases: u64,
+    /// The methods, in tally order.
     pub methods: Vec<MethodTag>,
+    /// One group per precision × class.
     pub groups: Vec<Group>,
 }
 
@@ -71,8 +82,11 @@ impl Tallies {
 /// The tallies of one precision × class, one per method.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Group {
+    /// Precision of the group.
     pub precision: Precision,
+    /// Class index in the shape's classes.
     pub class: usize,
+    /// One tally per method, in [`Tallies::methods`] order.
     pub tallies: Vec<Tally>,
 }
 

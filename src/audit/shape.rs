@@ -17,6 +17,7 @@ use sha2::{Digest, Sha256};
 /// A built-in method of a shape.
 #[derive(Clone, Copy, Debug)]
 pub struct MethodInfo {
+    /// Method name (`--method`).
     pub name: &'static str,
     /// Offered as robust: held to the strict rows of the tolerance table.
     pub robust: bool,
@@ -35,6 +36,7 @@ pub enum Metric {
 }
 
 impl Metric {
+    /// The metric's name in reports: `ulps` or `norm_ulps`.
     pub fn name(self) -> &'static str {
         match self {
             Metric::Ulps => "ulps",
@@ -48,6 +50,7 @@ impl Metric {
 pub enum Truth {
     /// NaN/inf inputs or a degenerate shape: the right answer is a rejection (count 0).
     Invalid,
+    /// A valid case: its exact outcome.
     Answer(Expected),
 }
 
@@ -76,16 +79,20 @@ pub struct Expected {
 /// A method's answer.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Answer {
+    /// 0 for a miss (or no real root); otherwise the number of hits or distinct real roots.
     pub count: u32,
+    /// The values, in the shape's order (empty for a miss).
     pub values: Vec<f64>,
     /// An enclosure `[lo, hi]` the method claims holds the exact `values[0]` (checked).
     pub enclosure: Option<[f64; 2]>,
 }
 
 impl Answer {
+    /// A miss: count 0, no values.
     pub fn miss() -> Answer {
         Answer::default()
     }
+    /// A hit with these values (count 1).
     pub fn hit(values: Vec<f64>) -> Answer {
         Answer {
             count: 1,
@@ -108,7 +115,9 @@ pub struct ShapeInfo {
     pub values: &'static [&'static str],
     /// Hard-case class names.
     pub classes: &'static [&'static str],
+    /// The built-in methods, in report order.
     pub methods: &'static [MethodInfo],
+    /// How value errors are measured.
     pub metric: Metric,
     /// Cases per class when `--cases` is not given (an oracle that costs milliseconds per
     /// case, as the torus's does, audits fewer).
@@ -143,6 +152,7 @@ impl ShapeInfo {
 /// A routine family: its methods, oracle and classes. The fixed facts are one [`ShapeInfo`];
 /// the code is `generate`, `oracle` and `run`.
 pub trait Shape: Sync {
+    /// The shape's fixed facts.
     fn info(&self) -> &ShapeInfo;
     /// Case of `class` drawn from `rng` (seeded per case by [`Shape::case_rng`]). Every value
     /// must be exactly representable in `prec`. `None` when the generator found no member.
@@ -168,6 +178,7 @@ pub trait Shape: Sync {
         vec![]
     }
 
+    /// The shape's name (`--shape`).
     fn name(&self) -> &'static str {
         self.info().name
     }
@@ -191,11 +202,13 @@ pub fn case_rng(seed: u64, name: &str, class: &str, prec: Precision, index: u64)
 /// (a Rust function, a shared library, a subprocess). It answers a batch of cases of one
 /// precision, in order; each case's inputs are exactly representable in `prec`.
 pub trait Method: Sync {
+    /// The method's name in rows and replay lines.
     fn name(&self) -> &str;
     /// Offered as robust (robust methods must reject invalid input).
     fn robust(&self) -> bool {
         false
     }
+    /// One line: where the method comes from.
     fn about(&self) -> &str {
         ""
     }
@@ -212,13 +225,17 @@ pub trait Method: Sync {
 /// A method that answers one case at a time and cannot fail (a shape's own, a Rust function):
 /// every `PerCase` is a [`Method`] whose batches run in parallel.
 pub trait PerCase: Sync {
+    /// The method's name in rows and replay lines.
     fn name(&self) -> &str;
+    /// Offered as robust (robust methods must reject invalid input).
     fn robust(&self) -> bool {
         false
     }
+    /// One line: where the method comes from.
     fn about(&self) -> &str {
         ""
     }
+    /// The method's answer on one case (inputs exactly representable in `prec`).
     fn run(&self, input: &[f64], prec: Precision) -> Answer;
 }
 
@@ -241,7 +258,9 @@ impl<T: PerCase> Method for T {
 /// Built-in method `index` of a shape.
 #[derive(Clone, Copy)]
 pub struct Builtin {
+    /// The shape.
     pub shape: &'static dyn Shape,
+    /// Index into the shape's [`ShapeInfo::methods`].
     pub index: usize,
 }
 

@@ -73,10 +73,15 @@ struct GroupFile {
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ShapeShard {
+    /// The shape's name.
     pub shape: String,
+    /// Cases per class and precision.
     pub cases_per_class: u64,
+    /// The methods, in tally order.
     pub methods: Vec<MethodTag>,
+    /// Precisions run.
     pub precisions: Vec<Precision>,
+    /// Class names run.
     pub classes: Vec<String>,
     groups: Vec<GroupFile>,
 }
@@ -95,11 +100,14 @@ struct ShardId {
 pub struct Shard {
     format: String,
     format_version: u32,
+    /// The tool and version that wrote the shard (merging refuses a mismatch).
     pub tool: String,
+    /// Seed of the case streams.
     pub seed: u64,
     /// The audit covers every shape (the merge then adds the reintersection tests).
     pub every_shape: bool,
     shard: ShardId,
+    /// One entry per shape, in audit order.
     pub shapes: Vec<ShapeShard>,
 }
 
@@ -163,6 +171,7 @@ impl Shard {
         }
     }
 
+    /// `(k, n)`: this shard holds the cases whose index ≡ k (mod n).
     pub fn id(&self) -> (u64, u64) {
         (self.shard.k, self.shard.n)
     }
@@ -419,8 +428,11 @@ pub fn merge(
 
 /// A merged audit: what the unsharded run would have tallied.
 pub struct Merged {
+    /// Seed of the case streams.
     pub seed: u64,
+    /// The audit covers every shape (the reintersection and watertightness tests are added).
     pub every_shape: bool,
+    /// Each shape's merged tallies.
     pub shapes: Vec<Tallies>,
 }
 

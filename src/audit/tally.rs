@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 
 /// What was recorded of one case for one method.
 pub struct Sample {
+    /// How the answer compares with the oracle.
     pub judgement: Judgement,
     /// The method's values, exactly.
     pub values: Vec<f64>,
@@ -24,19 +25,26 @@ pub struct Sample {
 
 /// One evaluated case: its inputs, the oracle's truth, and one sample per method.
 pub struct Case {
+    /// Index of the case in its class's stream.
     pub index: u64,
+    /// The inputs, exactly.
     pub input: Vec<f64>,
     /// `None` when the generator found no member.
     pub truth: Option<Truth>,
+    /// One sample per method, in tally order.
     pub samples: Vec<Sample>,
 }
 
 /// What happened on invalid inputs.
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct InvalidStats {
+    /// Invalid cases run.
     pub cases: u64,
+    /// Invalid cases the method rejected (the right answer).
     pub rejected: u64,
+    /// Invalid cases answered with a NaN or infinite value.
     pub nonfinite_t: u64,
+    /// Invalid cases answered with a finite hit.
     pub hit: u64,
 }
 
@@ -52,14 +60,18 @@ impl InvalidStats {
 /// A case kept as an example: everything needed to print and replay it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Candidate {
+    /// Index of the case in its class's stream.
     pub index: u64,
     /// The inputs, exactly (hex floats in a shard file).
     #[serde(with = "super::hexfloat::exact_vec")]
     pub input: Vec<f64>,
+    /// The method's values, exactly.
     #[serde(with = "super::hexfloat::exact_vec")]
     pub method_values: Vec<f64>,
+    /// The oracle's correctly rounded values, exactly.
     #[serde(with = "super::hexfloat::exact_vec")]
     pub oracle_values: Vec<f64>,
+    /// The method's error by the shape's metric (`None` for a wrong verdict).
     pub ulps: Option<u64>,
     /// What the example is worst at, for choosing between candidates: the ulps, or the
     /// residual's `f64` bits (which order like the non-negative values).
@@ -87,25 +99,41 @@ fn keeps_worst(kind: &str) -> bool {
 /// Everything a row needs from the cases of one method × precision × class.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct Tally {
+    /// Cases run.
     pub cases: u64,
+    /// Cases for which the generator found no member.
     pub generator_failures: u64,
+    /// Valid cases that a one-ulp move of one input flips.
     pub ill_posed: u64,
+    /// Valid cases that no one-ulp move flips.
     pub well_posed: u64,
+    /// Well-posed valid cases whose exact count is not 0.
     pub oracle_hits: u64,
+    /// Cases whose value's rounding the oracle could not make certain.
     pub cap_reached: u64,
+    /// Well-posed cases with more hits or roots than the exact answer.
     pub false_hit: u64,
+    /// Well-posed cases with fewer hits or roots than the exact answer.
     pub false_miss: u64,
+    /// Well-posed cases whose first value is nearer another root than the right one.
     pub wrong_root: u64,
+    /// Well-posed cases answered with a NaN or infinite value.
     pub nonfinite_t: u64,
+    /// Ill-posed cases on which the method's verdict differs from the exact one.
     pub ill_posed_disagree: u64,
+    /// What the method did on invalid inputs.
     pub invalid: InvalidStats,
     /// Value errors of right-verdict answers on well-posed cases.
     pub ulps: Hist,
+    /// Error over the case's sensitivity, for shapes whose oracle gives it.
     pub err_over_cond: FloatHist,
+    /// Hit-point residuals in ulps of the shape's size, for shapes that report them.
     pub residual: FloatHist,
     /// Enclosures checked, violated, and their widths in ulps.
     pub enclosures: u64,
+    /// Enclosures that did not contain the exact value.
     pub enclosure_violations: u64,
+    /// Enclosure widths, in ulps.
     pub enclosure_widths: Hist,
     /// One candidate per kind of [`KINDS`].
     pub examples: Vec<(String, Candidate)>,

@@ -117,7 +117,10 @@ pub enum Wrong {
     /// A rate, as measured for the row.
     Measured,
     /// A known failure, as measured for the row (errors above `beyond` ulps count too).
-    Known { beyond: u64 },
+    Known {
+        /// Errors above this many ulps count as failures of the known failure too.
+        beyond: u64,
+    },
 }
 
 /// A rule, checked.
@@ -125,16 +128,27 @@ pub enum Wrong {
 pub struct Rule {
     /// Where it was read: `FILE rule N`.
     pub origin: String,
+    /// The shape the rule is for.
     pub shape: String,
+    /// The methods it applies to.
     pub methods: Vec<String>,
+    /// The precisions it applies to (`None`: both).
     pub precisions: Option<Vec<Precision>>,
+    /// The classes it applies to (`None`: every class).
     pub classes: Option<Vec<String>>,
+    /// What the row's wrong verdicts may be (`None`: not checked).
     pub wrong: Option<Wrong>,
+    /// Most false hits allowed.
     pub max_false_hits: Option<u64>,
+    /// Most false misses allowed.
     pub max_false_misses: Option<u64>,
+    /// Largest value error allowed, in ulps.
     pub max_ulps: Option<u64>,
+    /// Largest error over the case's sensitivity allowed.
     pub max_err_over_cond: Option<f64>,
+    /// Invalid inputs must be rejected (no hit, no NaN value).
     pub reject_invalid: bool,
+    /// Where the rule's numbers came from.
     pub why: String,
 }
 
@@ -162,6 +176,7 @@ impl Rule {
 
 /// The names a table is checked against: each shape with its methods and classes.
 pub struct Known<'a> {
+    /// `(shape, its methods, its classes)` for every shape.
     pub shapes: Vec<(&'a str, Vec<String>, Vec<&'a str>)>,
 }
 
@@ -169,7 +184,9 @@ pub struct Known<'a> {
 /// counts `(k, n)` of the rows whose rules refer to them.
 #[derive(Clone, Debug)]
 pub struct Table {
+    /// The rules, in the order they are tried (the user's file first).
     pub rules: Vec<Rule>,
+    /// `(k, n)` per `(shape, method, precision, class)`: the `[measured]` section.
     pub measured: BTreeMap<(String, String, Precision, String), (u64, u64)>,
 }
 

@@ -254,13 +254,16 @@ use std::time::Instant;
 
 /// What `check` was asked to do.
 pub struct Options {
+    /// Write the HTML report to this directory.
     pub report: Option<PathBuf>,
+    /// `--update`: write the goldens that fail or are missing (only if no test is refused).
     pub update: bool,
     /// Extra configurations for the tests rayproof renders (compared with their external
     /// references only).
     pub configs: Vec<Config>,
     /// Only these tests (by name); empty: all.
     pub tests: Vec<String>,
+    /// Compute HDR-ꟻLIP for every comparison (the report's heat maps), not only where a rule asks.
     pub flip: bool,
 }
 
@@ -275,12 +278,14 @@ pub struct Outcome {
 }
 
 impl Outcome {
+    /// Rows whose reference or test image could not be used.
     pub fn refused(&self) -> usize {
         self.rows
             .iter()
             .filter(|r| r.status == Status::Refused)
             .count()
     }
+    /// Rows that fail (failures, unexpected passes, refusals, missing goldens).
     pub fn failed(&self) -> usize {
         self.rows.iter().filter(|r| r.status.is_failure()).count()
     }

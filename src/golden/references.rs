@@ -13,11 +13,14 @@ use std::path::{Path, PathBuf};
 /// A rendering configuration: method and precision.
 #[derive(Clone, Copy, Debug)]
 pub struct Config {
+    /// The ray–sphere method.
     pub method: &'static Method,
+    /// `"f32"` or `"f64"`.
     pub precision: &'static str,
 }
 
 impl Config {
+    /// `METHOD PRECISION`, as rows show it.
     pub fn label(&self) -> String {
         format!("{} {}", self.method.name, self.precision)
     }
@@ -35,6 +38,7 @@ pub fn sha256_file(path: &Path) -> Result<String> {
 /// Thresholds of one comparison: idiff's, plus rayproof's keys.
 #[derive(Clone, Debug, Serialize)]
 pub struct Rule {
+    /// idiff's thresholds (fail, warn, percentages, hard limits, allowed failures).
     pub idiff: Thresholds,
     /// Mean absolute error (over pixels × channels) above this fails.
     pub max_mean: f64,
@@ -42,6 +46,7 @@ pub struct Rule {
     pub max_flip: Option<f64>,
     /// The z-test's settings, used when the test gives a variance image.
     pub significance: f64,
+    /// The z-test passes when at least this share of channel tests pass.
     pub pixel_success_rate: f64,
     /// Why this comparison is expected to fail.
     pub known_failure: Option<String>,
@@ -107,7 +112,9 @@ impl Rule {
 pub struct Provenance {
     /// `renderer version`, or empty when no manifest describes the image.
     pub renderer: String,
+    /// Image width the manifest records.
     pub width: Option<u32>,
+    /// `n` of the n×n sampling grid the manifest records.
     pub grid: Option<u32>,
 }
 

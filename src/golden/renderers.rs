@@ -40,14 +40,20 @@ pub struct RendererFailed(pub String);
 
 /// What `rayproof reference` was asked to do.
 pub struct Request {
+    /// The scene file.
     pub scene: PathBuf,
+    /// The renderers: `povray`, `mitsuba`.
     pub with: Vec<String>,
+    /// Image width (default: the scene's).
     pub width: Option<u32>,
+    /// `n` of the n×n sub-pixel grid (default: the scene's `camera.grid`).
     pub grid: Option<u32>,
     /// Where NAME's references go; default `DIR/NAME/` beside the scene (`reference/NAME/` for
     /// `reference/scenes/NAME.toml`).
     pub dir: Option<PathBuf>,
+    /// How long one renderer may take before it is killed.
     pub timeout: Duration,
+    /// Mitsuba variant (`scalar_rgb`, or `llvm_ad_rgb` with libLLVM).
     pub mitsuba_variant: String,
 }
 

@@ -9,8 +9,11 @@ use serde::Serialize;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
+    /// Within the fail and warn thresholds.
     Pass,
+    /// Over the warn thresholds only.
     Warning,
+    /// Over the fail thresholds.
     Failure,
     /// Listed as a known failure and still failing.
     KnownFailure,
@@ -27,12 +30,14 @@ pub enum Status {
 }
 
 impl Status {
+    /// Whether the row fails the run: a failure, an unexpected pass, a refusal or a missing golden.
     pub fn is_failure(self) -> bool {
         matches!(
             self,
             Status::Failure | Status::UnexpectedPass | Status::Refused | Status::New
         )
     }
+    /// The word printed in tables and JUnit: `PASS`, `FAILURE`, `XFAIL`, ….
     pub fn label(self) -> &'static str {
         match self {
             Status::Pass => "PASS",
@@ -51,20 +56,28 @@ impl Status {
 /// One row of the check: a test × reference × configuration.
 #[derive(Clone, Debug, Serialize)]
 pub struct Row {
+    /// Test name.
     pub test: String,
+    /// Reference name (`golden` for rayproof's own earlier render).
     pub reference: String,
     /// Who made the reference (its manifest's renderer and version).
     pub renderer: String,
+    /// How the test image was made: rayproof's method and precision, `command` or `image`.
     pub config: String,
+    /// The judgement.
     pub status: Status,
     /// Why (refusals, known failures, the key that failed).
     pub note: String,
     /// What the user should know even when it passes: linear against sRGB-encoded images,
     /// mismatched sampling grids, NaN/Inf pixels.
     pub warnings: Vec<String>,
+    /// The metrics (`None` when the comparison could not run).
     pub comparison: Option<Comparison>,
+    /// The z-test's result, when the test gives a variance image.
     pub ztest: Option<ZTest>,
+    /// The thresholds applied.
     pub rule: Rule,
+    /// Seconds spent making the test image.
     pub render_seconds: f64,
     /// Report images, relative to the report directory.
     #[serde(skip)]

@@ -121,27 +121,36 @@ pub enum Source {
 /// One reference image of a test.
 #[derive(Clone, Debug)]
 pub struct Reference {
+    /// Reference name (`povray`, `mitsuba`, …).
     pub name: String,
+    /// Path of the image, relative to the suite file.
     pub path: PathBuf,
     /// A missing optional reference is SKIPPED; a missing required one is REFUSED.
     pub required: bool,
+    /// Its thresholds.
     pub rule: Rule,
 }
 
 /// One test of a suite.
 #[derive(Clone, Debug)]
 pub struct Test {
+    /// Test name, unique in the suite.
     pub name: String,
+    /// The scene file, for tests rayproof renders or whose references have manifests.
     pub scene: Option<PathBuf>,
+    /// How the test image is made: read, rendered by the user's command, or by rayproof.
     pub source: Source,
     /// Width and sampling grid the test asks for (else the references' manifests say).
     pub width: Option<u32>,
+    /// `n` of the n×n sampling grid.
     pub grid: Option<u32>,
     /// The test image's variance (a path, or a template with `{variance}`), for the z-test.
     pub variance: Option<String>,
+    /// Samples per pixel behind the variance image (the z-test's `spp`).
     pub variance_spp: u64,
     /// The golden image `--update` may write, with its rule.
     pub golden: Option<(PathBuf, Rule)>,
+    /// The references the test image is compared with.
     pub references: Vec<Reference>,
 }
 
@@ -160,11 +169,15 @@ impl Test {
 /// A whole suite file, validated.
 #[derive(Clone, Debug)]
 pub struct Suite {
+    /// The suite file.
     pub path: PathBuf,
     /// The suite file's directory: relative paths and commands start there.
     pub dir: PathBuf,
+    /// The suite's name (`[suite] name`, in reports and JUnit).
     pub name: String,
+    /// How long one render command may take before it is killed and the test refused.
     pub timeout: Duration,
+    /// The tests, in file order.
     pub tests: Vec<Test>,
 }
 

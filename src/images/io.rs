@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 /// A decoded image: interleaved `f32` samples, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
     /// `R`, `G`, `B`, and `A` if present.
     pub channels: Vec<String>,
@@ -40,6 +42,7 @@ impl Image {
         Image::new(width, height, &["R", "G", "B"], data)
     }
 
+    /// Width × height.
     pub fn pixels(&self) -> usize {
         self.width * self.height
     }
@@ -67,10 +70,16 @@ impl Image {
 pub enum ImageError {
     /// Missing, empty, truncated, corrupt, not OpenEXR/PNG, or without R, G, B channels.
     #[error("cannot read {}: {reason}", path.display())]
-    Unreadable { path: PathBuf, reason: String },
+    Unreadable {
+        /// The file, as named.
+        path: PathBuf,
+        /// What is wrong with it, one line.
+        reason: String,
+    },
 }
 
 impl ImageError {
+    /// The documented exit code of an unusable input: 4.
     pub fn exit_code(&self) -> u8 {
         4
     }

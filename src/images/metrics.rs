@@ -124,8 +124,11 @@ impl Thresholds {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Verdict {
+    /// No pixel over the thresholds (or within the allowed count and percentage).
     Pass,
+    /// Over the warn thresholds, not the fail ones.
     Warning,
+    /// Over the fail thresholds.
     Failure,
 }
 
@@ -168,6 +171,7 @@ pub struct SizeMismatch {
 }
 
 impl SizeMismatch {
+    /// The documented exit code of a size or channel mismatch: 3.
     pub fn exit_code(&self) -> u8 {
         3
     }
@@ -186,9 +190,13 @@ pub(super) fn same_shape(a: &Image, b: &Image) -> Result<(), SizeMismatch> {
 /// Every metric of one comparison.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Comparison {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
+    /// Channel names compared.
     pub channels: Vec<String>,
+    /// Pixels compared.
     pub pixels: u64,
     /// Σ|d| / (pixels × channels), non-finite mismatches left out of the sum.
     #[serde(serialize_with = "nonfinite::ser")]
@@ -210,6 +218,7 @@ pub struct Comparison {
     pub max_error: f64,
     /// (x, y, channel index) of the first largest |d|.
     pub max_at: (usize, usize, usize),
+    /// The name of the channel at `max_at`.
     pub max_channel: String,
     /// Reference and test values there.
     #[serde(serialize_with = "nonfinite::ser_pair")]
@@ -222,9 +231,11 @@ pub struct Comparison {
     pub n_nonfinite_mismatch: u64,
     /// Mean ꟻLIP, when computed (filled in by the caller: [`flip_error`](crate::images::flip_error)).
     pub flip_mean: Option<f64>,
+    /// HDR or LDR ꟻLIP, when computed.
     pub flip_kind: Option<FlipKind>,
     /// Whose rules decided NaN/Inf and size mismatches.
     pub semantics: Semantics,
+    /// PASS, WARNING or FAILURE under the thresholds.
     pub verdict: Verdict,
 }
 

@@ -123,7 +123,9 @@ pub struct DiffReport<'a> {
     pub test: &'a Path,
     /// Whether the reference and the test are display-referred (PNG).
     pub display_referred: [bool; 2],
+    /// The metrics.
     pub comparison: &'a Comparison,
+    /// The thresholds applied.
     pub thresholds: &'a Thresholds,
     /// The z-test, when a variance image was given; its verdict then decides.
     pub ztest: Option<&'a ZTest>,

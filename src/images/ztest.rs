@@ -62,20 +62,25 @@ impl Default for ZParams {
 /// The z-test's result.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ZTest {
+    /// Significance, pixel success rate and samples per pixel used.
     pub params: ZParams,
     /// Channels tested: the reference's channels that the variance image also has.
     pub channels: Vec<String>,
+    /// Pixels tested.
     pub pixels: u64,
     /// Per-channel significance after the Šidák correction.
     pub alpha: f64,
+    /// The smallest p-value over all pixels and channels.
     pub min_p: f64,
     /// (x, y, channel index into `channels`) of the first smallest p-value.
     pub min_p_at: (usize, usize, usize),
+    /// The name of the channel with the smallest p-value.
     pub min_p_channel: String,
     /// Pixels with some channel's p ≤ alpha.
     pub failing_pixels: u64,
     /// Channel tests with p > alpha.
     pub passing_channels: u64,
+    /// PASS or FAILURE (the z-test has no warning).
     pub verdict: Verdict,
 }
 

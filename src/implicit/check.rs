@@ -21,7 +21,9 @@ use std::time::Instant;
 /// One lost, ghost or moved pixel.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct PixelDiff {
+    /// Column.
     pub x: usize,
+    /// Row (0 at the top).
     pub y: usize,
     /// lost, ghost or moved
     pub kind: &'static str,
@@ -31,21 +33,30 @@ pub struct PixelDiff {
     pub place: &'static str,
     /// Per-pixel distance and this mode's (`null` for a miss)
     pub full_t: Option<f64>,
+    /// This mode's distance (`null` for a miss).
     pub mode_t: Option<f64>,
+    /// Start length of this mode's final trace for the pixel (0: from the eye).
     pub start: Option<f64>,
 }
 
 /// A mode's pixels against the per-pixel render.
 #[derive(Clone, Debug, Default, Serialize, PartialEq)]
 pub struct Comparison {
+    /// Pixels where the per-pixel render hits a surface.
     pub surface_pixels: u64,
+    /// Pixels the per-pixel render hits and this mode misses.
     pub lost: u64,
+    /// Lost pixels on a silhouette (a 4-neighbour is background in the per-pixel render).
     pub lost_silhouette: u64,
+    /// Lost pixels inside a surface's image (a thin feature or a small object).
     pub lost_interior: u64,
+    /// Pixels this mode hits and the per-pixel render misses.
     pub ghost: u64,
+    /// Pixels both hit at distances that differ by more than the tracer's `eps`.
     pub moved: u64,
     /// Pixels whose colour differs by more than 1e-6 (relative to max(1, value)).
     pub colour_differs: u64,
+    /// Largest colour difference, relative to max(1, value).
     pub max_colour_diff: f64,
     /// Every lost, ghost and moved pixel, row-major.
     pub pixels: Vec<PixelDiff>,
@@ -54,13 +65,19 @@ pub struct Comparison {
 /// One render: a mode with shadows off or on.
 #[derive(Clone, Debug, Serialize)]
 pub struct Run {
+    /// How primary visibility was found.
     pub mode: Mode,
+    /// Whether shadow rays were traced.
     pub shadows: bool,
+    /// Counters of the primary pass.
     pub primary: Stats,
+    /// Shadow rays and their tests.
     pub secondary: RayCounts,
     /// Primary visibility, shading, and their sum (wall clock, all threads).
     pub primary_seconds: f64,
+    /// Shading seconds (wall clock, all threads).
     pub shade_seconds: f64,
+    /// Primary plus shading seconds.
     pub seconds: f64,
     /// Rays of every kind: primary traces plus shadow rays.
     pub rays: u64,
@@ -75,18 +92,26 @@ pub struct Run {
 /// The whole check.
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
+    /// The scene file.
     pub scene: String,
+    /// Image width in pixels.
     pub width: usize,
+    /// Image height in pixels.
     pub height: usize,
+    /// Block size of the image-space subdivision, in pixels.
     pub region: usize,
+    /// The tracer's `eps`: the step at which it probes for a proven hit.
     pub eps: f64,
+    /// Each implicit shape's Lipschitz bound, by name.
     pub lipschitz: Vec<(String, f64)>,
+    /// Every render: each mode with shadows off and on.
     pub runs: Vec<Run>,
 }
 
 /// Options of the check.
 #[derive(Clone, Debug)]
 pub struct Options {
+    /// Block size of the image-space subdivision, in pixels.
     pub region: usize,
     /// Image width (height keeps the camera's aspect); `None`: the camera's.
     pub width: Option<u32>,

@@ -20,19 +20,27 @@ use std::sync::Arc;
 #[derive(Debug, Clone, Deserialize, PartialEq)]
 #[serde(tag = "kind", rename_all = "lowercase", deny_unknown_fields)]
 pub enum SdfPart {
+    /// A sphere.
     Sphere {
+        /// Centre.
         center: [f64; 3],
+        /// Radius.
         radius: f64,
     },
     /// In the xz plane around +y, as the scene's torus.
     Torus {
+        /// Centre.
         center: [f64; 3],
+        /// Distance from the centre to the tube's centre line.
         major: f64,
+        /// Tube radius.
         minor: f64,
     },
     /// Axis-aligned box.
     Box {
+        /// Minimum corner.
         min: [f64; 3],
+        /// Maximum corner.
         max: [f64; 3],
     },
 }
@@ -104,8 +112,11 @@ impl SdfPart {
 #[derive(Debug, Clone, Copy, Deserialize, PartialEq)]
 #[serde(deny_unknown_fields)]
 pub struct BlobComponent {
+    /// Centre.
     pub center: [f64; 3],
+    /// Radius of influence: the component adds nothing beyond it.
     pub radius: f64,
+    /// Strength (negative strengths subtract).
     pub strength: f64,
 }
 
@@ -114,17 +125,23 @@ pub struct BlobComponent {
 pub enum Field {
     /// Parts joined by the polynomial smooth minimum with blend `k` (0: hard union).
     Sdf {
+        /// The parts.
         parts: Vec<SdfPart>,
+        /// Blend width `k` of the smooth minimum.
         blend: f64,
     },
     /// POV-Ray's blob: `threshold − Σ sᵢ(1 − r²/Rᵢ²)²` over components with `r < Rᵢ`.
     Blob {
+        /// Field value of the surface.
         threshold: f64,
+        /// The components.
         components: Vec<BlobComponent>,
         /// `1/Rᵢ²` and the Lipschitz bound, precomputed.
         inv_r2: Vec<f64>,
+        /// Lipschitz bound of the field, for sphere tracing.
         lipschitz: f64,
     },
+    /// A multi-level partition-of-unity surface fitted to points.
     Mpu(Arc<Mpu>),
 }
 

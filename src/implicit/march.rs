@@ -43,6 +43,7 @@ pub struct Traced {
 /// Fields traced as one union.
 #[derive(Clone, Debug)]
 pub struct Marcher {
+    /// The fields, traced as one union.
     pub fields: Vec<Field>,
     /// Each field's box grown by the margin, and `1/L`.
     boxes: Vec<(DVec3, DVec3)>,
@@ -50,7 +51,9 @@ pub struct Marcher {
     margin: f64,
     /// The union of the fields' boxes (not grown).
     pub lo: DVec3,
+    /// Maximum corner of the union of the fields' boxes.
     pub hi: DVec3,
+    /// The step size at which a trace probes for a proven sign change (a fixed fraction of the box diagonal).
     pub eps: f64,
 }
 
@@ -61,6 +64,7 @@ fn box_distance(p: DVec3, lo: DVec3, hi: DVec3) -> f64 {
 }
 
 impl Marcher {
+    /// A marcher for these fields, with their boxes and Lipschitz bounds precomputed.
     pub fn new(fields: Vec<Field>) -> Marcher {
         let mut lo = DVec3::INFINITY;
         let mut hi = DVec3::NEG_INFINITY;

@@ -154,9 +154,11 @@ pub struct MpuStats {
     pub max_leaf_error: f64,
     /// Entries in the evaluation grid's lists, and its cells per axis.
     pub grid_entries: usize,
+    /// Cells per axis of the evaluation grid.
     pub grid_size: usize,
     /// Largest measured `|∇f|` (before the safety factor), and where.
     pub max_gradient: f64,
+    /// Where the largest `|∇f|` was measured.
     pub max_gradient_at: DVec3,
     /// Smallest MPU value on the measurement grid's points in the shell between `bounds()`
     /// shrunk by `floor` and `bounds()` (> 0 means no zero set seen there; module doc).

@@ -36,13 +36,18 @@ use serde::Serialize;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Mode {
+    /// Per-pixel sphere tracing (the baseline).
     Full,
+    /// Wu & Pan's image-space subdivision, as the paper describes it.
     Paper,
+    /// The subdivision with certifying cones: provably loses no pixel.
     Certified,
 }
 
 impl Mode {
+    /// Every mode, in report order.
     pub const ALL: [Mode; 3] = [Mode::Full, Mode::Paper, Mode::Certified];
+    /// The mode's name in reports and on the command line.
     pub fn name(self) -> &'static str {
         match self {
             Mode::Full => "full",
@@ -61,15 +66,21 @@ pub struct Stats {
     pub steps: u64,
     /// Field evaluations of the certifying cones.
     pub cone_steps: u64,
+    /// Certifying cones traced.
     pub cones: u64,
+    /// Blocks of the image-space subdivision.
     pub regions: u64,
     /// Blocks whose samples hit, blocks traced by §2.3's correction, blocks skipped.
     pub regions_hit: u64,
+    /// Blocks traced by the paper's §2.3 correction.
     pub regions_corrected: u64,
+    /// Blocks skipped as background.
     pub regions_skipped: u64,
     /// Pixels started outside (①), inside (②), and redone from the eye after case ③ was detected.
     pub case1: u64,
+    /// Pixels whose trace started inside the surface (case ②).
     pub case2: u64,
+    /// Pixels redone from the eye after case ③ (started past the surface) was detected.
     pub case3_redone: u64,
     /// Rays ended by the step cap.
     pub capped: u64,
@@ -103,6 +114,7 @@ impl Stats {
 /// Per-pixel result: the hit (distance, field) and where the pixel's trace started.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Pixel {
+    /// Distance and field index of the hit, `None` for background.
     pub hit: Option<(f64, usize)>,
     /// Start length of the pixel's final trace (0: from the eye); `NAN` if never traced.
     pub start: f64,
@@ -112,8 +124,11 @@ pub struct Pixel {
 
 /// A primary pass: pixels row-major, counters, seconds.
 pub struct Primary {
+    /// One per pixel, row-major.
     pub pixels: Vec<Pixel>,
+    /// Counters of the pass.
     pub stats: Stats,
+    /// Wall-clock seconds of the pass.
     pub seconds: f64,
 }
 

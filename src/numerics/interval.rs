@@ -11,7 +11,9 @@ use std::ops::{Add, Div, Mul, Neg, Sub};
 /// A closed interval `[lo, hi]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Interval<F> {
+    /// Lower end.
     pub lo: F,
+    /// Upper end.
     pub hi: F,
 }
 
@@ -45,6 +47,7 @@ impl<F: Real> Interval<F> {
             hi: F::INFINITY,
         }
     }
+    /// `{x² : x ∈ self}`, outward rounded (from 0 when the interval contains 0).
     #[inline(always)]
     pub fn square(self) -> Self {
         let (a, b) = (self.lo * self.lo, self.hi * self.hi);
@@ -57,6 +60,7 @@ impl<F: Real> Interval<F> {
             Interval::new(b.next_down(), a.next_up())
         }
     }
+    /// `{√x : x ∈ self}`, outward rounded (its lower end is 0 when the interval reaches 0 or below).
     #[inline(always)]
     pub fn sqrt(self) -> Self {
         let lo = if self.lo > F::ZERO {

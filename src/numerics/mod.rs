@@ -14,12 +14,16 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, PartialOrd, Ord)]
 #[serde(rename_all = "snake_case")]
 pub enum Precision {
+    /// IEEE-754 binary32.
     F32,
+    /// IEEE-754 binary64.
     F64,
 }
 
 impl Precision {
+    /// Both precisions, `f32` first.
     pub const ALL: [Precision; 2] = [Precision::F32, Precision::F64];
+    /// `"f32"` or `"f64"`.
     pub fn name(self) -> &'static str {
         match self {
             Precision::F32 => "f32",

@@ -17,20 +17,34 @@ pub trait Real: Scalar + Send + Sync + 'static + std::fmt::Display {
     const NAME: &'static str;
     /// Significand bits including the implicit one (24 or 53).
     const MANT_BITS: u32;
+    /// Positive infinity.
     const INFINITY: Self;
+    /// A quiet NaN.
     const NAN: Self;
 
+    /// The exact value as `f64` (every `f32` is one).
     fn to_f64(self) -> f64;
+    /// The bit pattern, zero-extended.
     fn to_bits_u64(self) -> u64;
+    /// The value with this bit pattern (the low 32 bits for `f32`).
     fn from_bits_u64(b: u64) -> Self;
+    /// The next float towards +∞ (IEEE `nextUp`).
     fn next_up(self) -> Self;
+    /// The next float towards −∞ (IEEE `nextDown`).
     fn next_down(self) -> Self;
+    /// Neither infinite nor NaN.
     fn is_finite(self) -> bool;
+    /// NaN.
     fn is_nan(self) -> bool;
+    /// `self·a + b` rounded once (fused multiply–add).
     fn mul_add(self, a: Self, b: Self) -> Self;
+    /// The value in [`Real::Wide`], exactly.
     fn widen(self) -> Self::Wide;
+    /// The wide value rounded once to this precision (round to nearest, ties to even).
     fn narrow(w: Self::Wide) -> Self;
+    /// A glam vector of this precision.
     fn vec3(x: Self, y: Self, z: Self) -> Self::Vec3;
+    /// A glam vector's components.
     fn unvec3(v: Self::Vec3) -> [Self; 3];
     /// Parses decimal or C99 hex-float text, rounding once to this precision.
     fn parse(s: &str) -> Option<Self>;

@@ -16,9 +16,13 @@ pub trait Scalar:
     + Div<Output = Self>
     + Neg<Output = Self>
 {
+    /// Zero.
     const ZERO: Self;
+    /// One.
     const ONE: Self;
+    /// Square root, rounded as the type rounds (correctly for `f32` and `f64`).
     fn sqrt(self) -> Self;
+    /// Absolute value.
     fn abs(self) -> Self;
     /// `self` with the sign of `s` (IEEE `copysign`).
     fn copysign(self, s: Self) -> Self;
@@ -28,6 +32,7 @@ pub trait Scalar:
 
 /// Rounds a wider value once to the narrow type.
 pub trait RoundTo<T> {
+    /// The value rounded once to `T`.
     fn round_to(self) -> T;
 }
 impl RoundTo<f32> for f64 {

@@ -10,9 +10,13 @@ use std::time::Instant;
 /// Repeated measurements of one quantity, in nanoseconds per unit.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Timing {
+    /// Median over the runs.
     pub median_ns: f64,
+    /// Fastest run.
     pub min_ns: f64,
+    /// Slowest run.
     pub max_ns: f64,
+    /// Number of timed runs.
     pub runs: usize,
 }
 

@@ -50,8 +50,11 @@ use std::fmt::Write;
 /// Image size and sub-pixel grid of an export (the references are made at a fixed size).
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// `n` of the n×n sub-pixel grid (cell centres, box filter).
     pub grid: u32,
 }
 
@@ -612,8 +615,11 @@ pub const TESS_TOL: f64 = 2e-5;
 /// An indexed triangle mesh with per-vertex unit normals (outward, counter-clockwise faces).
 #[derive(Clone, Debug, Default)]
 pub struct Tessellation {
+    /// Vertex positions.
     pub positions: Vec<[f64; 3]>,
+    /// Per-vertex unit normals, one per position.
     pub normals: Vec<[f64; 3]>,
+    /// Triangles as indices into `positions`, counter-clockwise seen from outside.
     pub faces: Vec<[u32; 3]>,
 }
 

@@ -14,47 +14,71 @@ use glam::DVec3;
 /// A bounded primitive.
 #[derive(Clone, Copy, Debug)]
 pub enum Prim {
+    /// A sphere.
     Sphere {
+        /// Centre.
         c: DVec3,
+        /// Radius.
         r: f64,
     },
+    /// A flat disc (a cylinder's cap).
     Disc {
+        /// Centre.
         c: DVec3,
+        /// Unit normal.
         n: DVec3,
+        /// Radius.
         r: f64,
     },
+    /// A triangle `v0, v0 + e1, v0 + e2`.
     Tri {
+        /// First vertex.
         v0: DVec3,
+        /// Edge from `v0` to the second vertex.
         e1: DVec3,
+        /// Edge from `v0` to the third vertex.
         e2: DVec3,
     },
     /// Axis-aligned box.
     Box {
+        /// Minimum corner.
         lo: DVec3,
+        /// Maximum corner.
         hi: DVec3,
     },
     /// The lateral surface of a cylinder from `base` up `h` along +y (caps are discs).
     CylinderSide {
+        /// Centre of the bottom cap.
         base: DVec3,
+        /// Radius.
         r: f64,
+        /// Height along +y.
         h: f64,
     },
     /// Ellipsoid with semi-axes `radii` along x, y, z.
     Ellipsoid {
+        /// Centre.
         c: DVec3,
+        /// Semi-axes along x, y, z.
         radii: DVec3,
     },
     /// Torus in the xz plane around +y through `c`.
     Torus {
+        /// Centre.
         c: DVec3,
+        /// Distance from the centre to the tube's centre line.
         major: f64,
+        /// Tube radius.
         minor: f64,
     },
     /// An implicit surface: sphere traced by marcher `k` of the geometry, inside `[lo, hi]`
     /// grown by the marcher's margin.
     Implicit {
+        /// Index of the marcher in [`Geometry`]'s list of implicit fields.
         k: usize,
+        /// Minimum corner of the field's bounding box.
         lo: DVec3,
+        /// Maximum corner of the field's bounding box.
         hi: DVec3,
     },
 }
@@ -62,37 +86,50 @@ pub enum Prim {
 /// A primitive with its material index.
 #[derive(Clone, Copy, Debug)]
 pub struct Object {
+    /// The primitive.
     pub prim: Prim,
+    /// Index into the scene's materials.
     pub material: usize,
 }
 
 /// An infinite plane (kept out of the BVH).
 #[derive(Clone, Copy, Debug)]
 pub struct Plane {
+    /// A point on the plane.
     pub p: DVec3,
+    /// Unit normal.
     pub n: DVec3,
+    /// Index into the scene's materials.
     pub material: usize,
 }
 
 /// The nearest hit: distance, geometric normal (unit, not yet faced), material.
 #[derive(Clone, Copy, Debug)]
 pub struct Hit {
+    /// Ray parameter of the hit (the point is `o + t·d`).
     pub t: f64,
+    /// Unit geometric normal, not yet turned to face the ray.
     pub n: DVec3,
+    /// Index into the scene's materials.
     pub material: usize,
+    /// Index of the object hit; for plane `i`, `usize::MAX − i`.
     pub object: usize,
 }
 
 /// Counters of intersection tests, kept per tile and summed.
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct TestCounts {
+    /// Ray–sphere tests run (by the chosen sphere method).
     pub sphere_tests: u64,
     /// Sphere tests the method answered with a hit (any `t`, before the nearest-hit choice).
     pub sphere_hits: u64,
+    /// Intersection tests against every other primitive kind.
     pub other_tests: u64,
+    /// BVH nodes visited.
     pub bvh_nodes: u64,
     /// Rays sphere traced against an implicit shape, and their field evaluations.
     pub implicit_tests: u64,
+    /// Field evaluations (sphere-tracing steps) over those rays.
     pub march_steps: u64,
 }
 
@@ -356,7 +393,9 @@ pub type RecordedTest = [f64; 10];
 /// The scene's geometry: BVH over objects (or a flat list), plus infinite planes.
 #[derive(Clone, Debug)]
 pub struct Geometry {
+    /// The bounded primitives, in BVH order.
     pub objects: Vec<Object>,
+    /// The infinite planes, tested apart from the BVH.
     pub planes: Vec<Plane>,
     nodes: Vec<Node>,
     /// Test every object for every ray, as renderers without acceleration did (seed 000's era),

@@ -117,11 +117,17 @@ use serde::Serialize;
 /// The effects a scene needs, with the reason for each choice.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Effects {
+    /// Whether shadow rays are traced (some light can be occluded).
     pub shadows: bool,
+    /// Whether mirror reflection rays are traced.
     pub reflection: bool,
+    /// Whether refraction rays are traced (some glass is visible).
     pub refraction: bool,
+    /// Ray segments per path actually needed (at most `render.max_depth`).
     pub depth: u32,
+    /// Whether pixels take more than one sample (an n×n grid with n > 1).
     pub supersampling: bool,
+    /// One line per choice above, saying why (what `render --explain` prints).
     pub reasons: Vec<String>,
 }
 
@@ -223,15 +229,23 @@ impl Effects {
 /// Rays by kind and tests by shape kind.
 #[derive(Clone, Copy, Debug, Default, Serialize)]
 pub struct RayCounts {
+    /// Camera rays.
     pub primary: u64,
+    /// Shadow rays, one per light and diffuse hit.
     pub shadow: u64,
+    /// Mirror and glass reflection rays.
     pub reflection: u64,
+    /// Glass transmission rays.
     pub refraction: u64,
     /// Rays of each kind that hit nothing (a shadow ray that reaches its light counts here).
     pub primary_miss: u64,
+    /// Shadow rays that reach their light.
     pub shadow_miss: u64,
+    /// Reflection rays that hit nothing.
     pub reflection_miss: u64,
+    /// Refraction rays that hit nothing.
     pub refraction_miss: u64,
+    /// Intersection tests and BVH visits of all these rays.
     #[serde(flatten)]
     pub tests: TestCounts,
 }
@@ -251,6 +265,7 @@ impl std::ops::AddAssign for RayCounts {
 }
 
 impl RayCounts {
+    /// All rays traced: primary, shadow, reflection and refraction.
     pub fn total(&self) -> u64 {
         self.primary + self.shadow + self.reflection + self.refraction
     }
@@ -258,30 +273,46 @@ impl RayCounts {
 
 /// The rendered image and what it cost.
 pub struct Render {
+    /// Image width in pixels.
     pub width: usize,
+    /// Image height in pixels.
     pub height: usize,
+    /// Linear RGB radiance per pixel, row-major, top row first.
     pub beauty: Vec<[f32; 3]>,
+    /// Mean distance to the first hit over the pixel's sub-samples that hit (0 where none does).
     pub depth: Vec<f32>,
+    /// Mean geometric normal at the first hit over the pixel's sub-samples that hit (zero where none does).
     pub normal: Vec<[f32; 3]>,
+    /// Rays traced per pixel, all kinds.
     pub rays: Vec<f32>,
+    /// Rays and tests of the whole frame.
     pub counts: RayCounts,
+    /// The effects the render simulated, and why.
     pub effects: Effects,
+    /// Wall-clock seconds of the tracing (scene loading and BVH building excluded).
     pub seconds: f64,
     /// Sampled sphere-test inputs, when [`Overrides::record_every`] asked for them.
     pub recorded: Vec<geom::RecordedTest>,
+    /// Name of the ray–sphere method used.
     pub method: &'static str,
+    /// Precision of the sphere tests: `"f32"` or `"f64"`.
     pub precision: &'static str,
 }
 
 /// Render-time options that override the scene file.
 #[derive(Clone, Debug, Default)]
 pub struct Overrides {
+    /// Ray–sphere method instead of `render.method`.
     pub method: Option<&'static Method>,
+    /// Precision instead of `render.precision`: `"f32"` or `"f64"`.
     pub precision: Option<&'static str>,
+    /// `n` of the n×n sub-pixel grid instead of `camera.grid`.
     pub grid: Option<u32>,
     /// Image size (width, height) instead of the camera's.
     pub size: Option<(u32, u32)>,
+    /// Turn every effect on, whatever the scene needs (measures what specialisation saves).
     pub force_all_effects: bool,
+    /// Show a progress bar on stderr.
     pub progress: bool,
     /// Test every object for every ray (no BVH), as seed 000's renderer did.
     pub flat: bool,
@@ -562,6 +593,7 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
 /// The pinhole camera: right-handed, horizontal field of view, `w × h` pixels.
 #[derive(Clone, Copy, Debug)]
 pub struct Lens {
+    /// Eye position.
     pub pos: DVec3,
     fwd: DVec3,
     right: DVec3,
@@ -573,6 +605,7 @@ pub struct Lens {
 }
 
 impl Lens {
+    /// The camera of scene `s` for a `w × h` image.
     pub fn new(s: &Scene, w: usize, h: usize) -> Lens {
         let cam = &s.file.camera;
         let pos = DVec3::from_array(cam.position);

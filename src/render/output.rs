@@ -10,8 +10,11 @@ use std::path::Path;
 /// Which extra EXR layers to write.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Layers {
+    /// Write the depth layer (`Z`).
     pub depth: bool,
+    /// Write the normal layer (`N.X`, `N.Y`, `N.Z`).
     pub normal: bool,
+    /// Write the rays-per-pixel layer.
     pub rays: bool,
 }
 

@@ -52,6 +52,7 @@ pub const MAX_GRID: u32 = 64;
 /// The range of a glass's index of refraction (real materials lie within 1–4; beyond 1e154
 /// the refraction's η² overflows and pixels turn NaN, found by tests/fuzz.rs).
 pub const MIN_IOR: f64 = 0.01;
+/// The largest index of refraction a glass may have.
 pub const MAX_IOR: f64 = 100.0;
 /// The most ray segments per path (`render.max_depth`; POV-Ray's `max_trace_level` stops at 256).
 pub const MAX_DEPTH: u32 = 256;
@@ -89,33 +90,45 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use toml::Spanned;
 
+/// A scene file as written: camera, render settings, lights, materials and shapes (TOML).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SceneFile {
+    /// The camera: `[camera]`.
     pub camera: Camera,
+    /// `[render]`: depth, glass shadows, sphere method and precision, offset, ambient.
     #[serde(default)]
     pub render: RenderSettings,
+    /// Point lights: `[[lights]]`.
     #[serde(default)]
     pub lights: Vec<Light>,
     /// Directional lights (seed 004's Table 1 lighting).
     #[serde(default)]
     pub directional: Vec<DirectionalLight>,
+    /// Materials by name: `[materials.NAME]`.
     #[serde(default)]
     pub materials: BTreeMap<String, Material>,
+    /// Shapes, each naming its material: `[[shapes]]`.
     #[serde(default)]
     pub shapes: Vec<Shape>,
 }
 
+/// A pinhole camera.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Camera {
+    /// Eye position.
     pub position: [f64; 3],
+    /// The point the camera looks at.
     pub look_at: [f64; 3],
+    /// Up direction (default +y); it need not be perpendicular to the view direction.
     #[serde(default = "default_up")]
     pub up: [f64; 3],
     /// Horizontal field of view in degrees.
     pub fov: f64,
+    /// Image width in pixels (with its place in the file, for error messages).
     pub width: Spanned<u32>,
+    /// Image height in pixels (with its place in the file, for error messages).
     pub height: Spanned<u32>,
     /// n×n stratified sub-pixel grid, sampled at cell centres, box filter.
     #[serde(default = "one")]
@@ -140,13 +153,17 @@ pub enum GlassShadows {
     Transmissive,
 }
 
+/// `[render]`: how the scene is rendered.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RenderSettings {
     /// Ray segments, POV-Ray's `max_trace_level`: 1 = primary rays only.
     pub max_depth: u32,
+    /// How shadow rays treat glass.
     pub glass_shadows: GlassShadows,
+    /// Ray–sphere method name (default `rtg7`).
     pub method: Spanned<String>,
+    /// Precision of the sphere tests, `"f32"` or `"f64"` (default `f64`).
     pub precision: Spanned<String>,
     /// Secondary-ray origin offset along the geometric normal: "auto", "none" or a distance.
     pub offset: toml::Value,
@@ -168,9 +185,11 @@ impl Default for RenderSettings {
     }
 }
 
+/// A point light.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Light {
+    /// Position.
     pub position: [f64; 3],
     /// Radiant intensity, W/sr, per RGB channel.
     pub intensity: [f64; 3],
@@ -181,92 +200,148 @@ pub struct Light {
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct DirectionalLight {
+    /// Direction the light travels (need not be unit length).
     pub direction: [f64; 3],
+    /// Irradiance on a surface facing the light, W/m², per RGB channel.
     pub irradiance: [f64; 3],
 }
 
+/// A surface material.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
 pub enum Material {
-    Diffuse { albedo: [f64; 3] },
-    Mirror { reflectance: [f64; 3] },
-    Glass { ior: f64 },
+    /// Lambertian: reflects `albedo/π` per RGB channel, lit by the lights.
+    Diffuse {
+        /// Reflectance per RGB channel, 0–1.
+        albedo: [f64; 3],
+    },
+    /// A perfect mirror.
+    Mirror {
+        /// Reflectance per RGB channel, 0–1.
+        reflectance: [f64; 3],
+    },
+    /// Clear glass: Fresnel-weighted reflection and refraction.
+    Glass {
+        /// Index of refraction (within [`MIN_IOR`, `MAX_IOR`]).
+        ior: f64,
+    },
 }
 
+/// A shape of the scene; every kind names its material.
 #[derive(Debug, Clone, Deserialize)]
 #[serde(tag = "type", rename_all = "lowercase", deny_unknown_fields)]
 pub enum Shape {
+    /// A sphere.
     Sphere {
+        /// Centre.
         center: [f64; 3],
+        /// Radius (> 0).
         radius: f64,
+        /// Material name.
         material: String,
     },
+    /// A flat disc.
     Disc {
+        /// Centre.
         center: [f64; 3],
+        /// Normal (need not be unit length).
         normal: [f64; 3],
+        /// Radius (> 0).
         radius: f64,
+        /// Material name.
         material: String,
     },
+    /// An infinite plane.
     Plane {
+        /// A point on the plane.
         point: [f64; 3],
+        /// Normal (need not be unit length).
         normal: [f64; 3],
+        /// Material name.
         material: String,
     },
+    /// A triangle mesh read from an OBJ file.
     Mesh {
+        /// Path of the OBJ file, relative to the scene file.
         file: String,
+        /// Material name.
         material: String,
     },
     /// Axis-aligned box, `min < max` on every axis.
     Box {
+        /// Minimum corner.
         min: [f64; 3],
+        /// Maximum corner.
         max: [f64; 3],
+        /// Material name.
         material: String,
     },
     /// Closed cylinder: lateral surface from `base` up `height` along +y, and two cap discs.
     Cylinder {
+        /// Centre of the bottom cap.
         base: [f64; 3],
+        /// Radius (> 0).
         radius: f64,
+        /// Height along +y (> 0).
         height: f64,
+        /// Material name.
         material: String,
     },
     /// Ellipsoid with semi-axes `radii` along x, y, z.
     Ellipsoid {
+        /// Centre.
         center: [f64; 3],
+        /// Semi-axes along x, y, z (each > 0).
         radii: [f64; 3],
+        /// Material name.
         material: String,
     },
     /// Ring torus in the xz plane around the +y axis through `center`.
     Torus {
+        /// Centre.
         center: [f64; 3],
+        /// Distance from the centre to the tube's centre line.
         major: f64,
+        /// Tube radius (below `major`: a ring torus).
         minor: f64,
+        /// Material name.
         material: String,
     },
     /// Implicit: signed-distance parts (`kind` sphere, torus, box) joined by a smooth union of
     /// blend width `blend` (0: a hard union). Sphere traced.
     Sdf {
+        /// The signed-distance parts.
         parts: Vec<SdfPart>,
+        /// Smooth-union blend width (0: a hard union).
         #[serde(default)]
         blend: f64,
+        /// Material name.
         material: String,
     },
     /// Implicit: POV-Ray's blob, `Σ strength·(1 − r²/radius²)² = threshold`. Sphere traced.
     Blob {
+        /// Field value of the surface.
         threshold: f64,
+        /// The blob's components.
         components: Vec<BlobComponent>,
+        /// Material name.
         material: String,
     },
     /// Implicit: an MPU surface fitted to `points` (lines `x y z nx ny nz`); `mesh` (OBJ) is
     /// the source mesh POV-Ray renders in its place. Sphere traced.
     Mpu {
+        /// Path of the oriented point cloud, relative to the scene file.
         points: String,
+        /// Path of the source mesh (OBJ) that POV-Ray renders in the MPU's place.
         #[serde(default)]
         mesh: Option<String>,
+        /// Material name.
         material: String,
     },
 }
 
 impl Shape {
+    /// The name of the shape's material.
     pub fn material(&self) -> &String {
         match self {
             Shape::Sphere { material, .. }
@@ -465,19 +540,24 @@ fn field_line(text: &str, header: usize, field: &str) -> usize {
 #[derive(Debug, thiserror::Error)]
 #[error("{file}:{line}: {message}")]
 pub struct SceneError {
+    /// The scene file's path as given.
     pub file: String,
+    /// Line of the offending field (1-based; 0 when the file could not be read).
     pub line: usize,
+    /// What is wrong, in one line.
     pub message: String,
 }
 
 /// A parsed, checked scene with its meshes loaded.
 #[derive(Debug, Clone)]
 pub struct Scene {
+    /// The file as parsed.
     pub file: SceneFile,
     /// Triangles of each mesh shape, by shape index.
     pub meshes: BTreeMap<usize, Vec<[[f64; 3]; 3]>>,
     /// The field of each implicit shape, by shape index (MPU surfaces are fitted on load).
     pub implicits: BTreeMap<usize, Field>,
+    /// Where the scene was read from (meshes and point clouds are relative to it).
     pub path: PathBuf,
 }
 

@@ -64,13 +64,17 @@ use std::path::{Path, PathBuf};
 
 /// What to run.
 pub struct ReportOptions {
+    /// Output directory (replaced as a whole when the report is complete).
     pub out: PathBuf,
+    /// Reference directory (`scenes/` and POV-Ray references).
     pub reference: PathBuf,
+    /// Seed of the audit's case streams.
     pub seed: u64,
     /// Audit cases per class.
     pub cases: u64,
     /// Small everything (renders, repeats, strided Newton inputs): for tests and smoke runs.
     pub quick: bool,
+    /// Progress lines on stderr.
     pub progress: bool,
     /// A ray–sphere routine from outside the crate (a plugin, a subprocess) to put beside the
     /// built-in methods in the accuracy-vs-cost section, in both precisions.
@@ -83,14 +87,21 @@ use crate::shapes::sphere::batch::MIX;
 /// One method × precision: the audit's errors beside the in-run cost.
 #[derive(Clone, Debug, Serialize)]
 pub struct CostRow {
+    /// Method name.
     pub method: String,
+    /// Precision.
     pub precision: Precision,
+    /// Offered as robust.
     pub robust: bool,
+    /// In-run cost per test on the timing batch, in ns.
     pub ns: Timing,
     /// Wrong verdicts / well-posed valid cases, over every class.
     pub wrong_rate: f64,
+    /// Wrong verdicts on well-posed cases, over every class.
     pub wrong: u64,
+    /// Well-posed valid cases, over every class.
     pub well_posed: u64,
+    /// Largest value error in ulps over every class.
     pub max_ulps: f64,
     /// p99 of log2(1 + ulps) over every right-verdict hit of every class (pooled).
     pub p99_bits: f64,
@@ -112,14 +123,20 @@ struct Numbers<'a> {
 /// Where the numbers were measured.
 #[derive(Clone, Debug, Serialize)]
 pub struct Machine {
+    /// CPU model name.
     pub cpu: String,
+    /// Threads available.
     pub threads: usize,
+    /// Operating system (Rust's `std::env::consts::OS`).
     pub os: String,
+    /// The tool and its version.
     pub tool: &'static str,
+    /// UTC date of the run.
     pub date: String,
 }
 
 impl Machine {
+    /// The machine this runs on, now.
     pub fn read() -> Machine {
         let cpu = std::fs::read_to_string("/proc/cpuinfo")
             .ok()

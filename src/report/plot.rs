@@ -5,13 +5,17 @@ use plotters::prelude::*;
 /// One point of a trade-off plot.
 #[derive(Clone, Debug)]
 pub struct Point {
+    /// The point's label (method and precision).
     pub label: String,
+    /// Horizontal position (cost).
     pub x: f64,
+    /// Vertical position (error).
     pub y: f64,
     /// Drawn filled (robust methods) or hollow.
     pub robust: bool,
     /// Colour index (one per method) and marker: triangle for f64 (`square`), circle for f32.
     pub colour: usize,
+    /// The `f64` marker (a triangle); `false`: the `f32` circle.
     pub square: bool,
 }
 

@@ -18,21 +18,29 @@ pub const BASELINE: (&str, &str) = ("promote", "f64");
 /// One render's cost and error.
 #[derive(Clone, Debug, Serialize)]
 pub struct RenderRow {
+    /// Scene name.
     pub scene: String,
+    /// Ray–sphere method.
     pub method: &'static str,
+    /// `"f32"` or `"f64"`.
     pub precision: &'static str,
+    /// Offered as robust.
     pub robust: bool,
     /// Wall seconds per frame at the timing grid (Timing's fields in seconds).
     pub seconds: Timing,
     /// Samples per pixel of the timed frames, and of the compared image.
     pub timed_spp: u32,
+    /// Samples per pixel of the compared image.
     pub image_spp: u32,
+    /// Rays traced in one timed frame.
     pub rays: u64,
     /// Mean |Δ| and share of pixels over 0.05 against the baseline render.
     pub vs_baseline_mean: f64,
+    /// Share of pixels with a channel over 0.05 against the baseline render.
     pub vs_baseline_fail: f64,
     /// The same against POV-Ray's reference (None when the reference is missing).
     pub vs_povray_mean: Option<f64>,
+    /// Share of pixels with a channel over 0.05 against POV-Ray's reference.
     pub vs_povray_fail: Option<f64>,
     /// File name of the tone-mapped PNG in the report's `img/`.
     pub png: String,

@@ -42,8 +42,11 @@ use serde::Serialize;
 
 /// The paper's figures (seed 000, §3).
 pub const PAPER_RAYS: f64 = 15e6;
+/// The paper's algebraic render: 2 hours.
 pub const PAPER_ALGEBRAIC_S: f64 = 2.0 * 3600.0;
+/// The paper's geometric render: 35 minutes.
 pub const PAPER_GEOMETRIC_S: f64 = 35.0 * 60.0;
+/// The paper's derived rays per primary ray, `d`.
 pub const PAPER_D: f64 = 5.0;
 /// Seed 000 §3: "a square root takes 15 to 30 times a multiplication".
 pub const PAPER_SQRT_OVER_MUL: (f64, f64) = (15.0, 30.0);
@@ -51,7 +54,9 @@ pub const PAPER_SQRT_OVER_MUL: (f64, f64) = (15.0, 30.0);
 /// One configuration's measurements.
 #[derive(Clone, Debug, Serialize)]
 pub struct SeedRun {
+    /// Ray–sphere method.
     pub method: &'static str,
+    /// `"f32"` or `"f64"`.
     pub precision: &'static str,
     /// Every ray tests all 30 spheres (as in 1996), or the BVH prunes them.
     pub flat: bool,
@@ -59,6 +64,7 @@ pub struct SeedRun {
     pub wall_s: Timing,
     /// Process CPU seconds per frame (median), all threads.
     pub cpu_s: f64,
+    /// Rays and tests of one frame.
     pub counts: RayCounts,
     /// In-frame ns per sphere test: (CPU time with two passes over the spheres − with one) ÷
     /// the tests of one pass, medians; a BVH row takes its flat twin's figure.
@@ -70,23 +76,34 @@ pub struct SeedRun {
 /// The image difference between the two methods in one precision.
 #[derive(Clone, Debug, Serialize)]
 pub struct MethodDiff {
+    /// `"f32"` or `"f64"`.
     pub precision: &'static str,
+    /// Mean absolute error over pixels × channels.
     pub mean_error: f64,
+    /// Largest absolute channel difference.
     pub max_error: f64,
     /// Pixels with a channel differing by more than 0.05.
     pub pixels_over_005: u64,
+    /// Pixels compared.
     pub pixels: u64,
 }
 
+/// Fan, Shen, Wang & Feng's 1996 test scene measured: renders, image differences, sqrt cost.
 #[derive(Clone, Debug, Serialize)]
 pub struct SeedRepro {
+    /// Image width in pixels.
     pub width: usize,
+    /// Image height in pixels.
     pub height: usize,
+    /// Point lights in the scene (the paper's `m`).
     pub lights: usize,
+    /// One run per configuration.
     pub runs: Vec<SeedRun>,
+    /// The image difference between the two methods, per precision.
     pub diffs: Vec<MethodDiff>,
     /// ns per step of a dependent f64 chain `x = √x + 1` and `x = x·0.5 + 1` (latency).
     pub sqrt_ns: Timing,
+    /// ns per step of the dependent multiply chain (latency).
     pub mul_ns: Timing,
     /// Images of the flat renders, for the report's side-by-side view.
     #[serde(skip)]

@@ -58,6 +58,7 @@ pub enum Rule {
 }
 
 impl Rule {
+    /// Every rule, in report order.
     pub const ALL: [Rule; 3] = [Rule::On, Rule::Weak, Rule::Off];
     /// The factor on the error bound.
     pub fn factor(self) -> f64 {
@@ -67,6 +68,7 @@ impl Rule {
             Rule::Off => 0.0,
         }
     }
+    /// `on`, `weak` or `off`.
     pub fn name(self) -> &'static str {
         match self {
             Rule::On => "on",
@@ -81,9 +83,13 @@ impl Rule {
 /// [`crate::shapes::reintersect`]).
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct ReintersectRow {
+    /// The surface.
     pub shape: &'static str,
+    /// The intersection method.
     pub method: &'static str,
+    /// `"f32"` or `"f64"`.
     pub precision: &'static str,
+    /// Offered as robust.
     pub robust: bool,
     /// `on`, `weak` (error bound ×1e-3) or `off` (no offset).
     pub rule: &'static str,

@@ -19,8 +19,11 @@ pub const WATERTIGHT_RAYS: u64 = 3000;
 /// Both tests' rows.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct Robustness {
+    /// Seed of the tests' ray streams.
     pub seed: u64,
+    /// One row per surface × method × precision × offset rule.
     pub reintersection: Vec<ReintersectRow>,
+    /// One row per method × precision × mesh × ray kind.
     pub watertight: Vec<WatertightRow>,
 }
 

@@ -103,6 +103,7 @@ pub struct Roots {
     info: ShapeInfo,
 }
 
+/// Quadratics `a x² + b x + c` (Lengyel §1.1).
 pub static QUADRATIC: Roots = Roots {
     degree: 2,
     info: ShapeInfo {
@@ -131,6 +132,7 @@ pub static CUBIC: Roots = Roots {
         ..QUADRATIC.info
     },
 };
+/// Quartics by Ferrari's resolvent cubic (Lengyel §1.3).
 pub static QUARTIC: Roots = Roots {
     degree: 4,
     info: ShapeInfo {
@@ -186,13 +188,21 @@ const QUARTIC_METHODS: &[MethodInfo] = &[
 
 /// Every class; a degree uses the ones that exist for it (see `Roots::classes`).
 pub const GENERIC: &str = "generic";
+/// Class: a repeated root (a small dyadic with exact coefficients, or a random one).
 pub const DOUBLE_ROOT: &str = "double_root";
+/// Class: two roots `r` and `r(1 + δ)`, from a few thousand ulps apart (ill-posed) to past √ulp.
 pub const CLUSTERED: &str = "clustered";
+/// Class: one root 10⁻³ … 10⁻¹⁰ (f32) or 10⁻⁶ … 10⁻²⁰ (f64) of the others.
 pub const NEAR_ZERO: &str = "near_zero";
+/// Class: coefficients over 10^±15 (f32) or 10^±30 (f64).
 pub const HUGE_RANGE: &str = "huge_range";
+/// Class: complex pairs only.
 pub const NO_REAL: &str = "no_real";
+/// Class: a leading coefficient 10⁻⁴ … 10⁻¹⁴ (f32) or 10⁻⁸ … 10⁻³⁰ (f64) of the others; 1 in 16 exactly 0.
 pub const TINY_LEADING: &str = "tiny_leading";
+/// Class: Kahan's hard quadratic, `b² − ac` a few units in the last place of `b²`.
 pub const KAHAN: &str = "kahan";
+/// Class: NaN, ±∞ or a zero polynomial.
 pub const INVALID: &str = "invalid";
 
 const QUADRATIC_CLASSES: &[&str] = &[
@@ -426,6 +436,7 @@ impl Shape for Roots {
 /// Newton's method on a cubic in a bracket (§1.4).
 pub struct Newton;
 
+/// Newton's method on a cubic in a bracket (Lengyel §1.4).
 pub static NEWTON: Newton = Newton;
 
 const NEWTON_METHODS: &[MethodInfo] = &[
@@ -441,9 +452,13 @@ const NEWTON_METHODS: &[MethodInfo] = &[
     },
 ];
 
+/// Class: three real roots, a bracket around one, `x₀` near the root.
 pub const NEAR_ROOT: &str = "near_root";
+/// Class: `x₀` at the critical point between two roots (`f′(x₀) ≈ 0`).
 pub const FLAT_START: &str = "flat_start";
+/// Class: one real root and a complex pair, `x₀` at the far end of a wide bracket.
 pub const FAR_START: &str = "far_start";
+/// Class: `(x − r)³ + δ`, a simple root amid a complex pair: Newton converges linearly.
 pub const MULTIPLE_ROOT: &str = "multiple_root";
 
 const NEWTON_CLASSES: &[&str] = &[NEAR_ROOT, FLAT_START, FAR_START, MULTIPLE_ROOT, INVALID];

@@ -27,8 +27,11 @@ use std::cmp::Ordering;
 /// equals `lo == hi`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RealRoot {
+    /// Lower end (excluded unless it equals `hi`).
     pub lo: Rational,
+    /// Upper end.
     pub hi: Rational,
+    /// The root's multiplicity.
     pub multiplicity: u32,
 }
 

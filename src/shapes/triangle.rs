@@ -82,7 +82,9 @@ fn all_finite<F: Real>(o: V<F>, d: V<F>, p: &[V<F>; 3]) -> bool {
 /// A hit: the ray parameter and the barycentric weights `(b0, b1, b2)` of the hit point.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriHit<F> {
+    /// The ray parameter of the hit.
     pub t: F,
+    /// Barycentric weights of the hit point (they sum to 1).
     pub b: [F; 3],
 }
 
@@ -413,12 +415,17 @@ fn icross(a: &IV, b: &IV) -> IV {
 /// The exact outcome of one ray against one triangle.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ExactTri {
+    /// NaN or infinite input, a zero direction or a degenerate triangle.
     Invalid,
+    /// No crossing with `t > 0` (or a ray parallel to the plane).
     Miss,
     /// `t = num/den > 0`; `boundary`: the crossing is on an edge or a vertex (some `eᵢ = 0`).
     Hit {
+        /// Numerator of `t`.
         num: Integer,
+        /// Denominator of `t` (of the same sign as `num`).
         den: Integer,
+        /// The crossing is on an edge or a vertex (some edge function is 0).
         boundary: bool,
     },
 }

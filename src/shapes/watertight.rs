@@ -45,15 +45,19 @@ use serde::Serialize;
 /// One method × precision × mesh × ray kind.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct WatertightRow {
+    /// The triangle method.
     pub method: &'static str,
+    /// `"f32"` or `"f64"`.
     pub precision: &'static str,
     /// `near` or `far` closed mesh, or `fold`.
     pub mesh: &'static str,
     /// `random`, `edge`, `vertex` (closed meshes) or `shared_edge` (folds).
     pub kind: &'static str,
+    /// Rays cast.
     pub rays: u64,
     /// Rays the oracle sends across the mesh for which no triangle reported a hit.
     pub escaped: u64,
+    /// `escaped / rays`.
     pub rate: f64,
     /// Fold rays across a silhouette edge that the oracle says hit and the method misses
     /// (not a leak; see the module doc).
@@ -72,7 +76,9 @@ pub struct WatertightRow {
 
 /// A closed mesh: vertices (rounded once to the precision, shared exactly) and index triples.
 pub struct Mesh {
+    /// The vertices.
     pub vertices: Vec<V>,
+    /// Triangles as indices into `vertices`, counter-clockwise seen from outside.
     pub faces: Vec<[usize; 3]>,
 }
 

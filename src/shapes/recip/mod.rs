@@ -47,10 +47,12 @@ const RECIP: ShapeInfo = ShapeInfo {
     ..ShapeInfo::DEFAULTS
 };
 
+/// `1/r` by Newton's iteration `y(2 − ry)` (Lengyel §1.5).
 pub static RCP: Recip = Recip {
     func: Func::Rcp,
     info: RECIP,
 };
+/// `1/√r` by Newton's iteration `y(3 − ry²)/2` (Lengyel §1.5).
 pub static RSQRT: Recip = Recip {
     func: Func::Rsqrt,
     info: ShapeInfo {
@@ -117,11 +119,17 @@ const RSQRT_METHODS: &[MethodInfo] = &[
     },
 ];
 
+/// Class: `r` over the normal binades, start `x₀ = k·v` with `k` in 0.5–1.5.
 pub const MANTISSA: &str = "mantissa";
+/// Class: subnormal `r` (for `1/r` only the top two binades below the normals).
 pub const SUBNORMAL: &str = "subnormal";
+/// Class: `r` in the top eight binades.
 pub const HUGE: &str = "huge";
+/// Class: start `x₀ = k·v` inside the chapter's bound, `0 < k < K` (`K` = 2 for `1/r`, √3 for `1/√r`).
 pub const START_IN_BOUND: &str = "start_in_bound";
+/// Class: start outside the bound, `k ≤ 0` or `k > K`.
 pub const START_OUT_OF_BOUND: &str = "start_out_of_bound";
+/// Class: `r ≤ 0`, NaN, ±∞, or (for `1/r`) the smallest subnormal, whose reciprocal overflows.
 pub const INVALID: &str = "invalid";
 
 const CLASSES: &[&str] = &[

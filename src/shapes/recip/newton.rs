@@ -49,8 +49,10 @@ pub enum Func {
 }
 
 impl Func {
+    /// Both functions, `rcp` first.
     pub const ALL: [Func; 2] = [Func::Rcp, Func::Rsqrt];
 
+    /// `rcp` or `rsqrt`.
     pub fn name(self) -> &'static str {
         match self {
             Func::Rcp => "rcp",
@@ -119,8 +121,10 @@ pub enum Start {
 }
 
 impl Start {
+    /// Both starts, hardware first.
     pub const ALL: [Start; 2] = [Start::Hardware, Start::Bits];
 
+    /// `hardware` or `bits`.
     pub fn name(self) -> &'static str {
         match self {
             Start::Hardware => "hardware",
@@ -140,8 +144,11 @@ pub enum Variant {
     Reference(Func),
     /// A start refined by `steps` Newton steps.
     Newton {
+        /// The function approximated.
         func: Func,
+        /// Where the iteration starts.
         start: Start,
+        /// Newton steps after the start (0: the start alone).
         steps: u32,
     },
 }
@@ -165,6 +172,7 @@ impl Variant {
             .collect()
     }
 
+    /// The function the variant computes.
     pub fn func(self) -> Func {
         match self {
             Variant::Reference(f) | Variant::Newton { func: f, .. } => f,
@@ -180,6 +188,7 @@ impl Variant {
         }
     }
 
+    /// Newton steps (`None` for the reference ways).
     pub fn steps(self) -> Option<u32> {
         match self {
             Variant::Reference(_) => None,
@@ -417,7 +426,9 @@ pub fn hardware_estimate(func: Func, x: f32) -> f32 {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{input} inputs but room for {output} outputs")]
 pub struct LengthMismatch {
+    /// Inputs given.
     pub input: usize,
+    /// Room for outputs.
     pub output: usize,
 }
 
@@ -527,12 +538,15 @@ pub fn ulp_f32_at(v: f64) -> f64 {
 /// Accuracy of one variant over a set of inputs.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Accuracy {
+    /// Inputs evaluated.
     pub inputs: u64,
     /// Largest error in ulps (infinite if any answer is NaN).
     pub max_ulps: f64,
     /// The input with the largest error (the first such), and its answer.
     pub worst_input: f32,
+    /// The answer at `worst_input`.
     pub worst_output: f32,
+    /// Mean error in ulps.
     pub mean_ulps: f64,
     /// Largest relative error `|a − v| / v`.
     pub max_rel: f64,
@@ -654,6 +668,7 @@ impl NewtonOpts {
 /// One row of the table.
 #[derive(Clone, Debug, Serialize)]
 pub struct NewtonRow {
+    /// The variant.
     pub variant: Variant,
     /// `rcp` or `rsqrt`.
     pub function: &'static str,
@@ -663,12 +678,17 @@ pub struct NewtonRow {
     pub steps: Option<u32>,
     /// Whether a hardware start is the real instruction.
     pub native: bool,
+    /// Inputs evaluated.
     pub inputs: u64,
+    /// Largest error in ulps (infinite if any answer is NaN).
     pub max_ulps: f64,
     /// The first input with the largest error, and its answer, as hex floats.
     pub worst_input: String,
+    /// The answer at `worst_input`, as a hex float.
     pub worst_output: String,
+    /// Mean error in ulps.
     pub mean_ulps: f64,
+    /// Largest relative error `|a − v| / v`.
     pub max_rel: f64,
     /// [`Variant::bound_ulps`].
     pub bound_ulps: f64,
@@ -750,11 +770,17 @@ pub fn table(opts: &NewtonOpts) -> Vec<NewtonRow> {
 #[serde(rename_all = "snake_case")]
 pub enum Outcome {
     /// Reached the exact value to within 4 ulps of `f64` at this step.
-    Converged { step: usize },
+    Converged {
+        /// The step that reached it (0: the start itself).
+        step: usize,
+    },
     /// An iterate left `(0, ∞)` (became ≤ 0 or NaN) at this step. From there the iteration no
     /// longer approaches `v`: for `1/x` it runs off to −∞; for `1/√x` it settles on the other
     /// root `−v` or blows up.
-    Diverged { step: usize },
+    Diverged {
+        /// The step at which the iterate left `(0, ∞)` (0: the start itself).
+        step: usize,
+    },
     /// Neither within the steps run.
     Undecided,
 }
@@ -762,8 +788,11 @@ pub enum Outcome {
 /// The iteration from `x₀ = k·v` (`v` the exact answer), in `f64`.
 #[derive(Clone, Debug, Serialize)]
 pub struct StartRow {
+    /// `rcp` or `rsqrt`.
     pub function: &'static str,
+    /// The input `r`.
     pub r: f64,
+    /// The start's multiple of the answer: `x₀ = k·v`.
     pub k: f64,
     /// The chapter's limit on `k`: 2 for `1/x`, √3 for `1/√x`.
     pub limit: f64,
@@ -771,6 +800,7 @@ pub struct StartRow {
     pub inside: bool,
     /// `x_n / v` for n = 0..=steps (1 is the root).
     pub scaled: Vec<f64>,
+    /// What the iteration did.
     pub outcome: Outcome,
 }
 

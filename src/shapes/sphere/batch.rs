@@ -57,6 +57,7 @@ pub struct SphereBatch<F> {
 }
 
 impl<F: Real> SphereBatch<F> {
+    /// An empty batch.
     pub fn new() -> Self {
         SphereBatch {
             ox: vec![],
@@ -77,6 +78,7 @@ impl<F: Real> SphereBatch<F> {
         self.r.len()
     }
 
+    /// No tests.
     pub fn is_empty(&self) -> bool {
         self.r.is_empty()
     }
@@ -214,8 +216,11 @@ pub fn rtg7_lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
 
 /// A method with a scalar form (in [`methods`]) and a lane form (here).
 pub trait BatchMethod {
+    /// The method's name, as in [`methods::METHODS`].
     const NAME: &'static str;
+    /// The scalar method of the same name.
     fn scalar<F: Real>(ray: &Ray<F>, sphere: &Sphere<F>) -> Option<SphereHit<F>>;
+    /// One test on lane values: `t`, or NaN for a miss.
     fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F;
 }
 
@@ -254,7 +259,9 @@ impl BatchMethod for Rtg7 {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("a batch of {batch} tests but room for {output} answers")]
 pub struct LengthMismatch {
+    /// Tests in the batch.
     pub batch: usize,
+    /// Room for answers.
     pub output: usize,
 }
 
@@ -269,6 +276,7 @@ pub enum Isa {
 }
 
 impl Isa {
+    /// `sse2` (or `portable` off x86_64) or `avx2`.
     pub fn name(self) -> &'static str {
         match self {
             Isa::Portable if cfg!(target_arch = "x86_64") => "sse2",
@@ -399,12 +407,19 @@ pub fn run_scalar<M: BatchMethod, F: Real>(
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 #[error("{method}/{precision} {isa}: test {index}: scalar {scalar}, batched {batched}\n  replay: rayproof probe sphere {replay}")]
 pub struct Mismatch {
+    /// The method's name.
     pub method: &'static str,
+    /// `"f32"` or `"f64"`.
     pub precision: &'static str,
+    /// The kernel's instruction set.
     pub isa: &'static str,
+    /// Index of the test in the batch.
     pub index: usize,
+    /// The scalar method's answer, as a hex float (or `miss`).
     pub scalar: String,
+    /// The batch kernel's answer, as a hex float (or `miss`).
     pub batched: String,
+    /// The `rayproof probe` arguments that replay the test.
     pub replay: String,
 }
 
@@ -458,9 +473,11 @@ pub fn mix_cases<F: Real>(seed: u64, per_class: u64) -> Vec<Case<F>> {
 /// How the throughput table is measured.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct BatchOpts {
+    /// Seed of the cases.
     pub seed: u64,
     /// Cases per [`MIX`] class.
     pub per_class: u64,
+    /// Timed runs per row.
     pub runs: usize,
     /// Minimum duration of one timed run, in nanoseconds.
     pub min_ns: f64,
@@ -481,9 +498,13 @@ impl BatchOpts {
 /// One row: a method in one precision, scalar vs batched with one instruction set.
 #[derive(Clone, Debug, Serialize)]
 pub struct BatchRow {
+    /// The method's name.
     pub method: &'static str,
+    /// `"f32"` or `"f64"`.
     pub precision: &'static str,
+    /// The kernel's instruction set.
     pub isa: &'static str,
+    /// Tests in the timed batch.
     pub tests: usize,
     /// Nanoseconds per test, scalar method over the same tests.
     pub scalar: Timing,

@@ -41,6 +41,7 @@ pub enum Class {
 }
 
 impl Class {
+    /// Every class, in report order.
     pub const ALL: [Class; 9] = [
         Class::Inside,
         Class::OnSurface,
@@ -52,6 +53,7 @@ impl Class {
         Class::Random,
         Class::Invalid,
     ];
+    /// The class's name (`--class`).
     pub const fn name(self) -> &'static str {
         match self {
             Class::Inside => "inside",
@@ -65,6 +67,7 @@ impl Class {
             Class::Invalid => "invalid",
         }
     }
+    /// The class of this name.
     pub fn from_name(s: &str) -> Option<Class> {
         Class::ALL.into_iter().find(|c| c.name() == s)
     }

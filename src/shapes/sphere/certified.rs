@@ -80,6 +80,7 @@
 
 use super::methods::{ilogb, mul_pow2, Ray, Sphere, SphereHit};
 use super::oracle::{nearest_root, Case};
+use crate::numerics::dd::{two_prod_split, two_sum};
 use crate::numerics::real::Real;
 
 /// `u = 2⁻⁵³`, the unit roundoff of `f64`.
@@ -392,29 +393,6 @@ pub fn quick_phase<F: Real>(case: &Case<F>) -> Quick {
     Quick::Hit { th, tl, err }
 }
 
-/// `a + b = s + e` exactly (Knuth's TwoSum).
-#[inline(always)]
-fn two_sum(a: f64, b: f64) -> (f64, f64) {
-    let s = a + b;
-    let bb = s - a;
-    (s, (a - (s - bb)) + (b - bb))
-}
-
-/// `a·b = p + e` exactly, without FMA (Dekker's product with Veltkamp's split), for products
-/// that neither overflow nor underflow.
-#[inline(always)]
-fn two_prod(a: f64, b: f64) -> (f64, f64) {
-    const SPLIT: f64 = 134_217_729.0; // 2^27 + 1
-    let split = |x: f64| {
-        let g = SPLIT * x;
-        let hi = g - (g - x);
-        (hi, x - hi)
-    };
-    let p = a * b;
-    let ((ah, al), (bh, bl)) = (split(a), split(b));
-    (p, ((ah * bh - p) + ah * bl + al * bh) + al * bl)
-}
-
 /// `P(t) = |f + t·d|² − r²` and `P'(t) = 2 d·(f + t·d)` from the inputs (`f = o − c` exactly),
 /// in double-double, each with a rigorous bound on its error.
 #[derive(Clone, Copy, Debug)]
@@ -433,7 +411,7 @@ fn residual(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, t: f64) -> Residual {
     let mut egl = [0.0; 3];
     for i in 0..3 {
         let (fh, fl) = two_sum(o[i], -c[i]);
-        let (p, pe) = two_prod(t, d[i]);
+        let (p, pe) = two_prod_split(t, d[i]);
         let (s, se) = two_sum(fh, p);
         gh[i] = s;
         gl[i] = se + pe + fl;
@@ -442,11 +420,11 @@ fn residual(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, t: f64) -> Residual {
     // Σ gh² − r² as eight exact terms, summed by Knuth's cascade into hi + lo
     let mut terms = [0.0f64; 8];
     for i in 0..3 {
-        let (q, qe) = two_prod(gh[i], gh[i]);
+        let (q, qe) = two_prod_split(gh[i], gh[i]);
         terms[2 * i] = q;
         terms[2 * i + 1] = qe;
     }
-    let (rr, rre) = two_prod(r, r);
+    let (rr, rre) = two_prod_split(r, r);
     terms[6] = -rr;
     terms[7] = -rre;
     let (mut hi, mut lo, mut mag) = (0.0, 0.0, 0.0);

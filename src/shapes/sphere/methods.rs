@@ -20,14 +20,18 @@ use crate::numerics::real::{Real, Scalar};
 /// A ray `o + t·d`, in the precision `F`.
 #[derive(Clone, Copy, Debug)]
 pub struct Ray<F: Real> {
+    /// Origin `o`.
     pub origin: F::Vec3,
+    /// Direction `d`, as given (not renormalised).
     pub dir: F::Vec3,
 }
 
 /// A sphere `|p − c| = r`.
 #[derive(Clone, Copy, Debug)]
 pub struct Sphere<F: Real> {
+    /// Centre `c`.
     pub center: F::Vec3,
+    /// Radius `r`.
     pub radius: F,
 }
 
@@ -35,7 +39,9 @@ pub struct Sphere<F: Real> {
 /// that the method claims contains the exact root.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SphereHit<F> {
+    /// The ray parameter of the nearest hit with `t > 0`.
     pub t: F,
+    /// The method's claimed enclosure of the exact root, if it gives one.
     pub enclosure: Option<[F; 2]>,
 }
 
@@ -378,17 +384,21 @@ fn finite_hit<F: Real>(t: F) -> Option<SphereHit<F>> {
 /// A named method with its two instantiations.
 #[derive(Debug)]
 pub struct Method {
+    /// The method's name (`--method`, `render.method`).
     pub name: &'static str,
     /// One line: what the method is and where it comes from.
     pub summary: &'static str,
     /// Whether the method is offered as robust (held to the tolerance table's strict rows).
     pub robust: bool,
+    /// The `f32` instantiation.
     pub f32: fn(&Ray<f32>, &Sphere<f32>) -> Option<SphereHit<f32>>,
+    /// The `f64` instantiation.
     pub f64: fn(&Ray<f64>, &Sphere<f64>) -> Option<SphereHit<f64>>,
 }
 
 /// Picks a method's instantiation for a precision.
 pub trait PickPrecision: Real {
+    /// The method's instantiation for `Self`.
     fn pick(m: &Method) -> fn(&Ray<Self>, &Sphere<Self>) -> Option<SphereHit<Self>>;
 }
 impl PickPrecision for f32 {

@@ -42,19 +42,25 @@ pub const PREC_CAP: u32 = 16384;
 /// One audit case: the ten scalar inputs in the precision under test.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Case<F> {
+    /// Origin.
     pub o: [F; 3],
+    /// Direction.
     pub d: [F; 3],
+    /// Centre.
     pub c: [F; 3],
+    /// Radius.
     pub r: F,
 }
 
 impl<F: Real> Case<F> {
+    /// The case's ray.
     pub fn ray(&self) -> Ray<F> {
         Ray {
             origin: F::vec3(self.o[0], self.o[1], self.o[2]),
             dir: F::vec3(self.d[0], self.d[1], self.d[2]),
         }
     }
+    /// The case's sphere.
     pub fn sphere(&self) -> Sphere<F> {
         Sphere {
             center: F::vec3(self.c[0], self.c[1], self.c[2]),
@@ -66,6 +72,7 @@ impl<F: Real> Case<F> {
         let (o, d, c) = (self.o, self.d, self.c);
         [o[0], o[1], o[2], d[0], d[1], d[2], c[0], c[1], c[2], self.r]
     }
+    /// The case from its ten scalars, in [`Case::scalars`] order.
     pub fn from_scalars(s: [F; 10]) -> Self {
         Case {
             o: [s[0], s[1], s[2]],
@@ -109,6 +116,7 @@ pub enum Verdict {
 }
 
 impl Verdict {
+    /// `Near` or `Far`.
     pub fn is_hit(self) -> bool {
         matches!(self, Verdict::Near | Verdict::Far)
     }
@@ -149,15 +157,21 @@ fn interval_signs(x: &[Interval<f64>; 10]) -> (Option<i8>, Option<i8>, Option<i8
 
 /// The exact integer quantities of a valid case.
 pub struct Exact {
+    /// `A = d·d`.
     pub a: Integer,
+    /// `B' = d·(o − c)`.
     pub bh: Integer,
+    /// `C = |o − c|² − r²`.
     pub c: Integer,
+    /// `Δ = B'² − A·C`.
     pub disc: Integer,
     /// The radius, scaled like the other inputs.
     pub r: Integer,
     /// The scaled inputs o, d, c.
     pub o: [Integer; 3],
+    /// The scaled direction.
     pub d: [Integer; 3],
+    /// The scaled centre.
     pub center: [Integer; 3],
 }
 
@@ -215,6 +229,7 @@ impl Exact {
         }
     }
 
+    /// The verdict from the exact signs of `Δ`, `C` and `B'`.
     pub fn verdict(&self) -> Verdict {
         let sg = |x: &Integer| x.cmp0() as i8;
         decide(Some(sg(&self.disc)), Some(sg(&self.c)), Some(sg(&self.bh)))
@@ -261,7 +276,9 @@ pub fn ill_posed<F: Real>(case: &Case<F>, base: Verdict) -> bool {
 /// A signed enclosure `[lo, hi]` of an exact value.
 #[derive(Clone, Debug)]
 pub struct Encl {
+    /// Lower end.
     pub lo: Float,
+    /// Upper end.
     pub hi: Float,
 }
 
@@ -280,6 +297,7 @@ impl Encl {
         );
         (a.to_bits() == b.to_bits()).then_some(a)
     }
+    /// The midpoint.
     pub fn mid(&self) -> Float {
         let mut m = self.lo.clone() + &self.hi;
         m /= 2u32;
@@ -337,12 +355,15 @@ pub fn root_enclosures(ex: &Exact, prec: u32) -> (Encl, Encl) {
 /// What the oracle says about one case.
 #[derive(Clone, Debug)]
 pub struct Truth {
+    /// The exact outcome.
     pub verdict: Verdict,
+    /// A one-ulp move of one input changes the verdict.
     pub ill_posed: bool,
     /// Both roots `t₁ ≤ t₂` to about 17 digits, when `Δ ≥ 0`.
     pub roots: Option<[f64; 2]>,
     /// The correctly rounded nearest positive root.
     pub t_f32: Option<f32>,
+    /// The correctly rounded nearest positive root in `f64`.
     pub t_f64: Option<f64>,
     /// The precision at which rounding became certain.
     pub prec: u32,

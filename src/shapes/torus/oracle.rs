@@ -32,9 +32,13 @@ use std::cmp::Ordering;
 
 /// One case's exact inputs: `o`, `d`, `r1`, `r2`.
 pub struct ExactCase {
+    /// Origin, in the torus's frame.
     pub o: [Rational; 3],
+    /// Direction.
     pub d: [Rational; 3],
+    /// Distance from the centre to the tube's centre line.
     pub r1: Rational,
+    /// Tube radius.
     pub r2: Rational,
 }
 
@@ -82,7 +86,9 @@ fn sign(x: &Rational) -> Ordering {
 /// [`sturm::isolated`], the root is the only one in `(lo, hi]` (`lo` may be another root).
 pub struct Encloser {
     sf: Vec<Rational>,
+    /// Lower end (excluded unless it is the root).
     pub lo: Rational,
+    /// Upper end.
     pub hi: Rational,
     /// The sign of `sf` at `hi` (non-zero unless the root is exact).
     sign_hi: Ordering,
@@ -262,7 +268,9 @@ pub fn truth(x: &[f64], prec: Precision) -> Truth {
 
 /// The exact first positive root and its ray, for the normal and reintersection oracles.
 pub struct FirstHit {
+    /// The case's exact inputs.
     pub case: ExactCase,
+    /// The root, isolated.
     pub root: Encloser,
     /// The root correctly rounded to the precision.
     pub t: f64,
