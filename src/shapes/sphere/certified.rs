@@ -199,19 +199,12 @@ pub fn first_look<F: Real>(case: &Case<F>, scale: f64) -> FirstLook<F> {
         rhs_factor = s * m;
     }
     // Distance from t to the nearest f32 rounding boundary, in units of 2^(E−52) ≥ u·t/2
-    let bits = t.to_bits();
-    let e = (bits >> 52) as i64;
-    if !(897..=1150).contains(&e) {
+    let Some((dist, _)) = f32_boundary_distance(t) else {
         return FirstLook::Unsure;
-    }
-    let low = (bits & ((1 << 29) - 1)) as i64;
-    let mut dist = (low - (1 << 28)).abs();
-    if (bits >> 29) & ((1 << 23) - 1) == 0 {
-        dist = dist.min(low + (1 << 27));
-    }
+    };
     // |t − t*| ≤ rel·t < rel·2^(E+1) = 2·(rel/u)·unit: certain when 2·(rel/u) < dist
     let tf = F::from_f64(t);
-    if 2.0 * lhs < dist as f64 * rhs_factor && tf.is_finite() {
+    if 2.0 * lhs < dist * rhs_factor && tf.is_finite() {
         FirstLook::Hit(tf)
     } else {
         FirstLook::Unsure
@@ -503,29 +496,35 @@ fn newton(
     (e1.is_finite() && th.is_finite()).then_some((th, tl, e1))
 }
 
+/// The distance from `t` to the nearest `f32` rounding boundary, exactly, as `(units, unit)`
+/// with `unit = 2^(E−52)` for `t` in `[2^E, 2^(E+1))`; `None` unless `t > 0` is in the normal
+/// `f32` range. In that binade the `f32` grid is every 2²⁹ units, the boundaries are the cells'
+/// midpoints, and in the binade's first cell the boundary below `2^E` is 2²⁷ units under it.
+#[inline(always)]
+fn f32_boundary_distance(t: f64) -> Option<(f64, f64)> {
+    let bits = t.to_bits();
+    let e = (bits >> 52) as i64; // t > 0: the biased exponent; otherwise out of range
+    if !(897..=1150).contains(&e) {
+        return None;
+    }
+    let low = (bits & ((1 << 29) - 1)) as i64;
+    let mut dist = (low - (1 << 28)).abs();
+    if (bits >> 29) & ((1 << 23) - 1) == 0 {
+        dist = dist.min(low + (1 << 27));
+    }
+    Some((dist as f64, f64::from_bits(((e - 52) as u64) << 52)))
+}
+
 /// The float of precision `F` nearest to every point of `[th + tl − err, th + tl + err]`, if
 /// there is one (the enclosure does not straddle a rounding boundary), it is `> 0` and it is
 /// finite with a finite successor.
 #[inline(always)]
 fn round_certain<F: Real>(th: f64, tl: f64, err: f64) -> Option<F> {
-    // f32 (tl = 0): read the distance to the nearest rounding boundary off th's bits. In th's
-    // binade the f32 grid is every 2²⁹ units of 2^(E−52), the boundaries are the cell midpoints,
-    // and in the binade's first cell the one below 2^E is 2²⁷ units under it; normal f32 only
+    // f32 (tl = 0): the distance to the nearest rounding boundary, read off th's bits
     if F::MANT_BITS == 24 {
-        let bits = th.to_bits();
-        let e = (bits >> 52) as i64; // th > 0: the biased exponent; otherwise out of range
-        if !(897..=1150).contains(&e) {
-            return None;
-        }
-        let low = (bits & ((1 << 29) - 1)) as i64;
-        let first_cell = (bits >> 29) & ((1 << 23) - 1) == 0;
-        let mut dist = (low - (1 << 28)).abs();
-        if first_cell {
-            dist = dist.min(low + (1 << 27));
-        }
-        let unit = f64::from_bits(((e - 52) as u64) << 52);
+        let (dist, unit) = f32_boundary_distance(th)?;
         let tf = F::from_f64(th);
-        return (dist as f64 * unit > err && tf.is_finite()).then_some(tf);
+        return (dist * unit > err && tf.is_finite()).then_some(tf);
     }
     let tf = F::from_f64(th);
     if !(tf > F::ZERO) {
