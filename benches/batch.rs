@@ -6,7 +6,7 @@
 //! iteration runs over the whole batch: the scalar method (AoS rays and spheres, called
 //! directly, and once more through a function pointer, as `benches/sphere.rs` calls every
 //! method), then the batched kernel with each instruction set this machine has (`sse2`, and
-//! `avx2` when available). The throughput is the batch length, so elements/s is tests/s.
+//! `avx2` and `avx512` when available). The throughput is the batch length, so elements/s is tests/s.
 //!
 //! Validation comes first: every kernel must give the scalar method's answer bit for bit (same
 //! hit/miss, same bits of `t`) on every test of the batch, or the bench refuses to time it and

@@ -171,7 +171,7 @@ fn output_is_t_or_nan_for_a_miss() {
 fn lengths_that_do_not_match_are_errors() {
     let b = SphereBatch::from_cases(&class_cases::<f32>(Class::Inside, 5));
     let mut short = vec![0f32; b.len() - 1];
-    for isa in [Isa::Portable, Isa::Avx2] {
+    for isa in [Isa::Portable, Isa::Avx2, Isa::Avx512] {
         // An unavailable instruction set falls back instead of failing
         assert!(run_batch::<Geometric, f32>(isa, &b, &mut short).is_err());
         let mut ok = vec![0f32; b.len()];

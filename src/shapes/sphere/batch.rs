@@ -19,8 +19,10 @@
 //!
 //! **Instruction sets.** The portable path is whatever the build targets (SSE2 on baseline
 //! x86_64: 4 `f32` or 2 `f64` lanes per instruction). On x86_64 an AVX2 copy of the same code
-//! (8 `f32` / 4 `f64` lanes; AVX2 without FMA) is chosen at run time when the CPU has it
-//! ([`Isa::best`]). The assembly of the test and bench binaries (`objdump -d`, rustc 1.95,
+//! (8 `f32` / 4 `f64` lanes) and an AVX-512 copy (F, VL, DQ: 16 `f32` / 8 `f64` lanes on `zmm`
+//! registers, compares into mask registers `k`), both without FMA, are chosen at run time when
+//! the CPU has them ([`Isa::best`]). Without FMA every path rounds exactly as the scalar method
+//! does, which the tests and the bench check bit for bit. The assembly of the test and bench binaries (`objdump -d`, rustc 1.95,
 //! release) shows the main loops of `kernel_portable` and `kernel_avx2` vectorised, with a
 //! scalar remainder loop (`sqrtss`, `divss`, …) for the last few elements:
 //! - SSE2 path: `sqrtps`/`sqrtpd`, `divps`/`divpd`, `mulps`/`subps`/`addps`, the masks from
@@ -28,6 +30,8 @@
 //!   selects as `andps`/`andnps`/`orps` (SSE2 has no blend);
 //! - AVX2 path: the VEX forms on `ymm` registers (`vsqrtps %ymm`, `vdivps %ymm`, `vcmpltps`,
 //!   `vcmpneq_oqps`, …) with `vblendvps`/`vblendvpd` as the selects;
+//! - AVX-512 path: the EVEX forms on `zmm` registers (`vsqrtps`, `vdivps`, `vcmpltps` into
+//!   `k` masks, `korw`, `kmovw`);
 //! - no `vfmadd*` anywhere in the kernels (the only FMA instructions in the binary are in
 //!   `compiler_builtins`' `fma`).
 //!
@@ -273,15 +277,18 @@ pub enum Isa {
     Portable,
     /// x86_64 with AVX2 (no FMA), chosen at run time.
     Avx2,
+    /// x86_64 with AVX-512 (F, VL, DQ; 512-bit registers, no FMA), chosen at run time.
+    Avx512,
 }
 
 impl Isa {
-    /// `sse2` (or `portable` off x86_64) or `avx2`.
+    /// `sse2` (or `portable` off x86_64), `avx2` or `avx512`.
     pub fn name(self) -> &'static str {
         match self {
             Isa::Portable if cfg!(target_arch = "x86_64") => "sse2",
             Isa::Portable => "portable",
             Isa::Avx2 => "avx2",
+            Isa::Avx512 => "avx512",
         }
     }
 
@@ -291,14 +298,20 @@ impl Isa {
             Isa::Portable => true,
             #[cfg(target_arch = "x86_64")]
             Isa::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => {
+                std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512vl")
+                    && std::arch::is_x86_feature_detected!("avx512dq")
+            }
             #[cfg(not(target_arch = "x86_64"))]
-            Isa::Avx2 => false,
+            Isa::Avx2 | Isa::Avx512 => false,
         }
     }
 
     /// Every instruction set this machine can run, portable first.
     pub fn all_available() -> Vec<Isa> {
-        [Isa::Portable, Isa::Avx2]
+        [Isa::Portable, Isa::Avx2, Isa::Avx512]
             .into_iter()
             .filter(|i| i.available())
             .collect()
@@ -306,7 +319,9 @@ impl Isa {
 
     /// The widest available.
     pub fn best() -> Isa {
-        if Isa::Avx2.available() {
+        if Isa::Avx512.available() {
+            Isa::Avx512
+        } else if Isa::Avx2.available() {
             Isa::Avx2
         } else {
             Isa::Portable
@@ -345,6 +360,15 @@ fn kernel_avx2<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
     kernel::<M, F>(b, out)
 }
 
+/// The same loop compiled for AVX-512: 16 `f32` or 8 `f64` lanes per instruction (FMA stays
+/// off, so results are unchanged).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[inline(never)]
+fn kernel_avx512<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
+    kernel::<M, F>(b, out)
+}
+
 /// Runs method `M` over the batch with `isa` (falling back to the portable path if this
 /// machine lacks it): `out[i]` is test `i`'s `t`, or NaN for a miss.
 pub fn run_batch<M: BatchMethod, F: Real>(
@@ -363,6 +387,11 @@ pub fn run_batch<M: BatchMethod, F: Real>(
         Isa::Avx2 if isa.available() => {
             // SAFETY: the CPU was just checked to support AVX2
             unsafe { kernel_avx2::<M, F>(b, out) }
+        }
+        #[cfg(target_arch = "x86_64")]
+        Isa::Avx512 if isa.available() => {
+            // SAFETY: the CPU was just checked to support AVX-512 F, VL and DQ
+            unsafe { kernel_avx512::<M, F>(b, out) }
         }
         _ => kernel_portable::<M, F>(b, out),
     }
