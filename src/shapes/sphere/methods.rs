@@ -304,12 +304,14 @@ pub(crate) fn ilogb(x: f64) -> i32 {
 
 /// `x·2^k`, exact unless the result over- or underflows; for types with `f64`'s exponent range.
 pub(crate) fn mul_pow2<S: Scalar>(mut x: S, mut k: i32) -> S {
+    // 2^k for |k| ≤ 512, built from its bits (powi is a library call)
+    let pow2 = |k: i32| f64::from_bits(((k + 1023) as u64) << 52);
     while k.abs() > 512 {
         let step = 512 * k.signum();
-        x = x * S::from_f64(2f64.powi(step));
+        x = x * S::from_f64(pow2(step));
         k -= step;
     }
-    x * S::from_f64(2f64.powi(k))
+    x * S::from_f64(pow2(k))
 }
 
 /// **Interval** (pbrt-v4 `Sphere::BasicIntersect`): the whole computation in outward-rounded
