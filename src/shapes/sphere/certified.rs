@@ -305,51 +305,26 @@ pub fn quick_phase<F: Real>(case: &Case<F>) -> Quick {
     let ar2 = a * r2;
     let disc = ar2 - xx;
     let ed = 8.0 * U * ar2 + 5.0 * U * xx + 9.0 * U * px + 33.0 * U * U * a * ff + ETA;
-    // Signs: the verdict, or the root as num/den with its bounds
-    let (num, en, den, eden);
-    let (ab, s, es);
-    if cc > ec {
-        // Outside: behind, or a certain miss by the discriminant
-        if disc < -ed || b > eb {
-            return Quick::Miss;
-        }
-        if !(b < -eb && disc > ed) {
-            return Quick::Unsure;
-        }
-        s = disc.sqrt();
-        es = ed / s * (1.0 + 2.0 * U) + 1.01 * U * s;
-        ab = -b;
-        // Near root C / (|B| + √Δ)
-        num = cc;
-        en = ec;
-        den = ab + s;
-        eden = eb + es + 1.01 * U * den;
-    } else if cc < -ec {
-        // Inside: the far root (Δ > −AC > 0, but its computed value must show it)
-        if !(disc > ed) {
-            return Quick::Unsure;
-        }
-        s = disc.sqrt();
-        es = ed / s * (1.0 + 2.0 * U) + 1.01 * U * s;
-        ab = b.abs();
-        let m = ab + s;
-        let em = eb + es + 1.01 * U * m;
-        if b <= 0.0 {
-            // (|B| + √Δ) / A
-            num = m;
-            en = em;
-            den = a;
-            eden = ea;
-        } else {
-            // |C| / (B + √Δ)
-            num = -cc;
-            en = ec;
-            den = m;
-            eden = em;
-        }
-    } else {
+    // Signs: the verdict (outside: behind, or a certain miss by the discriminant; inside: the
+    // far root, Δ > −AC > 0, but its computed value must show it)
+    let outside = cc > ec;
+    if outside && (disc < -ed || b > eb) {
+        return Quick::Miss;
+    }
+    if !(disc > ed) || !(outside && b < -eb || cc < -ec) {
         return Quick::Unsure;
     }
+    // The root as num/den with their bounds: m = |B| + √Δ; the near root C/m, the far root
+    // m/A when B ≤ 0, else |C|/m
+    let s = disc.sqrt();
+    let es = ed / s * (1.0 + 2.0 * U) + 1.01 * U * s;
+    let m = b.abs() + s;
+    let em = eb + es + 1.01 * U * m;
+    let (num, en, den, eden) = if outside || b > 0.0 {
+        (cc.abs(), ec, m, em)
+    } else {
+        (m, em, a, ea)
+    };
     // The root and its enclosure
     if !(den > eden) {
         return Quick::Unsure;
@@ -359,7 +334,6 @@ pub fn quick_phase<F: Real>(case: &Case<F>) -> Quick {
     if !(t.is_finite() && err.is_finite()) {
         return Quick::Unsure;
     }
-    // f64 inputs: one Newton step with a double-double residual
     // f64 inputs: Newton steps with a double-double residual, until the bound is far below an
     // ulp (one step almost always; grazing rays start far off and take two or three)
     let (mut th, mut tl, mut err): (f64, f64, f64) = (t, 0.0, err);
