@@ -263,7 +263,8 @@ pub struct Options {
     pub configs: Vec<Config>,
     /// Only these tests (by name); empty: all.
     pub tests: Vec<String>,
-    /// Compute HDR-ꟻLIP for every comparison (the report's heat maps), not only where a rule asks.
+    /// Compute ꟻLIP for every comparison (LDR when both images are PNG, else HDR), even without
+    /// `report` or a `max_flip` rule.
     pub flip: bool,
 }
 

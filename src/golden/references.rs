@@ -42,7 +42,8 @@ pub struct Rule {
     pub idiff: Thresholds,
     /// Mean absolute error (over pixels × channels) above this fails.
     pub max_mean: f64,
-    /// Mean HDR-ꟻLIP above this fails (computed only when given, or for the report).
+    /// Mean ꟻLIP (LDR when both images are PNG, else HDR) above this fails (computed only when
+    /// given, or for the report).
     pub max_flip: Option<f64>,
     /// The z-test's settings, used when the test gives a variance image.
     pub significance: f64,

@@ -44,7 +44,7 @@ pub struct Request {
     pub scene: PathBuf,
     /// The renderers: `povray`, `mitsuba`.
     pub with: Vec<String>,
-    /// Image width (default: the scene's).
+    /// Image width in pixels (default: the scene's); the height keeps the scene's aspect ratio.
     pub width: Option<u32>,
     /// `n` of the n×n sub-pixel grid (default: the scene's `camera.grid`).
     pub grid: Option<u32>,

@@ -9,11 +9,13 @@ use serde::Serialize;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
-    /// Within the fail and warn thresholds.
+    /// Every check passes: idiff's verdict (or the z-test's) is PASS and the mean error and
+    /// mean ꟻLIP are within `max_mean` and `max_flip`.
     Pass,
-    /// Over the warn thresholds only.
+    /// idiff's verdict is WARNING and no check fails (never with a z-test, which has no warning).
     Warning,
-    /// Over the fail thresholds.
+    /// A check fails (idiff's or the z-test's verdict, `max_mean`, `max_flip`), the images
+    /// differ in size or channels, or `--update` would not bless a test image with NaN or Inf.
     Failure,
     /// Listed as a known failure and still failing.
     KnownFailure,

@@ -123,7 +123,7 @@ pub enum Source {
 pub struct Reference {
     /// Reference name (`povray`, `mitsuba`, …).
     pub name: String,
-    /// Path of the image, relative to the suite file.
+    /// Path of the image: the suite file's `path`, joined to the suite's directory.
     pub path: PathBuf,
     /// A missing optional reference is SKIPPED; a missing required one is REFUSED.
     pub required: bool,
@@ -136,7 +136,8 @@ pub struct Reference {
 pub struct Test {
     /// Test name, unique in the suite.
     pub name: String,
-    /// The scene file, for tests rayproof renders or whose references have manifests.
+    /// The scene file, joined to the suite's directory: what rayproof renders, `{scene}` in a
+    /// command, and the file whose SHA-256 a reference's manifest must match. `None`: no scene.
     pub scene: Option<PathBuf>,
     /// How the test image is made: read, rendered by the user's command, or by rayproof.
     pub source: Source,
@@ -146,7 +147,7 @@ pub struct Test {
     pub grid: Option<u32>,
     /// The test image's variance (a path, or a template with `{variance}`), for the z-test.
     pub variance: Option<String>,
-    /// Samples per pixel behind the variance image (the z-test's `spp`).
+    /// Samples per pixel behind the variance image (the z-test's `spp`); at least 1, default 1.
     pub variance_spp: u64,
     /// The golden image `--update` may write, with its rule.
     pub golden: Option<(PathBuf, Rule)>,
@@ -173,9 +174,10 @@ pub struct Suite {
     pub path: PathBuf,
     /// The suite file's directory: relative paths and commands start there.
     pub dir: PathBuf,
-    /// The suite's name (`[suite] name`, in reports and JUnit).
+    /// The suite's name (`[suite] name`, default `rayproof check`), in reports and JUnit.
     pub name: String,
-    /// How long one render command may take before it is killed and the test refused.
+    /// How long one render command may take before it is killed and the test refused
+    /// (`[suite] timeout`, default 600 s).
     pub timeout: Duration,
     /// The tests, in file order.
     pub tests: Vec<Test>,

@@ -124,11 +124,14 @@ impl Thresholds {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
 pub enum Verdict {
-    /// No pixel over the thresholds (or within the allowed count and percentage).
+    /// idiff: at most `allowfailures` pixels fail, or neither FAILURE nor WARNING applies.
+    /// The z-test: enough channel tests pass.
     Pass,
-    /// Over the warn thresholds, not the fail ones.
+    /// idiff: not FAILURE, but more than `warnpercent` % of the pixels warn or the max error
+    /// exceeds `hardwarn`. The z-test never warns.
     Warning,
-    /// Over the fail thresholds.
+    /// idiff: more than `allowfailures` pixels fail, and more than `failpercent` % of the
+    /// pixels fail or the max error exceeds `hardfail`. The z-test: too few channel tests pass.
     Failure,
 }
 
@@ -190,13 +193,13 @@ pub(super) fn same_shape(a: &Image, b: &Image) -> Result<(), SizeMismatch> {
 /// Every metric of one comparison.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Comparison {
-    /// Width in pixels.
+    /// Width in pixels of the compared window (under idiff's semantics the larger image's).
     pub width: usize,
-    /// Height in pixels.
+    /// Height in pixels of the compared window (under idiff's semantics the larger image's).
     pub height: usize,
-    /// Channel names compared.
+    /// Channel names compared: the reference's, or the test's if it has more channels.
     pub channels: Vec<String>,
-    /// Pixels compared.
+    /// `width × height`.
     pub pixels: u64,
     /// Σ|d| / (pixels × channels), non-finite mismatches left out of the sum.
     #[serde(serialize_with = "nonfinite::ser")]

@@ -60,7 +60,8 @@ impl<F: Real> Interval<F> {
             Interval::new(b.next_down(), a.next_up())
         }
     }
-    /// `{√x : x ∈ self}`, outward rounded (its lower end is 0 when the interval reaches 0 or below).
+    /// `{√x : x ∈ self, x ≥ 0}`, outward rounded: the lower end is 0 when the interval reaches 0
+    /// or below; an interval wholly below 0 gets a NaN upper end.
     #[inline(always)]
     pub fn sqrt(self) -> Self {
         let lo = if self.lo > F::ZERO {

@@ -20,7 +20,8 @@ pub trait Scalar:
     const ZERO: Self;
     /// One.
     const ONE: Self;
-    /// Square root, rounded as the type rounds (correctly for `f32` and `f64`).
+    /// Square root: correctly rounded for `f32` and `f64`; for `DD` one Newton step from the
+    /// `f64` root (relative error a small multiple of 2⁻¹⁰⁴).
     fn sqrt(self) -> Self;
     /// Absolute value.
     fn abs(self) -> Self;
