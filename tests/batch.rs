@@ -9,13 +9,16 @@ use rayproof::shapes::sphere::cases::{generate, Class};
 use rayproof::shapes::sphere::methods::{geometric, rtg7};
 use rayproof::shapes::sphere::oracle::Case;
 
-/// Both methods, every available instruction set: bit-identical to the scalar methods.
+/// Every batched method, every available instruction set: bit-identical to the scalar methods.
 fn assert_identical<F: Real>(b: &SphereBatch<F>) {
     for isa in Isa::all_available() {
         if let Err(e) = check_identical::<Geometric, F>(isa, b) {
             panic!("{e}");
         }
         if let Err(e) = check_identical::<Rtg7, F>(isa, b) {
+            panic!("{e}");
+        }
+        if let Err(e) = check_identical::<Certified, F>(isa, b) {
             panic!("{e}");
         }
     }
@@ -213,7 +216,7 @@ fn throughput_table_has_every_row() {
     };
     let rows = throughput_table(&opts).unwrap_or_else(|e| panic!("{e}"));
     let isas = Isa::all_available().len();
-    assert_eq!(rows.len(), 2 * 2 * isas);
+    assert_eq!(rows.len(), 3 * 2 * isas);
     for r in &rows {
         assert_eq!(r.tests, 6 * 16);
         assert!(r.scalar.median_ns > 0.0 && r.batched.median_ns > 0.0);

@@ -195,13 +195,12 @@ fn accurate_phase_share_per_class() {
     }
 }
 
-/// The first look (`f32`): the share of each class it answers, that every answer is the
-/// oracle's, and teeth: with its bounds cut to 1/10⁶ it gives wrong roundings.
+/// The first look (`f32`): the share of each class it answers, and that every answer is the
+/// oracle's.
 #[test]
-fn first_look_answers_most_cases_and_a_bound_too_small_is_caught() {
-    use rayproof::shapes::sphere::certified::{first_look, FirstLook};
+fn first_look_answers_most_cases_exactly() {
+    use rayproof::shapes::sphere::certified::{first_look, FirstLook, Terms};
     let mut line = vec![];
-    let mut weak_wrong = 0;
     for class in Class::ALL {
         let (mut n, mut answered) = (0usize, 0usize);
         for case in cases::<f32>(class) {
@@ -210,7 +209,7 @@ fn first_look_answers_most_cases_and_a_bound_too_small_is_caught() {
             let want_t = want
                 .t_in::<f32>()
                 .filter(|t| want.verdict.is_hit() && *t > 0.0 && t.is_finite());
-            match first_look(&case, 1.0) {
+            match first_look(&case, Terms::PROVED) {
                 FirstLook::Miss => {
                     answered += 1;
                     assert_eq!(
@@ -231,9 +230,6 @@ fn first_look_answers_most_cases_and_a_bound_too_small_is_caught() {
                 }
                 FirstLook::Unsure => {}
             }
-            if let FirstLook::Hit(t) = first_look(&case, 1e-6) {
-                weak_wrong += (Some(t) != want_t) as usize;
-            }
         }
         line.push(format!(
             "{} {:.1} %",
@@ -242,7 +238,7 @@ fn first_look_answers_most_cases_and_a_bound_too_small_is_caught() {
         ));
         if matches!(
             class,
-            Class::Random | Class::Inside | Class::Behind | Class::Grazing
+            Class::Random | Class::Inside | Class::Behind | Class::Grazing | Class::FarSmall
         ) {
             assert!(
                 answered * 100 > n * 95,
@@ -252,9 +248,74 @@ fn first_look_answers_most_cases_and_a_bound_too_small_is_caught() {
         }
     }
     eprintln!("certified f32 first look answers: {}", line.join(", "));
-    eprintln!("with bounds / 10^6: {weak_wrong} wrong roundings");
+}
+
+/// The first look's error bound against the exact root (MPFR at 400 bits), on every class:
+/// every enclosure it claims contains the root; and teeth: with either of its two terms cut to
+/// 1/1000, enclosures miss the root (each term is needed, and this check would see a term
+/// that is too small).
+#[test]
+fn first_look_bound_holds_and_each_term_is_needed() {
+    use rayproof::shapes::sphere::certified::{first_look_enclosure, Terms};
+    use rug::Float;
+    let p = Terms::PROVED;
+    let variants = [
+        ("the proved terms", p),
+        ("the C term / 1000", Terms { c: p.c * 1e-3, ..p }),
+        (
+            "the discriminant term / 1000",
+            Terms {
+                disc: p.disc * 1e-3,
+                ..p
+            },
+        ),
+    ];
+    let mut bad = [0usize; 3];
+    let mut claimed = 0;
+    for class in Class::ALL {
+        for case in cases::<f32>(class).take(2000) {
+            let exact = case.is_valid().then(|| Exact::new(&case));
+            let Some(exact) = exact.filter(|e| e.verdict().is_hit()) else {
+                for (name, k) in variants.iter().take(1) {
+                    assert!(
+                        first_look_enclosure(&case, *k).is_none(),
+                        "first look ({name}) claims a root on a case without one\n  {}",
+                        case.probe_args()
+                    );
+                }
+                continue;
+            };
+            let (t1, t2) = root_enclosures(&exact, 400);
+            let root = if exact.verdict() == Verdict::Near {
+                t1
+            } else {
+                t2
+            };
+            for (i, (_, k)) in variants.iter().enumerate() {
+                let Some((t, err)) = first_look_enclosure(&case, *k) else {
+                    continue;
+                };
+                claimed += (i == 0) as usize;
+                let lo = Float::with_val(400, t) - err;
+                let hi = Float::with_val(400, t) + err;
+                if !(lo <= root.lo && root.hi <= hi) {
+                    bad[i] += 1;
+                    if i == 0 {
+                        eprintln!("  missed: {}", case.probe_args());
+                    }
+                }
+            }
+        }
+    }
+    eprintln!("first look: {claimed} enclosures claimed with the proved terms");
+    for ((name, _), b) in variants.iter().zip(bad) {
+        eprintln!("  with {name}: {b} miss the exact root");
+    }
+    assert!(claimed > 5_000, "only {claimed} enclosures");
+    assert_eq!(bad[0], 0, "a first-look enclosure misses the exact root");
+    assert!(bad[1] > 10, "teeth: a shrunken C term went unnoticed");
     assert!(
-        weak_wrong > 10,
-        "teeth: shrunken first-look bounds went unnoticed"
+        bad[2] > 10,
+        "teeth: a shrunken discriminant term went unnoticed"
     );
 }

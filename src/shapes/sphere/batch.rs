@@ -39,6 +39,7 @@
 //! [`methods::rtg7`]: super::methods::rtg7
 
 use super::cases::{generate, Class};
+use super::certified;
 use super::methods::{self, Ray, Sphere, SphereHit};
 use super::oracle::Case;
 use crate::numerics::real::Real;
@@ -224,8 +225,48 @@ pub trait BatchMethod {
     const NAME: &'static str;
     /// The scalar method of the same name.
     fn scalar<F: Real>(ray: &Ray<F>, sphere: &Sphere<F>) -> Option<SphereHit<F>>;
-    /// One test on lane values: `t`, or NaN for a miss.
+    /// One test on lane values: `t`, or NaN for a miss (or a method's own mark for a test
+    /// that [`BatchMethod::finish`] completes).
     fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F;
+    /// After the vectorised pass: completes the tests the lanes left open (none by default).
+    #[inline(always)]
+    fn finish<F: Real>(_b: &SphereBatch<F>, _out: &mut [F]) {}
+}
+
+/// The correctly rounded method ([`methods::certified`]): the lanes run its first look
+/// (`f32` inputs; [`certified::first_look_lane`]), and the tests it leaves [`certified::UNSURE`]
+/// (and every `f64` test, for which there is no lane form) are finished by the scalar method's
+/// later phases, so each answer is the scalar method's, bit for bit.
+///
+/// [`methods::certified`]: super::methods::certified
+pub struct Certified;
+
+impl BatchMethod for Certified {
+    const NAME: &'static str = "certified";
+    #[inline(always)]
+    fn scalar<F: Real>(ray: &Ray<F>, sphere: &Sphere<F>) -> Option<SphereHit<F>> {
+        methods::certified(ray, sphere)
+    }
+    #[inline(always)]
+    fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
+        if F::MANT_BITS != 24 {
+            return F::from_f64(certified::UNSURE);
+        }
+        let w = |v: V<F>| v.map(|x| x.to_f64());
+        let t = certified::first_look_lane(w(o), w(d), w(c), r.to_f64(), certified::Terms::PROVED);
+        F::from_f64(t)
+    }
+    fn finish<F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
+        // The open tests, through the quick and accurate phases
+        let open = F::from_f64(certified::UNSURE);
+        for (i, x) in out.iter_mut().enumerate() {
+            if *x == open {
+                if let Some(case) = b.case(i) {
+                    *x = to_output(certified::after_first_look(&case));
+                }
+            }
+        }
+    }
 }
 
 /// Seed `000` §2's four-step method ([`methods::geometric`]).
@@ -395,6 +436,7 @@ pub fn run_batch<M: BatchMethod, F: Real>(
         }
         _ => kernel_portable::<M, F>(b, out),
     }
+    M::finish(b, out);
     Ok(())
 }
 
@@ -410,6 +452,14 @@ pub fn geometric_batch<F: Real>(b: &SphereBatch<F>, out: &mut [F]) -> Result<(),
 /// [`methods::rtg7`]: super::methods::rtg7
 pub fn rtg7_batch<F: Real>(b: &SphereBatch<F>, out: &mut [F]) -> Result<(), LengthMismatch> {
     run_batch::<Rtg7, F>(Isa::best(), b, out)
+}
+
+/// [`methods::certified`] over a batch with the best instruction set: the correctly rounded
+/// `t`, or NaN for a miss.
+///
+/// [`methods::certified`]: super::methods::certified
+pub fn certified_batch<F: Real>(b: &SphereBatch<F>, out: &mut [F]) -> Result<(), LengthMismatch> {
+    run_batch::<Certified, F>(Isa::best(), b, out)
 }
 
 /// The scalar method over the same tests, in the batch's output convention (the baseline the
@@ -543,7 +593,7 @@ pub struct BatchRow {
     pub speedup: f64,
 }
 
-/// Scalar vs batched throughput for `geometric` and `rtg7`, `f32` and `f64`, every available
+/// Scalar vs batched throughput for `geometric`, `rtg7` and `certified`, `f32` and `f64`, every available
 /// instruction set, on the mix batch. Bit-identity is checked before anything is timed; a
 /// mismatch is returned instead of a table.
 pub fn throughput_table(opts: &BatchOpts) -> Result<Vec<BatchRow>, Box<Mismatch>> {
@@ -561,6 +611,7 @@ fn rows_for<F: Real>(opts: &BatchOpts) -> Result<Vec<BatchRow>, Box<Mismatch>> {
     let mut rows = vec![];
     rows.extend(method_rows::<Geometric, F>(opts, &b, &rays, &spheres)?);
     rows.extend(method_rows::<Rtg7, F>(opts, &b, &rays, &spheres)?);
+    rows.extend(method_rows::<Certified, F>(opts, &b, &rays, &spheres)?);
     Ok(rows)
 }
 

@@ -122,19 +122,45 @@ pub fn certified<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     let case = case_of(ray, s);
     // f32 inputs: the first look answers nearly every case a renderer asks
     if F::MANT_BITS == 24 {
-        match first_look(&case, 1.0) {
-            FirstLook::Miss => return None,
-            FirstLook::Hit(t) => return Some(SphereHit { t, enclosure: None }),
-            FirstLook::Unsure => {}
+        let w = |v: [F; 3]| v.map(|x| x.to_f64());
+        let l = look(w(case.o), w(case.d), w(case.c), case.r.to_f64());
+        if l.missed() {
+            return None;
         }
+        let (t, ok) = certain(&estimate(&l, Terms::PROVED));
+        if ok {
+            return Some(SphereHit {
+                t: F::from_f64(t),
+                enclosure: None,
+            });
+        }
+        if l.behind() {
+            return None;
+        }
+        return after_first_look_cold(&case);
     }
-    match quick_phase(&case) {
+    after_first_look(&case)
+}
+
+/// [`after_first_look`] out of line, for `f32` inputs, where it is rare: the first look's
+/// path stays small (no spills for the quick phase).
+#[cold]
+#[inline(never)]
+fn after_first_look_cold<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
+    after_first_look(case)
+}
+
+/// [`certified`] after the first look: the quick phase, then the accurate phase. The batch
+/// kernel calls it for the tests its first look left [`UNSURE`].
+#[inline(always)]
+pub fn after_first_look<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
+    match quick_phase(case) {
         Quick::Miss => None,
         Quick::Hit { th, tl, err } => match round_certain::<F>(th, tl, err) {
             Some(t) => Some(SphereHit { t, enclosure: None }),
-            None => accurate(&case),
+            None => accurate(case),
         },
-        Quick::Unsure => accurate(&case),
+        Quick::Unsure => accurate(case),
     }
 }
 
@@ -149,68 +175,189 @@ pub enum FirstLook<F> {
     Unsure,
 }
 
-/// The first look, for `f32` inputs: the quadratic in `f64` with the textbook discriminant
-/// `B² − A·C` and bounds from two magnitudes only, `Q = A·(F + r²)` and `Σ|dᵢ fᵢ|`, checked
-/// without a division. `scale` multiplies every bound: 1 in use; the tests pass less to show
-/// that a bound too small is caught.
-///
-/// With `eB = 4.01u·Σ|dᵢ f̂ᵢ|` (the dot's `γ₃`, `f̂`'s `u`), `eC = 7u·(F + r²)` and
-/// `eΔ = 24u·Q` (`|B̂² − B²| ≤ eB(2|B̂| + eB) ≤ 8.03u·A·F` by Cauchy–Schwarz, `|Â Ĉ − A C| ≤
-/// 2u·A|C| + A·eC`, three roundings, `|C| ≤ F + r²`), the root `t = n/m` (`m = |B| + √Δ`) has
-/// relative error at most `(eC/|C| + (eB + e√Δ)/m)(1 + 2⁻¹⁹) + 1.01u` for the near root (and
-/// `((eB + e√Δ)/m + eA/A)(1 + 2⁻¹⁹) + 1.01u` for `m/A`). Multiplied out by `|C|·√Δ·m`, the
-/// condition that this is below the distance to the nearest `f32` rounding boundary (read off
-/// `t`'s bits, in units of `u·2^E ≤ u·t`) needs no division.
+/// The first look's lane answer when it cannot decide (a miss is NaN, a hit is `t > 0`).
+pub const UNSURE: f64 = -1.0;
+
+/// The first look's two error terms, in units of `u` (see [`first_look`]); the tests pass
+/// smaller ones to show that each term is needed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Terms {
+    /// Multiplies `fr/|C|`, the relative error of `C`: 11 in use.
+    pub c: f64,
+    /// Multiplies `Q/(√Δ·m)`, the relative error from `B`, `A` and `Δ`: 48 in use.
+    pub disc: f64,
+}
+
+impl Terms {
+    /// The terms the proof gives (with room).
+    pub const PROVED: Terms = Terms {
+        c: 11.0,
+        disc: 48.0,
+    };
+}
+
+/// The first look's quadratic for `f32` inputs, in `f64`.
+#[derive(Clone, Copy, Debug)]
+struct Look {
+    a: f64,
+    b: f64,
+    b2: f64,
+    cc: f64,
+    fr: f64,
+    q: f64,
+    disc: f64,
+    r: f64,
+}
+
 #[inline(always)]
-pub fn first_look<F: Real>(case: &Case<F>, scale: f64) -> FirstLook<F> {
-    let w = |v: [F; 3]| v.map(|x| x.to_f64());
-    let (o, d, c, r) = (w(case.o), w(case.d), w(case.c), case.r.to_f64());
-    if !(r > 0.0) {
-        return FirstLook::Miss;
-    }
-    // The quadratic (non-finite input makes every test below false: the quick phase decides)
+fn look(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> Look {
+    // The quadratic P(t) = A t² + 2B t + C and the magnitudes F + r², Q = A·(F + r²)
     let f = [o[0] - c[0], o[1] - c[1], o[2] - c[2]];
     let a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
     let b = d[0] * f[0] + d[1] * f[1] + d[2] * f[2];
-    let sb = (d[0] * f[0]).abs() + (d[1] * f[1]).abs() + (d[2] * f[2]).abs();
     let ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
-    let (fr, r2) = (ff + r * r, r * r);
-    let cc = ff - r2;
-    let disc = b * b - a * cc;
-    // The bounds, in units of u
-    let (eb, ec, ed) = (4.01 * sb * scale, 7.0 * fr * scale, 24.0 * a * fr * scale);
-    // Verdict, in units of u on the right-hand side
-    let outside = cc > ec * U;
-    if outside && (b > eb * U || disc < -ed * U) {
-        return FirstLook::Miss;
+    let r2 = r * r;
+    let (cc, fr) = (ff - r2, ff + r2);
+    let b2 = b * b;
+    Look {
+        a,
+        b,
+        b2,
+        cc,
+        fr,
+        q: a * fr,
+        disc: b2 - a * cc,
+        r,
     }
-    if !(disc > ed * U) || !(outside && b < -eb * U || cc < -ec * U) {
-        return FirstLook::Unsure;
+}
+
+impl Look {
+    /// A certain miss by the discriminant (`Δ < −e_Δ`, which also means outside) or an invalid
+    /// radius: the common miss, decided before any root is taken.
+    #[inline(always)]
+    fn missed(&self) -> bool {
+        !(self.r > 0.0) | (self.disc < -24.0 * U * self.q)
     }
-    // The root: n / m, m = |B| + √Δ, or m / A inside with B ≤ 0
-    let s = disc.sqrt();
-    let m = b.abs() + s;
-    let (t, lhs, rhs_factor);
-    if outside || b > 0.0 {
-        // |C| / m: (eC·s·m + (eB·s + eΔ(1+2u))·|C| + 2.03·|C|·s·m)(1 + 2⁻¹⁸) + 1.01·|C|·s·m
-        let n = cc.abs();
-        t = n / m;
-        lhs = (ec * s * m + (eb * s + ed * 1.000_001) * n) * 1.0001 + 3.1 * n * s * m;
-        rhs_factor = n * s * m;
+
+    /// A certain miss behind the origin: outside (`C > e_C`) and heading away (`B > e_B`,
+    /// checked as `B² > 17u²·Q`).
+    #[inline(always)]
+    fn behind(&self) -> bool {
+        (self.cc > 7.0 * U * self.fr) & (self.b > 0.0) & (self.b2 > (17.0 * U * U) * self.q)
+    }
+}
+
+/// The first look's root of a [`Look`] before rounding, and the two sides of its test.
+#[derive(Clone, Copy, Debug)]
+struct Estimate {
+    t: f64,
+    /// `k.c·fr·√Δ·m + k.disc·Q·|C|`: the bound in units of `u·t`, times `|C|·√Δ·m`.
+    lhs: f64,
+    /// `|C|·√Δ·m`.
+    scale: f64,
+    /// The look's signs allow a hit (`Δ̂ > 0`, and inside or heading in).
+    hit: bool,
+}
+
+#[inline(always)]
+fn estimate(l: &Look, k: Terms) -> Estimate {
+    // m = |B| + √Δ; the near root |C|/m (origin outside, or inside with B > 0), else m/A
+    let s = l.disc.sqrt();
+    let m = l.b.abs() + s;
+    let n = l.cc.abs();
+    let use_c = (l.cc > 0.0) | (l.b > 0.0);
+    let t = if use_c { n } else { m } / if use_c { m } else { l.a };
+    // The bound 11·fr/|C| + 48·Q/(√Δ·m) (units of u·t), multiplied out by |C|·√Δ·m
+    let sm = s * m;
+    Estimate {
+        t,
+        lhs: k.c * l.fr * sm + k.disc * l.q * n,
+        scale: n * sm,
+        hit: (l.disc > 0.0) & ((l.cc < 0.0) | (l.b < 0.0)),
+    }
+}
+
+/// The correctly rounded `f32` of an [`Estimate`] (as an `f64`) and whether it is certain:
+/// the bound, times `2u·t`, is below the distance from `t` to the nearest `f32` rounding
+/// boundary ([`f32_boundary_distance`]), both sides multiplied by `|C|·√Δ·m`: no division.
+#[inline(always)]
+fn certain(e: &Estimate) -> (f64, bool) {
+    let tf = e.t as f32;
+    let dist = f32_boundary_distance(e.t, tf);
+    let ok = e.hit
+        & (e.lhs * ((2.0 * U) * e.t) < dist * e.scale)
+        & (e.t >= f32::MIN_POSITIVE as f64)
+        & tf.is_finite();
+    (tf as f64, ok)
+}
+
+/// The first look's claim for an `f32` case, for the tests: the exact root lies within
+/// `[t − err, t + err]` (`err` = the bound in units × `u·t`, with room for the rounding of the
+/// division that gives the units), or `None` where it claims nothing: a certain miss, signs
+/// that allow no hit, or a bound of `2²⁷` units or more, beyond the proof's range (the test
+/// never passes there, since `dist ≤ 2²⁸`, and its second-order terms need the bound small).
+pub fn first_look_enclosure(case: &Case<f32>, k: Terms) -> Option<(f64, f64)> {
+    let w = |v: [f32; 3]| v.map(|x| x as f64);
+    let l = look(w(case.o), w(case.d), w(case.c), case.r as f64);
+    let e = estimate(&l, k);
+    let units = e.lhs / e.scale * (1.0 + 1.0 / 1_048_576.0);
+    (!l.missed() && !l.behind() && e.hit && units < 134_217_728.0)
+        .then(|| (e.t, units * U * e.t * (1.0 + 1.0 / 1_048_576.0)))
+}
+
+/// The first look for one test of `f32` inputs (given in `f64`, exactly), branch-free: the
+/// correctly rounded `t` of a certain hit, NaN for a certain miss, or [`UNSURE`]. The batch
+/// kernel runs it; the scalar method runs the same steps with early exits.
+#[inline(always)]
+pub fn first_look_lane(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, k: Terms) -> f64 {
+    let l = look(o, d, c, r);
+    let (t, ok) = certain(&estimate(&l, k));
+    if l.missed() | l.behind() {
+        f64::NAN
+    } else if ok {
+        t
     } else {
-        // m / A: ((eB·s + eΔ(1+2u)) + (2.02 + 2.0002)·s·m)(1 + 2⁻¹⁸) + 1.01·s·m
-        t = m / a;
-        lhs = (eb * s + ed * 1.000_001) * 1.0001 + 5.1 * s * m;
-        rhs_factor = s * m;
+        UNSURE
     }
-    // Distance from t to the nearest f32 rounding boundary, in units of 2^(E−52) ≥ u·t/2
-    let Some((dist, _)) = f32_boundary_distance(t) else {
-        return FirstLook::Unsure;
-    };
-    // |t − t*| ≤ rel·t < rel·2^(E+1) = 2·(rel/u)·unit: certain when 2·(rel/u) < dist
-    let tf = F::from_f64(t);
-    if 2.0 * lhs < dist * rhs_factor && tf.is_finite() {
-        FirstLook::Hit(tf)
+}
+
+/// The first look, for `f32` inputs: the quadratic in `f64` with the textbook discriminant
+/// `Δ = B² − A·C` and one test, `(11·fr/|C| + 48·Q/(√Δ·m))·2u·t < dist` with `fr = F + r²`,
+/// `Q = A·fr`, `m = |B| + √Δ` and `dist` the distance from `t` to the nearest `f32` rounding
+/// boundary ([`f32_boundary_distance`], at most `2⁻²⁴·t`), multiplied out by `|C|·√Δ·m` so that
+/// it needs no division. `k` scales the two terms: [`Terms::PROVED`] in use. A certain miss
+/// (`Δ < −24u·Q`, or outside and heading away) is decided from the same bounds.
+///
+/// **Why the test is enough.** With `S = Σ|dᵢfᵢ| ≤ √(A·F)` (Cauchy–Schwarz) and `R = F + r²`,
+/// the computed values are within `e_A = 2.01u·A`, `e_B = 4.01u·S`, `e_C = 6.03u·R` and
+/// `e_Δ = 19.1u·A·R` (`|B̂² − B²| ≤ 8.03u·AF`, `|ÂĈ − AC| ≤ 8.04u·AR`, three roundings of at
+/// most `1.01u·AR` since `|Δ| ≤ A·R`). As `Δ ≤ A·r² ≤ Q` and `B² ≤ Q`, `√Q/m ≤ Q/(√Δ·m)` and
+/// `√Δ·m ≤ 2Q`. Then `|√Δ̂ − √Δ| ≤ e_Δ/√Δ̂ + u√Δ̂`, and `m` has relative error at most
+/// `(e_B + e_√Δ)/m + u ≤ u·(23.3·Q/(√Δ·m) + 2.02)`. The near root `|C|/m` is within
+/// `u·(6.03·R/|C| + 23.3·Q/(√Δ·m) + 3.03)`, the far root `m/A` within
+/// `u·(23.3·Q/(√Δ·m) + 5.04)`. Inside the sphere, where the sign of `B` is within `e_B`, the
+/// formula chosen may be the other one, which moves `t` by `2|B|/A`, at most
+/// `4.01u·(1 + R/|C|)·t` (`√Δ ≥ √(A|C|)`). The worst case, `10.04·R/|C| + 23.3·Q/(√Δ·m) + 9.05`
+/// with `1 ≤ 2Q/(√Δ·m)`, is below `10.1·R/|C| + 41.5·Q/(√Δ·m)`. The constants 11 and 48 leave
+/// 8 % of room, which covers the second-order terms (the test keeps the bound below `2⁻²⁵`)
+/// and the test's own roundings (a few `u`); the factor 2 in `2u·t` covers `t* ≤ t̂(1 + 2⁻²⁵)`.
+///
+/// The test also settles the verdict: it implies `√Q/(2√Δ) ≤ Q/(√Δ·m) < 2²³`, so
+/// `Δ > 73u·Q > e_Δ` (a hit is certain), `|C| > 11·2⁻²⁸R ≫ e_C` (the side is certain), and
+/// from outside `|B| ≥ √Δ ≫ e_B` (the direction is certain). Certain misses use the same
+/// bounds (`C > 7u·fr`, `B² > 17u²·Q` for `B > e_B`, `Δ < −24u·Q`). Nothing over- or
+/// underflows: every non-zero product of the inputs' differences is between `2⁻⁵⁹⁶` and
+/// `2⁵¹⁶`, and when the test passes `fr·√Δ·m` and `Q·|C|` are above `2⁻⁹²⁰`
+/// (`√Δ·m > 48Q·2⁻²⁸`, `|C| > 11R·2⁻²⁸`), so neither side was rounded by underflow.
+/// Non-finite input makes every comparison false: the quick phase decides it.
+#[inline(always)]
+pub fn first_look<F: Real>(case: &Case<F>, k: Terms) -> FirstLook<F> {
+    let w = |v: [F; 3]| v.map(|x| x.to_f64());
+    let t = first_look_lane(w(case.o), w(case.d), w(case.c), case.r.to_f64(), k);
+    if t.is_nan() {
+        FirstLook::Miss
+    } else if t > 0.0 {
+        FirstLook::Hit(F::from_f64(t))
     } else {
         FirstLook::Unsure
     }
@@ -475,23 +622,19 @@ fn newton(
     (e1.is_finite() && th.is_finite()).then_some((th, tl, e1))
 }
 
-/// The distance from `t` to the nearest `f32` rounding boundary, exactly, as `(units, unit)`
-/// with `unit = 2^(E−52)` for `t` in `[2^E, 2^(E+1))`; `None` unless `t > 0` is in the normal
-/// `f32` range. In that binade the `f32` grid is every 2²⁹ units, the boundaries are the cells'
-/// midpoints, and in the binade's first cell the boundary below `2^E` is 2²⁷ units under it.
+/// The distance from `t > 0` to the nearest `f32` rounding boundary, or a little less, exactly
+/// and branch-free (the batch kernel runs it per lane); `tf` is `t` rounded to `f32`. For `t`
+/// in `[2^E, 2^(E+1))` the boundaries around `tf` are half an `f32` ulp, `h = 2^(E−24)`, from
+/// it, so the distance is `h − |t − tf|`; when `tf = 2^E ≤ t` the boundary below is only `h/2`
+/// under `tf`, at distance `|t − tf| + h/2`, and the smaller of the two is taken always (it
+/// can only make the check stricter). Every step is exact (`t` and `tf` share a binade or
+/// touch it, and all are multiples of `t`'s ulp below `2^(E−23)`). Meaningful for `tf` a
+/// finite normal `f32`, which the caller checks.
 #[inline(always)]
-fn f32_boundary_distance(t: f64) -> Option<(f64, f64)> {
-    let bits = t.to_bits();
-    let e = (bits >> 52) as i64; // t > 0: the biased exponent; otherwise out of range
-    if !(897..=1150).contains(&e) {
-        return None;
-    }
-    let low = (bits & ((1 << 29) - 1)) as i64;
-    let mut dist = (low - (1 << 28)).abs();
-    if (bits >> 29) & ((1 << 23) - 1) == 0 {
-        dist = dist.min(low + (1 << 27));
-    }
-    Some((dist as f64, f64::from_bits(((e - 52) as u64) << 52)))
+fn f32_boundary_distance(t: f64, tf: f32) -> f64 {
+    let off = (t - tf as f64).abs();
+    let h = f64::from_bits(t.to_bits() & 0x7ff0_0000_0000_0000) * (1.0 / 16_777_216.0);
+    (h - off).min(off + 0.5 * h)
 }
 
 /// The float of precision `F` nearest to every point of `[th + tl − err, th + tl + err]`, if
@@ -501,9 +644,10 @@ fn f32_boundary_distance(t: f64) -> Option<(f64, f64)> {
 fn round_certain<F: Real>(th: f64, tl: f64, err: f64) -> Option<F> {
     // f32 (tl = 0): the distance to the nearest rounding boundary, read off th's bits
     if F::MANT_BITS == 24 {
-        let (dist, unit) = f32_boundary_distance(th)?;
-        let tf = F::from_f64(th);
-        return (dist * unit > err && tf.is_finite()).then_some(tf);
+        let tf = th as f32;
+        let ok =
+            f32_boundary_distance(th, tf) > err && th >= f32::MIN_POSITIVE as f64 && tf.is_finite();
+        return ok.then(|| F::from_f64(tf as f64));
     }
     let tf = F::from_f64(th);
     if !(tf > F::ZERO) {
