@@ -10,8 +10,11 @@
 //! perform the same IEEE operations in the same order as [`methods::geometric`] and
 //! [`methods::rtg7`] (no reassociation; Rust never contracts `a*b + c` into an FMA, and no FMA
 //! is enabled here), so each element gets the same hit/miss verdict and the same bits of `t`,
-//! also on invalid input (NaN, infinities, zero direction, radius ≤ 0). The tests check this
-//! on every case class and on random bit patterns.
+//! also on invalid input (NaN, infinities, zero direction, radius ≤ 0). [`Certified`]'s lanes
+//! run its first look, whose certain answers are the correctly rounded `t` (unique, so equal to
+//! the scalar method's), and [`BatchMethod::finish`] completes the tests it leaves open with
+//! the scalar method's later phases. The tests check this on every case class and on random
+//! bit patterns.
 //!
 //! **Output.** One value per test: the hit's `t`, or **NaN for a miss**. NaN is never a hit of
 //! either scalar method (both require `t > 0`), while `geometric` can return a hit at `t = +∞`

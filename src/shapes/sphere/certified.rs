@@ -1,15 +1,19 @@
 //! **Certified**: the exact verdict and the correctly rounded `t`, built the way correctly
 //! rounded math libraries are (CRlibm, CORE-MATH): a quick phase with a rigorous error bound,
-//! and an accurate phase only when the bound cannot decide. Measured cost against `algebraic`
-//! (README, `scripts/readme-figures` section 7): 1.9× in `f32`, 7× (fan30's tests) to 23× (the
-//! hard-case mix) in `f64`.
+//! and an accurate phase only when the bound cannot decide. Measured cost against `algebraic`:
+//! the README's figures, from `scripts/readme-figures` section 7.
 //!
 //! Three tiers, each rigorous, each handing on only what it cannot decide:
-//! 1. **First look** (`f32` inputs): [`first_look`], the textbook discriminant in `f64` with
-//!    bounds from two magnitudes, checked against the distance to the nearest `f32` rounding
-//!    boundary without a division. It answers nearly every case a renderer asks.
-//! 2. **Quick phase** ([`quick_phase`]): the bounds below, quantity by quantity, and for `f64`
-//!    inputs Newton steps with a double-double residual.
+//! 1. **First look** (`f32` inputs): [`first_look`], the textbook quadratic in `f64` and one
+//!    division-free test of a two-term error bound against the exact distance to the nearest
+//!    `f32` rounding boundary. It is one branch-free lane ([`first_look_lane`]): the scalar
+//!    method runs its steps with early exits, the batch kernel ([`super::batch::Certified`])
+//!    runs it on 8 `f64` lanes per instruction and finishes the tests it leaves open with the
+//!    tiers below, so both give the same bits.
+//! 2. **Quick phase** ([`quick_phase`]): the bounds below, quantity by quantity, with `C` and
+//!    `B` recomputed to about `2⁻⁷²` when `C` has lost bits (for `f32` inputs by splitting
+//!    `o − c` into `f32` halves, `split_at_zero`; for `f64` inputs in double-double), and
+//!    for `f64` inputs Newton steps with a double-double residual.
 //! 3. **Accurate phase**: the exact oracle's path.
 //!
 //! `tests/certified.rs` prints the share of each case class that each tier answers.
@@ -324,7 +328,7 @@ pub fn first_look_lane(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, k: Terms) 
 /// The first look, for `f32` inputs: the quadratic in `f64` with the textbook discriminant
 /// `Δ = B² − A·C` and one test, `(11·fr/|C| + 48·Q/(√Δ·m))·2u·t < dist` with `fr = F + r²`,
 /// `Q = A·fr`, `m = |B| + √Δ` and `dist` the distance from `t` to the nearest `f32` rounding
-/// boundary ([`f32_boundary_distance`], at most `2⁻²⁴·t`), multiplied out by `|C|·√Δ·m` so that
+/// boundary (`f32_boundary_distance`, at most `2⁻²⁴·t`), multiplied out by `|C|·√Δ·m` so that
 /// it needs no division. `k` scales the two terms: [`Terms::PROVED`] in use. A certain miss
 /// (`Δ < −24u·Q`, or outside and heading away) is decided from the same bounds.
 ///
@@ -433,7 +437,11 @@ pub fn quick_phase<F: Real>(case: &Case<F>) -> Quick {
     // Second tier, rare: C = P(0) and B = P'(0)/2 in double-double when a sign is unsure or C
     // has lost more than 10 of its 53 bits (an origin near the surface, a ray nearly perpendicular to o − c)
     if !(cc.abs() * (1.0 / 1_099_511_627_776.0) > ec && b.abs() > eb) {
-        let z = residual_at_zero(o, d, c, r);
+        let z = if F::MANT_BITS == 24 {
+            split_at_zero(o, d, c, r)
+        } else {
+            residual_at_zero(o, d, c, r)
+        };
         if z.ep < ec {
             (cc, ec) = (z.p, z.ep);
         }
@@ -584,6 +592,45 @@ fn residual(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, t: f64) -> Residual {
 #[inline(never)]
 fn residual_at_zero(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> Residual {
     residual(o, d, c, r, 0.0)
+}
+
+/// [`residual_at_zero`] for `f32` inputs, at a fraction of its cost: `C` and `2B` to about
+/// `2⁻⁷²` of their magnitudes. `f = o − c` is exact as `fh + fl` (Knuth), and `fh` splits into
+/// its `f32` rounding `hi` and `lo = fh − hi` (exact, at most 29 bits), so `hi²`, `2·hi·lo`,
+/// `dᵢ·hi` and `dᵢ·lo` are exact in `f64` (at most 48 or 53 bits; `f32` inputs cannot
+/// underflow them). The large terms (`hiᵢ²` and `−r²` for `C`, `dᵢ·hiᵢ` for `B`) are summed
+/// exactly by Knuth's cascade; the rest (the cascade's errors, `2·hi·lo`, `lo²`, `2·fh·fl`,
+/// `fl²`, `dᵢ·lo`, `dᵢ·fl`, at most `(2⁻²³ + 6u)·R` in all for `C` with `R = F + r²`, and
+/// `(2⁻²⁴ + 4u)·S` for `B` with `S = Σ|dᵢfᵢ|`) is summed in `f64` within `γ₁₆` of its
+/// magnitude, plus its own roundings (`u` each), plus the last addition (`u` of the result).
+#[cold]
+#[inline(never)]
+fn split_at_zero(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> Residual {
+    let (mut cs, mut ce) = (-r * r, 0.0);
+    let (mut bs, mut be) = (0.0, 0.0);
+    let (mut ff, mut sb) = (r * r, 0.0);
+    for i in 0..3 {
+        // f = fh + fl exactly; fh = hi + lo exactly
+        let (fh, fl) = two_sum(o[i], -c[i]);
+        let hi = fh as f32 as f64;
+        let lo = fh - hi;
+        // The large terms exactly, the rest by plain sums
+        let (x, e) = two_sum(cs, hi * hi);
+        cs = x;
+        ce += e + 2.0 * hi * lo + lo * lo + 2.0 * fh * fl + fl * fl;
+        let (y, e) = two_sum(bs, d[i] * hi);
+        bs = y;
+        be += e + d[i] * lo + d[i] * fl;
+        ff += fh * fh;
+        sb += (d[i] * fh).abs();
+    }
+    let (p, dp) = (cs + ce, 2.0 * (bs + be));
+    Residual {
+        p,
+        ep: 16.5 * U * (1.0 / 8_388_608.0 + 6.0 * U) * ff + 1.01 * U * p.abs(),
+        dp,
+        edp: 2.0 * (16.5 * U * (1.0 / 16_777_216.0 + 4.0 * U) * sb) + 1.01 * U * dp.abs(),
+    }
 }
 
 /// One Newton step for `P(t) = |f + t·d|² − r²` from `t` (within `err` of the root), the
