@@ -2,7 +2,7 @@
 //! methods on the same tests, `f32` and `f64`.
 //!
 //! The batch is `benches/sphere.rs`'s `sphere/mix`: 512 cases (seed 7) from each of random,
-//! inside, far_small, huge, grazing, behind (`batch::MIX`). For `geometric`, `rtg7` and
+//! inside, far_small, huge, grazing, behind (`batch::MIX`). For `geometric`, `geometric_fma`, `rtg7` and
 //! `certified` (whose lanes run its first look, the rest finished by its scalar phases), one
 //! iteration runs over the whole batch: the scalar method (AoS rays and spheres, called
 //! directly, and once more through a function pointer, as `benches/sphere.rs` calls every
@@ -17,8 +17,8 @@ use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
 use rayproof::numerics::real::Real;
 use rayproof::shapes::sphere::batch::{
-    check_identical, mix_cases, run_batch, run_scalar, BatchMethod, Certified, Geometric, Isa,
-    Rtg7, SphereBatch,
+    check_identical, mix_cases, run_batch, run_scalar, BatchMethod, Certified, Geometric,
+    GeometricFma, Isa, Rtg7, SphereBatch,
 };
 use rayproof::shapes::sphere::methods::{Ray, Sphere, SphereHit};
 use std::hint::black_box;
@@ -100,10 +100,12 @@ fn batch(c: &mut Criterion) {
     let mut g = c.benchmark_group("batch/mix");
     g.throughput(Throughput::Elements(x32.batch.len() as u64));
     time::<Geometric, f32>(&mut g, &x32);
+    time::<GeometricFma, f32>(&mut g, &x32);
     time::<Rtg7, f32>(&mut g, &x32);
     time::<Certified, f32>(&mut g, &x32);
     g.throughput(Throughput::Elements(x64.batch.len() as u64));
     time::<Geometric, f64>(&mut g, &x64);
+    time::<GeometricFma, f64>(&mut g, &x64);
     time::<Rtg7, f64>(&mut g, &x64);
     time::<Certified, f64>(&mut g, &x64);
     g.finish();

@@ -18,6 +18,9 @@ fn assert_identical<F: Real>(b: &SphereBatch<F>) {
         if let Err(e) = check_identical::<Rtg7, F>(isa, b) {
             panic!("{e}");
         }
+        if let Err(e) = check_identical::<GeometricFma, F>(isa, b) {
+            panic!("{e}");
+        }
         if let Err(e) = check_identical::<Certified, F>(isa, b) {
             panic!("{e}");
         }
@@ -216,7 +219,7 @@ fn throughput_table_has_every_row() {
     };
     let rows = throughput_table(&opts).unwrap_or_else(|e| panic!("{e}"));
     let isas = Isa::all_available().len();
-    assert_eq!(rows.len(), 3 * 2 * isas);
+    assert_eq!(rows.len(), 4 * 2 * isas);
     for r in &rows {
         assert_eq!(r.tests, 6 * 16);
         assert!(r.scalar.median_ns > 0.0 && r.batched.median_ns > 0.0);

@@ -8,13 +8,17 @@
 //!
 //! **Same answers as the scalar methods, bit for bit.** [`geometric_lanes`] and [`rtg7_lanes`]
 //! perform the same IEEE operations in the same order as [`methods::geometric`] and
-//! [`methods::rtg7`] (no reassociation; Rust never contracts `a*b + c` into an FMA, and no FMA
-//! is enabled here), so each element gets the same hit/miss verdict and the same bits of `t`,
-//! also on invalid input (NaN, infinities, zero direction, radius ≤ 0). [`Certified`]'s lanes
-//! run its first look, whose certain answers are the correctly rounded `t` (unique, so equal to
-//! the scalar method's), and [`BatchMethod::finish`] completes the tests it leaves open with
-//! the scalar method's later phases. The tests check this on every case class and on random
-//! bit patterns.
+//! [`methods::rtg7`] (no reassociation; Rust never contracts `a*b + c` into an FMA, even where
+//! the kernel is compiled with FMA), so each element gets the same hit/miss verdict and the same
+//! bits of `t`, also on invalid input (NaN, infinities, zero direction, radius ≤ 0).
+//! [`GeometricFma`] is the FMA variant, a method of its own ([`methods::geometric_fma`], audited
+//! like the others): its `a·b + c` are explicit fused multiply-adds, one rounding each, in the
+//! scalar method and in the lanes alike, so it too is bit-identical to its scalar form (with
+//! hardware FMA in the AVX2 and AVX-512 kernels, through the C library's `fma` elsewhere).
+//! [`Certified`]'s lanes run its first look, whose certain answers are the correctly rounded `t`
+//! (unique, so equal to the scalar method's), and [`BatchMethod::finish`] completes the tests
+//! it leaves open with the scalar method's later phases. The tests check all of this on every
+//! case class and on random bit patterns.
 //!
 //! **Output.** One value per test: the hit's `t`, or **NaN for a miss**. NaN is never a hit of
 //! either scalar method (both require `t > 0`), while `geometric` can return a hit at `t = +∞`
@@ -23,11 +27,11 @@
 //! **Instruction sets.** The portable path is whatever the build targets (SSE2 on baseline
 //! x86_64: 4 `f32` or 2 `f64` lanes per instruction). On x86_64 an AVX2 copy of the same code
 //! (8 `f32` / 4 `f64` lanes) and an AVX-512 copy (F, VL, DQ: 16 `f32` / 8 `f64` lanes on `zmm`
-//! registers, compares into mask registers `k`), both without FMA, are chosen at run time when
-//! the CPU has them ([`Isa::best`]). Without FMA every path rounds exactly as the scalar method
-//! does, which the tests and the bench check bit for bit. The assembly of the test and bench binaries (`objdump -d`, rustc 1.95,
-//! release) shows the main loops of `kernel_portable` and `kernel_avx2` vectorised, with a
-//! scalar remainder loop (`sqrtss`, `divss`, …) for the last few elements:
+//! registers, compares into mask registers `k`), both compiled with FMA, are chosen at run time
+//! when the CPU has them ([`Isa::best`]; a CPU with AVX2 but without FMA gets the portable
+//! path). FMA changes nothing in a method that does not ask for it. The assembly of the test
+//! and bench binaries (`objdump -d`, rustc 1.95, release) shows the main loops vectorised, with
+//! a scalar remainder loop for the last few elements:
 //! - SSE2 path: `sqrtps`/`sqrtpd`, `divps`/`divpd`, `mulps`/`subps`/`addps`, the masks from
 //!   `cmpltps`, `cmpleps`, `cmpneqps`, `cmpnltps`, `cmpordps` (and their `pd` forms), and the
 //!   selects as `andps`/`andnps`/`orps` (SSE2 has no blend);
@@ -35,10 +39,10 @@
 //!   `vcmpneq_oqps`, …) with `vblendvps`/`vblendvpd` as the selects;
 //! - AVX-512 path: the EVEX forms on `zmm` registers (`vsqrtps`, `vdivps`, `vcmpltps` into
 //!   `k` masks, `korw`, `kmovw`);
-//! - no `vfmadd*` anywhere in the kernels (the only FMA instructions in the binary are in
-//!   `compiler_builtins`' `fma`).
+//! - `vfmadd*` only in the `geometric_fma` kernels of the AVX2 and AVX-512 paths.
 //!
 //! [`methods::geometric`]: super::methods::geometric
+//! [`methods::geometric_fma`]: super::methods::geometric_fma
 //! [`methods::rtg7`]: super::methods::rtg7
 
 use super::cases::{generate, Class};
@@ -156,22 +160,24 @@ pub fn to_output<F: Real>(hit: Option<SphereHit<F>>) -> F {
 type V<F> = [F; 3];
 
 // The vector helpers of `methods`, so the lanes associate exactly as the scalar methods do
-use super::methods::{dot, sub};
+use super::methods::{dot, dot_c, madd, sub};
 
-/// [`methods::geometric`] for one element, branch-free; `t` or NaN for a miss.
+/// [`methods::geometric`] (or with `FMA`, [`methods::geometric_fma`]) for one element,
+/// branch-free; `t` or NaN for a miss.
 ///
 /// [`methods::geometric`]: super::methods::geometric
+/// [`methods::geometric_fma`]: super::methods::geometric_fma
 #[inline(always)]
-pub fn geometric_lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
+pub fn geometric_lanes<F: Real, const FMA: bool>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
     // (1) Origin relative to the sphere
     let roc = sub(c, o);
-    let loc = dot(roc, roc);
+    let loc = dot_c::<F, FMA>(roc, roc);
     let r2 = r * r;
     let outside = loc > r2;
     // (2) Distance along the ray to the point nearest the centre
-    let d_min = dot(roc, d);
+    let d_min = dot_c::<F, FMA>(roc, d);
     // (3) Squared half chord
-    let dhc2 = r2 - loc + d_min * d_min;
+    let dhc2 = madd::<F, FMA>(d_min, d_min, r2 - loc);
     // (4) Both candidate roots, then the one the scalar method would take
     let s = dhc2.sqrt();
     let (near, far) = (d_min - s, d_min + s);
@@ -285,7 +291,25 @@ impl BatchMethod for Geometric {
     }
     #[inline(always)]
     fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
-        geometric_lanes(o, d, c, r)
+        geometric_lanes::<F, false>(o, d, c, r)
+    }
+}
+
+/// [`methods::geometric_fma`]: the same steps with every `a·b + c` fused, as a contracting
+/// compiler builds them; the AVX2 and AVX-512 kernels run it with `vfmadd`.
+///
+/// [`methods::geometric_fma`]: super::methods::geometric_fma
+pub struct GeometricFma;
+
+impl BatchMethod for GeometricFma {
+    const NAME: &'static str = "geometric_fma";
+    #[inline(always)]
+    fn scalar<F: Real>(ray: &Ray<F>, sphere: &Sphere<F>) -> Option<SphereHit<F>> {
+        methods::geometric_fma(ray, sphere)
+    }
+    #[inline(always)]
+    fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
+        geometric_lanes::<F, true>(o, d, c, r)
     }
 }
 
@@ -319,9 +343,9 @@ pub struct LengthMismatch {
 pub enum Isa {
     /// What the build targets (SSE2 on baseline x86_64).
     Portable,
-    /// x86_64 with AVX2 (no FMA), chosen at run time.
+    /// x86_64 with AVX2 and FMA, chosen at run time.
     Avx2,
-    /// x86_64 with AVX-512 (F, VL, DQ; 512-bit registers, no FMA), chosen at run time.
+    /// x86_64 with AVX-512 (F, VL, DQ; 512-bit registers) and FMA, chosen at run time.
     Avx512,
 }
 
@@ -341,12 +365,16 @@ impl Isa {
         match self {
             Isa::Portable => true,
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            Isa::Avx2 => {
+                std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+            }
             #[cfg(target_arch = "x86_64")]
             Isa::Avx512 => {
                 std::arch::is_x86_feature_detected!("avx512f")
                     && std::arch::is_x86_feature_detected!("avx512vl")
                     && std::arch::is_x86_feature_detected!("avx512dq")
+                    && std::arch::is_x86_feature_detected!("fma")
             }
             #[cfg(not(target_arch = "x86_64"))]
             Isa::Avx2 | Isa::Avx512 => false,
@@ -396,18 +424,19 @@ fn kernel_portable<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
     kernel::<M, F>(b, out)
 }
 
-/// The same loop compiled for AVX2 (FMA stays off, so results are unchanged).
+/// The same loop compiled for AVX2 and FMA. Rust never contracts `a*b + c`, so only the
+/// methods that ask for a fused multiply-add (`mul_add`) get one; the others round as before.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,fma")]
 #[inline(never)]
 fn kernel_avx2<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
     kernel::<M, F>(b, out)
 }
 
-/// The same loop compiled for AVX-512: 16 `f32` or 8 `f64` lanes per instruction (FMA stays
-/// off, so results are unchanged).
+/// The same loop compiled for AVX-512 and FMA: 16 `f32` or 8 `f64` lanes per instruction; as
+/// for AVX2, only the methods that ask for a fused multiply-add get one.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f,avx512vl,avx512dq")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,fma")]
 #[inline(never)]
 fn kernel_avx512<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
     kernel::<M, F>(b, out)
@@ -596,7 +625,7 @@ pub struct BatchRow {
     pub speedup: f64,
 }
 
-/// Scalar vs batched throughput for `geometric`, `rtg7` and `certified`, `f32` and `f64`, every available
+/// Scalar vs batched throughput for `geometric`, `geometric_fma`, `rtg7` and `certified`, `f32` and `f64`, every available
 /// instruction set, on the mix batch. Bit-identity is checked before anything is timed; a
 /// mismatch is returned instead of a table.
 pub fn throughput_table(opts: &BatchOpts) -> Result<Vec<BatchRow>, Box<Mismatch>> {
@@ -613,6 +642,7 @@ fn rows_for<F: Real>(opts: &BatchOpts) -> Result<Vec<BatchRow>, Box<Mismatch>> {
     let spheres: Vec<Sphere<F>> = cases.iter().map(|c| c.sphere()).collect();
     let mut rows = vec![];
     rows.extend(method_rows::<Geometric, F>(opts, &b, &rays, &spheres)?);
+    rows.extend(method_rows::<GeometricFma, F>(opts, &b, &rays, &spheres)?);
     rows.extend(method_rows::<Rtg7, F>(opts, &b, &rays, &spheres)?);
     rows.extend(method_rows::<Certified, F>(opts, &b, &rays, &spheres)?);
     Ok(rows)

@@ -62,6 +62,21 @@ pub(super) fn sub<S: Scalar>(a: V<S>, b: V<S>) -> V<S> {
 pub(super) fn dot<S: Scalar>(a: V<S>, b: V<S>) -> S {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
+/// `a·b + c`, fused into one rounding when `FMA` (what a C compiler's contraction makes of it),
+/// else two roundings.
+#[inline(always)]
+pub(super) fn madd<F: Real, const FMA: bool>(a: F, b: F, c: F) -> F {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+/// [`dot`] as a contracting compiler evaluates it when `FMA`: `fma(a₂, b₂, fma(a₁, b₁, a₀b₀))`.
+#[inline(always)]
+pub(super) fn dot_c<F: Real, const FMA: bool>(a: V<F>, b: V<F>) -> F {
+    madd::<F, FMA>(a[2], b[2], madd::<F, FMA>(a[1], b[1], a[0] * b[0]))
+}
 #[inline(always)]
 fn scale<S: Scalar>(a: V<S>, k: S) -> V<S> {
     [a[0] * k, a[1] * k, a[2] * k]
@@ -128,19 +143,34 @@ pub fn algebraic<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
 /// - Origin on the surface (`L_oc = r²`): step 4's "on or inside" branch, the far root `2·d_min`.
 /// - `d = 0`: `d_min = 0`, a miss from outside; from inside `t = √(r² − L_oc)`, a wrong hit.
 pub fn geometric<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
+    geometric_body::<F, false>(ray, s)
+}
+
+/// **Geometric with FMA contraction**: [`geometric`] as a C or C++ compiler builds it with
+/// contraction on (`-ffp-contract=fast`, or `on` with `-mfma`): every `a·b + c` is one fused
+/// multiply-add, so `L_oc`, `d_min` and `d_hc² = (r² − L_oc) + d_min²` are rounded fewer times
+/// and the bits of `t` differ from [`geometric`]'s. The audit judges it as a method of its own;
+/// the batch kernels run it with hardware FMA. Conventions as [`geometric`]'s. Without hardware
+/// FMA in the build, the scalar method calls the C library's `fma` (exact, slow).
+pub fn geometric_fma<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
+    geometric_body::<F, true>(ray, s)
+}
+
+#[inline(always)]
+fn geometric_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     let (o, d, c, r) = parts(ray, s);
     // (1) Origin relative to the sphere
     let roc = sub(c, o);
-    let loc = dot(roc, roc);
+    let loc = dot_c::<F, FMA>(roc, roc);
     let r2 = r * r;
     let outside = loc > r2;
     // (2) Distance along the ray to the point nearest the centre
-    let d_min = dot(roc, d);
+    let d_min = dot_c::<F, FMA>(roc, d);
     if outside && d_min < F::ZERO {
         return None;
     }
     // (3) Squared half chord
-    let dhc2 = r2 - loc + d_min * d_min;
+    let dhc2 = madd::<F, FMA>(d_min, d_min, r2 - loc);
     if outside && dhc2 < F::ZERO {
         return None;
     }
@@ -437,6 +467,11 @@ pub const METHODS: &[Method] = &[
         geometric,
         false,
         "1996 non-analytic test, four steps (seed 000 §2); assumes unit d"
+    ),
+    method!(
+        geometric_fma,
+        false,
+        "geometric as a compiler builds it with FMA contraction (every a*b + c fused)"
     ),
     method!(
         press,

@@ -18,6 +18,7 @@
 //! |---|---|---|---|
 //! | `algebraic` | Fan et al. 1996 §1 and Lengyel's ray-tracing chapter §2.3: `A t² + B t + C`, `t = (−B ∓ √(B²−4AC))/2A` | miss (the paper's `≤ 0`) | no |
 //! | `geometric` | Fan et al. 1996 §2, the paper's "non-analytic" test, four steps as written | hit | **yes** |
+//! | `geometric_fma` | `geometric` as a compiler builds it with FMA contraction: every `a·b + c` one fused multiply-add (the batch kernels' FMA variant) | hit | **yes** |
 //! | `press` | Numerical Recipes: `q = −½(B + sign(B)√D)`, roots `C/q`, `q/A` | hit | no |
 //! | `hearn_baker` | discriminant `r² − \|Δp − (Δp·d̂)d̂\|²` from the perpendicular vector | hit | no (normalises internally) |
 //! | `rtg7` | Ray Tracing Gems ch. 7, method 5: the perpendicular discriminant with Press's root pair | hit | no |
