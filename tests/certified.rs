@@ -319,3 +319,49 @@ fn first_look_bound_holds_and_each_term_is_needed() {
         "teeth: a shrunken discriminant term went unnoticed"
     );
 }
+
+/// `f64` scenes so small that the first look's products underflow (`r` from 2⁻⁵⁴⁴ to 2⁻⁵³⁰,
+/// centres within a few radii of the origin, half the rays aimed near them, seeded): the first look's certain misses must
+/// allow for the underflow (without its allowance it claims false misses here), and every
+/// answer is the oracle's.
+#[test]
+fn underflowing_f64_scenes_are_exact() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let mut hits = 0;
+    for k in 530..=544 {
+        let r = (-(k as f64)).exp2();
+        for _ in 0..200 {
+            let mut v = || rng.random_range(-1.0..1.0);
+            // Every other ray aimed within 1.5 radii of the centre, the rest anywhere
+            let c = [4.0 * r * v(), 4.0 * r * v(), 4.0 * r * v()];
+            let aim = rng.random_bool(0.5) as u8 as f64;
+            let mut v = || rng.random_range(-1.0..1.0);
+            let d = [
+                aim * c[0] + (aim * 1.5 * r + (1.0 - aim)) * v(),
+                aim * c[1] + (aim * 1.5 * r + (1.0 - aim)) * v(),
+                aim * c[2] + (aim * 1.5 * r + (1.0 - aim)) * v(),
+            ];
+            let case = Case {
+                o: [0.0, 0.0, 0.0],
+                d,
+                c,
+                r,
+            };
+            let want = truth(&case);
+            let want_t = want
+                .t_in::<f64>()
+                .filter(|t| want.verdict.is_hit() && *t > 0.0 && t.is_finite());
+            hits += want_t.is_some() as usize;
+            let got = certified(&case.ray(), &case.sphere()).map(|h| h.t);
+            assert_eq!(
+                got.map(f64::to_bits),
+                want_t.map(f64::to_bits),
+                "certified f64 on an underflowing scene: got {got:?}, the oracle {want_t:?}\n  replay: rayproof probe sphere {}",
+                case.probe_args()
+            );
+        }
+    }
+    eprintln!("underflowing f64 scenes: {hits} hits of 3000");
+    assert!(hits > 500, "only {hits} hits among the underflowing scenes");
+}

@@ -124,11 +124,11 @@ pub enum Quick {
 /// cannot decide (see the [module docs](self)).
 pub fn certified<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     let case = case_of(ray, s);
+    let w = |v: [F; 3]| v.map(|x| x.to_f64());
+    let l = look(w(case.o), w(case.d), w(case.c), case.r.to_f64());
     // f32 inputs: the first look answers nearly every case a renderer asks
     if F::MANT_BITS == 24 {
-        let w = |v: [F; 3]| v.map(|x| x.to_f64());
-        let l = look(w(case.o), w(case.d), w(case.c), case.r.to_f64());
-        if l.missed() {
+        if l.missed::<false>() {
             return None;
         }
         let (t, ok) = certain(&estimate(&l, Terms::PROVED));
@@ -138,10 +138,14 @@ pub fn certified<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
                 enclosure: None,
             });
         }
-        if l.behind() {
+        if l.behind::<false>() {
             return None;
         }
         return after_first_look_cold(&case);
+    }
+    // f64 inputs: the first look's certain misses, then the quick phase
+    if l.missed::<true>() || l.behind::<true>() {
+        return None;
     }
     after_first_look(&case)
 }
@@ -235,19 +239,41 @@ fn look(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> Look {
     }
 }
 
+/// The first look's allowance for underflow with `f64` inputs: a product that underflows is
+/// off by at most `η = 2⁻¹⁰⁷⁵`, which moves `Δ` by at most `8η·(A + R + 1)` (`|B| ≤ (A + F)/2`)
+/// and `C` by `5η`; `2⁻¹⁰⁶⁸` covers both. (`f32` inputs cannot underflow in `f64`.)
+const ETA_LOOK: f64 = f64::from_bits(7 << 52);
+
 impl Look {
     /// A certain miss by the discriminant (`Δ < −e_Δ`, which also means outside) or an invalid
-    /// radius: the common miss, decided before any root is taken.
+    /// radius: the common miss, decided before any root is taken. With `F64` (inputs in `f64`:
+    /// `e_A = 3.01u·A`, `e_Δ ≤ 20.1u·Q`, the same constants cover it) the underflow allowance is
+    /// added; an overflow makes `Q` or `Δ` infinite or NaN, and the test false.
     #[inline(always)]
-    fn missed(&self) -> bool {
-        !(self.r > 0.0) | (self.disc < -24.0 * U * self.q)
+    fn missed<const F64: bool>(&self) -> bool {
+        let e = 24.0 * U * self.q;
+        let e = if F64 {
+            e + ETA_LOOK * (self.a + self.fr + 1.0)
+        } else {
+            e
+        };
+        !(self.r > 0.0) | (self.disc < -e)
     }
 
     /// A certain miss behind the origin: outside (`C > e_C`) and heading away (`B > e_B`,
-    /// checked as `B² > 17u²·Q`).
+    /// checked as `B² > 17u²·Q`; with `F64` also `B² ≥ 2⁻¹⁰⁰⁰`, so that `|B| ≥ 2⁻⁵⁰⁰` is far
+    /// above the underflow allowance of `B`, `3η`).
     #[inline(always)]
-    fn behind(&self) -> bool {
-        (self.cc > 7.0 * U * self.fr) & (self.b > 0.0) & (self.b2 > (17.0 * U * U) * self.q)
+    fn behind<const F64: bool>(&self) -> bool {
+        let heading_away = (self.b > 0.0) & (self.b2 > (17.0 * U * U) * self.q);
+        let heading_away = if F64 {
+            heading_away & (self.b2 >= f64::from_bits(23 << 52))
+        } else {
+            heading_away
+        };
+        let e_c = 7.0 * U * self.fr;
+        let e_c = if F64 { e_c + ETA_LOOK } else { e_c };
+        (self.cc > e_c) & heading_away
     }
 }
 
@@ -305,7 +331,7 @@ pub fn first_look_enclosure(case: &Case<f32>, k: Terms) -> Option<(f64, f64)> {
     let l = look(w(case.o), w(case.d), w(case.c), case.r as f64);
     let e = estimate(&l, k);
     let units = e.lhs / e.scale * (1.0 + 1.0 / 1_048_576.0);
-    (!l.missed() && !l.behind() && e.hit && units < 134_217_728.0)
+    (!l.missed::<false>() && !l.behind::<false>() && e.hit && units < 134_217_728.0)
         .then(|| (e.t, units * U * e.t * (1.0 + 1.0 / 1_048_576.0)))
 }
 
@@ -316,7 +342,7 @@ pub fn first_look_enclosure(case: &Case<f32>, k: Terms) -> Option<(f64, f64)> {
 pub fn first_look_lane(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, k: Terms) -> f64 {
     let l = look(o, d, c, r);
     let (t, ok) = certain(&estimate(&l, k));
-    if l.missed() | l.behind() {
+    if l.missed::<false>() | l.behind::<false>() {
         f64::NAN
     } else if ok {
         t
