@@ -187,14 +187,20 @@ impl Aabb {
     fn centre(self) -> DVec3 {
         (self.lo + self.hi) * 0.5
     }
-    /// Slab test with pbrt's far-distance padding (1 + 2γ₃).
+    /// Half the surface area (the SAH's weight); 0 for an empty box.
+    fn half_area(self) -> f64 {
+        let e = (self.hi - self.lo).max(DVec3::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
+    }
+    /// Slab test with pbrt's far-distance padding (1 + 2γ₃): the entry distance if the ray
+    /// meets the box before `tmax`.
     #[inline]
-    fn hit(&self, o: DVec3, inv_d: DVec3, tmax: f64) -> bool {
+    fn enter(&self, o: DVec3, inv_d: DVec3, tmax: f64) -> Option<f64> {
         let t0 = (self.lo - o) * inv_d;
         let t1 = (self.hi - o) * inv_d;
         let tn = t0.min(t1).max_element();
         let tf = t0.max(t1).min_element() * (1.0 + 2.0 * 3.0 * f64::EPSILON);
-        tn <= tf && tf > 0.0 && tn < tmax
+        (tn <= tf && tf > 0.0 && tn < tmax).then_some(tn)
     }
 }
 
@@ -409,13 +415,26 @@ pub struct Geometry {
 }
 
 impl Geometry {
-    /// Builds the BVH by median splits on the widest centroid axis (leaves of ≤ 4 objects).
-    pub fn new(mut objects: Vec<Object>, planes: Vec<Plane>) -> Geometry {
+    /// Builds the BVH with the surface area heuristic (binned, [`SAH_BINS`] bins per axis).
+    pub fn new(objects: Vec<Object>, planes: Vec<Plane>) -> Geometry {
         let mut nodes = vec![];
-        if !objects.is_empty() {
-            let n = objects.len();
-            build(&mut objects, 0, n, &mut nodes);
+        let mut items: Vec<Item> = objects
+            .iter()
+            .enumerate()
+            .map(|(k, o)| {
+                let b = bounds(&o.prim);
+                Item {
+                    b,
+                    c: b.centre(),
+                    k,
+                }
+            })
+            .collect();
+        if !items.is_empty() {
+            build(&mut items, 0, 0, &mut nodes);
         }
+        // Objects in leaf order
+        let objects = items.iter().map(|it| objects[it.k]).collect();
         Geometry {
             objects,
             planes,
@@ -450,19 +469,16 @@ impl Geometry {
         self
     }
 
-    /// Tests one object, keeps the nearer hit, records the test if asked.
+    /// Tests object `k` (recording the test if asked): its `t` and unit normal, any sign of `t`.
     #[inline]
-    #[allow(clippy::too_many_arguments)]
-    fn test_object<F: PickPrecision>(
+    fn test<F: PickPrecision>(
         &self,
         f: SphereFn<F>,
         k: usize,
         o: DVec3,
         d: DVec3,
-        limit: &mut f64,
-        best: &mut Option<Hit>,
         counts: &mut TestCounts,
-    ) {
+    ) -> Option<(f64, DVec3)> {
         let obj = &self.objects[k];
         if let (Some((every, store)), Prim::Sphere { c, r }) = (&self.record, obj.prim) {
             if counts.sphere_tests.is_multiple_of(*every) {
@@ -471,15 +487,69 @@ impl Geometry {
                 }
             }
         }
-        if let Some((t, n)) = prim_hit::<F>(f, &obj.prim, o, d, counts, &self.marchers) {
-            if t > 0.0 && t < *limit {
-                *limit = t;
-                *best = Some(Hit {
-                    t,
-                    n,
-                    material: obj.material,
-                    object: k,
-                });
+        prim_hit::<F>(f, &obj.prim, o, d, counts, &self.marchers)
+    }
+
+    /// Walks the BVH nearer child first, calling `leaf(objects, limit)` on each leaf whose box
+    /// the ray enters before `limit`; `leaf` may lower `limit`, or return `true` to stop.
+    #[inline]
+    fn traverse(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        limit: &mut f64,
+        counts: &mut TestCounts,
+        mut leaf: impl FnMut(std::ops::Range<usize>, &mut f64, &mut TestCounts) -> bool,
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let inv_d = d.recip();
+        let nodes = &self.nodes;
+        // Farther children put aside, with the distance at which the ray enters them
+        let mut stack = [(0u32, 0.0f64); MAX_DEPTH + 1];
+        let mut sp = 0;
+        counts.bvh_nodes += 1;
+        let mut cur = nodes[0].b.enter(o, inv_d, *limit).map(|_| 0usize);
+        loop {
+            if let Some(i) = cur {
+                let node = &nodes[i];
+                if node.count > 0 {
+                    let start = node.start as usize;
+                    if leaf(start..start + node.count as usize, limit, counts) {
+                        return;
+                    }
+                    cur = None;
+                } else {
+                    // Both children's boxes; descend into the nearer, keep the farther
+                    let (l, r) = (i + 1, node.start as usize);
+                    counts.bvh_nodes += 2;
+                    let tl = nodes[l].b.enter(o, inv_d, *limit);
+                    let tr = nodes[r].b.enter(o, inv_d, *limit);
+                    cur = match (tl, tr) {
+                        (Some(a), Some(b)) => {
+                            let (near, far, t_far) = if a <= b { (l, r, b) } else { (r, l, a) };
+                            stack[sp] = (far as u32, t_far);
+                            sp += 1;
+                            Some(near)
+                        }
+                        (Some(_), None) => Some(l),
+                        (None, Some(_)) => Some(r),
+                        (None, None) => None,
+                    };
+                }
+            } else {
+                // The nearest kept child the ray still enters before `limit`
+                loop {
+                    if sp == 0 {
+                        return;
+                    }
+                    sp -= 1;
+                    if stack[sp].1 < *limit {
+                        cur = Some(stack[sp].0 as usize);
+                        break;
+                    }
+                }
             }
         }
     }
@@ -499,85 +569,188 @@ impl Geometry {
         // Planes
         for (i, pl) in self.planes.iter().enumerate() {
             counts.other_tests += 1;
-            let dn = d.dot(pl.n);
-            if dn != 0.0 {
-                let t = (pl.p - o).dot(pl.n) / dn;
-                if t > 0.0 && t < limit {
-                    limit = t;
-                    best = Some(Hit {
-                        t,
-                        n: pl.n,
-                        material: pl.material,
-                        object: usize::MAX - i,
-                    });
-                }
+            if let Some(t) = plane_t(pl, o, d).filter(|&t| t > 0.0 && t < limit) {
+                limit = t;
+                best = Some(Hit {
+                    t,
+                    n: pl.n,
+                    material: pl.material,
+                    object: usize::MAX - i,
+                });
             }
         }
-        // Flat list: every object
+        // Objects: keeps the nearer hit
+        let mut nearest = |ks: std::ops::Range<usize>, limit: &mut f64, counts: &mut TestCounts| {
+            for k in ks {
+                if let Some((t, n)) = self.test::<F>(f, k, o, d, counts) {
+                    if t > 0.0 && t < *limit {
+                        *limit = t;
+                        best = Some(Hit {
+                            t,
+                            n,
+                            material: self.objects[k].material,
+                            object: k,
+                        });
+                    }
+                }
+            }
+            false
+        };
         if self.flat {
             for _ in 0..self.passes {
-                for k in 0..self.objects.len() {
-                    self.test_object(f, k, o, d, &mut limit, &mut best, counts);
-                }
+                nearest(0..self.objects.len(), &mut limit, counts);
             }
-            return best;
-        }
-        // BVH traversal
-        if self.nodes.is_empty() {
-            return best;
-        }
-        let inv_d = d.recip();
-        let mut stack = [0u32; 64];
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            let idx = stack[sp];
-            let node = &self.nodes[idx as usize];
-            counts.bvh_nodes += 1;
-            if !node.b.hit(o, inv_d, limit) {
-                continue;
-            }
-            if node.count > 0 {
-                for k in node.start..node.start + node.count {
-                    self.test_object(f, k as usize, o, d, &mut limit, &mut best, counts);
-                }
-            } else if sp + 2 <= stack.len() {
-                // Median splits keep the depth near log2(n); 64 levels cover any real scene
-                stack[sp] = idx + 1;
-                stack[sp + 1] = node.start;
-                sp += 2;
-            }
+        } else {
+            self.traverse(o, d, &mut limit, counts, nearest);
         }
         best
     }
+
+    /// Whether some object or plane whose material `blocks` is hit with `t` in (0, tmax): the
+    /// shadow rays' any-hit query, which stops at the first such hit. Objects that do not block
+    /// are not tested (flat lists test every object, as for [`Geometry::intersect`]).
+    pub fn occluded<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        blocks: impl Fn(usize) -> bool,
+        counts: &mut TestCounts,
+    ) -> bool {
+        let f = F::pick(m);
+        for pl in &self.planes {
+            counts.other_tests += 1;
+            if blocks(pl.material) && plane_t(pl, o, d).is_some_and(|t| t > 0.0 && t < tmax) {
+                return true;
+            }
+        }
+        let mut hit = false;
+        if self.flat {
+            for _ in 0..self.passes {
+                for k in 0..self.objects.len() {
+                    let t = self.test::<F>(f, k, o, d, counts);
+                    hit |= blocks(self.objects[k].material)
+                        && t.is_some_and(|(t, _)| t > 0.0 && t < tmax);
+                }
+            }
+            return hit;
+        }
+        let mut limit = tmax;
+        self.traverse(o, d, &mut limit, counts, |ks, _, counts| {
+            hit = ks.into_iter().any(|k| {
+                blocks(self.objects[k].material)
+                    && self
+                        .test::<F>(f, k, o, d, counts)
+                        .is_some_and(|(t, _)| t > 0.0 && t < tmax)
+            });
+            hit
+        });
+        hit
+    }
 }
 
-fn build(objs: &mut [Object], start: usize, end: usize, nodes: &mut Vec<Node>) -> usize {
-    let b = objs[start..end]
-        .iter()
-        .fold(Aabb::empty(), |a, o| a.grow(bounds(&o.prim)));
+/// Where a ray meets a plane (`None` if parallel).
+#[inline]
+fn plane_t(pl: &Plane, o: DVec3, d: DVec3) -> Option<f64> {
+    let dn = d.dot(pl.n);
+    (dn != 0.0).then(|| (pl.p - o).dot(pl.n) / dn)
+}
+
+/// Bins per axis of the SAH build.
+const SAH_BINS: usize = 16;
+/// Cost of testing an object, in box tests (a node visit tests two boxes).
+const SAH_TEST_COST: f64 = 4.0;
+/// Deepest level of the tree: below it every node is a leaf (the traversal stack's size).
+const MAX_DEPTH: usize = 60;
+
+/// An object while building: bounds, centroid, index in the scene's list.
+#[derive(Clone, Copy)]
+struct Item {
+    b: Aabb,
+    c: DVec3,
+    k: usize,
+}
+
+/// Builds the subtree over `items` (reordered in place into leaf order, starting at object
+/// `first`); returns its node index. A node is split where the SAH finds the cheapest binned
+/// split, and kept as a leaf when that costs more than testing its objects (always above four
+/// objects unless the centroids coincide, and never below [`MAX_DEPTH`]).
+fn build(items: &mut [Item], first: usize, depth: usize, nodes: &mut Vec<Node>) -> usize {
+    let n = items.len();
+    let b = items.iter().fold(Aabb::empty(), |a, it| a.grow(it.b));
     let me = nodes.len();
     nodes.push(Node {
         b,
-        start: start as u32,
-        count: (end - start) as u32,
+        start: first as u32,
+        count: n as u32,
     });
-    if end - start <= 4 {
+    if n <= 1 || depth >= MAX_DEPTH {
         return me;
     }
-    // Split at the median along the widest axis of the centroids
-    let cb = objs[start..end].iter().fold(Aabb::empty(), |a, o| {
-        let c = bounds(&o.prim).centre();
-        a.grow(Aabb { lo: c, hi: c })
-    });
-    let axis = (cb.hi - cb.lo).max_position();
-    let mid = (start + end) / 2;
-    objs[start..end].select_nth_unstable_by(mid - start, |a, b| {
-        bounds(&a.prim).centre()[axis].total_cmp(&bounds(&b.prim).centre()[axis])
-    });
-    build(objs, start, mid, nodes);
-    let right = build(objs, mid, end, nodes);
-    nodes[me].start = right as u32;
+    // Cheapest binned split over the three axes of the centroids' box
+    let cb = items
+        .iter()
+        .fold(Aabb::empty(), |a, it| a.grow(Aabb { lo: it.c, hi: it.c }));
+    let bin = |axis: usize, c: DVec3| {
+        let (lo, ext) = (cb.lo[axis], cb.hi[axis] - cb.lo[axis]);
+        (((c[axis] - lo) / ext * SAH_BINS as f64) as usize).min(SAH_BINS - 1)
+    };
+    let mut best: Option<(f64, usize, usize)> = None;
+    for axis in 0..3 {
+        if !(cb.hi[axis] - cb.lo[axis] > 0.0) {
+            continue;
+        }
+        let mut boxes = [Aabb::empty(); SAH_BINS];
+        let mut counts = [0usize; SAH_BINS];
+        for it in items.iter() {
+            let i = bin(axis, it.c);
+            boxes[i] = boxes[i].grow(it.b);
+            counts[i] += 1;
+        }
+        // Right-side costs from the top bin down, then the left side upwards
+        let mut right = [0.0; SAH_BINS];
+        let (mut rb, mut rn) = (Aabb::empty(), 0);
+        for i in (1..SAH_BINS).rev() {
+            rb = rb.grow(boxes[i]);
+            rn += counts[i];
+            right[i] = rb.half_area() * rn as f64;
+        }
+        let (mut lb, mut ln) = (Aabb::empty(), 0);
+        for i in 1..SAH_BINS {
+            lb = lb.grow(boxes[i - 1]);
+            ln += counts[i - 1];
+            let cost = lb.half_area() * ln as f64 + right[i];
+            if ln > 0 && ln < n && best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, i));
+            }
+        }
+    }
+    let split = match best {
+        Some((cost, axis, i)) => {
+            let split_cost = 2.0 * b.half_area() + SAH_TEST_COST * cost;
+            let leaf_cost = SAH_TEST_COST * b.half_area() * n as f64;
+            if split_cost >= leaf_cost && n <= 4 {
+                return me;
+            }
+            // Partition by bin
+            let mut mid = 0;
+            for j in 0..n {
+                if bin(axis, items[j].c) < i {
+                    items.swap(j, mid);
+                    mid += 1;
+                }
+            }
+            mid
+        }
+        // Every centroid in one point: halves
+        None if n <= 4 => return me,
+        None => n / 2,
+    };
+    let (left, right) = items.split_at_mut(split);
+    build(left, first, depth + 1, nodes);
+    let r = build(right, first + split, depth + 1, nodes);
+    nodes[me].start = r as u32;
     nodes[me].count = 0;
     me
 }

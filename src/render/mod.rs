@@ -922,7 +922,9 @@ pub fn fresnel(eta: f64, cos_i: f64, cos_t: f64) -> f64 {
     0.5 * (rs * rs + rp * rp)
 }
 
-/// Is anything between `o` and the light at distance `dist`? Glass may let the ray through.
+/// Is anything between `o` and the light at distance `dist`? Glass may let the ray through:
+/// with transmissive glass shadows (POV-Ray's rule) shadow rays go straight through glass, so
+/// only other materials block them. An any-hit query: it stops at the first blocker.
 fn occluded<F: PickPrecision>(
     ctx: &Ctx,
     o: DVec3,
@@ -930,28 +932,10 @@ fn occluded<F: PickPrecision>(
     dist: f64,
     counts: &mut RayCounts,
 ) -> bool {
-    let mut o = o;
-    let mut left = dist;
-    loop {
-        let Some(h) = ctx
-            .geo
-            .intersect::<F>(ctx.method, o, wl, left, &mut counts.tests)
-        else {
-            return false;
-        };
-        let glass = matches!(ctx.materials[h.material], Material::Glass { .. });
-        if !(glass && ctx.glass_shadows == GlassShadows::Transmissive) {
-            return true;
-        }
-        // POV-Ray's rule: continue straight through the glass, unrefracted
-        let p = o + h.t * wl;
-        let step = h.t + ctx.ulp16 * p.abs().max_element().max(1.0);
-        o += wl * step;
-        left -= step;
-        if left <= 0.0 {
-            return false;
-        }
-    }
+    let transmissive = ctx.glass_shadows == GlassShadows::Transmissive;
+    let blocks = |m: usize| !(transmissive && matches!(ctx.materials[m], Material::Glass { .. }));
+    ctx.geo
+        .occluded::<F>(ctx.method, o, wl, dist, blocks, &mut counts.tests)
 }
 
 /// The seed paper's budget (m+1)·d·M·N beside the measured counts.
