@@ -193,13 +193,20 @@ impl Aabb {
         e.x * e.y + e.y * e.z + e.z * e.x
     }
     /// Slab test with pbrt's far-distance padding (1 + 2γ₃): the entry distance if the ray
-    /// meets the box before `tmax`.
+    /// meets the box before `tmax`. A NaN slab distance (0·∞: the ray runs in a face's plane)
+    /// leaves the interval as it is, so such a ray counts as meeting the box.
     #[inline]
     fn enter(&self, o: DVec3, inv_d: DVec3, tmax: f64) -> Option<f64> {
-        let t0 = (self.lo - o) * inv_d;
-        let t1 = (self.hi - o) * inv_d;
-        let tn = t0.min(t1).max_element();
-        let tf = t0.max(t1).min_element() * (1.0 + 2.0 * 3.0 * f64::EPSILON);
+        let (mut tn, mut tf) = (f64::NEG_INFINITY, f64::INFINITY);
+        for k in 0..3 {
+            let a = (self.lo[k] - o[k]) * inv_d[k];
+            let b = (self.hi[k] - o[k]) * inv_d[k];
+            let (near, far) = if a > b { (b, a) } else { (a, b) };
+            // Written as comparisons so that a NaN loses (one min/max instruction each)
+            tn = if near > tn { near } else { tn };
+            tf = if far < tf { far } else { tf };
+        }
+        let tf = tf * (1.0 + 2.0 * 3.0 * f64::EPSILON);
         (tn <= tf && tf > 0.0 && tn < tmax).then_some(tn)
     }
 }
@@ -507,7 +514,7 @@ impl Geometry {
         let inv_d = d.recip();
         let nodes = &self.nodes;
         // Farther children put aside, with the distance at which the ray enters them
-        let mut stack = [(0u32, 0.0f64); MAX_DEPTH + 1];
+        let (mut stack, mut stack_t) = ([0u32; MAX_DEPTH], [0.0f64; MAX_DEPTH]);
         let mut sp = 0;
         counts.bvh_nodes += 1;
         let mut cur = nodes[0].b.enter(o, inv_d, *limit).map(|_| 0usize);
@@ -529,7 +536,7 @@ impl Geometry {
                     cur = match (tl, tr) {
                         (Some(a), Some(b)) => {
                             let (near, far, t_far) = if a <= b { (l, r, b) } else { (r, l, a) };
-                            stack[sp] = (far as u32, t_far);
+                            (stack[sp], stack_t[sp]) = (far as u32, t_far);
                             sp += 1;
                             Some(near)
                         }
@@ -545,8 +552,8 @@ impl Geometry {
                         return;
                     }
                     sp -= 1;
-                    if stack[sp].1 < *limit {
-                        cur = Some(stack[sp].0 as usize);
+                    if stack_t[sp] < *limit {
+                        cur = Some(stack[sp] as usize);
                         break;
                     }
                 }
@@ -662,7 +669,7 @@ const SAH_BINS: usize = 16;
 /// Cost of testing an object, in box tests (a node visit tests two boxes).
 const SAH_TEST_COST: f64 = 4.0;
 /// Deepest level of the tree: below it every node is a leaf (the traversal stack's size).
-const MAX_DEPTH: usize = 60;
+const MAX_DEPTH: usize = 48;
 
 /// An object while building: bounds, centroid, index in the scene's list.
 #[derive(Clone, Copy)]

@@ -653,16 +653,23 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     } else {
         ProgressBar::hidden()
     };
-    let rows: Vec<Planes> = (0..h)
-        .into_par_iter()
-        .map(|y| {
+    // The planes, filled row by row in place
+    let mut out: Planes = (
+        vec![[0f32; 3]; w * h],
+        vec![0f32; w * h],
+        vec![[0f32; 3]; w * h],
+        vec![0f32; w * h],
+        RayCounts::default(),
+    );
+    out.4 = out
+        .0
+        .par_chunks_mut(w)
+        .zip(out.1.par_chunks_mut(w))
+        .zip(out.2.par_chunks_mut(w))
+        .zip(out.3.par_chunks_mut(w))
+        .enumerate()
+        .map(|(y, (((beauty, depth), normal), rays))| {
             let mut counts = RayCounts::default();
-            let mut row = (
-                vec![[0f32; 3]; w],
-                vec![0f32; w],
-                vec![[0f32; 3]; w],
-                vec![0f32; w],
-            );
             for x in 0..w {
                 let before = counts.total();
                 let (mut sum, mut dsum, mut nsum, mut hits) = (DVec3::ZERO, 0.0, DVec3::ZERO, 0u32);
@@ -685,38 +692,21 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                     }
                 }
                 let k = 1.0 / (grid * grid) as f64;
-                row.0[x] = (sum * k).as_vec3().to_array();
-                row.1[x] = if hits > 0 {
-                    (dsum / hits as f64) as f32
-                } else {
-                    0.0
-                };
-                row.2[x] = if hits > 0 {
-                    (nsum / hits as f64).as_vec3().to_array()
-                } else {
-                    [0.0; 3]
-                };
-                row.3[x] = (counts.total() - before) as f32;
+                beauty[x] = (sum * k).as_vec3().to_array();
+                if hits > 0 {
+                    depth[x] = (dsum / hits as f64) as f32;
+                    normal[x] = (nsum / hits as f64).as_vec3().to_array();
+                }
+                rays[x] = (counts.total() - before) as f32;
             }
             bar.inc(1);
-            (row.0, row.1, row.2, row.3, counts)
+            counts
         })
-        .collect();
+        .reduce(RayCounts::default, |mut a, b| {
+            a += b;
+            a
+        });
     bar.finish_and_clear();
-    let mut out: Planes = (
-        Vec::with_capacity(w * h),
-        Vec::with_capacity(w * h),
-        Vec::with_capacity(w * h),
-        Vec::with_capacity(w * h),
-        RayCounts::default(),
-    );
-    for r in rows {
-        out.0.extend(r.0);
-        out.1.extend(r.1);
-        out.2.extend(r.2);
-        out.3.extend(r.3);
-        out.4 += r.4;
-    }
     out
 }
 
