@@ -192,23 +192,6 @@ impl Aabb {
         let e = (self.hi - self.lo).max(DVec3::ZERO);
         e.x * e.y + e.y * e.z + e.z * e.x
     }
-    /// Slab test with pbrt's far-distance padding (1 + 2γ₃): the entry distance if the ray
-    /// meets the box before `tmax`. A NaN slab distance (0·∞: the ray runs in a face's plane)
-    /// leaves the interval as it is, so such a ray counts as meeting the box.
-    #[inline]
-    fn enter(&self, o: DVec3, inv_d: DVec3, tmax: f64) -> Option<f64> {
-        let (mut tn, mut tf) = (f64::NEG_INFINITY, f64::INFINITY);
-        for k in 0..3 {
-            let a = (self.lo[k] - o[k]) * inv_d[k];
-            let b = (self.hi[k] - o[k]) * inv_d[k];
-            let (near, far) = if a > b { (b, a) } else { (a, b) };
-            // Written as comparisons so that a NaN loses (one min/max instruction each)
-            tn = if near > tn { near } else { tn };
-            tf = if far < tf { far } else { tf };
-        }
-        let tf = tf * (1.0 + 2.0 * 3.0 * f64::EPSILON);
-        (tn <= tf && tf > 0.0 && tn < tmax).then_some(tn)
-    }
 }
 
 fn bounds(p: &Prim) -> Aabb {
@@ -400,6 +383,50 @@ struct Node {
     count: u32,
 }
 
+/// A node of the 4-wide tree the renderer walks: up to four children's boxes side by side, one
+/// lane each (structure of arrays, so that one box test covers the four lanes at once).
+#[derive(Clone, Copy, Debug)]
+struct Node4 {
+    /// Minimum corners: `lo[axis][lane]`.
+    lo: [[f64; 4]; 3],
+    /// Maximum corners: `hi[axis][lane]`.
+    hi: [[f64; 4]; 3],
+    /// Per lane: a leaf's first object, or an inner child's node index.
+    child: [u32; 4],
+    /// Per lane: a leaf's object count, or 0 for an inner child.
+    count: [u32; 4],
+    /// Lanes in use (the others hold boxes no ray enters).
+    lanes: u32,
+}
+
+impl Node4 {
+    /// The four lanes' slab tests at once, with pbrt's far-distance padding (1 + 2γ₃): the
+    /// entry distance (clamped at 0) of each lane the ray meets before `tmax`, `+∞` for the
+    /// others. A NaN slab distance (0·∞: the ray runs in a face's plane) leaves the interval as
+    /// it is, so such a ray counts as meeting the box.
+    #[inline(always)]
+    fn enter(&self, o: DVec3, inv_d: DVec3, tmax: f64) -> [f64; 4] {
+        // The interval starts as [0, tmax]; each slab narrows it. The updates are written as
+        // comparisons, so that a NaN loses and each is one min or max instruction
+        let (mut tn, mut tf) = ([0.0; 4], [tmax; 4]);
+        for k in 0..3 {
+            for i in 0..4 {
+                let a = (self.lo[k][i] - o[k]) * inv_d[k];
+                let b = (self.hi[k][i] - o[k]) * inv_d[k];
+                let (near, far) = if a > b { (b, a) } else { (a, b) };
+                tn[i] = if near > tn[i] { near } else { tn[i] };
+                tf[i] = if far < tf[i] { far } else { tf[i] };
+            }
+        }
+        let mut t = [f64::INFINITY; 4];
+        for i in 0..4 {
+            let met = tn[i] <= tf[i] * (1.0 + 2.0 * 3.0 * f64::EPSILON) && tn[i] < tmax;
+            t[i] = if met { tn[i] } else { f64::INFINITY };
+        }
+        t
+    }
+}
+
 /// One recorded ray–sphere test: origin, direction, centre, radius (as given to the method).
 pub type RecordedTest = [f64; 10];
 
@@ -410,7 +437,7 @@ pub struct Geometry {
     pub objects: Vec<Object>,
     /// The infinite planes, tested apart from the BVH.
     pub planes: Vec<Plane>,
-    nodes: Vec<Node>,
+    nodes: Vec<Node4>,
     /// Test every object for every ray, as renderers without acceleration did (seed 000's era),
     /// `passes` times over (a second pass changes no hit: it measures the tests' own cost).
     flat: bool,
@@ -424,7 +451,7 @@ pub struct Geometry {
 impl Geometry {
     /// Builds the BVH with the surface area heuristic (binned, [`SAH_BINS`] bins per axis).
     pub fn new(objects: Vec<Object>, planes: Vec<Plane>) -> Geometry {
-        let mut nodes = vec![];
+        let mut binary = vec![];
         let mut items: Vec<Item> = objects
             .iter()
             .enumerate()
@@ -438,7 +465,11 @@ impl Geometry {
             })
             .collect();
         if !items.is_empty() {
-            build(&mut items, 0, 0, &mut nodes);
+            build(&mut items, 0, 0, &mut binary);
+        }
+        let mut nodes = vec![];
+        if !binary.is_empty() {
+            widen(&binary, 0, &mut nodes);
         }
         // Objects in leaf order
         let objects = items.iter().map(|it| objects[it.k]).collect();
@@ -512,50 +543,56 @@ impl Geometry {
             return;
         }
         let inv_d = d.recip();
-        let nodes = &self.nodes;
-        // Farther children put aside, with the distance at which the ray enters them
-        let (mut stack, mut stack_t) = ([0u32; MAX_DEPTH], [0.0f64; MAX_DEPTH]);
+        // Children put aside (child, count, entry distance); three per level at most. Only the
+        // entries below `sp` are ever read, so the array is left uninitialised (zeroing it cost
+        // more than a box test per ray)
+        let mut stack = [const { std::mem::MaybeUninit::<(u32, u32, f64)>::uninit() }; STACK];
         let mut sp = 0;
-        counts.bvh_nodes += 1;
-        let mut cur = nodes[0].b.enter(o, inv_d, *limit).map(|_| 0usize);
+        let (mut child, mut count) = (0u32, 0u32);
         loop {
-            if let Some(i) = cur {
-                let node = &nodes[i];
-                if node.count > 0 {
-                    let start = node.start as usize;
-                    if leaf(start..start + node.count as usize, limit, counts) {
-                        return;
-                    }
-                    cur = None;
-                } else {
-                    // Both children's boxes; descend into the nearer, keep the farther
-                    let (l, r) = (i + 1, node.start as usize);
-                    counts.bvh_nodes += 2;
-                    let tl = nodes[l].b.enter(o, inv_d, *limit);
-                    let tr = nodes[r].b.enter(o, inv_d, *limit);
-                    cur = match (tl, tr) {
-                        (Some(a), Some(b)) => {
-                            let (near, far, t_far) = if a <= b { (l, r, b) } else { (r, l, a) };
-                            (stack[sp], stack_t[sp]) = (far as u32, t_far);
-                            sp += 1;
-                            Some(near)
-                        }
-                        (Some(_), None) => Some(l),
-                        (None, Some(_)) => Some(r),
-                        (None, None) => None,
-                    };
+            if count > 0 {
+                let start = child as usize;
+                if leaf(start..start + count as usize, limit, counts) {
+                    return;
                 }
             } else {
-                // The nearest kept child the ray still enters before `limit`
-                loop {
-                    if sp == 0 {
-                        return;
+                // The four boxes at once; the lanes hit, nearest last
+                let node = &self.nodes[child as usize];
+                counts.bvh_nodes += node.lanes as u64;
+                let t = node.enter(o, inv_d, *limit);
+                let mut hits = [(0.0f64, 0u32, 0u32); 4];
+                let mut n = 0;
+                for i in 0..node.lanes as usize {
+                    if t[i] < f64::INFINITY {
+                        let mut j = n;
+                        while j > 0 && hits[j - 1].0 < t[i] {
+                            hits[j] = hits[j - 1];
+                            j -= 1;
+                        }
+                        hits[j] = (t[i], node.child[i], node.count[i]);
+                        n += 1;
                     }
-                    sp -= 1;
-                    if stack_t[sp] < *limit {
-                        cur = Some(stack[sp] as usize);
-                        break;
+                }
+                if n > 0 {
+                    for &(t, c, k) in &hits[..n - 1] {
+                        stack[sp].write((c, k, t));
+                        sp += 1;
                     }
+                    (child, count) = (hits[n - 1].1, hits[n - 1].2);
+                    continue;
+                }
+            }
+            // The nearest child put aside that the ray still enters before `limit`
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                // SAFETY: every entry below the old `sp` was written above
+                let (c, k, t) = unsafe { stack[sp].assume_init() };
+                if t < *limit {
+                    (child, count) = (c, k);
+                    break;
                 }
             }
         }
@@ -759,6 +796,55 @@ fn build(items: &mut [Item], first: usize, depth: usize, nodes: &mut Vec<Node>) 
     let r = build(right, first + split, depth + 1, nodes);
     nodes[me].start = r as u32;
     nodes[me].count = 0;
+    me
+}
+
+/// Stack entries of the 4-wide traversal: three put aside per level.
+const STACK: usize = 3 * MAX_DEPTH;
+
+/// Turns binary node `i` (inner) into a 4-wide node: its children, with the inner one of
+/// largest area opened while there is room; returns the new node's index.
+fn widen(binary: &[Node], i: usize, out: &mut Vec<Node4>) -> usize {
+    // Children, or a lone leaf at the root
+    let mut kids = if binary[i].count > 0 {
+        vec![i]
+    } else {
+        vec![i + 1, binary[i].start as usize]
+    };
+    while kids.len() < 4 {
+        let inner = (0..kids.len())
+            .filter(|&j| binary[kids[j]].count == 0)
+            .max_by(|&a, &b| {
+                let area = |j: usize| binary[kids[j]].b.half_area();
+                area(a).total_cmp(&area(b))
+            });
+        let Some(j) = inner else { break };
+        let k = kids.swap_remove(j);
+        kids.extend([k + 1, binary[k].start as usize]);
+    }
+    let me = out.len();
+    // Unused lanes: a box at +∞, which no ray enters before a finite or infinite `tmax`
+    out.push(Node4 {
+        lo: [[f64::INFINITY; 4]; 3],
+        hi: [[f64::INFINITY; 4]; 3],
+        child: [0; 4],
+        count: [0; 4],
+        lanes: kids.len() as u32,
+    });
+    for (lane, &k) in kids.iter().enumerate() {
+        let b = binary[k].b;
+        for axis in 0..3 {
+            out[me].lo[axis][lane] = b.lo[axis];
+            out[me].hi[axis][lane] = b.hi[axis];
+        }
+        let (child, count) = if binary[k].count > 0 {
+            (binary[k].start, binary[k].count)
+        } else {
+            (widen(binary, k, out) as u32, 0)
+        };
+        out[me].child[lane] = child;
+        out[me].count[lane] = count;
+    }
     me
 }
 
