@@ -528,10 +528,12 @@ impl Geometry {
         prim_hit::<F>(f, &obj.prim, o, d, counts, &self.marchers)
     }
 
-    /// Walks the BVH nearer child first, calling `leaf(objects, limit)` on each leaf whose box
-    /// the ray enters before `limit`; `leaf` may lower `limit`, or return `true` to stop.
+    /// Walks the BVH, calling `leaf(objects, limit)` on each leaf whose box the ray enters
+    /// before `limit`; `leaf` may lower `limit`, or return `true` to stop. `NEAREST_FIRST`
+    /// visits the children hit in order of entry (the nearest hit's search); without it they go
+    /// in stored order (the any-hit search, for which order saves nothing and sorting costs).
     #[inline]
-    fn traverse(
+    fn traverse<const NEAREST_FIRST: bool>(
         &self,
         o: DVec3,
         d: DVec3,
@@ -565,7 +567,7 @@ impl Geometry {
                 for i in 0..node.lanes as usize {
                     if t[i] < f64::INFINITY {
                         let mut j = n;
-                        while j > 0 && hits[j - 1].0 < t[i] {
+                        while NEAREST_FIRST && j > 0 && hits[j - 1].0 < t[i] {
                             hits[j] = hits[j - 1];
                             j -= 1;
                         }
@@ -645,7 +647,7 @@ impl Geometry {
                 nearest(0..self.objects.len(), &mut limit, counts);
             }
         } else {
-            self.traverse(o, d, &mut limit, counts, nearest);
+            self.traverse::<true>(o, d, &mut limit, counts, nearest);
         }
         best
     }
@@ -681,7 +683,7 @@ impl Geometry {
             return hit;
         }
         let mut limit = tmax;
-        self.traverse(o, d, &mut limit, counts, |ks, _, counts| {
+        self.traverse::<false>(o, d, &mut limit, counts, |ks, _, counts| {
             hit = ks.into_iter().any(|k| {
                 blocks(self.objects[k].material)
                     && self
