@@ -564,14 +564,14 @@ impl Geometry {
                 let t = node.enter(o, inv_d, *limit);
                 let mut hits = [(0.0f64, 0u32, 0u32); 4];
                 let mut n = 0;
-                for i in 0..node.lanes as usize {
-                    if t[i] < f64::INFINITY {
+                for (i, &ti) in t.iter().enumerate().take(node.lanes as usize) {
+                    if ti < f64::INFINITY {
                         let mut j = n;
-                        while NEAREST_FIRST && j > 0 && hits[j - 1].0 < t[i] {
+                        while NEAREST_FIRST && j > 0 && hits[j - 1].0 < ti {
                             hits[j] = hits[j - 1];
                             j -= 1;
                         }
-                        hits[j] = (t[i], node.child[i], node.count[i]);
+                        hits[j] = (ti, node.child[i], node.count[i]);
                         n += 1;
                     }
                 }
@@ -744,7 +744,9 @@ fn build(items: &mut [Item], first: usize, depth: usize, nodes: &mut Vec<Node>) 
     };
     let mut best: Option<(f64, usize, usize)> = None;
     for axis in 0..3 {
-        if !(cb.hi[axis] - cb.lo[axis] > 0.0) {
+        // Flat (or NaN) along this axis: no split there
+        let ext = cb.hi[axis] - cb.lo[axis];
+        if ext.is_nan() || ext <= 0.0 {
             continue;
         }
         let mut boxes = [Aabb::empty(); SAH_BINS];
