@@ -7,6 +7,15 @@
 //! `f64`, with the ray moved into each routine's object space: translated by the shape's
 //! centre (or base), and for the cylinder and torus, whose routines are around z, with y and z
 //! swapped (a reflection: `t` is unchanged, and normals are swapped back).
+//!
+//! The BVH is built with the surface area heuristic (binned; an object's test is weighed as
+//! four box tests, so leaves mostly hold one object), then collapsed into a 4-wide tree whose
+//! nodes hold their children's boxes side by side, tested at once. The nearest hit's search
+//! enters the children nearest first and skips any put aside that starts beyond the hit found
+//! so far; shadow rays ask [`Geometry::occluded`], which stops at the first blocker. The box
+//! test is conservative: pbrt's padding of the far distance, and a ray running exactly in a
+//! face's plane counts as entering the box. Counters: `bvh_nodes` counts boxes tested (one per
+//! child a wide node holds), as it counted nodes visited in the binary tree.
 
 use crate::shapes::sphere::methods::{Method, PickPrecision, Ray as MRay, Sphere as MSphere};
 use glam::DVec3;
