@@ -7,6 +7,15 @@
 //! `f64`, with the ray moved into each routine's object space: translated by the shape's
 //! centre (or base), and for the cylinder and torus, whose routines are around z, with y and z
 //! swapped (a reflection: `t` is unchanged, and normals are swapped back).
+//!
+//! The BVH is built with the surface area heuristic (binned; an object's test is weighed as
+//! four box tests, so leaves mostly hold one object), then collapsed into a 4-wide tree whose
+//! nodes hold their children's boxes side by side, tested at once. The nearest hit's search
+//! enters the children nearest first and skips any put aside that starts beyond the hit found
+//! so far; shadow rays ask [`Geometry::occluded`], which stops at the first blocker. The box
+//! test is conservative: pbrt's padding of the far distance, and a ray running exactly in a
+//! face's plane counts as entering the box. Counters: `bvh_nodes` counts boxes tested (one per
+//! child a wide node holds), as it counted nodes visited in the binary tree.
 
 use crate::shapes::sphere::methods::{Method, PickPrecision, Ray as MRay, Sphere as MSphere};
 use glam::DVec3;
@@ -125,7 +134,8 @@ pub struct TestCounts {
     pub sphere_hits: u64,
     /// Intersection tests against every other primitive kind.
     pub other_tests: u64,
-    /// BVH nodes visited.
+    /// BVH nodes whose box was tested: each child of a 4-wide node visited (as each node
+    /// visited of the binary tree this renderer used before).
     pub bvh_nodes: u64,
     /// Rays sphere traced against an implicit shape, and their field evaluations.
     pub implicit_tests: u64,
@@ -187,14 +197,10 @@ impl Aabb {
     fn centre(self) -> DVec3 {
         (self.lo + self.hi) * 0.5
     }
-    /// Slab test with pbrt's far-distance padding (1 + 2γ₃).
-    #[inline]
-    fn hit(&self, o: DVec3, inv_d: DVec3, tmax: f64) -> bool {
-        let t0 = (self.lo - o) * inv_d;
-        let t1 = (self.hi - o) * inv_d;
-        let tn = t0.min(t1).max_element();
-        let tf = t0.max(t1).min_element() * (1.0 + 2.0 * 3.0 * f64::EPSILON);
-        tn <= tf && tf > 0.0 && tn < tmax
+    /// Half the surface area (the SAH's weight); 0 for an empty box.
+    fn half_area(self) -> f64 {
+        let e = (self.hi - self.lo).max(DVec3::ZERO);
+        e.x * e.y + e.y * e.z + e.z * e.x
     }
 }
 
@@ -387,6 +393,50 @@ struct Node {
     count: u32,
 }
 
+/// A node of the 4-wide tree the renderer walks: up to four children's boxes side by side, one
+/// lane each (structure of arrays, so that one box test covers the four lanes at once).
+#[derive(Clone, Copy, Debug)]
+struct Node4 {
+    /// Minimum corners: `lo[axis][lane]`.
+    lo: [[f64; 4]; 3],
+    /// Maximum corners: `hi[axis][lane]`.
+    hi: [[f64; 4]; 3],
+    /// Per lane: a leaf's first object, or an inner child's node index.
+    child: [u32; 4],
+    /// Per lane: a leaf's object count, or 0 for an inner child.
+    count: [u32; 4],
+    /// Lanes in use (the others hold boxes no ray enters).
+    lanes: u32,
+}
+
+impl Node4 {
+    /// The four lanes' slab tests at once, with pbrt's far-distance padding (1 + 2γ₃): the
+    /// entry distance (clamped at 0) of each lane the ray meets before `tmax`, `+∞` for the
+    /// others. A NaN slab distance (0·∞: the ray runs in a face's plane) leaves the interval as
+    /// it is, so such a ray counts as meeting the box.
+    #[inline(always)]
+    fn enter(&self, o: DVec3, inv_d: DVec3, tmax: f64) -> [f64; 4] {
+        // The interval starts as [0, tmax]; each slab narrows it. The updates are written as
+        // comparisons, so that a NaN loses and each is one min or max instruction
+        let (mut tn, mut tf) = ([0.0; 4], [tmax; 4]);
+        for k in 0..3 {
+            for i in 0..4 {
+                let a = (self.lo[k][i] - o[k]) * inv_d[k];
+                let b = (self.hi[k][i] - o[k]) * inv_d[k];
+                let (near, far) = if a > b { (b, a) } else { (a, b) };
+                tn[i] = if near > tn[i] { near } else { tn[i] };
+                tf[i] = if far < tf[i] { far } else { tf[i] };
+            }
+        }
+        let mut t = [f64::INFINITY; 4];
+        for i in 0..4 {
+            let met = tn[i] <= tf[i] * (1.0 + 2.0 * 3.0 * f64::EPSILON) && tn[i] < tmax;
+            t[i] = if met { tn[i] } else { f64::INFINITY };
+        }
+        t
+    }
+}
+
 /// One recorded ray–sphere test: origin, direction, centre, radius (as given to the method).
 pub type RecordedTest = [f64; 10];
 
@@ -397,7 +447,7 @@ pub struct Geometry {
     pub objects: Vec<Object>,
     /// The infinite planes, tested apart from the BVH.
     pub planes: Vec<Plane>,
-    nodes: Vec<Node>,
+    nodes: Vec<Node4>,
     /// Test every object for every ray, as renderers without acceleration did (seed 000's era),
     /// `passes` times over (a second pass changes no hit: it measures the tests' own cost).
     flat: bool,
@@ -409,13 +459,30 @@ pub struct Geometry {
 }
 
 impl Geometry {
-    /// Builds the BVH by median splits on the widest centroid axis (leaves of ≤ 4 objects).
-    pub fn new(mut objects: Vec<Object>, planes: Vec<Plane>) -> Geometry {
-        let mut nodes = vec![];
-        if !objects.is_empty() {
-            let n = objects.len();
-            build(&mut objects, 0, n, &mut nodes);
+    /// Builds the BVH with the surface area heuristic (binned, [`SAH_BINS`] bins per axis).
+    pub fn new(objects: Vec<Object>, planes: Vec<Plane>) -> Geometry {
+        let mut binary = vec![];
+        let mut items: Vec<Item> = objects
+            .iter()
+            .enumerate()
+            .map(|(k, o)| {
+                let b = bounds(&o.prim);
+                Item {
+                    b,
+                    c: b.centre(),
+                    k,
+                }
+            })
+            .collect();
+        if !items.is_empty() {
+            build(&mut items, 0, 0, &mut binary);
         }
+        let mut nodes = vec![];
+        if !binary.is_empty() {
+            widen(&binary, 0, &mut nodes);
+        }
+        // Objects in leaf order
+        let objects = items.iter().map(|it| objects[it.k]).collect();
         Geometry {
             objects,
             planes,
@@ -450,19 +517,16 @@ impl Geometry {
         self
     }
 
-    /// Tests one object, keeps the nearer hit, records the test if asked.
+    /// Tests object `k` (recording the test if asked): its `t` and unit normal, any sign of `t`.
     #[inline]
-    #[allow(clippy::too_many_arguments)]
-    fn test_object<F: PickPrecision>(
+    fn test<F: PickPrecision>(
         &self,
         f: SphereFn<F>,
         k: usize,
         o: DVec3,
         d: DVec3,
-        limit: &mut f64,
-        best: &mut Option<Hit>,
         counts: &mut TestCounts,
-    ) {
+    ) -> Option<(f64, DVec3)> {
         let obj = &self.objects[k];
         if let (Some((every, store)), Prim::Sphere { c, r }) = (&self.record, obj.prim) {
             if counts.sphere_tests.is_multiple_of(*every) {
@@ -471,15 +535,77 @@ impl Geometry {
                 }
             }
         }
-        if let Some((t, n)) = prim_hit::<F>(f, &obj.prim, o, d, counts, &self.marchers) {
-            if t > 0.0 && t < *limit {
-                *limit = t;
-                *best = Some(Hit {
-                    t,
-                    n,
-                    material: obj.material,
-                    object: k,
-                });
+        prim_hit::<F>(f, &obj.prim, o, d, counts, &self.marchers)
+    }
+
+    /// Walks the BVH, calling `leaf(objects, limit)` on each leaf whose box the ray enters
+    /// before `limit`; `leaf` may lower `limit`, or return `true` to stop. `NEAREST_FIRST`
+    /// visits the children hit in order of entry (the nearest hit's search); without it they go
+    /// in stored order (the any-hit search, for which order saves nothing and sorting costs).
+    #[inline]
+    fn traverse<const NEAREST_FIRST: bool>(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        limit: &mut f64,
+        counts: &mut TestCounts,
+        mut leaf: impl FnMut(std::ops::Range<usize>, &mut f64, &mut TestCounts) -> bool,
+    ) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let inv_d = d.recip();
+        // Children put aside (child, count, entry distance); three per level at most. Only the
+        // entries below `sp` are ever read, so the array is left uninitialised (zeroing it cost
+        // more than a box test per ray)
+        let mut stack = [const { std::mem::MaybeUninit::<(u32, u32, f64)>::uninit() }; STACK];
+        let mut sp = 0;
+        let (mut child, mut count) = (0u32, 0u32);
+        loop {
+            if count > 0 {
+                let start = child as usize;
+                if leaf(start..start + count as usize, limit, counts) {
+                    return;
+                }
+            } else {
+                // The four boxes at once; the lanes hit, nearest last
+                let node = &self.nodes[child as usize];
+                counts.bvh_nodes += node.lanes as u64;
+                let t = node.enter(o, inv_d, *limit);
+                let mut hits = [(0.0f64, 0u32, 0u32); 4];
+                let mut n = 0;
+                for (i, &ti) in t.iter().enumerate().take(node.lanes as usize) {
+                    if ti < f64::INFINITY {
+                        let mut j = n;
+                        while NEAREST_FIRST && j > 0 && hits[j - 1].0 < ti {
+                            hits[j] = hits[j - 1];
+                            j -= 1;
+                        }
+                        hits[j] = (ti, node.child[i], node.count[i]);
+                        n += 1;
+                    }
+                }
+                if n > 0 {
+                    for &(t, c, k) in &hits[..n - 1] {
+                        stack[sp].write((c, k, t));
+                        sp += 1;
+                    }
+                    (child, count) = (hits[n - 1].1, hits[n - 1].2);
+                    continue;
+                }
+            }
+            // The nearest child put aside that the ray still enters before `limit`
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                // SAFETY: every entry below the old `sp` was written above
+                let (c, k, t) = unsafe { stack[sp].assume_init() };
+                if t < *limit {
+                    (child, count) = (c, k);
+                    break;
+                }
             }
         }
     }
@@ -499,86 +625,240 @@ impl Geometry {
         // Planes
         for (i, pl) in self.planes.iter().enumerate() {
             counts.other_tests += 1;
-            let dn = d.dot(pl.n);
-            if dn != 0.0 {
-                let t = (pl.p - o).dot(pl.n) / dn;
-                if t > 0.0 && t < limit {
-                    limit = t;
-                    best = Some(Hit {
-                        t,
-                        n: pl.n,
-                        material: pl.material,
-                        object: usize::MAX - i,
-                    });
-                }
+            if let Some(t) = plane_t(pl, o, d).filter(|&t| t > 0.0 && t < limit) {
+                limit = t;
+                best = Some(Hit {
+                    t,
+                    n: pl.n,
+                    material: pl.material,
+                    object: usize::MAX - i,
+                });
             }
         }
-        // Flat list: every object
+        // Objects: keeps the nearer hit
+        let mut nearest = |ks: std::ops::Range<usize>, limit: &mut f64, counts: &mut TestCounts| {
+            for k in ks {
+                if let Some((t, n)) = self.test::<F>(f, k, o, d, counts) {
+                    if t > 0.0 && t < *limit {
+                        *limit = t;
+                        best = Some(Hit {
+                            t,
+                            n,
+                            material: self.objects[k].material,
+                            object: k,
+                        });
+                    }
+                }
+            }
+            false
+        };
         if self.flat {
             for _ in 0..self.passes {
-                for k in 0..self.objects.len() {
-                    self.test_object(f, k, o, d, &mut limit, &mut best, counts);
-                }
+                nearest(0..self.objects.len(), &mut limit, counts);
             }
-            return best;
-        }
-        // BVH traversal
-        if self.nodes.is_empty() {
-            return best;
-        }
-        let inv_d = d.recip();
-        let mut stack = [0u32; 64];
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            let idx = stack[sp];
-            let node = &self.nodes[idx as usize];
-            counts.bvh_nodes += 1;
-            if !node.b.hit(o, inv_d, limit) {
-                continue;
-            }
-            if node.count > 0 {
-                for k in node.start..node.start + node.count {
-                    self.test_object(f, k as usize, o, d, &mut limit, &mut best, counts);
-                }
-            } else if sp + 2 <= stack.len() {
-                // Median splits keep the depth near log2(n); 64 levels cover any real scene
-                stack[sp] = idx + 1;
-                stack[sp + 1] = node.start;
-                sp += 2;
-            }
+        } else {
+            self.traverse::<true>(o, d, &mut limit, counts, nearest);
         }
         best
     }
+
+    /// Whether some object or plane whose material `blocks` is hit with `t` in (0, tmax): the
+    /// shadow rays' any-hit query, which stops at the first such hit. Objects that do not block
+    /// are not tested (flat lists test every object, as for [`Geometry::intersect`]).
+    pub fn occluded<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        blocks: impl Fn(usize) -> bool,
+        counts: &mut TestCounts,
+    ) -> bool {
+        let f = F::pick(m);
+        for pl in &self.planes {
+            counts.other_tests += 1;
+            if blocks(pl.material) && plane_t(pl, o, d).is_some_and(|t| t > 0.0 && t < tmax) {
+                return true;
+            }
+        }
+        let mut hit = false;
+        if self.flat {
+            for _ in 0..self.passes {
+                for k in 0..self.objects.len() {
+                    let t = self.test::<F>(f, k, o, d, counts);
+                    hit |= blocks(self.objects[k].material)
+                        && t.is_some_and(|(t, _)| t > 0.0 && t < tmax);
+                }
+            }
+            return hit;
+        }
+        let mut limit = tmax;
+        self.traverse::<false>(o, d, &mut limit, counts, |ks, _, counts| {
+            hit = ks.into_iter().any(|k| {
+                blocks(self.objects[k].material)
+                    && self
+                        .test::<F>(f, k, o, d, counts)
+                        .is_some_and(|(t, _)| t > 0.0 && t < tmax)
+            });
+            hit
+        });
+        hit
+    }
 }
 
-fn build(objs: &mut [Object], start: usize, end: usize, nodes: &mut Vec<Node>) -> usize {
-    let b = objs[start..end]
-        .iter()
-        .fold(Aabb::empty(), |a, o| a.grow(bounds(&o.prim)));
+/// Where a ray meets a plane (`None` if parallel).
+#[inline]
+fn plane_t(pl: &Plane, o: DVec3, d: DVec3) -> Option<f64> {
+    let dn = d.dot(pl.n);
+    (dn != 0.0).then(|| (pl.p - o).dot(pl.n) / dn)
+}
+
+/// Bins per axis of the SAH build.
+const SAH_BINS: usize = 16;
+/// Cost of testing an object, in box tests (a node visit tests two boxes).
+const SAH_TEST_COST: f64 = 4.0;
+/// Deepest level of the tree: below it every node is a leaf (the traversal stack's size).
+const MAX_DEPTH: usize = 48;
+
+/// An object while building: bounds, centroid, index in the scene's list.
+#[derive(Clone, Copy)]
+struct Item {
+    b: Aabb,
+    c: DVec3,
+    k: usize,
+}
+
+/// Builds the subtree over `items` (reordered in place into leaf order, starting at object
+/// `first`); returns its node index. A node is split where the SAH finds the cheapest binned
+/// split, and kept as a leaf when that costs more than testing its objects (always above four
+/// objects unless the centroids coincide, and never below [`MAX_DEPTH`]).
+fn build(items: &mut [Item], first: usize, depth: usize, nodes: &mut Vec<Node>) -> usize {
+    let n = items.len();
+    let b = items.iter().fold(Aabb::empty(), |a, it| a.grow(it.b));
     let me = nodes.len();
     nodes.push(Node {
         b,
-        start: start as u32,
-        count: (end - start) as u32,
+        start: first as u32,
+        count: n as u32,
     });
-    if end - start <= 4 {
+    if n <= 1 || depth >= MAX_DEPTH {
         return me;
     }
-    // Split at the median along the widest axis of the centroids
-    let cb = objs[start..end].iter().fold(Aabb::empty(), |a, o| {
-        let c = bounds(&o.prim).centre();
-        a.grow(Aabb { lo: c, hi: c })
-    });
-    let axis = (cb.hi - cb.lo).max_position();
-    let mid = (start + end) / 2;
-    objs[start..end].select_nth_unstable_by(mid - start, |a, b| {
-        bounds(&a.prim).centre()[axis].total_cmp(&bounds(&b.prim).centre()[axis])
-    });
-    build(objs, start, mid, nodes);
-    let right = build(objs, mid, end, nodes);
-    nodes[me].start = right as u32;
+    // Cheapest binned split over the three axes of the centroids' box
+    let cb = items
+        .iter()
+        .fold(Aabb::empty(), |a, it| a.grow(Aabb { lo: it.c, hi: it.c }));
+    let bin = |axis: usize, c: DVec3| {
+        let (lo, ext) = (cb.lo[axis], cb.hi[axis] - cb.lo[axis]);
+        (((c[axis] - lo) / ext * SAH_BINS as f64) as usize).min(SAH_BINS - 1)
+    };
+    let mut best: Option<(f64, usize, usize)> = None;
+    for axis in 0..3 {
+        // Flat (or NaN) along this axis: no split there
+        let ext = cb.hi[axis] - cb.lo[axis];
+        if ext.is_nan() || ext <= 0.0 {
+            continue;
+        }
+        let mut boxes = [Aabb::empty(); SAH_BINS];
+        let mut counts = [0usize; SAH_BINS];
+        for it in items.iter() {
+            let i = bin(axis, it.c);
+            boxes[i] = boxes[i].grow(it.b);
+            counts[i] += 1;
+        }
+        // Right-side costs from the top bin down, then the left side upwards
+        let mut right = [0.0; SAH_BINS];
+        let (mut rb, mut rn) = (Aabb::empty(), 0);
+        for i in (1..SAH_BINS).rev() {
+            rb = rb.grow(boxes[i]);
+            rn += counts[i];
+            right[i] = rb.half_area() * rn as f64;
+        }
+        let (mut lb, mut ln) = (Aabb::empty(), 0);
+        for i in 1..SAH_BINS {
+            lb = lb.grow(boxes[i - 1]);
+            ln += counts[i - 1];
+            let cost = lb.half_area() * ln as f64 + right[i];
+            if ln > 0 && ln < n && best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, i));
+            }
+        }
+    }
+    let split = match best {
+        Some((cost, axis, i)) => {
+            let split_cost = 2.0 * b.half_area() + SAH_TEST_COST * cost;
+            let leaf_cost = SAH_TEST_COST * b.half_area() * n as f64;
+            if split_cost >= leaf_cost && n <= 4 {
+                return me;
+            }
+            // Partition by bin
+            let mut mid = 0;
+            for j in 0..n {
+                if bin(axis, items[j].c) < i {
+                    items.swap(j, mid);
+                    mid += 1;
+                }
+            }
+            mid
+        }
+        // Every centroid in one point: halves
+        None if n <= 4 => return me,
+        None => n / 2,
+    };
+    let (left, right) = items.split_at_mut(split);
+    build(left, first, depth + 1, nodes);
+    let r = build(right, first + split, depth + 1, nodes);
+    nodes[me].start = r as u32;
     nodes[me].count = 0;
+    me
+}
+
+/// Stack entries of the 4-wide traversal: three put aside per level.
+const STACK: usize = 3 * MAX_DEPTH;
+
+/// Turns binary node `i` (inner) into a 4-wide node: its children, with the inner one of
+/// largest area opened while there is room; returns the new node's index.
+fn widen(binary: &[Node], i: usize, out: &mut Vec<Node4>) -> usize {
+    // Children, or a lone leaf at the root
+    let mut kids = if binary[i].count > 0 {
+        vec![i]
+    } else {
+        vec![i + 1, binary[i].start as usize]
+    };
+    while kids.len() < 4 {
+        let inner = (0..kids.len())
+            .filter(|&j| binary[kids[j]].count == 0)
+            .max_by(|&a, &b| {
+                let area = |j: usize| binary[kids[j]].b.half_area();
+                area(a).total_cmp(&area(b))
+            });
+        let Some(j) = inner else { break };
+        let k = kids.swap_remove(j);
+        kids.extend([k + 1, binary[k].start as usize]);
+    }
+    let me = out.len();
+    // Unused lanes: a box at +∞, which no ray enters before a finite or infinite `tmax`
+    out.push(Node4 {
+        lo: [[f64::INFINITY; 4]; 3],
+        hi: [[f64::INFINITY; 4]; 3],
+        child: [0; 4],
+        count: [0; 4],
+        lanes: kids.len() as u32,
+    });
+    for (lane, &k) in kids.iter().enumerate() {
+        let b = binary[k].b;
+        for axis in 0..3 {
+            out[me].lo[axis][lane] = b.lo[axis];
+            out[me].hi[axis][lane] = b.hi[axis];
+        }
+        let (child, count) = if binary[k].count > 0 {
+            (binary[k].start, binary[k].count)
+        } else {
+            (widen(binary, k, out) as u32, 0)
+        };
+        out[me].child[lane] = child;
+        out[me].count[lane] = count;
+    }
     me
 }
 

@@ -81,25 +81,32 @@
 //!
 //! # Speed
 //!
-//! Against POV-Ray 3.7, measured side by side in one interleaved run: rayproof used the same CPU
-//! time as POV-Ray (CPU ratio 1.01 at 1024², 1 spp; 0.95 at 256², 64 spp), and was 2.1× faster in
-//! wall time only because POV-Ray used one core.
+//! What the profile showed (fan30, 1024², 1 spp, 3.2 M rays, `perf record` at a fixed sampling
+//! rate): with the median-split tree and leaves of up to four objects, 60 % of the CPU time was
+//! the sphere method (rtg7 in f64: 6.15 tests per ray, 94 % of them misses, because most rays
+//! entered leaves of four spheres) and 22 % the traversal with its per-object calls. The SAH
+//! tree of [`geom`] (leaves of one object where that is cheaper, 4-wide nodes tested at once,
+//! nearest child first, an any-hit query for shadow rays) brings that to 0.68 sphere tests and
+//! 9.75 boxes tested per ray (from 8.76 nodes), with the same image bit for bit; the profile is
+//! then about 40 % traversal, 20–25 % sphere tests, 10 % shading, and the rest camera rays, the
+//! EXR file and page faults. The image planes are filled in place, with no per-ray or per-row
+//! allocation.
 //!
-//! `scripts/bench-render` times rayproof alone, 5 renders each, and reports medians. On a 2-core
-//! machine: `fan30` at 1024×1024, 1 spp, depth 10, took a median of 0.274 s over 5 runs (0.313,
-//! 0.266, 0.267, 0.274, 0.297); the median meets the 0.3 s target, but single runs on the shared
-//! machine range from 0.26 to 0.31 s. What specialisation saves:
+//! The figures against POV-Ray 3.7 and Mitsuba 3 are in the README, from
+//! `scripts/bench-render`, which checks the images against each other before it prints a
+//! ratio. What specialisation saves, from the same run (2026-11-25, 2 cores, AMD EPYC; whole
+//! processes, CPU medians of 5 interleaved runs):
 //!
 //! | scene | specialised | every effect forced on | all-effects / specialised |
 //! |---|---:|---:|---:|
-//! | `diffuse` 256×256, 8×8 grid | 0.188 s | 0.186 s | 0.99× (saves −1.1 %) |
-//! | lone sphere 512×512, 4×4 grid (no shadow rays) | 0.140 s | 0.188 s | 1.34× (saves 25.5 %) |
+//! | `diffuse` 256×256, 8×8 grid | 0.329 s | 0.330 s | 1.00× |
+//! | lone sphere 512×512, 4×4 grid (no shadow rays) | 0.303 s | 0.384 s | 1.27× (saves 21 %) |
 //!
 //! - On the diffuse scene, specialisation saves nothing measurable. The specular code that the
 //!   forced kernel contains never runs there, because no material reaches it, so a diffuse-only
 //!   scene already pays nothing for it.
 //! - The saving comes when the analysis drops a whole kind of ray. A lone lit sphere cannot shadow
-//!   itself, so it gets no shadow rays, and that saves 25 %.
+//!   itself, so it gets no shadow rays, and that saves 21 % of the process's CPU time.
 
 pub mod export;
 pub mod geom;
@@ -653,16 +660,23 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     } else {
         ProgressBar::hidden()
     };
-    let rows: Vec<Planes> = (0..h)
-        .into_par_iter()
-        .map(|y| {
+    // The planes, filled row by row in place
+    let mut out: Planes = (
+        vec![[0f32; 3]; w * h],
+        vec![0f32; w * h],
+        vec![[0f32; 3]; w * h],
+        vec![0f32; w * h],
+        RayCounts::default(),
+    );
+    out.4 = out
+        .0
+        .par_chunks_mut(w)
+        .zip(out.1.par_chunks_mut(w))
+        .zip(out.2.par_chunks_mut(w))
+        .zip(out.3.par_chunks_mut(w))
+        .enumerate()
+        .map(|(y, (((beauty, depth), normal), rays))| {
             let mut counts = RayCounts::default();
-            let mut row = (
-                vec![[0f32; 3]; w],
-                vec![0f32; w],
-                vec![[0f32; 3]; w],
-                vec![0f32; w],
-            );
             for x in 0..w {
                 let before = counts.total();
                 let (mut sum, mut dsum, mut nsum, mut hits) = (DVec3::ZERO, 0.0, DVec3::ZERO, 0u32);
@@ -685,38 +699,21 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                     }
                 }
                 let k = 1.0 / (grid * grid) as f64;
-                row.0[x] = (sum * k).as_vec3().to_array();
-                row.1[x] = if hits > 0 {
-                    (dsum / hits as f64) as f32
-                } else {
-                    0.0
-                };
-                row.2[x] = if hits > 0 {
-                    (nsum / hits as f64).as_vec3().to_array()
-                } else {
-                    [0.0; 3]
-                };
-                row.3[x] = (counts.total() - before) as f32;
+                beauty[x] = (sum * k).as_vec3().to_array();
+                if hits > 0 {
+                    depth[x] = (dsum / hits as f64) as f32;
+                    normal[x] = (nsum / hits as f64).as_vec3().to_array();
+                }
+                rays[x] = (counts.total() - before) as f32;
             }
             bar.inc(1);
-            (row.0, row.1, row.2, row.3, counts)
+            counts
         })
-        .collect();
+        .reduce(RayCounts::default, |mut a, b| {
+            a += b;
+            a
+        });
     bar.finish_and_clear();
-    let mut out: Planes = (
-        Vec::with_capacity(w * h),
-        Vec::with_capacity(w * h),
-        Vec::with_capacity(w * h),
-        Vec::with_capacity(w * h),
-        RayCounts::default(),
-    );
-    for r in rows {
-        out.0.extend(r.0);
-        out.1.extend(r.1);
-        out.2.extend(r.2);
-        out.3.extend(r.3);
-        out.4 += r.4;
-    }
     out
 }
 
@@ -922,7 +919,9 @@ pub fn fresnel(eta: f64, cos_i: f64, cos_t: f64) -> f64 {
     0.5 * (rs * rs + rp * rp)
 }
 
-/// Is anything between `o` and the light at distance `dist`? Glass may let the ray through.
+/// Is anything between `o` and the light at distance `dist`? Glass may let the ray through:
+/// with transmissive glass shadows (POV-Ray's rule) shadow rays go straight through glass, so
+/// only other materials block them. An any-hit query: it stops at the first blocker.
 fn occluded<F: PickPrecision>(
     ctx: &Ctx,
     o: DVec3,
@@ -930,28 +929,10 @@ fn occluded<F: PickPrecision>(
     dist: f64,
     counts: &mut RayCounts,
 ) -> bool {
-    let mut o = o;
-    let mut left = dist;
-    loop {
-        let Some(h) = ctx
-            .geo
-            .intersect::<F>(ctx.method, o, wl, left, &mut counts.tests)
-        else {
-            return false;
-        };
-        let glass = matches!(ctx.materials[h.material], Material::Glass { .. });
-        if !(glass && ctx.glass_shadows == GlassShadows::Transmissive) {
-            return true;
-        }
-        // POV-Ray's rule: continue straight through the glass, unrefracted
-        let p = o + h.t * wl;
-        let step = h.t + ctx.ulp16 * p.abs().max_element().max(1.0);
-        o += wl * step;
-        left -= step;
-        if left <= 0.0 {
-            return false;
-        }
-    }
+    let transmissive = ctx.glass_shadows == GlassShadows::Transmissive;
+    let blocks = |m: usize| !(transmissive && matches!(ctx.materials[m], Material::Glass { .. }));
+    ctx.geo
+        .occluded::<F>(ctx.method, o, wl, dist, blocks, &mut counts.tests)
 }
 
 /// The seed paper's budget (m+1)·d·M·N beside the measured counts.
