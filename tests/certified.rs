@@ -139,6 +139,53 @@ fn quick_phase_enclosures_contain_the_exact_root() {
     }
 }
 
+/// The near-surface tier's Newton step (`f64` inputs) checked against MPFR's root on the classes
+/// it serves: every enclosure contains the root; and teeth: cut to 1/1000 they miss it.
+#[test]
+fn near_surface_enclosures_contain_the_exact_root() {
+    use rayproof::shapes::sphere::certified::near_surface_step;
+    use rug::Float;
+    let (mut n, mut bad, mut weak_bad) = (0, 0, 0);
+    for class in [Class::OnSurface, Class::Huge, Class::Tangent, Class::Inside] {
+        for case in cases::<f64>(class).take(1500) {
+            let Quick::Hit { th, tl, err } = quick_phase(&case) else {
+                continue;
+            };
+            let Some((th, tl, err)) = near_surface_step(&case, th, tl, err) else {
+                continue;
+            };
+            let exact = Exact::new(&case);
+            let (t1, t2) = root_enclosures(&exact, 400);
+            let root = if exact.verdict() == Verdict::Near {
+                t1
+            } else {
+                t2
+            };
+            let centre = Float::with_val(400, th) + tl;
+            let inside = |e: f64| {
+                let lo = Float::with_val(400, &centre - e);
+                let hi = Float::with_val(400, &centre + e);
+                lo <= root.lo && root.hi <= hi
+            };
+            n += 1;
+            if !inside(err) {
+                bad += 1;
+                eprintln!("  missed: {}", case.probe_args());
+            }
+            weak_bad += !inside(err * 1e-3) as usize;
+        }
+    }
+    eprintln!(
+        "near-surface step: {n} enclosures, {bad} miss the root; cut to 1/1000, {weak_bad} miss it"
+    );
+    assert!(n > 3000, "only {n} near-surface enclosures");
+    assert_eq!(bad, 0, "a near-surface enclosure misses the exact root");
+    assert!(
+        weak_bad > n / 100,
+        "teeth: shrunken near-surface bounds went unnoticed"
+    );
+}
+
 /// Teeth: the same check with every bound cut to 1/1000 finds enclosures that miss the root,
 /// so the check above would see a bound that is too small.
 #[test]

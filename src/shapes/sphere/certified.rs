@@ -158,17 +158,37 @@ fn after_first_look_cold<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
     after_first_look(case)
 }
 
-/// [`certified`] after the first look: the quick phase, then the accurate phase. The batch
+/// [`certified`] after the first look: the quick tiers, then the accurate phase. The batch
 /// kernel calls it for the tests its first look left [`UNSURE`].
 #[inline(always)]
 pub fn after_first_look<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
+    quick_tiers(case)
+        .unwrap_or_else(|| accurate(case))
+        .map(|t| SphereHit { t, enclosure: None })
+}
+
+/// The quick phase, and for `f64` inputs whose enclosure does not decide the rounding the
+/// near-surface refinement ([`near_surface`]): `Some` of the answer (`None` for a miss) when
+/// they decide, `None` when only the accurate phase can.
+#[inline(always)]
+fn quick_tiers<F: Real>(case: &Case<F>) -> Option<Option<F>> {
     match quick_phase(case) {
-        Quick::Miss => None,
+        Quick::Miss => Some(None),
         Quick::Hit { th, tl, err } => match round_certain::<F>(th, tl, err) {
-            Some(t) => Some(SphereHit { t, enclosure: None }),
-            None => accurate(case),
+            Some(t) => Some(Some(t)),
+            None if F::MANT_BITS == 53 => {
+                let w = |v: [F; 3]| v.map(|x| x.to_f64());
+                let c64 = Case {
+                    o: w(case.o),
+                    d: w(case.d),
+                    c: w(case.c),
+                    r: case.r.to_f64(),
+                };
+                near_surface(&c64, th, tl, err).map(|t| Some(F::from_f64(t)))
+            }
+            None => None,
         },
-        Quick::Unsure => accurate(case),
+        Quick::Unsure => None,
     }
 }
 
@@ -393,13 +413,9 @@ pub fn first_look<F: Real>(case: &Case<F>, k: Terms) -> FirstLook<F> {
     }
 }
 
-/// Whether the quick phase alone answers this case (`false`: the accurate phase runs).
+/// Whether the quick tiers answer this case (`false`: the accurate phase runs).
 pub fn quick_phase_decides<F: Real>(case: &Case<F>) -> bool {
-    match quick_phase(case) {
-        Quick::Miss => true,
-        Quick::Hit { th, tl, err } => round_certain::<F>(th, tl, err).is_some(),
-        Quick::Unsure => false,
-    }
+    quick_tiers(case).is_some()
 }
 
 #[inline(always)]
@@ -414,8 +430,8 @@ fn case_of<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Case<F> {
 
 /// The accurate phase: the oracle's exact verdict and correctly rounded root.
 #[cold]
-fn accurate<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
-    nearest_root(case).map(|t| SphereHit { t, enclosure: None })
+fn accurate<F: Real>(case: &Case<F>) -> Option<F> {
+    nearest_root(case)
 }
 
 /// The quick phase in `f64` (see the module docs for every bound), before the rounding check.
@@ -434,14 +450,7 @@ pub fn quick_phase<F: Real>(case: &Case<F>) -> Quick {
     // f64 inputs: exact power-of-two scales, positions and direction apart (t scales by 2^(kd−kp))
     let mut back = 0;
     if F::MANT_BITS == 53 {
-        let mx = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let kp = -ilogb(mx(&[o[0], o[1], o[2], c[0], c[1], c[2], r]));
-        let kd = -ilogb(mx(&d));
-        o = o.map(|x| mul_pow2(x, kp));
-        c = c.map(|x| mul_pow2(x, kp));
-        r = mul_pow2(r, kp);
-        d = d.map(|x| mul_pow2(x, kd));
-        back = kd - kp;
+        (o, d, c, r, back) = scaled(o, d, c, r);
     }
     // The quadratic's coefficients, and the magnitudes their bounds need
     let f = [o[0] - c[0], o[1] - c[1], o[2] - c[2]];
@@ -544,6 +553,29 @@ pub fn quick_phase<F: Real>(case: &Case<F>) -> Quick {
         return Quick::Hit { th, tl, err };
     }
     Quick::Hit { th, tl, err }
+}
+
+/// The inputs scaled by exact powers of two, positions (`o`, `c`, `r`) and the direction
+/// apart, so that the largest of each is in `[1, 2)`; `t` of the scaled inputs times
+/// `2^back` is `t` of the inputs. Finite inputs with `r > 0` and `d ≠ 0`.
+#[inline(always)]
+#[allow(clippy::type_complexity)]
+fn scaled(
+    o: [f64; 3],
+    d: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+) -> ([f64; 3], [f64; 3], [f64; 3], f64, i32) {
+    let mx = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let kp = -ilogb(mx(&[o[0], o[1], o[2], c[0], c[1], c[2], r]));
+    let kd = -ilogb(mx(&d));
+    (
+        o.map(|x| mul_pow2(x, kp)),
+        d.map(|x| mul_pow2(x, kd)),
+        c.map(|x| mul_pow2(x, kp)),
+        mul_pow2(r, kp),
+        kd - kp,
+    )
 }
 
 /// `P(t) = |f + t·d|² − r²` and `P'(t) = 2 d·(f + t·d)` from the inputs (`f = o − c` exactly),
@@ -659,6 +691,118 @@ fn split_at_zero(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> Residual {
     }
 }
 
+/// Two passes of Knuth's cascade over `v` (Ogita, Rump & Oishi's `VecSum`, which keeps the
+/// exact sum), then the plain sum of what is left below the last partial sum: the exact sum of
+/// the input terms lies within `err` of `hi + lo`. After two passes the leftovers are at most
+/// `n²u²·Σ|vᵢ| + u·|sum|` in all, so `err` is about `n³u³·Σ|vᵢ| + n·u²·|sum|`: a sum that
+/// cancels to a tiny fraction of its terms keeps about 100 bits of itself.
+fn sum2(v: &mut [f64]) -> (f64, f64, f64) {
+    let n = v.len();
+    for _ in 0..2 {
+        for i in 1..n {
+            (v[i], v[i - 1]) = two_sum(v[i], v[i - 1]);
+        }
+    }
+    let (mut lo, mut mag) = (0.0, 0.0);
+    for &x in &v[..n - 1] {
+        lo += x;
+        mag += x.abs();
+    }
+    (v[n - 1], lo, (n as f64 + 1.0) * U * mag * 1.01)
+}
+
+/// The residual in the form `P(t) = C + t·(2B + A·t)`, with `C`, `B` and `A` each within about
+/// `2⁻¹⁰⁰` of itself ([`sum2`] of their exact products: `o − c = fh + fl` by Knuth's sum, every
+/// product split by Dekker's). Near an origin on the surface this form's error is a tiny
+/// fraction of `|C|`, where `|f + t·d|² − r²` ([`residual`]) is off by about `2⁻¹⁰⁶·r²`, far
+/// more than `|C|` when the origin is within `2⁻⁵⁰` of a large sphere. Scaled `f64` inputs
+/// (every magnitude below 4, so nothing overflows; an underflowed product is within [`ETA`]).
+fn residual_near(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, t: f64) -> Residual {
+    // C = Σ (fh + fl)² − r², A = Σ d², B = Σ d·(fh + fl), from exact products
+    let mut cv = [0.0; 20];
+    let mut av = [0.0; 6];
+    let mut bv = [0.0; 12];
+    let (rr, rre) = two_prod_split(r, r);
+    (cv[3], cv[19]) = (-rr, -rre);
+    for i in 0..3 {
+        let (fh, fl) = two_sum(o[i], -c[i]);
+        // The three large squares first (they cancel against r²), then the small parts
+        (cv[i], cv[4 + i]) = two_prod_split(fh, fh);
+        (cv[7 + i], cv[10 + i]) = two_prod_split(2.0 * fh, fl);
+        (cv[13 + i], cv[16 + i]) = two_prod_split(fl, fl);
+        (av[i], av[3 + i]) = two_prod_split(d[i], d[i]);
+        (bv[i], bv[3 + i]) = two_prod_split(d[i], fh);
+        (bv[6 + i], bv[9 + i]) = two_prod_split(d[i], fl);
+    }
+    let (ch, cl, ec) = sum2(&mut cv);
+    let (ah, al, ea) = sum2(&mut av);
+    let (bh, bl, eb) = sum2(&mut bv);
+    // P(t) = C + 2B·t + A·t², as exact products where it matters and rounded ones (within u)
+    let (tt, tte) = two_prod_split(t, t);
+    let (p1, p1e) = two_prod_split(2.0 * bh, t);
+    let (p2, p2e) = two_prod_split(ah, tt);
+    let rounded = [2.0 * bl * t, ah * tte, al * tt];
+    let mut pv = [ch, cl, p1, p1e, p2, p2e, rounded[0], rounded[1], rounded[2]];
+    let (ph, pl, esum) = sum2(&mut pv);
+    let p = ph + pl;
+    let ta = t.abs();
+    let ep = esum
+        + ec
+        + 2.0 * ta * eb
+        + tt * ea
+        + 1.01 * U * rounded.iter().map(|x| x.abs()).sum::<f64>()
+        + (al * tte).abs() * 1.01
+        + U * p.abs()
+        + ETA;
+    // P'(t) = 2(B + A·t), to a few ulps
+    let dp = 2.0 * (bh + ah * t);
+    let edp =
+        2.0 * (eb + bl.abs() + ta * (ea + al.abs()) + 3.01 * U * (bh.abs() + (ah * t).abs())) + ETA;
+    Residual {
+        p,
+        ep: ep * SAFETY,
+        dp,
+        edp,
+    }
+}
+
+/// Fourth tier, `f64` inputs: the quick phase's enclosure `[th + tl ± err]` refined by up to two
+/// Newton steps with [`residual_near`] ([`near_surface_step`]), for an origin so near the
+/// surface that the quick phase's residual cannot tell the rounding. The correctly rounded
+/// `t`, or `None` (the accurate phase decides).
+#[cold]
+#[inline(never)]
+fn near_surface(case: &Case<f64>, th: f64, tl: f64, err: f64) -> Option<f64> {
+    let (mut th, mut tl, mut err) = (th, tl, err);
+    for _ in 0..2 {
+        (th, tl, err) = near_surface_step(case, th, tl, err)?;
+        if let Some(t) = round_certain::<f64>(th, tl, err) {
+            return Some(t);
+        }
+    }
+    None
+}
+
+/// One Newton step of the near-surface tier from the enclosure `[th + tl ± err]` of a hit's
+/// root (of `f64` inputs): the new enclosure, or `None` if the step is not defined (the slope
+/// is not certain, or `th` does not scale exactly). Public for the tests, which check it
+/// against MPFR's root.
+pub fn near_surface_step(case: &Case<f64>, th: f64, tl: f64, err: f64) -> Option<(f64, f64, f64)> {
+    let (o, d, c, r, back) = scaled(case.o, case.d, case.c, case.r);
+    // The enclosure in the scaled coordinates (exact, or give up)
+    let t = mul_pow2(th, -back);
+    if mul_pow2(t, back) != th || !(t > 0.0) {
+        return None;
+    }
+    let e = mul_pow2(err + tl.abs() * (1.0 + 2.0 * U), -back) + ETA;
+    let a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    let (th, tl, e) = newton_with(residual_near(o, d, c, r, t), a, t, e)?;
+    // Back to the inputs' scale (exact unless it over- or underflows, which the rounding catches)
+    let k = |x: f64| mul_pow2(x, back);
+    let (th, tl, e) = (k(th), k(tl), k(e) + ETA);
+    (th.is_finite() && e.is_finite()).then_some((th, tl, e))
+}
+
 /// One Newton step for `P(t) = |f + t·d|² − r²` from `t` (within `err` of the root), the
 /// residual in double-double ([`residual`]). Returns the new root as `th + tl` and its bound.
 ///
@@ -675,7 +819,13 @@ fn newton(
     t: f64,
     err: f64,
 ) -> Option<(f64, f64, f64)> {
-    let z = residual(o, d, c, r, t);
+    newton_with(residual(o, d, c, r, t), a, t, err)
+}
+
+/// [`newton`] from a residual `z` at `t` (its value, slope and their bounds) and the
+/// quadratic's leading coefficient `a` (within `5u` of `A`).
+#[inline(always)]
+fn newton_with(z: Residual, a: f64, t: f64, err: f64) -> Option<(f64, f64, f64)> {
     let slope = z.dp.abs() - z.edp;
     if !(slope > 0.0) {
         return None;
