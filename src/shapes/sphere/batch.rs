@@ -243,9 +243,10 @@ pub trait BatchMethod {
 }
 
 /// The correctly rounded method ([`methods::certified`]): the lanes run its first look
-/// (`f32` inputs; [`certified::first_look_lane`]), and the tests it leaves [`certified::UNSURE`]
-/// (and every `f64` test, for which there is no lane form) are finished by the scalar method's
-/// later phases, so each answer is the scalar method's, bit for bit.
+/// ([`certified::first_look_lane`] for `f32` inputs; for `f64` inputs only its certain misses,
+/// [`certified::first_look_lane_f64`]), and the tests it leaves [`certified::UNSURE`] are
+/// finished by the scalar method's later phases, so each answer is the scalar method's, bit
+/// for bit.
 ///
 /// [`methods::certified`]: super::methods::certified
 pub struct Certified;
@@ -258,12 +259,12 @@ impl BatchMethod for Certified {
     }
     #[inline(always)]
     fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
-        if F::MANT_BITS != 24 {
-            return F::from_f64(certified::UNSURE);
-        }
         let w = |v: V<F>| v.map(|x| x.to_f64());
-        let t = certified::first_look_lane(w(o), w(d), w(c), r.to_f64(), certified::Terms::PROVED);
-        F::from_f64(t)
+        F::from_f64(if F::MANT_BITS == 24 {
+            certified::first_look_lane(w(o), w(d), w(c), r.to_f64(), certified::Terms::PROVED)
+        } else {
+            certified::first_look_lane_f64(w(o), w(d), w(c), r.to_f64())
+        })
     }
     fn finish<F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
         // The open tests, through the quick and accurate phases

@@ -371,6 +371,19 @@ pub fn first_look_lane(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, k: Terms) 
     }
 }
 
+/// The first look for one test of `f64` inputs, branch-free: NaN for a certain miss (the same
+/// tests as the scalar method's, with the underflow allowance), else [`UNSURE`] (there is no
+/// certain hit without the quick phase's Newton steps).
+#[inline(always)]
+pub fn first_look_lane_f64(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> f64 {
+    let l = look(o, d, c, r);
+    if l.missed::<true>() | l.behind::<true>() {
+        f64::NAN
+    } else {
+        UNSURE
+    }
+}
+
 /// The first look, for `f32` inputs: the quadratic in `f64` with the textbook discriminant
 /// `Δ = B² − A·C` and one test, `(11·fr/|C| + 48·Q/(√Δ·m))·2u·t < dist` with `fr = F + r²`,
 /// `Q = A·fr`, `m = |B| + √Δ` and `dist` the distance from `t` to the nearest `f32` rounding
