@@ -151,6 +151,7 @@
 
 pub mod check;
 pub mod field;
+pub mod lipschitz;
 pub mod march;
 pub mod mpu;
 pub mod subdiv;

@@ -84,6 +84,7 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use glam::DVec3;
+use super::lipschitz::{CellBound, LocalBounds};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -165,8 +166,10 @@ pub struct MpuStats {
     pub shell_min: f64,
 }
 
-/// Safety factor on the measured gradient maximum.
+/// Safety factor on the measured gradient maximum (the baseline's global bound).
 pub const LIPSCHITZ_SAFETY: f64 = 1.5;
+/// Cells per axis of the local Lipschitz grid per cell of the evaluation grid.
+pub const LIPSCHITZ_REFINE: usize = 3;
 /// Grid resolution per axis of the Lipschitz measurement.
 pub const LIPSCHITZ_GRID: usize = 64;
 /// `bounds()` = the points' bounding box grown by this fraction of its diagonal per side.
@@ -223,6 +226,13 @@ impl Local {
             2.0 * a[1] * v.y + a[3] * v.x + a[5] * v.z,
             2.0 * a[2] * v.z + a[4] * v.x + a[5] * v.y,
         )
+    }
+    /// `‖H‖_F`, an upper bound of the Hessian's spectral norm.
+    fn hess_norm(&self) -> f64 {
+        let a = &self.a;
+        (4.0 * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+            + 2.0 * (a[3] * a[3] + a[4] * a[4] + a[5] * a[5]))
+            .sqrt()
     }
     /// Q at `p` (with the linear extension).
     #[inline(always)]
@@ -287,6 +297,10 @@ pub struct Mpu {
     hi: DVec3,
     floor: f64,
     lipschitz: f64,
+    /// Proved lower bound of `Σ wᵢ` at every point of `bounds()` (0 when `alpha ≤ 1/2`).
+    w_floor: f64,
+    /// Proved local Lipschitz bounds over `bounds()`.
+    local: Option<LocalBounds>,
     /// Evaluation grid: `gn` cells per axis over `bounds()`; cell `i` lists
     /// `list[start[i]..start[i+1]]`.
     gn: usize,
@@ -906,6 +920,13 @@ impl Mpu {
             hi,
             floor: 0.5 * margin,
             lipschitz: 1.0,
+            // A leaf cell's ball (R ≥ alpha·diagonal) reaches t = 1.5·|x − c|/R ≤ 0.75/alpha
+            w_floor: if opts.alpha > 0.5 {
+                bspline(0.75 / opts.alpha).0 * (1.0 - 1e-9)
+            } else {
+                0.0
+            },
+            local: None,
             gn: 1,
             ginv: DVec3::ONE,
             start: vec![],
@@ -914,6 +935,9 @@ impl Mpu {
         };
         mpu.build_grid();
         mpu.measure_lipschitz(points, &nrm);
+        let gn = mpu.gn * LIPSCHITZ_REFINE;
+        let local = LocalBounds::build((lo, hi), [gn; 3], 1.0, |a, b| mpu.box_bound(a, b));
+        mpu.local = Some(local);
         mpu
     }
 
@@ -1178,6 +1202,141 @@ impl Mpu {
             let f = swq / sw;
             (f, (gwq - f * gw) / sw)
         })
+    }
+
+    /// The proved `(sup |∇f|, evaluation error)` over the box `[blo, bhi] ⊂ bounds()` (module
+    /// doc, "Local Lipschitz bounds").
+    fn box_bound(&self, blo: DVec3, bhi: DVec3) -> CellBound {
+        // The local fits whose ball may meet the box: every evaluation cell it touches, padded
+        let pad = 1e-9 * (self.hi - self.lo).max_element();
+        let m = (self.gn - 1) as f64;
+        let idx = |v: DVec3| ((v - self.lo) * self.ginv).clamp(DVec3::ZERO, DVec3::splat(m));
+        let (i0, i1) = (idx(blo - pad), idx(bhi + pad));
+        let mut cand: Vec<u32> = vec![];
+        for k in i0.z as usize..=i1.z as usize {
+            for j in i0.y as usize..=i1.y as usize {
+                for i in i0.x as usize..=i1.x as usize {
+                    let c = (k * self.gn + j) * self.gn + i;
+                    cand.extend(&self.list[self.start[c] as usize..self.start[c + 1] as usize]);
+                }
+            }
+        }
+        cand.sort_unstable();
+        cand.dedup();
+        let (x0, r) = ((blo + bhi) * 0.5, (bhi - blo).length() * 0.5);
+        // Per fit i: Q̃ᵢ(x₀), ∇Q̃ᵢ(x₀) and its rounding, Kᵢ = 3‖Hᵢ‖_F, sup |∇wᵢ|, inf wᵢ, and the
+        // scale Tᵢ of the terms of Q̃ᵢ over the box
+        struct Fit {
+            v: f64,
+            g: DVec3,
+            gerr: f64,
+            k: f64,
+            dw: f64,
+            wlo: f64,
+            whi: f64,
+            t: f64,
+        }
+        let fits: Vec<Fit> = cand
+            .iter()
+            .filter_map(|&li| {
+                let l = &self.locals[li as usize];
+                // Distances from the weight centre to the box: nearest, farthest
+                let near = (blo - l.c).max(l.c - bhi).max(DVec3::ZERO).length();
+                if near * near >= l.r2 * (1.0 + 1e-9) {
+                    return None;
+                }
+                let far = (blo - l.c).abs().max((bhi - l.c).abs()).length();
+                let (tmin, tmax) = (near * l.s, far * l.s);
+                // |b'(t)| rises as 2t to 1 at t = 1/2, then falls as 1.5 − t
+                let db = if tmax < 0.5 {
+                    2.0 * tmax
+                } else if tmin > 0.5 {
+                    (1.5 - tmin).max(0.0)
+                } else {
+                    1.0
+                };
+                let wlo = (bspline(tmax).0 * (1.0 - 1e-9) - 1e-15).max(0.0);
+                let whi = bspline(tmin).0 * (1.0 + 1e-9) + 1e-15;
+                let hn = l.hess_norm();
+                let zmax = (blo - l.m).abs().max((bhi - l.m).abs()).length();
+                let zeta = zmax.min(l.rho);
+                let aabs: f64 = l.a.iter().map(|x| x.abs()).sum();
+                let t = l.k.abs() + l.b.length() * zmax + aabs * zeta * zeta + hn * zeta * zmax;
+                let (v, g) = l.q_grad(x0);
+                Some(Fit {
+                    v,
+                    g,
+                    // The computed gradient's rounding (~30 roundings of terms ≤ this scale)
+                    gerr: 1e-12 * (l.b.length() + 3.0 * hn * zmax),
+                    k: 3.0 * hn,
+                    dw: db * l.s,
+                    wlo,
+                    whi,
+                    t,
+                })
+            })
+            .collect();
+        // Evaluation error: n + 100 roundings of terms no larger than the largest Tᵢ, 4× over
+        let tmax = fits.iter().map(|f| f.t).fold(0.0, f64::max);
+        let err = 4.0 * (fits.len() as f64 + 100.0) * f64::EPSILON * 0.5 * tmax;
+        // Σ wᵢ ≥ the weights' lower bounds, and ≥ w_floor anywhere in bounds()
+        let wsum = fits.iter().map(|f| f.wlo).sum::<f64>().max(self.w_floor);
+        if wsum <= 0.0 {
+            return CellBound {
+                lipschitz: f64::INFINITY,
+                error: err,
+                zero_free: false,
+            };
+        }
+        // The shares λⱼ = wⱼ/W lie in [0, whiⱼ/W_lo] and sum to 1
+        let cap: Vec<f64> = fits.iter().map(|f| (f.whi / wsum).min(1.0)).collect();
+        let mut order: Vec<(f64, f64)> = Vec::with_capacity(fits.len());
+        // The largest Σ λⱼ·vⱼ over such shares: fill the largest vⱼ first
+        let mut mix = |vals: &mut dyn Iterator<Item = f64>| -> f64 {
+            order.clear();
+            order.extend(vals.zip(cap.iter().copied()));
+            order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            let (mut left, mut sum) = (1.0f64, 0.0);
+            for &(v, c) in &order {
+                let take = c.min(left);
+                sum += take * v;
+                left -= take;
+                if left <= 0.0 {
+                    break;
+                }
+            }
+            // Rounding of the shares: the unfilled remainder at the smallest value is ≥ 0
+            sum * (1.0 + 1e-12)
+        };
+        // ∇f = Σ λᵢ∇Q̃ᵢ + Σ ∇wᵢ(Q̃ᵢ − f)/W, with |Q̃ᵢ − f| = |Σⱼ λⱼ(Q̃ᵢ − Q̃ⱼ)|
+        let gmax = mix(&mut fits.iter().map(|a| a.g.length() + a.gerr + a.k * r));
+        let mut spread = 0.0;
+        for a in &fits {
+            if a.dw == 0.0 {
+                continue;
+            }
+            let d = mix(&mut fits.iter().map(|b| {
+                (a.v - b.v).abs()
+                    + 2.0 * err
+                    + ((a.g - b.g).length() + a.gerr + b.gerr) * r
+                    + 0.5 * (a.k + b.k) * r * r
+            }));
+            spread += a.dw * d;
+        }
+        // f's range: a mix of the fits' ranges Q̃ⱼ(x₀) ± (|∇Q̃ⱼ(x₀)|·r + Kⱼr²/2)
+        let reach = |f: &Fit| (f.g.length() + f.gerr) * r + 0.5 * f.k * r * r + err;
+        let fmax = mix(&mut fits.iter().map(|f| f.v + reach(f)));
+        let fmin = -mix(&mut fits.iter().map(|f| -f.v + reach(f)));
+        CellBound {
+            lipschitz: gmax + spread / wsum,
+            error: err,
+            zero_free: fmin > err || fmax < -err,
+        }
+    }
+
+    /// The proved local Lipschitz bounds over `bounds()`.
+    pub fn local_bounds(&self) -> &LocalBounds {
+        self.local.as_ref().expect("built by fit")
     }
 
     /// The implicit: **positive outside**, negative inside, ≈ signed distance near the
