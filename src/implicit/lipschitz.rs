@@ -53,6 +53,18 @@ pub struct CellBound {
     pub error: f64,
     /// `f` has no zero in the box (its range over the box, widened by `error`, excludes 0).
     pub zero_free: bool,
+    /// A Lipschitz constant of `∇f` over the box (a bound on `‖∇²f‖` where it exists).
+    pub curvature: f64,
+    /// A bound on the rounding error of the computed `|∇f|` in the box.
+    pub gradient_error: f64,
+}
+
+/// A cell's `(L, e, H, g_e)`: Lipschitz bound, evaluation error, curvature, gradient error.
+type Quad = [f64; 4];
+
+#[inline]
+fn qmax(a: Quad, b: Quad) -> Quad {
+    [a[0].max(b[0]), a[1].max(b[1]), a[2].max(b[2]), a[3].max(b[3])]
 }
 
 /// Rings of zero-free cells counted around a cell (the largest empty-block step, in cells).
@@ -63,24 +75,23 @@ const MAX_RINGS: u8 = 64;
 struct Level {
     dims: [usize; 3],
     delta: f64,
-    /// Per cell: the maxima of `(L, e)` over its 3×3×3 neighbourhood.
-    near: Vec<(f64, f64)>,
+    /// Per cell: the maxima of its [`Quad`] over its 3×3×3 neighbourhood.
+    near: Vec<Quad>,
 }
 
 impl Level {
     /// The level of `raw` per-cell bounds on a `dims` grid whose cells are `h` wide.
-    fn new(raw: &[(f64, f64)], dims: [usize; 3], h: DVec3) -> Level {
+    fn new(raw: &[Quad], dims: [usize; 3], h: DVec3) -> Level {
         let near = (0..raw.len())
             .into_par_iter()
             .map(|i| {
                 let c = [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])];
                 let r = |k: usize| c[k].saturating_sub(1)..=(c[k] + 1).min(dims[k] - 1);
-                let mut m = (0.0f64, 0.0f64);
+                let mut m = [0.0; 4];
                 for z in r(2) {
                     for y in r(1) {
                         for x in r(0) {
-                            let (l, e) = raw[(z * dims[1] + y) * dims[0] + x];
-                            m = (m.0.max(l), m.1.max(e));
+                            m = qmax(m, raw[(z * dims[1] + y) * dims[0] + x]);
                         }
                     }
                 }
@@ -101,8 +112,8 @@ pub struct LocalBounds {
     lo: DVec3,
     hi: DVec3,
     inv_h: DVec3,
-    /// Per fine cell: its own `(L, e)`.
-    raw: Vec<(f64, f64)>,
+    /// Per fine cell: its own bounds.
+    raw: Vec<Quad>,
     /// The pyramid, finest first: level `k + 1` max-pools 2×2×2 cells of level `k`.
     levels: Vec<Level>,
     /// Per fine cell: `r` such that every cell within `r` cells (Chebyshev) is zero-free, or 0.
@@ -136,9 +147,9 @@ impl LocalBounds {
                 cell(blo, (blo + h).min(hi))
             })
             .collect();
-        let raw: Vec<(f64, f64)> = cells
+        let raw: Vec<Quad> = cells
             .iter()
-            .map(|c| (c.lipschitz * grow, c.error * grow))
+            .map(|c| [c.lipschitz, c.error, c.curvature, c.gradient_error].map(|v| v * grow))
             .collect();
         // Rings of zero-free cells: erode the zero-free set one cell (26-neighbourhood) at a
         // time; cells outside the grid are zero-free (the zero set lies in it)
@@ -171,11 +182,11 @@ impl LocalBounds {
         let (mut cur, mut d, mut hk) = (raw.clone(), dims, h);
         while d.iter().any(|&k| k > 1) {
             let nd = d.map(|k| k.div_ceil(2));
-            let mut next = vec![(0.0f64, 0.0f64); nd[0] * nd[1] * nd[2]];
-            for (i, &(l, e)) in cur.iter().enumerate() {
+            let mut next = vec![[0.0; 4]; nd[0] * nd[1] * nd[2]];
+            for (i, &q) in cur.iter().enumerate() {
                 let (x, y, z) = (i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1]));
                 let j = ((z / 2) * nd[1] + y / 2) * nd[0] + x / 2;
-                next[j] = (next[j].0.max(l), next[j].1.max(e));
+                next[j] = qmax(next[j], q);
             }
             hk *= 2.0;
             levels.push(Level::new(&next, nd, hk));
@@ -183,7 +194,7 @@ impl LocalBounds {
         }
         let global = raw
             .iter()
-            .fold((floor_l, 0.0f64), |a, b| (a.0.max(b.0), a.1.max(b.1)));
+            .fold((floor_l, 0.0f64), |a, b| (a.0.max(b[0]), a.1.max(b[1])));
         LocalBounds {
             lo,
             hi,
@@ -211,8 +222,8 @@ impl LocalBounds {
         self.rings[i]
     }
 
-    /// Cell `i`'s box and its own `(L, e)` (inflated), for tests and reports.
-    pub fn cell(&self, i: usize) -> ((DVec3, DVec3), (f64, f64)) {
+    /// Cell `i`'s box and its own `[L, e, H, g_e]` (inflated), for tests and reports.
+    pub fn cell(&self, i: usize) -> ((DVec3, DVec3), [f64; 4]) {
         let d = self.dims();
         let h = DVec3::ONE / self.inv_h;
         let (x, y, z) = (i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1]));
@@ -230,27 +241,53 @@ impl LocalBounds {
         self.raw.is_empty()
     }
 
-    /// The safe step from `x`, where the field's computed value is `f` (module doc): signed as
-    /// `f`, at least `f64::MIN_POSITIVE` in magnitude.
+    /// Fine cell of `x`, if `x` is in the grid's box.
     #[inline]
-    pub fn step(&self, x: DVec3, f: f64) -> f64 {
+    fn fine(&self, x: DVec3) -> Option<[usize; 3]> {
+        if !(x.cmpge(self.lo).all() && x.cmple(self.hi).all()) {
+            return None;
+        }
+        let q = (x - self.lo) * self.inv_h;
+        let d = self.levels[0].dims;
+        let q = [q.x, q.y, q.z];
+        Some([0, 1, 2].map(|k| (q[k] as usize).min(d[k] - 1)))
+    }
+
+    /// True when `x` is in a cell that may be near a zero (not inside a zero-free block): there
+    /// the step can use the gradient.
+    #[inline]
+    pub fn near_zero(&self, x: DVec3) -> bool {
+        let d = self.levels[0].dims;
+        self.fine(x)
+            .is_some_and(|c| self.rings[(c[2] * d[1] + c[1]) * d[0] + c[0]] == 0)
+    }
+
+    /// The safe step from `x`, where the field's computed value is `f` and, optionally, the
+    /// computed `|∇f(x)|` is `grad` (module doc): signed as `f`, at least `f64::MIN_POSITIVE`
+    /// in magnitude.
+    #[inline]
+    pub fn step(&self, x: DVec3, f: f64, grad: Option<f64>) -> f64 {
         let (lg, eg) = self.global;
         let mut s = (f.abs() - eg).max(0.0) / lg;
-        if x.cmpge(self.lo).all() && x.cmple(self.hi).all() {
-            let q = (x - self.lo) * self.inv_h;
+        if let Some(c0) = self.fine(x) {
             let d = self.levels[0].dims;
-            let c0 = [q.x, q.y, q.z];
-            let c0: [usize; 3] = [0, 1, 2].map(|k| (c0[k] as usize).min(d[k] - 1));
             // Inside a block of zero-free cells r rings deep: no zero within r cells
             let r = self.rings[(c0[2] * d[1] + c0[1]) * d[0] + c0[0]];
             s = s.max(r as f64 * self.h_min * (1.0 - ROUNDING_SLACK));
             // Finest level first; a coarser level helps only while the step is clamped
             for (k, lv) in self.levels.iter().enumerate() {
                 let c = c0.map(|v| v >> k);
-                let (l, e) = lv.near[(c[2] * lv.dims[1] + c[1]) * lv.dims[0] + c[0]];
-                let a = (f.abs() - e).max(0.0) / l;
-                s = s.max(a.min(lv.delta));
-                if a <= lv.delta {
+                let [l, e, h, ge] = lv.near[(c[2] * lv.dims[1] + c[1]) * lv.dims[0] + c[0]];
+                let a = (f.abs() - e).max(0.0);
+                let mut t = a / l;
+                if let Some(g) = grad {
+                    // |∇f| ≤ g + H·s on the ball of radius s: the root of H·s² + g·s = a
+                    let g = g + ge;
+                    let q = 2.0 * a / (g + (g * g + 4.0 * h * a).sqrt());
+                    t = t.max(q * (1.0 - ROUNDING_SLACK));
+                }
+                s = s.max(t.min(lv.delta));
+                if t <= lv.delta {
                     break;
                 }
             }

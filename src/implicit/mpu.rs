@@ -1232,6 +1232,7 @@ impl Mpu {
             gerr: f64,
             k: f64,
             dw: f64,
+            s2: f64,
             wlo: f64,
             whi: f64,
             t: f64,
@@ -1270,6 +1271,7 @@ impl Mpu {
                     gerr: 1e-12 * (l.b.length() + 3.0 * hn * zmax),
                     k: 3.0 * hn,
                     dw: db * l.s,
+                    s2: l.s * l.s,
                     wlo,
                     whi,
                     t,
@@ -1286,6 +1288,8 @@ impl Mpu {
                 lipschitz: f64::INFINITY,
                 error: err,
                 zero_free: false,
+                curvature: f64::INFINITY,
+                gradient_error: f64::INFINITY,
             };
         }
         // The shares λⱼ = wⱼ/W lie in [0, whiⱼ/W_lo] and sum to 1
@@ -1311,26 +1315,47 @@ impl Mpu {
         // ∇f = Σ λᵢ∇Q̃ᵢ + Σ ∇wᵢ(Q̃ᵢ − f)/W, with |Q̃ᵢ − f| = |Σⱼ λⱼ(Q̃ᵢ − Q̃ⱼ)|
         let gmax = mix(&mut fits.iter().map(|a| a.g.length() + a.gerr + a.k * r));
         let mut spread = 0.0;
-        for a in &fits {
+        // Per fit: sup |Q̃ᵢ − f| and sup |∇Q̃ᵢ − Σ λⱼ∇Q̃ⱼ| (mixes over the shares)
+        let mut dq = vec![0.0; fits.len()];
+        let mut dg = vec![0.0; fits.len()];
+        for (i, a) in fits.iter().enumerate() {
             if a.dw == 0.0 {
                 continue;
             }
-            let d = mix(&mut fits.iter().map(|b| {
+            dq[i] = mix(&mut fits.iter().map(|b| {
                 (a.v - b.v).abs()
                     + 2.0 * err
                     + ((a.g - b.g).length() + a.gerr + b.gerr) * r
                     + 0.5 * (a.k + b.k) * r * r
             }));
-            spread += a.dw * d;
+            dg[i] = mix(&mut fits
+                .iter()
+                .map(|b| (a.g - b.g).length() + a.gerr + b.gerr + (a.k + b.k) * r));
+            spread += a.dw * dq[i];
         }
+        let lipschitz = gmax + spread / wsum;
+        // W∇²f = Σ [(∇Q̃ᵢ − ∇f)⊗∇wᵢ + ∇wᵢ⊗(∇Q̃ᵢ − ∇f) + wᵢ∇²Q̃ᵢ + ∇²wᵢ(Q̃ᵢ − f)], with
+        // |∇Q̃ᵢ − ∇f| ≤ dgᵢ + spread/W, ‖∇²Q̃ᵢ‖ ≤ Kᵢ, ‖∇²wᵢ‖ ≤ 2sᵢ² (module doc)
+        let curv = fits
+            .iter()
+            .zip(dq.iter().zip(&dg))
+            .map(|(a, (q, g))| 2.0 * a.dw * (g + spread / wsum) + 2.0 * a.s2 * q)
+            .sum::<f64>()
+            / wsum
+            + mix(&mut fits.iter().map(|a| a.k));
+        // The computed gradient's rounding: far above ~100 roundings of its terms' magnitudes
+        let tmag = fits.iter().map(|f| f.t).fold(0.0, f64::max);
+        let gerr = 1e-10 * (gmax + fits.iter().map(|f| f.dw).sum::<f64>() * tmag / wsum);
         // f's range: a mix of the fits' ranges Q̃ⱼ(x₀) ± (|∇Q̃ⱼ(x₀)|·r + Kⱼr²/2)
         let reach = |f: &Fit| (f.g.length() + f.gerr) * r + 0.5 * f.k * r * r + err;
         let fmax = mix(&mut fits.iter().map(|f| f.v + reach(f)));
         let fmin = -mix(&mut fits.iter().map(|f| -f.v + reach(f)));
         CellBound {
-            lipschitz: gmax + spread / wsum,
+            lipschitz,
             error: err,
             zero_free: fmin > err || fmax < -err,
+            curvature: curv,
+            gradient_error: gerr,
         }
     }
 
