@@ -213,7 +213,11 @@ fn blob_bounds(threshold: f64, components: &[BlobComponent]) -> LocalBounds {
             if near >= c.radius * (1.0 + 1e-9) {
                 continue;
             }
-            let far = (blo - ctr).abs().max((bhi - ctr).abs()).length().min(c.radius);
+            let far = (blo - ctr)
+                .abs()
+                .max((bhi - ctr).abs())
+                .length()
+                .min(c.radius);
             let sigma = |r: f64| {
                 let q = r / c.radius;
                 4.0 * c.strength.abs() * q * (1.0 - q * q) / c.radius
@@ -228,7 +232,10 @@ fn blob_bounds(threshold: f64, components: &[BlobComponent]) -> LocalBounds {
             // ∇² s(1 − u)² = −4s/R²·((1 − u)I − 2yyᵀ/R²): norm ≤ 4|s|/R²·max(1 − u, |1 − 3u|) ≤ 8|s|/R²
             hess += 8.0 * c.strength.abs() / (c.radius * c.radius);
             gmag += 4.0 * c.strength.abs() / c.radius;
-            let (a, b) = (1.0 - (near / c.radius).powi(2), 1.0 - (far / c.radius).powi(2));
+            let (a, b) = (
+                1.0 - (near / c.radius).powi(2),
+                1.0 - (far / c.radius).powi(2),
+            );
             let (a, b) = (c.strength * a * a, c.strength * b.max(0.0) * b.max(0.0));
             dlo += a.min(b);
             dhi += a.max(b);
@@ -276,14 +283,24 @@ impl Field {
     pub fn step(&self, p: DVec3) -> f64 {
         match self {
             Field::Sdf { .. } => self.eval(p),
-            Field::Blob { local, .. } => Self::step_with(local, p, || self.eval(p), || {
-                let g = self.gradient(p);
-                (self.eval(p), g.length())
-            }),
-            Field::Mpu(m) => Self::step_with(m.local_bounds(), p, || m.eval(p), || {
-                let (f, g) = m.eval_grad(p);
-                (f, g.length())
-            }),
+            Field::Blob { local, .. } => Self::step_with(
+                local,
+                p,
+                || self.eval(p),
+                || {
+                    let g = self.gradient(p);
+                    (self.eval(p), g.length())
+                },
+            ),
+            Field::Mpu(m) => Self::step_with(
+                m.local_bounds(),
+                p,
+                || m.eval(p),
+                || {
+                    let (f, g) = m.eval_grad(p);
+                    (f, g.length())
+                },
+            ),
         }
     }
 

@@ -64,7 +64,12 @@ type Quad = [f64; 4];
 
 #[inline]
 fn qmax(a: Quad, b: Quad) -> Quad {
-    [a[0].max(b[0]), a[1].max(b[1]), a[2].max(b[2]), a[3].max(b[3])]
+    [
+        a[0].max(b[0]),
+        a[1].max(b[1]),
+        a[2].max(b[2]),
+        a[3].max(b[3]),
+    ]
 }
 
 /// Rings of zero-free cells counted around a cell (the largest empty-block step, in cells).
@@ -85,7 +90,11 @@ impl Level {
         let near = (0..raw.len())
             .into_par_iter()
             .map(|i| {
-                let c = [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])];
+                let c = [
+                    i % dims[0],
+                    (i / dims[0]) % dims[1],
+                    i / (dims[0] * dims[1]),
+                ];
                 let r = |k: usize| c[k].saturating_sub(1)..=(c[k] + 1).min(dims[k] - 1);
                 let mut m = [0.0; 4];
                 for z in r(2) {
@@ -142,7 +151,11 @@ impl LocalBounds {
         let cells: Vec<CellBound> = (0..n)
             .into_par_iter()
             .map(|i| {
-                let (x, y, z) = (i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1]));
+                let (x, y, z) = (
+                    i % dims[0],
+                    (i / dims[0]) % dims[1],
+                    i / (dims[0] * dims[1]),
+                );
                 let blo = lo + h * DVec3::new(x as f64, y as f64, z as f64);
                 cell(blo, (blo + h).min(hi))
             })
@@ -159,7 +172,11 @@ impl LocalBounds {
             let next: Vec<bool> = (0..n)
                 .into_par_iter()
                 .map(|i| {
-                    let c = [i % dims[0], (i / dims[0]) % dims[1], i / (dims[0] * dims[1])];
+                    let c = [
+                        i % dims[0],
+                        (i / dims[0]) % dims[1],
+                        i / (dims[0] * dims[1]),
+                    ];
                     let rg = |k: usize| c[k].saturating_sub(1)..=(c[k] + 1).min(dims[k] - 1);
                     free[i]
                         && rg(2).all(|z| {

@@ -82,9 +82,10 @@
 //! bivariate, 319 general, 703 empty); [`Mpu::eval`] ≈ 0.35 µs (≈ 15 contributing fits near
 //! the surface, ≈ 10 elsewhere), [`Mpu::eval_grad`] ≈ 0.45 µs.
 
+use super::lipschitz::{CellBound, LocalBounds};
+use crate::numerics::interval::Interval;
 use anyhow::{anyhow, bail, Context, Result};
 use glam::DVec3;
-use super::lipschitz::{CellBound, LocalBounds};
 use rayon::prelude::*;
 use std::path::Path;
 
@@ -1357,6 +1358,93 @@ impl Mpu {
             curvature: curv,
             gradient_error: gerr,
         }
+    }
+
+    /// An interval enclosure of `|∇f|` over the box `[lo, hi] ⊂ bounds()` by outward-rounded
+    /// interval arithmetic on [`Mpu::eval_grad`]'s formula (`(Σ ∇wᵢQ̃ᵢ + wᵢ∇Q̃ᵢ − f·Σ∇wᵢ)/Σwᵢ`),
+    /// independent of the local bounds' derivation: for tests. `None` when a local fit's
+    /// linear-extension sphere cuts the box (the branch is not enclosed).
+    pub fn gradient_enclosure(&self, lo: DVec3, hi: DVec3) -> Option<Interval<f64>> {
+        type I = Interval<f64>;
+        let iv = |a: DVec3, b: DVec3| [0, 1, 2].map(|k| I::new(a[k], b[k]));
+        let x = iv(lo, hi);
+        let zero = I::point(0.0);
+        let (mut sw, mut swq) = (zero, zero);
+        let (mut gw, mut gwq) = ([zero; 3], [zero; 3]);
+        let mut list: Vec<u32> = vec![];
+        for z in [lo.z, hi.z] {
+            for y in [lo.y, hi.y] {
+                for xx in [lo.x, hi.x] {
+                    list.extend(self.cell_list(DVec3::new(xx, y, z)));
+                }
+            }
+        }
+        list.sort_unstable();
+        list.dedup();
+        for &li in &list {
+            let l = &self.locals[li as usize];
+            let near = (lo - l.c).max(l.c - hi).max(DVec3::ZERO).length();
+            if near * near >= l.r2 {
+                continue;
+            }
+            // Only boxes wholly inside the fit's sphere (or a plane's): Q̃ = Q there
+            let far_m = (lo - l.m).abs().max((hi - l.m).abs()).length();
+            if far_m > l.rho {
+                return None;
+            }
+            let y = [0, 1, 2].map(|k| x[k] - I::point(l.c[k]));
+            let zz = [0, 1, 2].map(|k| x[k] - I::point(l.m[k]));
+            let r = (y[0].square() + y[1].square() + y[2].square()).sqrt();
+            let t = r * I::point(l.s);
+            // b and b'·s/r on each B-spline piece the range of t meets, joined
+            let mut pieces = vec![];
+            if t.lo < 0.5 {
+                let tt = I::new(t.lo, t.hi.min(0.5));
+                pieces.push((I::point(0.75) - tt.square(), I::point(-2.0 * l.s * l.s)));
+            }
+            if t.hi >= 0.5 {
+                let tt = I::new(t.lo.max(0.5), t.hi.min(1.5));
+                let u = I::point(1.5) - tt;
+                let rr = I::new(r.lo.max(0.5 / l.s), r.hi);
+                pieces.push((u.square() * I::point(0.5), -(u * I::point(l.s)) / rr));
+            }
+            let hull = |a: I, b: I| I::new(a.lo.min(b.lo), a.hi.max(b.hi));
+            let (w, k) = pieces
+                .into_iter()
+                .reduce(|a, b| (hull(a.0, b.0), hull(a.1, b.1)))?;
+            // Past the support (t ≥ 1.5) both are 0
+            let (w, k) = if t.hi >= 1.5 {
+                (hull(w, zero), hull(k, zero))
+            } else {
+                (w, k)
+            };
+            // Q and ∇Q = Hz + b on the box
+            let a = &l.a;
+            let (z0, z1, z2) = (zz[0], zz[1], zz[2]);
+            let c = |v: f64| I::point(v);
+            let q = z0 * (c(a[0]) * z0 + c(a[3]) * z1 + c(a[4]) * z2)
+                + z1 * (c(a[1]) * z1 + c(a[5]) * z2)
+                + c(a[2]) * z2.square()
+                + c(l.b.x) * z0
+                + c(l.b.y) * z1
+                + c(l.b.z) * z2
+                + c(l.k);
+            let gq = [
+                c(2.0 * a[0]) * z0 + c(a[3]) * z1 + c(a[4]) * z2 + c(l.b.x),
+                c(2.0 * a[1]) * z1 + c(a[3]) * z0 + c(a[5]) * z2 + c(l.b.y),
+                c(2.0 * a[2]) * z2 + c(a[4]) * z0 + c(a[5]) * z1 + c(l.b.z),
+            ];
+            sw = sw + w;
+            swq = swq + w * q;
+            for d in 0..3 {
+                let dw = k * y[d];
+                gw[d] = gw[d] + dw;
+                gwq[d] = gwq[d] + dw * q + w * gq[d];
+            }
+        }
+        let f = swq / sw;
+        let g = [0, 1, 2].map(|d| (gwq[d] - f * gw[d]) / sw);
+        Some((g[0].square() + g[1].square() + g[2].square()).sqrt())
     }
 
     /// The proved local Lipschitz bounds over `bounds()`.
