@@ -206,7 +206,7 @@ pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
             // Fastest of the repeats
             let mut best: Option<(Primary, Vec<[f32; 3]>, RayCounts, f64)> = None;
             for _ in 0..opts.repeat.max(1) {
-                let p = subdiv::primary(&m, &lens, (w, h), mode, opts.region);
+                let p = subdiv::primary(m, &lens, (w, h), mode, opts.region);
                 let t0 = Instant::now();
                 let hits: Vec<Option<(f64, DVec3, usize)>> = p
                     .pixels
