@@ -32,7 +32,10 @@ fn bench(c: &mut Criterion) {
             .zip(&cert.pixels)
             .filter(|(a, b)| a.hit.is_some() != b.hit.is_some())
             .count();
-        assert_eq!(differ, 0, "certified/{t:?} coverage differs on {differ} pixels");
+        assert_eq!(
+            differ, 0,
+            "certified/{t:?} coverage differs on {differ} pixels"
+        );
     }
     let mut g = c.benchmark_group("bunny_400_primary");
     g.sample_size(10).measurement_time(Duration::from_secs(8));

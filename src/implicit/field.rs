@@ -9,7 +9,12 @@
 //! | SDF sphere, torus, box | 1 | exact Euclidean distances |
 //! | smooth union (polynomial smin, blend k) | 1 | ∂smin/∂a, ∂smin/∂b ≥ 0 and sum to 1, so ∇ is a convex combination of the parts' gradients |
 //! | blob: threshold − Σ sᵢ(1 − rᵢ²/Rᵢ²)² | Σ \|sᵢ\|·8/(3√3·Rᵢ) | \|d/dr s(1 − r²/R²)²\| peaks at r = R/√3 with value 8s/(3√3·R); the components add |
-//! | MPU | measured, see [`super::mpu`] | no analytic bound: max \|∇f\| on a dense sample × a safety factor |
+//! | MPU | measured, see [`super::mpu`] | max \|∇f\| on a dense sample × a safety factor (the `global` and `paper` tracers) |
+//!
+//! **Local bounds** ([`Field::step`], the `local` tracer): blobs and MPU carry a grid of proved
+//! per-box bounds ([`super::lipschitz`]); the blob's are in [`Field::blob`]'s helper (the
+//! supports that meet a box, each at its largest slope over the box's distances), the MPU's in
+//! [`super::mpu`]. SDFs step by `f` (L = 1, no rounding allowance: left as it was).
 
 use super::lipschitz::{CellBound, LocalBounds};
 use super::mpu::Mpu;

@@ -1,31 +1,37 @@
-//! Local Lipschitz bounds: a uniform grid of boxes over a convex region that holds a field's
-//! zero set, each box with a *proved* bound on `|∇f|` over the box and on the rounding error
-//! of the field's evaluation there, and the safe step that uses them.
+//! Local Lipschitz bounds: a uniform grid of boxes over a convex region `Ω` that holds a
+//! field's zero set, each box with *proved* bounds, and the safe sphere-tracing step that uses
+//! them ([`LocalBounds::step`]).
 //!
-//! The fields derive their box bounds analytically ([`super::mpu::Mpu`]: quadric gradients and
-//! partition-of-unity weights; [`super::field::Field::blob`]: the supports that meet the box);
-//! this module turns them into steps. Sampling never enters a bound: the tests sample only to
-//! check them.
+//! The fields derive their box bounds analytically ([`super::mpu`]: the local quadrics'
+//! gradients and Hessians and the partition-of-unity weights; [`super::field`]: the blob's
+//! supports that meet the box). Per box `c` a field states ([`CellBound`]): `L_c ≥ sup |∇f|`,
+//! `H_c` a Lipschitz constant of `∇f`, `e_c ≥ |f̃ − f|` (the rounding of the computed value
+//! `f̃`), `g_c ≥ ||∇f̃| − |∇f||`, and whether `f` is provably zero-free on the box. Sampling
+//! never enters a bound; the tests sample to check them.
 //!
 //! # The step rule
-//! Let `Ω` be the grid's box, `Z ⊂ Ω` the zero set, `f` C¹ on `Ω` with `|∇f| ≤ L_c` on each
-//! cell `c`, and `|f̃(x) − f(x)| ≤ e_c` for the computed value `f̃` at every `x` in cell `c`.
-//! For `x` in cell `c`, let `L̂`, `ê` be the maxima of `L`, `e` over the 3×3×3 cells around `c`
-//! (clamped to the grid), and `δ` half the smallest cell width. The step is
+//! For `x` in fine cell `c`, the step is the largest of these, each of which is safe alone:
+//! 1. **Global** (`x ∈ Ω`): `(|f̃| − e_g)⁺/L_g`, the maxima over every cell.
+//! 2. **Zero-free block**: with `p` the projection of `x` onto `Ω` (`x` itself inside), `out =
+//!    |x − p|`, and every cell within `r` cells (Chebyshev) of `p`'s cell zero-free (`h` the
+//!    smallest cell width): `√(out² + (r·h)²)`. A zero `y` that close has
+//!    `|y − p|² ≤ |y − x|² − out² < (r·h)²` (`(y − p)·(x − p) ≤ 0` for a projection onto a
+//!    convex set), so `y` would lie in the zero-free block; cells beyond `Ω` hold no zero.
+//! 3. **Local, per pyramid level `k`** (cells `2ᵏ` fine cells wide, bounds max-pooled): with
+//!    `L̂, Ĥ, ê, ĝ` the maxima over the 3×3×3 cells around `x`'s cell and `δ_k` half a cell
+//!    width, `min(t, δ_k)` where `t = max(a/L̂, 2a/(g + √(g² + 4Ĥa)))`, `a = (|f̃| − ê)⁺`,
+//!    `g = |∇f̃(x)| + ĝ` (the second form only where the gradient was computed: cells that are
+//!    not zero-free blocks).
 //!
-//! `s(x) = max( min((|f̃(x)| − ê)⁺/L̂, δ), (|f̃(x)| − e_g)⁺/L_g )`
-//!
-//! with `L_g`, `e_g` the maxima over all cells (the global bound, valid on all of `Ω`).
-//! **No zero lies within `s(x)` of `x`.** Take `z ∈ Z` with `|x − z| < s`. The segment
-//! `[x, z]` lies in `Ω` (convex, holds both ends). In the first case, `|x − z| < δ`, so the
-//! segment stays in the neighbour cells (δ is half a cell, which also absorbs a cell index off
-//! by one through rounding), where `|∇f| ≤ L̂`; by the mean value theorem
-//! `|f(x)| = |f(x) − f(z)| ≤ L̂·|x − z| < (|f̃(x)| − ê)⁺`, impossible as `|f(x)| ≥ |f̃(x)| − ê`.
-//! The second case is the same with the global maxima. A step may cross into other cells: the
-//! first form is clamped to `δ` so that it never leaves the neighbourhood whose bound it used;
-//! the second uses a bound valid everywhere. Outside `Ω` the global form alone is used (it
-//! holds on every segment that reaches `Z`: the part outside `Ω` is covered by the field's own
-//! argument, see [`super::mpu`] and [`super::field`]).
+//! **Why 3 is safe.** Take a zero `z` with `ρ = |x − z| < s ≤ δ_k`. The segment `[x, z]` lies in
+//! `Ω` (convex, holds both) and, as `ρ < δ_k`, in the cells around `x`'s (δ is half a cell, so
+//! a cell index off by one through rounding is covered too), where `|∇f| ≤ L̂` and, along the
+//! segment, `|∇f| ≤ |∇f(x)| + Ĥρ ≤ g + Ĥρ`. By the mean value theorem `|f(x)| ≤ L̂ρ < a` in
+//! the first form and `|f(x)| ≤ (g + Ĥρ)ρ < (g + Ĥs)s = a` in the second (`s` the root of
+//! `Ĥs² + gs = a`); both contradict `|f(x)| ≥ |f̃(x)| − ê ≥ a`. **A step never uses a bound
+//! beyond the region it was proved for**: the local forms are clamped to `δ_k`, inside the
+//! neighbourhood whose maxima they used; a coarser level (wider `δ`, larger maxima) is tried
+//! only while the finer one is clamped; the global form holds everywhere.
 //!
 //! The step carries the sign of `f̃` (negative inside) and is at least `f64::MIN_POSITIVE` in
 //! magnitude so that the sign survives: a point whose `|f̃|` is within the rounding error of 0
@@ -33,10 +39,11 @@
 //! probing for a sign change.
 //!
 //! # Rounding of the bounds themselves
-//! The box bounds are computed in floating point from the fields' coefficients. Every bound
-//! is a sum of at most a few hundred non-negative terms, each a product of a few rounded
-//! quantities, so its relative rounding error is below 1e-12; [`LocalBounds::build`] inflates
-//! every cell bound by a factor `1 + 1e-9` and the fields compute sums of magnitudes only.
+//! Every bound is computed in floating point as sums and products of non-negative terms, each a
+//! few roundings from exact, so its relative error is far below 1e-12; [`LocalBounds::build`]
+//! inflates every cell bound by `1 + 1e-9` ([`ROUNDING_SLACK`]) and the computed steps are
+//! shrunk by the same factor. The fields add the rounding of their own inputs (the quadrics'
+//! values and gradients at the box centre) explicitly.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -136,7 +143,7 @@ impl LocalBounds {
     /// Builds the grid over `[lo, hi]` (a box that holds the zero set) with `dims` cells per
     /// axis; `cell(blo, bhi)` returns what the field proves over the cell `[blo, bhi]`. The
     /// global bound is the maximum over the cells and `floor_l` (e.g. 1 for a field that is
-    /// 1-Lipschitz outside).
+    /// 1-Lipschitz outside; reported, the step uses the global form on `Ω` only).
     pub fn build(
         (lo, hi): (DVec3, DVec3),
         dims: [usize; 3],
@@ -285,12 +292,19 @@ impl LocalBounds {
     #[inline]
     pub fn step(&self, x: DVec3, f: f64, grad: Option<f64>) -> f64 {
         let (lg, eg) = self.global;
-        let mut s = (f.abs() - eg).max(0.0) / lg;
-        if let Some(c0) = self.fine(x) {
-            let d = self.levels[0].dims;
-            // Inside a block of zero-free cells r rings deep: no zero within r cells
-            let r = self.rings[(c0[2] * d[1] + c0[1]) * d[0] + c0[0]];
-            s = s.max(r as f64 * self.h_min * (1.0 - ROUNDING_SLACK));
+        let mut s: f64 = 0.0;
+        // Zero-free block around the cell of x's projection p onto Ω: a zero y within
+        // √(out² + (r·h)²) of x has |y − p| ≤ r·h (p is a projection onto a convex set)
+        let p = x.clamp(self.lo, self.hi);
+        let out2 = (x - p).length_squared();
+        let d = self.levels[0].dims;
+        let cp = self.fine(p).expect("p is in Ω");
+        let rh = self.rings[(cp[2] * d[1] + cp[1]) * d[0] + cp[0]] as f64 * self.h_min;
+        s = s.max((out2 + rh * rh).sqrt() * (1.0 - ROUNDING_SLACK));
+        if out2 == 0.0 {
+            // Global (on Ω only: a field may jump at Ω's boundary, as the MPU's does)
+            s = s.max((f.abs() - eg).max(0.0) / lg);
+            let c0 = cp;
             // Finest level first; a coarser level helps only while the step is clamped
             for (k, lv) in self.levels.iter().enumerate() {
                 let c = c0.map(|v| v >> k);

@@ -1,10 +1,14 @@
 //! Sphere tracing (Hart 1996) over a union of implicit fields, forward and backward, with root
 //! refinement and a miss criterion.
 //!
-//! **Safe step.** Each field `i` has a Lipschitz bound `Lᵢ` ([`super::field`]), so no surface lies
-//! within `fᵢ(p)/Lᵢ` of `p`. Outside a field's box grown by a margin `m`, the box distance plus
-//! `m` is a cheaper bound that is also safe (the zero set lies in the box, and any point outside
-//! the grown box is at least `m` from the box). The step is the minimum over the fields.
+//! **Safe step** ([`Tracer`]). `local` (the default): each field's proved local step
+//! ([`Field::step`], [`super::lipschitz`]). `global` (the baseline before local bounds): each
+//! field `i` has a global bound `Lᵢ` ([`super::field`]; measured for MPU), so no surface lies
+//! within `fᵢ(p)/Lᵢ` of `p`. For both, outside a field's box grown by a margin `m`, the box
+//! distance plus `m` is a cheaper bound that is also safe (the zero set lies in the box, and
+//! any point outside the grown box is at least `m` from the box). `paper` (the paper's
+//! renderer): `fᵢ(p)/Lᵢ` everywhere, from the eye, with no box. The step is the minimum over
+//! the fields.
 //!
 //! **Hit.** A hit is a proven sign change: when the step falls below `eps` (a fixed fraction of
 //! the scene's box diagonal), probes at `t + eps·2ᵏ` (k ≤ 5) look for an inside point, and the
@@ -12,7 +16,8 @@
 //! crossing it and marching goes on from the last probe. Unlike Hart's plain `eps` criterion, a
 //! grazing ray is then a miss, and a secondary ray that starts on its surface needs no offset.
 //!
-//! **Miss.** The ray leaves the scene box (`t` beyond its exit) or takes more than
+//! **Miss.** The ray leaves the scene box (`t` beyond its exit; `paper`: the far side of the
+//! box's bounding sphere) or takes more than
 //! [`MAX_STEPS`] steps (counted separately: a capped ray is a miss that is not proved).
 //!
 //! **Start inside** (the paper's case ②: a start length past the surface but not through the

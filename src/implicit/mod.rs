@@ -41,11 +41,17 @@
 //!
 //! # Safe steps
 //!
-//! Every field states its Lipschitz bound `L` ([`field`]), so a step of `f(p)/L` never crosses the
-//! surface: 1 for the SDFs (a smooth union's gradient is a convex combination of its parts'),
-//! Σ|sᵢ|·8/(3√3·Rᵢ) for a blob (the steepest slope of s(1 − r²/R²)² is at r = R/√3), and for the
-//! MPU, which has no analytic bound, the largest `|∇f|` measured on a dense sample × 1.5 (a
-//! measurement, not a proof; `tests/mpu.rs` re-measures it on fresh points). A hit is a *proven*
+//! Every field states its global Lipschitz bound `L` ([`field`]), so a step of `f(p)/L` never
+//! crosses the surface: 1 for the SDFs (a smooth union's gradient is a convex combination of
+//! its parts'), Σ|sᵢ|·8/(3√3·Rᵢ) for a blob (the steepest slope of s(1 − r²/R²)² is at
+//! r = R/√3), and for the MPU the largest `|∇f|` measured on a dense sample × 1.5 (a
+//! measurement, not a proof). The default tracer instead uses **proved local bounds**
+//! ([`lipschitz`]): per box of a grid, bounds on `|∇f|`, on the Lipschitz constant of `∇f`, on
+//! the rounding of `f` and whether `f` is zero-free, derived analytically for the MPU from its
+//! quadrics and partition-of-unity weights ([`mpu`]) and for blobs from the supports that meet
+//! the box ([`field`]); the step rule ([`lipschitz`]) never uses a bound outside the region it
+//! was proved for. `tests/mpu.rs` and `tests/implicit.rs` check every bound against dense
+//! samples and interval evaluation of the gradient, and that a halved bound is caught. A hit is a *proven*
 //! sign change ([`march`]): when the step falls below `eps` (1e-5 × the scene box's diagonal),
 //! probes just ahead look for an inside point and Illinois regula falsi closes the bracket to
 //! 1e-15 relative; a ray that only grazes the surface marches on, and a shadow ray leaving its own

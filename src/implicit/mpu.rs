@@ -63,9 +63,48 @@
 //! MPU value met in that shell at fit time: positive (no zero there) on the bunny and the
 //! sphere, the measured support for that premise.
 //!
-//! # Lipschitz bound ([`Mpu::lipschitz`])
-//! MPU has no analytic bound; it is **measured**: `max(1, 1.5 × max |∇f|)`, the maximum over
-//! a 64³ grid of `bounds()` and 36 samples around every input point. Not a proof.
+//! # Lipschitz bounds
+//! **Measured** ([`Mpu::lipschitz`], the global bound of the `global` and `paper` tracers, as
+//! before local bounds): `max(1, 1.5 × max |∇f|)` over a 64³ grid of `bounds()` and 36
+//! samples around every input point. Not a proof.
+//!
+//! **Proved, per box** ([`Mpu::local_bounds`]: a grid of `LIPSCHITZ_REFINE³` boxes per cell of
+//! the evaluation grid over `bounds()`, see [`super::lipschitz`] for the step rule). For a box
+//! `B` (centre `x₀`, half-diagonal `r`), over the fits `i` whose ball meets `B`:
+//! - `Q̃ᵢ` is C¹ and `∇Q̃ᵢ` is `Kᵢ`-Lipschitz with `Kᵢ = 3‖Hᵢ‖_F`: inside the sphere
+//!   `∇²Q̃ = H`; outside, `∇Q̃ = ∇Q(π) + φ(|z|)·(Hu − (u·Hu)u)`, `u = z/|z|`,
+//!   `φ = ρ(1 − ρ/|z|)`, whose derivative is at most `‖H‖ρ/|z| ≤ ‖H‖` (first term) plus
+//!   `|φ'|·‖H‖ + (φ/|z|)·4‖H‖ ≤ ‖H‖ + ‖H‖` (`φ' = ρ²/|z|² ≤ 1`, `φ/|z| ≤ 1/4`). Hence, with
+//!   `vᵢ, gᵢ` the value and gradient at `x₀`: `sup_B |∇Q̃ᵢ| ≤ |gᵢ| + Kᵢr` and
+//!   `sup_B |Q̃ᵢ − Q̃ⱼ| ≤ |vᵢ − vⱼ| + |gᵢ − gⱼ|r + (Kᵢ + Kⱼ)r²/2` (Taylor with a Lipschitz
+//!   gradient), `sup_B |∇Q̃ᵢ − ∇Q̃ⱼ| ≤ |gᵢ − gⱼ| + (Kᵢ + Kⱼ)r`.
+//! - Weights `wᵢ = b(tᵢ)`, `tᵢ = 1.5|x − cᵢ|/Rᵢ` over `[t_min, t_max]` (nearest and farthest
+//!   point of `B`): `b` decreases, so `b(t_max) ≤ wᵢ ≤ b(t_min)`; `|∇wᵢ| ≤ (1.5/Rᵢ)·max |b'|`
+//!   (`|b'|` peaks at 1 at `t = 1/2`); `‖∇²wᵢ‖ ≤ 2(1.5/Rᵢ)²` (the radial and tangential
+//!   eigenvalues `s²b''` and `s²b'/t` lie in `[−2s², s²]`).
+//! - `W = Σ wⱼ ≥ max(Σ b(t_max), w_floor)`, `w_floor = b(0.75/alpha)`: every point lies in a
+//!   leaf cell whose ball (`R ≥ alpha·diagonal`) reaches it at `t ≤ 0.75/alpha`.
+//! - The shares `λⱼ = wⱼ/W` sum to 1 with `0 ≤ λⱼ ≤ b(t_min,ⱼ)/W_lo`; a "mix" of per-fit bounds
+//!   `mⱼ` is the largest `Σ λⱼmⱼ` under these constraints (fill the largest `mⱼ` first).
+//! - `∇f = Σ λᵢ∇Q̃ᵢ + Σ ∇wᵢ(Q̃ᵢ − f)/W` and `Q̃ᵢ − f = Σⱼ λⱼ(Q̃ᵢ − Q̃ⱼ)`, so
+//!   `L_B = mix(|gᵢ| + Kᵢr) + Σᵢ sup|∇wᵢ|·mixⱼ(sup|Q̃ᵢ − Q̃ⱼ|)/W_lo`.
+//! - `W∇²f = Σ [(∇Q̃ᵢ − ∇f)⊗∇wᵢ + ∇wᵢ⊗(∇Q̃ᵢ − ∇f) + wᵢ∇²Q̃ᵢ + ∇²wᵢ(Q̃ᵢ − f)]` (differentiate
+//!   `W∇f = Σ wᵢ∇Q̃ᵢ + Σ ∇wᵢ(Q̃ᵢ − f)`), so `H_B = Σᵢ [2 sup|∇wᵢ|(mixⱼ sup|∇Q̃ᵢ − ∇Q̃ⱼ| +
+//!   spread) + ‖∇²wᵢ‖·mixⱼ sup|Q̃ᵢ − Q̃ⱼ|]/W_lo + mix(Kᵢ)`, `spread` the second term of `L_B`.
+//! - `f ∈ [−mix(−vⱼ + reachⱼ), mix(vⱼ + reachⱼ)]`, `reachⱼ = |gⱼ|r + Kⱼr²/2`: the box is
+//!   zero-free when this range, widened by the evaluation error, excludes 0.
+//! - Rounding: `vᵢ` and `gᵢ` are computed, so every difference gets the evaluation error `e`
+//!   twice and each gradient `1e-12·(|bᵢ| + 3‖Hᵢ‖·|z|max)`; `e = 4(n + 100)·u·max Tᵢ` with
+//!   `Tᵢ` the sum of the magnitudes of `Q̃ᵢ`'s terms over `B` (`n` fits, each value ~15
+//!   roundings, the weighted mean `n` more; `|f| ≤ max|Q̃ᵢ|` as a mean), and the computed
+//!   `|∇f|` is within `1e-10·(L_B + Σ sup|∇wᵢ|·max Tᵢ/W_lo)`.
+//!
+//! Outside `bounds()` the field is the box distance plus `floor` (1-Lipschitz, never above the
+//! distance to the zero set), so the grid's global floor is 1. On the bunny the proved bounds
+//! are far looser than `|∇f|` (the measured `|∇f|` is 2.6 at most; see the README's figures):
+//! the boxes are about a third of a support radius across, where the weights vary by a factor
+//! of ~3, and the triangle inequality over ~17 overlapping fits loses the cancellation that
+//! keeps the true `|∇f|` near 1.
 //!
 //! # Ghost surfaces
 //! Local quadrics extrapolated into empty space can have zero sets away from the data.
@@ -78,7 +117,8 @@
 //! distance to the mesh, so `f/lipschitz()` stays below half of it there.
 //!
 //! # Cost (bunny, defaults, the 2-core dev machine)
-//! Fit ≈ 0.09 s on both cores, including the Lipschitz measurement; 2393 cells, 2094 leaves (1072
+//! Fit ≈ 0.09 s on both cores, including the Lipschitz measurement, plus ≈ 3 s for the proved
+//! local bounds (75³ boxes, each with its ~17² pairs of fits); 2393 cells, 2094 leaves (1072
 //! bivariate, 319 general, 703 empty); [`Mpu::eval`] ≈ 0.35 µs (≈ 15 contributing fits near
 //! the surface, ≈ 10 elsewhere), [`Mpu::eval_grad`] ≈ 0.45 µs.
 
@@ -1541,8 +1581,8 @@ impl Mpu {
         self.floor
     }
 
-    /// The step bound for sphere tracing (step `f(x)/lipschitz()`). **Measured, not
-    /// proved**: `max(1, 1.5 × max |∇f|)`, the maximum over a 64³ grid of `bounds()` and 36
+    /// The global step bound of the `global` and `paper` tracers (step `f(x)/lipschitz()`).
+    /// **Measured, not proved** (the proved bounds: [`Mpu::local_bounds`]): `max(1, 1.5 × max |∇f|)`, the maximum over a 64³ grid of `bounds()` and 36
     /// samples within one grid-cell diagonal of each input point (along and across the
     /// normal). The outside branch is 1-Lipschitz. Bunny, default options: 3.90 (max |∇f| =
     /// 2.60, met in the empty margin behind the ears, where a large cell's ear-tip quadric
