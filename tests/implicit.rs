@@ -165,10 +165,11 @@ fn run(name: &str) -> check::Report {
     .expect("implicit scene")
 }
 
-fn versus(r: &check::Report, mode: Mode, shadows: bool) -> check::Comparison {
+/// The comparison of the run named `name` (`certified`, `certified/local`, …).
+fn versus(r: &check::Report, name: &str, shadows: bool) -> check::Comparison {
     r.runs
         .iter()
-        .find(|x| x.mode == mode && x.shadows == shadows)
+        .find(|x| x.name == name && x.shadows == shadows)
         .and_then(|x| x.versus_full.clone())
         .expect("compared")
 }
@@ -177,12 +178,15 @@ fn versus(r: &check::Report, mode: Mode, shadows: bool) -> check::Comparison {
 fn certified_mode_loses_nothing_on_every_reference_scene() {
     for name in ["blob", "sdf", "thin", "speck", "bunny"] {
         let r = run(name);
-        for shadows in [false, true] {
-            let c = versus(&r, Mode::Certified, shadows);
+        for (shadows, run) in [false, true]
+            .into_iter()
+            .flat_map(|s| ["certified", "certified/local"].map(|n| (s, n)))
+        {
+            let c = versus(&r, run, shadows);
             assert_eq!(
                 (c.lost, c.ghost, c.moved),
                 (0, 0, 0),
-                "{name} shadows {shadows}"
+                "{name} {run} shadows {shadows}"
             );
             assert!(c.surface_pixels > 1000, "{name}");
             assert_eq!(
@@ -205,7 +209,7 @@ fn certified_mode_loses_nothing_on_every_reference_scene() {
 #[test]
 fn paper_sampling_loses_the_adversarial_features() {
     // The rod between sample rows: every lost pixel is in a skipped block
-    let c = versus(&run("thin"), Mode::Paper, false);
+    let c = versus(&run("thin"), "paper", false);
     assert!(c.lost > 100, "{}", c.lost);
     assert!(c
         .pixels
@@ -213,7 +217,7 @@ fn paper_sampling_loses_the_adversarial_features() {
         .filter(|p| p.kind == "lost")
         .all(|p| p.cause == "skipped" && p.y == 23));
     // The speck inside block (12, 4), between the samples
-    let c = versus(&run("speck"), Mode::Paper, false);
+    let c = versus(&run("speck"), "paper", false);
     assert!(c.lost >= 4, "{}", c.lost);
     assert!(c
         .pixels
@@ -324,4 +328,119 @@ fn tempdir() -> std::path::PathBuf {
     let d = std::env::temp_dir().join(format!("rayproof-implicit-{}", std::process::id()));
     std::fs::create_dir_all(&d).unwrap();
     d
+}
+
+/// An interval enclosure of the blob's `|∇f|` on `[lo, hi]` (∇f = Σ 4sᵢ(1 − uᵢ)·v/Rᵢ²).
+fn blob_gradient_enclosure(
+    comps: &[rayproof::implicit::field::BlobComponent],
+    lo: DVec3,
+    hi: DVec3,
+) -> rayproof::numerics::interval::Interval<f64> {
+    use rayproof::numerics::interval::Interval as I;
+    let mut g = [I::point(0.0); 3];
+    for c in comps {
+        let v = [0, 1, 2].map(|k| I::new(lo[k], hi[k]) - I::point(c.center[k]));
+        let k = 1.0 / (c.radius * c.radius);
+        let u = (v[0].square() + v[1].square() + v[2].square()) * I::point(k);
+        if u.lo >= 1.0 {
+            continue;
+        }
+        let one_u = I::new((1.0 - u.hi).max(0.0), 1.0 - u.lo);
+        let a = one_u * I::point(4.0 * c.strength * k);
+        for d in 0..3 {
+            g[d] = g[d] + a * v[d];
+        }
+    }
+    (g[0].square() + g[1].square() + g[2].square()).sqrt()
+}
+
+#[test]
+fn blob_local_bounds_hold_on_samples_and_intervals() {
+    let s = reference("blob");
+    let f = s.implicits.values().next().expect("blob").clone();
+    let Field::Blob { components, .. } = &f else {
+        panic!("not a blob")
+    };
+    let lb = f.local_bounds().expect("local bounds");
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let (mut worst, mut worst_h) = (0.0f64, 0.0f64);
+    for i in 0..lb.len() {
+        let ((lo, hi), [l, e, h, _]) = lb.cell(i);
+        let pts: Vec<DVec3> = (0..48)
+            .map(|_| lo + (hi - lo) * DVec3::new(rng.random(), rng.random(), rng.random()))
+            .collect();
+        for w in pts.windows(2) {
+            let (g0, g1) = (f.gradient(w[0]), f.gradient(w[1]));
+            assert!(g0.length() <= l, "cell {i}: {} > {l}", g0.length());
+            worst = worst.max(g0.length() / l);
+            let d = (w[0] - w[1]).length();
+            assert!((g0 - g1).length() <= h * d, "cell {i}: curvature above {h}");
+            worst_h = worst_h.max((g0 - g1).length() / (h * d));
+        }
+        // Interval evaluation: a value |∇f| takes on a small box never exceeds the bound
+        let a = pts[0];
+        let b = (a + (hi - lo) * 0.05).min(hi);
+        assert!(
+            blob_gradient_enclosure(components, a, b).lo <= l,
+            "cell {i}"
+        );
+        if lb.rings(i) > 0 {
+            let sg = f.eval(pts[0]).signum();
+            assert!(pts.iter().all(|&p| f.eval(p) * sg > e), "cell {i}");
+        }
+    }
+    // Teeth: the bounds are tight enough that halving one is caught by the samples
+    assert!(worst > 0.5, "{worst}");
+    assert!(worst_h > 0.0);
+}
+
+#[test]
+fn proved_steps_never_cross_the_blob_surface() {
+    // A safe trace (steps of at least eps) reaches the inside at most eps past the surface; a
+    // first inside point farther past the hit than 2·eps (or none) is a step that crossed it.
+    // The proved steps never do; doubled steps (every bound halved) do. (Each cell's halved
+    // Lipschitz bound is also caught by sampling: blob_local_bounds_hold_on_samples_and_intervals.)
+    let s = reference("blob");
+    let f = s.implicits.values().next().expect("blob").clone();
+    let m = Marcher::new(vec![f.clone()]);
+    let lens = rayproof::render::Lens::new(&s, 200, 150);
+    let mut crossed = [0u32; 4];
+    let ks = [1.0, 2.0, 4.0, 8.0];
+    let mut hits = 0;
+    for y in 0..150 {
+        for x in 0..200 {
+            let d = lens.dir(x as f64 + 0.5, y as f64 + 0.5);
+            let Some((t, _)) = m.trace(lens.pos, d, 0.0).hit else {
+                continue;
+            };
+            hits += 1;
+            for (n, &k) in crossed.iter_mut().zip(&ks) {
+                *n +=
+                    inside_at(&f, lens.pos, d, m.eps, k).is_none_or(|b| b > t + 2.0 * m.eps) as u32;
+            }
+        }
+    }
+    println!("hits {hits}, crossings for step factors {ks:?}: {crossed:?}");
+    assert!(hits > 5000, "{hits}");
+    assert_eq!(crossed[0], 0, "the proved steps cross the surface");
+    assert!(
+        crossed[1] > 100,
+        "doubled steps went unnoticed: {crossed:?}"
+    );
+}
+
+/// Sphere tracing with steps of `k·step` (bounds divided by `k`) to the first inside point.
+fn inside_at(f: &Field, o: DVec3, d: DVec3, eps: f64, k: f64) -> Option<f64> {
+    let mut t = 0.0;
+    for _ in 0..4096 {
+        let v = f.step(o + d * t);
+        if v < 0.0 {
+            return Some(t);
+        }
+        t += (k * v).max(eps);
+        if t > 100.0 {
+            return None;
+        }
+    }
+    None
 }

@@ -633,3 +633,106 @@ fn report() {
         "random segments staying ≥ 0.4 from the mesh: {rays}, with a sign change of f: {flips}"
     );
 }
+
+/// The bunny's local bounds against dense sampling: in every `stride`-th cell (and every cell
+/// near the surface), 4×4×4 lattice points plus 64 random points. Returns the largest
+/// `|∇f|/L_c` and `|∇f(x) − ∇f(y)|/(H_c·|x − y|)` seen, after asserting both ≤ 1 and that a
+/// zero-free cell shows one sign.
+fn sample_local_bounds(m: &Mpu, stride: usize) -> (f64, f64) {
+    let lb = m.local_bounds();
+    let mut rng = Rng(29);
+    let (mut worst_l, mut worst_h) = (0.0f64, 0.0f64);
+    let mut cells = 0;
+    for i in 0..lb.len() {
+        let ((lo, hi), [l, e, h, _]) = lb.cell(i);
+        let c = (lo + hi) * 0.5;
+        if i % stride != 0 && m.eval(c).abs() > (hi - lo).length() {
+            continue;
+        }
+        cells += 1;
+        let mut pts: Vec<DVec3> = (0..64)
+            .map(|k| {
+                let f = |j: usize| ((k >> (2 * j)) & 3) as f64 / 3.0;
+                lo + (hi - lo) * DVec3::new(f(0), f(1), f(2))
+            })
+            .collect();
+        pts.extend((0..64).map(|_| rng.in_box(lo, hi)));
+        let grads: Vec<(DVec3, f64, DVec3)> = pts
+            .iter()
+            .map(|&p| {
+                let (v, g) = m.eval_grad(p);
+                (p, v, g)
+            })
+            .collect();
+        for &(p, _, g) in &grads {
+            assert!(
+                g.length() <= l,
+                "cell {i}: |∇f({p})| = {} > L = {l}",
+                g.length()
+            );
+            worst_l = worst_l.max(g.length() / l);
+        }
+        for w in grads.windows(2) {
+            let (d, dg) = ((w[0].0 - w[1].0).length(), (w[0].2 - w[1].2).length());
+            if d > 1e-9 {
+                assert!(
+                    dg <= h * d,
+                    "cell {i}: ∇f changes by {dg} over {d}, H = {h}"
+                );
+                worst_h = worst_h.max(dg / (h * d));
+            }
+        }
+        if lb.rings(i) > 0 {
+            let s = grads[0].1.signum();
+            assert!(
+                grads.iter().all(|x| x.1 * s > e),
+                "cell {i} is in a zero-free block but f changes sign"
+            );
+        }
+    }
+    assert!(cells > 1000, "{cells} cells sampled");
+    (worst_l, worst_h)
+}
+
+#[test]
+fn bunny_local_bounds_hold_on_dense_samples() {
+    let (l, h) = sample_local_bounds(bunny(), 97);
+    // Teeth: a bound halved is exceeded somewhere (sampling finds a point above L/2)
+    assert!(
+        l > 0.5,
+        "largest |∇f|/L_c is only {l}: halving would go unnoticed"
+    );
+    assert!(h > 0.0);
+}
+
+#[test]
+fn bunny_local_bounds_cover_interval_enclosures() {
+    // On small boxes the interval evaluation of |∇f| is tight: its lower end is a value |∇f|
+    // takes there, never above the cell's bound; and its upper end encloses sampled gradients
+    let m = bunny();
+    let lb = m.local_bounds();
+    let mut rng = Rng(31);
+    let (mut boxes, mut worst) = (0, 0.0f64);
+    for i in (0..lb.len()).step_by(37) {
+        let ((lo, hi), [l, ..]) = lb.cell(i);
+        for _ in 0..4 {
+            let a = rng.in_box(lo, hi);
+            let b = (a + (hi - lo) * 0.05).min(hi);
+            let Some(g) = m.gradient_enclosure(a, b) else {
+                continue;
+            };
+            boxes += 1;
+            assert!(
+                g.lo <= l,
+                "cell {i}: |∇f| ≥ {} on [{a}, {b}] > L = {l}",
+                g.lo
+            );
+            let p = rng.in_box(a, b);
+            let s = m.gradient(p).length();
+            assert!(g.lo <= s && s <= g.hi, "{s} outside [{}, {}]", g.lo, g.hi);
+            worst = worst.max(g.lo / l);
+        }
+    }
+    assert!(boxes > 2000, "{boxes} boxes enclosed");
+    assert!(worst > 0.5, "{worst}");
+}

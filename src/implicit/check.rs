@@ -9,7 +9,7 @@
 //! paper's undetected case ③), or `other`; and placed: `silhouette` (a 4-neighbour is
 //! background in the per-pixel render) or `interior` (a thin feature or a small object inside).
 
-use super::march::Marcher;
+use super::march::{Marcher, Tracer};
 use super::subdiv::{self, Mode, Primary, Stats};
 use crate::render::scene::Scene;
 use crate::render::{Lens, RayCounts};
@@ -67,6 +67,11 @@ pub struct Comparison {
 pub struct Run {
     /// How primary visibility was found.
     pub mode: Mode,
+    /// How the primary rays' steps were bounded (shadow rays: always the renderer's own,
+    /// local bounds).
+    pub tracer: Tracer,
+    /// `mode` or `mode/tracer` for the tracers other than the baseline's.
+    pub name: String,
     /// Whether shadow rays were traced.
     pub shadows: bool,
     /// Counters of the primary pass.
@@ -83,9 +88,10 @@ pub struct Run {
     pub rays: u64,
     /// Field evaluations: primary traces, cones, shadow rays.
     pub steps: u64,
-    /// Against the per-pixel render with the same shadows (`None` for the per-pixel render).
+    /// Against the per-pixel render with the same shadows and tracer (a per-pixel render:
+    /// against the baseline's; `None` for the baseline).
     pub versus_full: Option<Comparison>,
-    /// The per-pixel render's time over this one's.
+    /// The baseline's time (per-pixel, `global` tracer) over this one's.
     pub speedup: f64,
 }
 
@@ -102,8 +108,10 @@ pub struct Report {
     pub region: usize,
     /// The tracer's `eps`: the step at which it probes for a proven hit.
     pub eps: f64,
-    /// Each implicit shape's Lipschitz bound, by name.
+    /// Each implicit shape's global Lipschitz bound (the `global` and `paper` tracers'), by name.
     pub lipschitz: Vec<(String, f64)>,
+    /// Each implicit shape's proved global bound: the largest of its local bounds.
+    pub lipschitz_proved: Vec<(String, f64)>,
     /// Every render: each mode with shadows off and on.
     pub runs: Vec<Run>,
 }
@@ -155,19 +163,50 @@ pub fn marcher(s: &Scene) -> Result<(Marcher, Vec<usize>)> {
     Ok((Marcher::new(fields), mats))
 }
 
+/// The renders of a check, in order: the baseline (per-pixel, global bounds, the judge) first;
+/// then the paper's subdivision and the certified one on the same tracer; per-pixel and
+/// certified with local bounds; and the paper's own renderer (no box clipping, global bound)
+/// per pixel and with its subdivision.
+pub const RUNS: [(Mode, Tracer); 7] = [
+    (Mode::Full, Tracer::Global),
+    (Mode::Paper, Tracer::Global),
+    (Mode::Certified, Tracer::Global),
+    (Mode::Full, Tracer::Local),
+    (Mode::Certified, Tracer::Local),
+    (Mode::Full, Tracer::Paper),
+    (Mode::Paper, Tracer::Paper),
+];
+
 /// Runs the check.
 pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
-    let (m, mats) = marcher(s)?;
+    let (local, mats) = marcher(s)?;
     let (w, h) = size(s, opts.width);
     let lens = Lens::new(s, w, h);
     let mut runs = vec![];
+    let by = |t: Tracer| Marcher::with(local.fields.clone(), t);
+    let marchers = [by(Tracer::Global), local.clone(), by(Tracer::Paper)];
+    let m = &marchers[0];
     for shadows in [false, true] {
-        let mut full: Option<(Primary, Vec<[f32; 3]>, f64)> = None;
-        for mode in Mode::ALL {
+        // Each tracer's per-pixel render (the first is the baseline's)
+        let mut fulls: Vec<(Tracer, Primary, Vec<[f32; 3]>, f64)> = vec![];
+        for (mode, tracer) in RUNS {
+            let m = &marchers[match tracer {
+                Tracer::Global => 0,
+                Tracer::Local => 1,
+                Tracer::Paper => 2,
+            }];
+            // A subdivision is judged against per-pixel tracing with its own tracer, and a
+            // per-pixel render against the baseline's
+            let full = if mode == Mode::Full {
+                fulls.first()
+            } else {
+                fulls.iter().find(|f| f.0 == tracer)
+            }
+            .map(|f| (&f.1, &f.2, f.3));
             // Fastest of the repeats
             let mut best: Option<(Primary, Vec<[f32; 3]>, RayCounts, f64)> = None;
             for _ in 0..opts.repeat.max(1) {
-                let p = subdiv::primary(&m, &lens, (w, h), mode, opts.region);
+                let p = subdiv::primary(m, &lens, (w, h), mode, opts.region);
                 let t0 = Instant::now();
                 let hits: Vec<Option<(f64, DVec3, usize)>> = p
                     .pixels
@@ -192,12 +231,16 @@ pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
             }
             let (p, beauty, counts, shade) = best.expect("at least one repeat");
             let seconds = p.seconds + shade;
-            let versus_full = full
-                .as_ref()
-                .map(|(fp, fb, _)| compare(&m, fp, fb, &p, &beauty, w, h));
-            let speedup = full.as_ref().map_or(1.0, |f| f.2 / seconds);
+            let versus_full = full.map(|(fp, fb, _)| compare(m, fp, fb, &p, &beauty, w, h));
+            let speedup = fulls.first().map_or(1.0, |f| f.3 / seconds);
             runs.push(Run {
                 mode,
+                tracer,
+                name: if tracer == Tracer::Global {
+                    mode.name().to_string()
+                } else {
+                    format!("{}/{}", mode.name(), tracer.name())
+                },
                 shadows,
                 primary: p.stats,
                 secondary: counts,
@@ -210,7 +253,7 @@ pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
                 speedup,
             });
             if mode == Mode::Full {
-                full = Some((p, beauty, seconds));
+                fulls.push((tracer, p, beauty, seconds));
             }
         }
     }
@@ -224,6 +267,14 @@ pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
             .fields
             .iter()
             .map(|f| (f.kind().to_string(), f.lipschitz()))
+            .collect(),
+        lipschitz_proved: m
+            .fields
+            .iter()
+            .map(|f| {
+                let l = f.local_bounds().map_or(f.lipschitz(), |b| b.global().0);
+                (f.kind().to_string(), l)
+            })
             .collect(),
         runs,
     })
@@ -325,7 +376,7 @@ pub fn table(r: &Report) -> String {
     let mut o = String::new();
     let _ = writeln!(
         o,
-        "implicit-check {} — {}×{}, regions {}×{}, eps {:.3e}, Lipschitz {}",
+        "implicit-check {} — {}×{}, regions {}×{}, eps {:.3e}, global Lipschitz {} (proved: {})",
         r.scene,
         r.width,
         r.height,
@@ -336,11 +387,16 @@ pub fn table(r: &Report) -> String {
             .iter()
             .map(|(k, l)| format!("{k} {l:.4}"))
             .collect::<Vec<_>>()
+            .join(", "),
+        r.lipschitz_proved
+            .iter()
+            .map(|(k, l)| format!("{k} {l:.4}"))
+            .collect::<Vec<_>>()
             .join(", ")
     );
     let _ = writeln!(
         o,
-        "{:<10} {:<7} {:>9} {:>11} {:>9} {:>10} {:>9} {:>8} {:>6} {:>6} {:>6} {:>8} {:>8}",
+        "{:<20} {:<7} {:>9} {:>11} {:>9} {:>10} {:>9} {:>8} {:>6} {:>6} {:>6} {:>8} {:>8}",
         "mode",
         "shadows",
         "rays",
@@ -359,8 +415,8 @@ pub fn table(r: &Report) -> String {
         let c = run.versus_full.clone().unwrap_or_default();
         let _ = writeln!(
             o,
-            "{:<10} {:<7} {:>9} {:>11} {:>9} {:>10.4} {:>9.4} {:>7.2}× {:>6} {:>6} {:>6} {:>8} {:>8}",
-            run.mode.name(),
+            "{:<20} {:<7} {:>9} {:>11} {:>9} {:>10.4} {:>9.4} {:>7.2}× {:>6} {:>6} {:>6} {:>8} {:>8}",
+            run.name,
             if run.shadows { "on" } else { "off" },
             run.rays,
             run.steps,
@@ -371,7 +427,7 @@ pub fn table(r: &Report) -> String {
             c.lost,
             c.ghost,
             c.moved,
-            if run.mode == Mode::Full { String::new() } else { c.surface_pixels.to_string() },
+            if run.versus_full.is_none() { String::new() } else { c.surface_pixels.to_string() },
             c.colour_differs
         );
     }
@@ -395,7 +451,7 @@ pub fn table(r: &Report) -> String {
         let _ = writeln!(
             o,
             "{} (shadows {}): {} of {} surface pixels lost ({}); first at {}",
-            run.mode.name(),
+            run.name,
             if run.shadows { "on" } else { "off" },
             c.lost,
             c.surface_pixels,

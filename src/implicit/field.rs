@@ -9,8 +9,14 @@
 //! | SDF sphere, torus, box | 1 | exact Euclidean distances |
 //! | smooth union (polynomial smin, blend k) | 1 | ∂smin/∂a, ∂smin/∂b ≥ 0 and sum to 1, so ∇ is a convex combination of the parts' gradients |
 //! | blob: threshold − Σ sᵢ(1 − rᵢ²/Rᵢ²)² | Σ \|sᵢ\|·8/(3√3·Rᵢ) | \|d/dr s(1 − r²/R²)²\| peaks at r = R/√3 with value 8s/(3√3·R); the components add |
-//! | MPU | measured, see [`super::mpu`] | no analytic bound: max \|∇f\| on a dense sample × a safety factor |
+//! | MPU | measured, see [`super::mpu`] | max \|∇f\| on a dense sample × a safety factor (the `global` and `paper` tracers) |
+//!
+//! **Local bounds** ([`Field::step`], the `local` tracer): blobs and MPU carry a grid of proved
+//! per-box bounds ([`super::lipschitz`]); the blob's are in [`Field::blob`]'s helper (the
+//! supports that meet a box, each at its largest slope over the box's distances), the MPU's in
+//! [`super::mpu`]. SDFs step by `f` (L = 1, no rounding allowance: left as it was).
 
+use super::lipschitz::{CellBound, LocalBounds};
 use super::mpu::Mpu;
 use glam::DVec3;
 use serde::Deserialize;
@@ -138,8 +144,10 @@ pub enum Field {
         components: Vec<BlobComponent>,
         /// `1/Rᵢ²` and the Lipschitz bound, precomputed.
         inv_r2: Vec<f64>,
-        /// Lipschitz bound of the field, for sphere tracing.
+        /// The analytic global bound `Σ |sᵢ|·8/(3√3·Rᵢ)` (the module table).
         lipschitz: f64,
+        /// Proved local bounds over the positive components' box.
+        local: Arc<LocalBounds>,
     },
     /// A multi-level partition-of-unity surface fitted to points.
     Mpu(Arc<Mpu>),
@@ -155,6 +163,102 @@ fn smin(a: f64, b: f64, k: f64) -> f64 {
     a.min(b) - h * h * k * 0.25
 }
 
+/// The blob's local bounds (module table): over a box, `|∇f| ≤ Σ` over the components whose
+/// support meets the box of the largest slope `σ(r) = 4|s|·r(1 − r²/R²)/R²` on the box's range
+/// of distances `r` from the centre (σ rises to its peak 8|s|/(3√3·R) at `R/√3`, then falls);
+/// components that miss the box add nothing there. The box grid covers the positive
+/// components' box (which holds the zero set); outside it only negative components reach, so
+/// the global floor is their summed peak. Evaluation error: each of `n` terms `s(1 − u)²` is
+/// computed to within ~10 roundings of `|s|`, and the sum adds `n` more, so
+/// `4(n + 20)·u·(|threshold| + Σ|sᵢ|)` over the components that meet the box.
+fn blob_bounds(threshold: f64, components: &[BlobComponent]) -> LocalBounds {
+    let peak = 8.0 / (3.0 * 3f64.sqrt());
+    let floor_l = components
+        .iter()
+        .filter(|c| c.strength < 0.0)
+        .map(|c| -c.strength * peak / c.radius)
+        .sum::<f64>();
+    let (lo, hi) = components
+        .iter()
+        .filter(|c| c.strength > 0.0)
+        .map(|c| {
+            let ctr = DVec3::from_array(c.center);
+            (ctr - c.radius, ctr + c.radius)
+        })
+        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(a, b), (c, d)| {
+            (a.min(c), b.max(d))
+        });
+    if !(lo.cmple(hi).all()) {
+        // No positive component: no surface, one cell
+        return LocalBounds::build((DVec3::ZERO, DVec3::ONE), [1; 3], floor_l, |_, _| {
+            CellBound {
+                lipschitz: 0.0,
+                error: 0.0,
+                zero_free: true,
+                curvature: 0.0,
+                gradient_error: 0.0,
+            }
+        });
+    }
+    // Cells a quarter of the smallest positive radius across, at most 64 per axis
+    let rmin = components
+        .iter()
+        .filter(|c| c.strength > 0.0)
+        .map(|c| c.radius)
+        .fold(f64::INFINITY, f64::min);
+    let dims = [0, 1, 2].map(|k| (((hi[k] - lo[k]) / (0.25 * rmin)).ceil() as usize).clamp(1, 64));
+    let n = components.len() as f64;
+    LocalBounds::build((lo, hi), dims, floor_l, |blo, bhi| {
+        // Slope bound, magnitude of the terms, and the density's range
+        let (mut l, mut mag, mut dlo, mut dhi) = (0.0, threshold.abs(), 0.0, 0.0);
+        let (mut hess, mut gmag) = (0.0, 0.0);
+        for c in components {
+            let ctr = DVec3::from_array(c.center);
+            let near = (blo - ctr).max(ctr - bhi).max(DVec3::ZERO).length();
+            if near >= c.radius * (1.0 + 1e-9) {
+                continue;
+            }
+            let far = (blo - ctr)
+                .abs()
+                .max((bhi - ctr).abs())
+                .length()
+                .min(c.radius);
+            let sigma = |r: f64| {
+                let q = r / c.radius;
+                4.0 * c.strength.abs() * q * (1.0 - q * q) / c.radius
+            };
+            let top = c.radius / 3f64.sqrt();
+            l += if near <= top && top <= far {
+                c.strength.abs() * peak / c.radius
+            } else {
+                sigma(near).max(sigma(far))
+            };
+            mag += c.strength.abs();
+            // ∇² s(1 − u)² = −4s/R²·((1 − u)I − 2yyᵀ/R²): norm ≤ 4|s|/R²·max(1 − u, |1 − 3u|) ≤ 8|s|/R²
+            hess += 8.0 * c.strength.abs() / (c.radius * c.radius);
+            gmag += 4.0 * c.strength.abs() / c.radius;
+            let (a, b) = (
+                1.0 - (near / c.radius).powi(2),
+                1.0 - (far / c.radius).powi(2),
+            );
+            let (a, b) = (c.strength * a * a, c.strength * b.max(0.0) * b.max(0.0));
+            dlo += a.min(b);
+            dhi += a.max(b);
+        }
+        let error = 4.0 * (n + 20.0) * 0.5 * f64::EPSILON * mag;
+        // The slack 1e-9·mag covers the rounding of the range itself
+        let (flo, fhi) = (threshold - dhi, threshold - dlo);
+        CellBound {
+            lipschitz: l,
+            error,
+            zero_free: flo > error + 1e-9 * mag || fhi < -(error + 1e-9 * mag),
+            curvature: hess,
+            // ∇f = Σ −4s(1 − u)y/R²: ~10 roundings of terms ≤ 4|s|/R, 1e-10 relative over
+            gradient_error: 1e-10 * gmag,
+        }
+    })
+}
+
 impl Field {
     /// A blob field (the Lipschitz bound is computed here).
     pub fn blob(threshold: f64, components: Vec<BlobComponent>) -> Field {
@@ -167,11 +271,66 @@ impl Field {
             .iter()
             .map(|c| 1.0 / (c.radius * c.radius))
             .collect();
+        let local = Arc::new(blob_bounds(threshold, &components));
         Field::Blob {
             threshold,
             components,
             inv_r2,
             lipschitz,
+            local,
+        }
+    }
+
+    /// A safe sphere-tracing step from `p`, signed as `f(p)` (negative inside): no surface point
+    /// lies closer. SDFs: `f` itself (1-Lipschitz); blobs and MPU: the local bounds
+    /// ([`super::lipschitz`]).
+    #[inline]
+    pub fn step(&self, p: DVec3) -> f64 {
+        match self {
+            Field::Sdf { .. } => self.eval(p),
+            Field::Blob { local, .. } => Self::step_with(
+                local,
+                p,
+                || self.eval(p),
+                || {
+                    let g = self.gradient(p);
+                    (self.eval(p), g.length())
+                },
+            ),
+            Field::Mpu(m) => Self::step_with(
+                m.local_bounds(),
+                p,
+                || m.eval(p),
+                || {
+                    let (f, g) = m.eval_grad(p);
+                    (f, g.length())
+                },
+            ),
+        }
+    }
+
+    /// The local step at `p`: with the gradient where a zero may be near, else the value alone.
+    #[inline]
+    fn step_with(
+        b: &LocalBounds,
+        p: DVec3,
+        value: impl Fn() -> f64,
+        with_grad: impl Fn() -> (f64, f64),
+    ) -> f64 {
+        if b.near_zero(p) {
+            let (f, g) = with_grad();
+            b.step(p, f, Some(g))
+        } else {
+            b.step(p, value(), None)
+        }
+    }
+
+    /// The proved local bounds, for fields that have them (blobs and MPU).
+    pub fn local_bounds(&self) -> Option<&LocalBounds> {
+        match self {
+            Field::Sdf { .. } => None,
+            Field::Blob { local, .. } => Some(local),
+            Field::Mpu(m) => Some(m.local_bounds()),
         }
     }
 
@@ -205,13 +364,18 @@ impl Field {
         }
     }
 
-    /// The Lipschitz bound of [`Field::eval`] (see the module table).
+    /// The global Lipschitz bound of [`Field::eval`] (see the module table), proved.
     pub fn lipschitz(&self) -> f64 {
         match self {
             Field::Sdf { .. } => 1.0,
             Field::Blob { lipschitz, .. } => *lipschitz,
             Field::Mpu(m) => m.lipschitz(),
         }
+    }
+
+    /// A bound on the rounding error of [`Field::eval`] anywhere (0 for SDFs: not covered).
+    pub fn eval_error(&self) -> f64 {
+        self.local_bounds().map_or(0.0, |b| b.global().1)
     }
 
     /// `∇f` (analytic for blobs, central differences for SDFs, the MPU's own).

@@ -1,10 +1,14 @@
 //! Sphere tracing (Hart 1996) over a union of implicit fields, forward and backward, with root
 //! refinement and a miss criterion.
 //!
-//! **Safe step.** Each field `i` has a Lipschitz bound `Lᵢ` ([`super::field`]), so no surface lies
-//! within `fᵢ(p)/Lᵢ` of `p`. Outside a field's box grown by a margin `m`, the box distance plus
-//! `m` is a cheaper bound that is also safe (the zero set lies in the box, and any point outside
-//! the grown box is at least `m` from the box). The step is the minimum over the fields.
+//! **Safe step** ([`Tracer`]). `local` (the default): each field's proved local step
+//! ([`Field::step`], [`super::lipschitz`]). `global` (the baseline before local bounds): each
+//! field `i` has a global bound `Lᵢ` ([`super::field`]; measured for MPU), so no surface lies
+//! within `fᵢ(p)/Lᵢ` of `p`. For both, outside a field's box grown by a margin `m`, the box
+//! distance plus `m` is a cheaper bound that is also safe (the zero set lies in the box, and
+//! any point outside the grown box is at least `m` from the box). `paper` (the paper's
+//! renderer): `fᵢ(p)/Lᵢ` everywhere, from the eye, with no box. The step is the minimum over
+//! the fields.
 //!
 //! **Hit.** A hit is a proven sign change: when the step falls below `eps` (a fixed fraction of
 //! the scene's box diagonal), probes at `t + eps·2ᵏ` (k ≤ 5) look for an inside point, and the
@@ -12,7 +16,8 @@
 //! crossing it and marching goes on from the last probe. Unlike Hart's plain `eps` criterion, a
 //! grazing ray is then a miss, and a secondary ray that starts on its surface needs no offset.
 //!
-//! **Miss.** The ray leaves the scene box (`t` beyond its exit) or takes more than
+//! **Miss.** The ray leaves the scene box (`t` beyond its exit; `paper`: the far side of the
+//! box's bounding sphere) or takes more than
 //! [`MAX_STEPS`] steps (counted separately: a capped ray is a miss that is not proved).
 //!
 //! **Start inside** (the paper's case ②: a start length past the surface but not through the
@@ -26,6 +31,31 @@ pub const MAX_STEPS: u32 = 4096;
 
 /// Relative hit tolerance: `eps = EPS_REL × scene box diagonal`.
 pub const EPS_REL: f64 = 1e-5;
+
+/// How a [`Marcher`] bounds its steps and clips its rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Tracer {
+    /// The paper's renderer: every step `f/L` with the field's global bound, from the eye to
+    /// the far side of the scene's bounding sphere (no box clipping, no box-distance steps).
+    Paper,
+    /// Rays clipped to the scene box, box distances outside each field's box, and `f/L` with
+    /// the field's global bound inside it (the per-pixel baseline before local bounds).
+    Global,
+    /// As `Global`, with each field's local bounds inside its box ([`Field::step`]).
+    Local,
+}
+
+impl Tracer {
+    /// The tracer's name in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Tracer::Paper => "paper",
+            Tracer::Global => "global",
+            Tracer::Local => "local",
+        }
+    }
+}
 
 /// The result of one trace.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -55,6 +85,8 @@ pub struct Marcher {
     pub hi: DVec3,
     /// The step size at which a trace probes for a proven sign change (a fixed fraction of the box diagonal).
     pub eps: f64,
+    /// How steps are bounded and rays clipped.
+    pub tracer: Tracer,
 }
 
 /// Distance from `p` to the box `[lo, hi]` (0 inside).
@@ -64,8 +96,13 @@ fn box_distance(p: DVec3, lo: DVec3, hi: DVec3) -> f64 {
 }
 
 impl Marcher {
-    /// A marcher for these fields, with their boxes and Lipschitz bounds precomputed.
+    /// A marcher for these fields with local bounds ([`Tracer::Local`]).
     pub fn new(fields: Vec<Field>) -> Marcher {
+        Marcher::with(fields, Tracer::Local)
+    }
+
+    /// A marcher for these fields, with their boxes and Lipschitz bounds precomputed.
+    pub fn with(fields: Vec<Field>, tracer: Tracer) -> Marcher {
         let mut lo = DVec3::INFINITY;
         let mut hi = DVec3::NEG_INFINITY;
         for f in &fields {
@@ -91,6 +128,7 @@ impl Marcher {
             lo,
             hi,
             eps: EPS_REL * diag,
+            tracer,
         }
     }
 
@@ -101,10 +139,11 @@ impl Marcher {
         for (i, f) in self.fields.iter().enumerate() {
             let (a, b) = self.boxes[i];
             let out = box_distance(p, a, b);
-            let d = if out > 0.0 {
-                out + self.margin
-            } else {
-                f.eval(p) * self.inv_l[i]
+            let d = match self.tracer {
+                Tracer::Paper => f.eval(p) * self.inv_l[i],
+                _ if out > 0.0 => out + self.margin,
+                Tracer::Global => f.eval(p) * self.inv_l[i],
+                Tracer::Local => f.step(p),
             };
             if d < best.0 {
                 best = (d, i);
@@ -113,8 +152,14 @@ impl Marcher {
         best
     }
 
-    /// The ray's parameter interval inside the scene box grown by the margin (`None`: it misses).
+    /// The ray's parameter interval inside the scene box grown by the margin (`None`: it
+    /// misses); for [`Tracer::Paper`], from the eye to the far side of the box's bounding sphere.
     pub fn clip(&self, o: DVec3, d: DVec3) -> Option<(f64, f64)> {
+        if self.tracer == Tracer::Paper {
+            let c = (self.lo + self.hi) * 0.5;
+            let far = (o - c).length() + (self.hi - self.lo).length() * 0.5 + 4.0 * self.margin;
+            return Some((0.0, far));
+        }
         let inv = d.recip();
         let (lo, hi) = (self.lo - 2.0 * self.margin, self.hi + 2.0 * self.margin);
         let (a, b) = ((lo - o) * inv, (hi - o) * inv);

@@ -63,9 +63,48 @@
 //! MPU value met in that shell at fit time: positive (no zero there) on the bunny and the
 //! sphere, the measured support for that premise.
 //!
-//! # Lipschitz bound ([`Mpu::lipschitz`])
-//! MPU has no analytic bound; it is **measured**: `max(1, 1.5 × max |∇f|)`, the maximum over
-//! a 64³ grid of `bounds()` and 36 samples around every input point. Not a proof.
+//! # Lipschitz bounds
+//! **Measured** ([`Mpu::lipschitz`], the global bound of the `global` and `paper` tracers, as
+//! before local bounds): `max(1, 1.5 × max |∇f|)` over a 64³ grid of `bounds()` and 36
+//! samples around every input point. Not a proof.
+//!
+//! **Proved, per box** ([`Mpu::local_bounds`]: a grid of `LIPSCHITZ_REFINE³` boxes per cell of
+//! the evaluation grid over `bounds()`, see [`super::lipschitz`] for the step rule). For a box
+//! `B` (centre `x₀`, half-diagonal `r`), over the fits `i` whose ball meets `B`:
+//! - `Q̃ᵢ` is C¹ and `∇Q̃ᵢ` is `Kᵢ`-Lipschitz with `Kᵢ = 3‖Hᵢ‖_F`: inside the sphere
+//!   `∇²Q̃ = H`; outside, `∇Q̃ = ∇Q(π) + φ(|z|)·(Hu − (u·Hu)u)`, `u = z/|z|`,
+//!   `φ = ρ(1 − ρ/|z|)`, whose derivative is at most `‖H‖ρ/|z| ≤ ‖H‖` (first term) plus
+//!   `|φ'|·‖H‖ + (φ/|z|)·4‖H‖ ≤ ‖H‖ + ‖H‖` (`φ' = ρ²/|z|² ≤ 1`, `φ/|z| ≤ 1/4`). Hence, with
+//!   `vᵢ, gᵢ` the value and gradient at `x₀`: `sup_B |∇Q̃ᵢ| ≤ |gᵢ| + Kᵢr` and
+//!   `sup_B |Q̃ᵢ − Q̃ⱼ| ≤ |vᵢ − vⱼ| + |gᵢ − gⱼ|r + (Kᵢ + Kⱼ)r²/2` (Taylor with a Lipschitz
+//!   gradient), `sup_B |∇Q̃ᵢ − ∇Q̃ⱼ| ≤ |gᵢ − gⱼ| + (Kᵢ + Kⱼ)r`.
+//! - Weights `wᵢ = b(tᵢ)`, `tᵢ = 1.5|x − cᵢ|/Rᵢ` over `[t_min, t_max]` (nearest and farthest
+//!   point of `B`): `b` decreases, so `b(t_max) ≤ wᵢ ≤ b(t_min)`; `|∇wᵢ| ≤ (1.5/Rᵢ)·max |b'|`
+//!   (`|b'|` peaks at 1 at `t = 1/2`); `‖∇²wᵢ‖ ≤ 2(1.5/Rᵢ)²` (the radial and tangential
+//!   eigenvalues `s²b''` and `s²b'/t` lie in `[−2s², s²]`).
+//! - `W = Σ wⱼ ≥ max(Σ b(t_max), w_floor)`, `w_floor = b(0.75/alpha)`: every point lies in a
+//!   leaf cell whose ball (`R ≥ alpha·diagonal`) reaches it at `t ≤ 0.75/alpha`.
+//! - The shares `λⱼ = wⱼ/W` sum to 1 with `0 ≤ λⱼ ≤ b(t_min,ⱼ)/W_lo`; a "mix" of per-fit bounds
+//!   `mⱼ` is the largest `Σ λⱼmⱼ` under these constraints (fill the largest `mⱼ` first).
+//! - `∇f = Σ λᵢ∇Q̃ᵢ + Σ ∇wᵢ(Q̃ᵢ − f)/W` and `Q̃ᵢ − f = Σⱼ λⱼ(Q̃ᵢ − Q̃ⱼ)`, so
+//!   `L_B = mix(|gᵢ| + Kᵢr) + Σᵢ sup|∇wᵢ|·mixⱼ(sup|Q̃ᵢ − Q̃ⱼ|)/W_lo`.
+//! - `W∇²f = Σ [(∇Q̃ᵢ − ∇f)⊗∇wᵢ + ∇wᵢ⊗(∇Q̃ᵢ − ∇f) + wᵢ∇²Q̃ᵢ + ∇²wᵢ(Q̃ᵢ − f)]` (differentiate
+//!   `W∇f = Σ wᵢ∇Q̃ᵢ + Σ ∇wᵢ(Q̃ᵢ − f)`), so `H_B = Σᵢ [2 sup|∇wᵢ|(mixⱼ sup|∇Q̃ᵢ − ∇Q̃ⱼ| +
+//!   spread) + ‖∇²wᵢ‖·mixⱼ sup|Q̃ᵢ − Q̃ⱼ|]/W_lo + mix(Kᵢ)`, `spread` the second term of `L_B`.
+//! - `f ∈ [−mix(−vⱼ + reachⱼ), mix(vⱼ + reachⱼ)]`, `reachⱼ = |gⱼ|r + Kⱼr²/2`: the box is
+//!   zero-free when this range, widened by the evaluation error, excludes 0.
+//! - Rounding: `vᵢ` and `gᵢ` are computed, so every difference gets the evaluation error `e`
+//!   twice and each gradient `1e-12·(|bᵢ| + 3‖Hᵢ‖·|z|max)`; `e = 4(n + 100)·u·max Tᵢ` with
+//!   `Tᵢ` the sum of the magnitudes of `Q̃ᵢ`'s terms over `B` (`n` fits, each value ~15
+//!   roundings, the weighted mean `n` more; `|f| ≤ max|Q̃ᵢ|` as a mean), and the computed
+//!   `|∇f|` is within `1e-10·(L_B + Σ sup|∇wᵢ|·max Tᵢ/W_lo)`.
+//!
+//! Outside `bounds()` the field is the box distance plus `floor` (1-Lipschitz, never above the
+//! distance to the zero set), so the grid's global floor is 1. On the bunny the proved bounds
+//! are far looser than `|∇f|` (the measured `|∇f|` is 2.6 at most; see the README's figures):
+//! the boxes are about a third of a support radius across, where the weights vary by a factor
+//! of ~3, and the triangle inequality over ~17 overlapping fits loses the cancellation that
+//! keeps the true `|∇f|` near 1.
 //!
 //! # Ghost surfaces
 //! Local quadrics extrapolated into empty space can have zero sets away from the data.
@@ -78,10 +117,13 @@
 //! distance to the mesh, so `f/lipschitz()` stays below half of it there.
 //!
 //! # Cost (bunny, defaults, the 2-core dev machine)
-//! Fit ≈ 0.09 s on both cores, including the Lipschitz measurement; 2393 cells, 2094 leaves (1072
+//! Fit ≈ 0.09 s on both cores, including the Lipschitz measurement, plus ≈ 3 s for the proved
+//! local bounds (75³ boxes, each with its ~17² pairs of fits); 2393 cells, 2094 leaves (1072
 //! bivariate, 319 general, 703 empty); [`Mpu::eval`] ≈ 0.35 µs (≈ 15 contributing fits near
 //! the surface, ≈ 10 elsewhere), [`Mpu::eval_grad`] ≈ 0.45 µs.
 
+use super::lipschitz::{CellBound, LocalBounds};
+use crate::numerics::interval::Interval;
 use anyhow::{anyhow, bail, Context, Result};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -165,8 +207,10 @@ pub struct MpuStats {
     pub shell_min: f64,
 }
 
-/// Safety factor on the measured gradient maximum.
+/// Safety factor on the measured gradient maximum (the baseline's global bound).
 pub const LIPSCHITZ_SAFETY: f64 = 1.5;
+/// Cells per axis of the local Lipschitz grid per cell of the evaluation grid.
+pub const LIPSCHITZ_REFINE: usize = 3;
 /// Grid resolution per axis of the Lipschitz measurement.
 pub const LIPSCHITZ_GRID: usize = 64;
 /// `bounds()` = the points' bounding box grown by this fraction of its diagonal per side.
@@ -223,6 +267,13 @@ impl Local {
             2.0 * a[1] * v.y + a[3] * v.x + a[5] * v.z,
             2.0 * a[2] * v.z + a[4] * v.x + a[5] * v.y,
         )
+    }
+    /// `‖H‖_F`, an upper bound of the Hessian's spectral norm.
+    fn hess_norm(&self) -> f64 {
+        let a = &self.a;
+        (4.0 * (a[0] * a[0] + a[1] * a[1] + a[2] * a[2])
+            + 2.0 * (a[3] * a[3] + a[4] * a[4] + a[5] * a[5]))
+            .sqrt()
     }
     /// Q at `p` (with the linear extension).
     #[inline(always)]
@@ -287,6 +338,10 @@ pub struct Mpu {
     hi: DVec3,
     floor: f64,
     lipschitz: f64,
+    /// Proved lower bound of `Σ wᵢ` at every point of `bounds()` (0 when `alpha ≤ 1/2`).
+    w_floor: f64,
+    /// Proved local Lipschitz bounds over `bounds()`.
+    local: Option<LocalBounds>,
     /// Evaluation grid: `gn` cells per axis over `bounds()`; cell `i` lists
     /// `list[start[i]..start[i+1]]`.
     gn: usize,
@@ -906,6 +961,13 @@ impl Mpu {
             hi,
             floor: 0.5 * margin,
             lipschitz: 1.0,
+            // A leaf cell's ball (R ≥ alpha·diagonal) reaches t = 1.5·|x − c|/R ≤ 0.75/alpha
+            w_floor: if opts.alpha > 0.5 {
+                bspline(0.75 / opts.alpha).0 * (1.0 - 1e-9)
+            } else {
+                0.0
+            },
+            local: None,
             gn: 1,
             ginv: DVec3::ONE,
             start: vec![],
@@ -914,6 +976,9 @@ impl Mpu {
         };
         mpu.build_grid();
         mpu.measure_lipschitz(points, &nrm);
+        let gn = mpu.gn * LIPSCHITZ_REFINE;
+        let local = LocalBounds::build((lo, hi), [gn; 3], 1.0, |a, b| mpu.box_bound(a, b));
+        mpu.local = Some(local);
         mpu
     }
 
@@ -1180,6 +1245,253 @@ impl Mpu {
         })
     }
 
+    /// The proved `(sup |∇f|, evaluation error)` over the box `[blo, bhi] ⊂ bounds()` (module
+    /// doc, "Local Lipschitz bounds").
+    fn box_bound(&self, blo: DVec3, bhi: DVec3) -> CellBound {
+        // The local fits whose ball may meet the box: every evaluation cell it touches, padded
+        let pad = 1e-9 * (self.hi - self.lo).max_element();
+        let m = (self.gn - 1) as f64;
+        let idx = |v: DVec3| ((v - self.lo) * self.ginv).clamp(DVec3::ZERO, DVec3::splat(m));
+        let (i0, i1) = (idx(blo - pad), idx(bhi + pad));
+        let mut cand: Vec<u32> = vec![];
+        for k in i0.z as usize..=i1.z as usize {
+            for j in i0.y as usize..=i1.y as usize {
+                for i in i0.x as usize..=i1.x as usize {
+                    let c = (k * self.gn + j) * self.gn + i;
+                    cand.extend(&self.list[self.start[c] as usize..self.start[c + 1] as usize]);
+                }
+            }
+        }
+        cand.sort_unstable();
+        cand.dedup();
+        let (x0, r) = ((blo + bhi) * 0.5, (bhi - blo).length() * 0.5);
+        // Per fit i: Q̃ᵢ(x₀), ∇Q̃ᵢ(x₀) and its rounding, Kᵢ = 3‖Hᵢ‖_F, sup |∇wᵢ|, inf wᵢ, and the
+        // scale Tᵢ of the terms of Q̃ᵢ over the box
+        struct Fit {
+            v: f64,
+            g: DVec3,
+            gerr: f64,
+            k: f64,
+            dw: f64,
+            s2: f64,
+            wlo: f64,
+            whi: f64,
+            t: f64,
+        }
+        let fits: Vec<Fit> = cand
+            .iter()
+            .filter_map(|&li| {
+                let l = &self.locals[li as usize];
+                // Distances from the weight centre to the box: nearest, farthest
+                let near = (blo - l.c).max(l.c - bhi).max(DVec3::ZERO).length();
+                if near * near >= l.r2 * (1.0 + 1e-9) {
+                    return None;
+                }
+                let far = (blo - l.c).abs().max((bhi - l.c).abs()).length();
+                let (tmin, tmax) = (near * l.s, far * l.s);
+                // |b'(t)| rises as 2t to 1 at t = 1/2, then falls as 1.5 − t
+                let db = if tmax < 0.5 {
+                    2.0 * tmax
+                } else if tmin > 0.5 {
+                    (1.5 - tmin).max(0.0)
+                } else {
+                    1.0
+                };
+                let wlo = (bspline(tmax).0 * (1.0 - 1e-9) - 1e-15).max(0.0);
+                let whi = bspline(tmin).0 * (1.0 + 1e-9) + 1e-15;
+                let hn = l.hess_norm();
+                let zmax = (blo - l.m).abs().max((bhi - l.m).abs()).length();
+                let zeta = zmax.min(l.rho);
+                let aabs: f64 = l.a.iter().map(|x| x.abs()).sum();
+                let t = l.k.abs() + l.b.length() * zmax + aabs * zeta * zeta + hn * zeta * zmax;
+                let (v, g) = l.q_grad(x0);
+                Some(Fit {
+                    v,
+                    g,
+                    // The computed gradient's rounding (~30 roundings of terms ≤ this scale)
+                    gerr: 1e-12 * (l.b.length() + 3.0 * hn * zmax),
+                    k: 3.0 * hn,
+                    dw: db * l.s,
+                    s2: l.s * l.s,
+                    wlo,
+                    whi,
+                    t,
+                })
+            })
+            .collect();
+        // Evaluation error: n + 100 roundings of terms no larger than the largest Tᵢ, 4× over
+        let tmax = fits.iter().map(|f| f.t).fold(0.0, f64::max);
+        let err = 4.0 * (fits.len() as f64 + 100.0) * f64::EPSILON * 0.5 * tmax;
+        // Σ wᵢ ≥ the weights' lower bounds, and ≥ w_floor anywhere in bounds()
+        let wsum = fits.iter().map(|f| f.wlo).sum::<f64>().max(self.w_floor);
+        if wsum <= 0.0 {
+            return CellBound {
+                lipschitz: f64::INFINITY,
+                error: err,
+                zero_free: false,
+                curvature: f64::INFINITY,
+                gradient_error: f64::INFINITY,
+            };
+        }
+        // The shares λⱼ = wⱼ/W lie in [0, whiⱼ/W_lo] and sum to 1
+        let cap: Vec<f64> = fits.iter().map(|f| (f.whi / wsum).min(1.0)).collect();
+        let mut order: Vec<(f64, f64)> = Vec::with_capacity(fits.len());
+        // The largest Σ λⱼ·vⱼ over such shares: fill the largest vⱼ first
+        let mut mix = |vals: &mut dyn Iterator<Item = f64>| -> f64 {
+            order.clear();
+            order.extend(vals.zip(cap.iter().copied()));
+            order.sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+            let (mut left, mut sum) = (1.0f64, 0.0);
+            for &(v, c) in &order {
+                let take = c.min(left);
+                sum += take * v;
+                left -= take;
+                if left <= 0.0 {
+                    break;
+                }
+            }
+            // Rounding of the shares: the unfilled remainder at the smallest value is ≥ 0
+            sum * (1.0 + 1e-12)
+        };
+        // ∇f = Σ λᵢ∇Q̃ᵢ + Σ ∇wᵢ(Q̃ᵢ − f)/W, with |Q̃ᵢ − f| = |Σⱼ λⱼ(Q̃ᵢ − Q̃ⱼ)|
+        let gmax = mix(&mut fits.iter().map(|a| a.g.length() + a.gerr + a.k * r));
+        let mut spread = 0.0;
+        // Per fit: sup |Q̃ᵢ − f| and sup |∇Q̃ᵢ − Σ λⱼ∇Q̃ⱼ| (mixes over the shares)
+        let mut dq = vec![0.0; fits.len()];
+        let mut dg = vec![0.0; fits.len()];
+        for (i, a) in fits.iter().enumerate() {
+            if a.dw == 0.0 {
+                continue;
+            }
+            dq[i] = mix(&mut fits.iter().map(|b| {
+                (a.v - b.v).abs()
+                    + 2.0 * err
+                    + ((a.g - b.g).length() + a.gerr + b.gerr) * r
+                    + 0.5 * (a.k + b.k) * r * r
+            }));
+            dg[i] = mix(&mut fits
+                .iter()
+                .map(|b| (a.g - b.g).length() + a.gerr + b.gerr + (a.k + b.k) * r));
+            spread += a.dw * dq[i];
+        }
+        let lipschitz = gmax + spread / wsum;
+        // W∇²f = Σ [(∇Q̃ᵢ − ∇f)⊗∇wᵢ + ∇wᵢ⊗(∇Q̃ᵢ − ∇f) + wᵢ∇²Q̃ᵢ + ∇²wᵢ(Q̃ᵢ − f)], with
+        // |∇Q̃ᵢ − ∇f| ≤ dgᵢ + spread/W, ‖∇²Q̃ᵢ‖ ≤ Kᵢ, ‖∇²wᵢ‖ ≤ 2sᵢ² (module doc)
+        let curv = fits
+            .iter()
+            .zip(dq.iter().zip(&dg))
+            .map(|(a, (q, g))| 2.0 * a.dw * (g + spread / wsum) + 2.0 * a.s2 * q)
+            .sum::<f64>()
+            / wsum
+            + mix(&mut fits.iter().map(|a| a.k));
+        // The computed gradient's rounding: far above ~100 roundings of its terms' magnitudes
+        let tmag = fits.iter().map(|f| f.t).fold(0.0, f64::max);
+        let gerr = 1e-10 * (gmax + fits.iter().map(|f| f.dw).sum::<f64>() * tmag / wsum);
+        // f's range: a mix of the fits' ranges Q̃ⱼ(x₀) ± (|∇Q̃ⱼ(x₀)|·r + Kⱼr²/2)
+        let reach = |f: &Fit| (f.g.length() + f.gerr) * r + 0.5 * f.k * r * r + err;
+        let fmax = mix(&mut fits.iter().map(|f| f.v + reach(f)));
+        let fmin = -mix(&mut fits.iter().map(|f| -f.v + reach(f)));
+        CellBound {
+            lipschitz,
+            error: err,
+            zero_free: fmin > err || fmax < -err,
+            curvature: curv,
+            gradient_error: gerr,
+        }
+    }
+
+    /// An interval enclosure of `|∇f|` over the box `[lo, hi] ⊂ bounds()` by outward-rounded
+    /// interval arithmetic on [`Mpu::eval_grad`]'s formula (`(Σ ∇wᵢQ̃ᵢ + wᵢ∇Q̃ᵢ − f·Σ∇wᵢ)/Σwᵢ`),
+    /// independent of the local bounds' derivation: for tests. `None` when a local fit's
+    /// linear-extension sphere cuts the box (the branch is not enclosed).
+    pub fn gradient_enclosure(&self, lo: DVec3, hi: DVec3) -> Option<Interval<f64>> {
+        type I = Interval<f64>;
+        let iv = |a: DVec3, b: DVec3| [0, 1, 2].map(|k| I::new(a[k], b[k]));
+        let x = iv(lo, hi);
+        let zero = I::point(0.0);
+        let (mut sw, mut swq) = (zero, zero);
+        let (mut gw, mut gwq) = ([zero; 3], [zero; 3]);
+        let mut list: Vec<u32> = vec![];
+        for z in [lo.z, hi.z] {
+            for y in [lo.y, hi.y] {
+                for xx in [lo.x, hi.x] {
+                    list.extend(self.cell_list(DVec3::new(xx, y, z)));
+                }
+            }
+        }
+        list.sort_unstable();
+        list.dedup();
+        for &li in &list {
+            let l = &self.locals[li as usize];
+            let near = (lo - l.c).max(l.c - hi).max(DVec3::ZERO).length();
+            if near * near >= l.r2 {
+                continue;
+            }
+            // Only boxes wholly inside the fit's sphere (or a plane's): Q̃ = Q there
+            let far_m = (lo - l.m).abs().max((hi - l.m).abs()).length();
+            if far_m > l.rho {
+                return None;
+            }
+            let y = [0, 1, 2].map(|k| x[k] - I::point(l.c[k]));
+            let zz = [0, 1, 2].map(|k| x[k] - I::point(l.m[k]));
+            let r = (y[0].square() + y[1].square() + y[2].square()).sqrt();
+            let t = r * I::point(l.s);
+            // b and b'·s/r on each B-spline piece the range of t meets, joined
+            let mut pieces = vec![];
+            if t.lo < 0.5 {
+                let tt = I::new(t.lo, t.hi.min(0.5));
+                pieces.push((I::point(0.75) - tt.square(), I::point(-2.0 * l.s * l.s)));
+            }
+            if t.hi >= 0.5 {
+                let tt = I::new(t.lo.max(0.5), t.hi.min(1.5));
+                let u = I::point(1.5) - tt;
+                let rr = I::new(r.lo.max(0.5 / l.s), r.hi);
+                pieces.push((u.square() * I::point(0.5), -(u * I::point(l.s)) / rr));
+            }
+            let hull = |a: I, b: I| I::new(a.lo.min(b.lo), a.hi.max(b.hi));
+            let (w, k) = pieces
+                .into_iter()
+                .reduce(|a, b| (hull(a.0, b.0), hull(a.1, b.1)))?;
+            // Past the support (t ≥ 1.5) both are 0
+            let (w, k) = if t.hi >= 1.5 {
+                (hull(w, zero), hull(k, zero))
+            } else {
+                (w, k)
+            };
+            // Q and ∇Q = Hz + b on the box
+            let a = &l.a;
+            let (z0, z1, z2) = (zz[0], zz[1], zz[2]);
+            let c = |v: f64| I::point(v);
+            let q = z0 * (c(a[0]) * z0 + c(a[3]) * z1 + c(a[4]) * z2)
+                + z1 * (c(a[1]) * z1 + c(a[5]) * z2)
+                + c(a[2]) * z2.square()
+                + c(l.b.x) * z0
+                + c(l.b.y) * z1
+                + c(l.b.z) * z2
+                + c(l.k);
+            let gq = [
+                c(2.0 * a[0]) * z0 + c(a[3]) * z1 + c(a[4]) * z2 + c(l.b.x),
+                c(2.0 * a[1]) * z1 + c(a[3]) * z0 + c(a[5]) * z2 + c(l.b.y),
+                c(2.0 * a[2]) * z2 + c(a[4]) * z0 + c(a[5]) * z1 + c(l.b.z),
+            ];
+            sw = sw + w;
+            swq = swq + w * q;
+            for d in 0..3 {
+                let dw = k * y[d];
+                gw[d] = gw[d] + dw;
+                gwq[d] = gwq[d] + dw * q + w * gq[d];
+            }
+        }
+        let f = swq / sw;
+        let g = [0, 1, 2].map(|d| (gwq[d] - f * gw[d]) / sw);
+        Some((g[0].square() + g[1].square() + g[2].square()).sqrt())
+    }
+
+    /// The proved local Lipschitz bounds over `bounds()`.
+    pub fn local_bounds(&self) -> &LocalBounds {
+        self.local.as_ref().expect("built by fit")
+    }
+
     /// The implicit: **positive outside**, negative inside, ≈ signed distance near the
     /// surface; outside `bounds()`, `dist(p, bounds()) + floor()` (module doc).
     #[inline]
@@ -1269,8 +1581,8 @@ impl Mpu {
         self.floor
     }
 
-    /// The step bound for sphere tracing (step `f(x)/lipschitz()`). **Measured, not
-    /// proved**: `max(1, 1.5 × max |∇f|)`, the maximum over a 64³ grid of `bounds()` and 36
+    /// The global step bound of the `global` and `paper` tracers (step `f(x)/lipschitz()`).
+    /// **Measured, not proved** (the proved bounds: [`Mpu::local_bounds`]): `max(1, 1.5 × max |∇f|)`, the maximum over a 64³ grid of `bounds()` and 36
     /// samples within one grid-cell diagonal of each input point (along and across the
     /// normal). The outside branch is 1-Lipschitz. Bunny, default options: 3.90 (max |∇f| =
     /// 2.60, met in the empty margin behind the ears, where a large cell's ear-tip quadric

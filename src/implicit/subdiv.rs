@@ -25,7 +25,8 @@
 //! the block: it is skipped when `t` passes the scene's bounding sphere, and otherwise it splits
 //! into four narrower cones that continue from `t`, down to 2×2 pixels, whose pixels are traced
 //! from their certified `t` (always case ①). No pixel that per-pixel tracing hits can be lost,
-//! given a valid Lipschitz bound (measured, not proved, for MPU).
+//! given valid bounds: with the `local` tracer every bound is proved ([`super::lipschitz`]);
+//! with `global`, the MPU's is measured.
 
 use super::march::{Marcher, Traced};
 use crate::render::Lens;
