@@ -459,7 +459,7 @@ pub struct Geometry {
 }
 
 impl Geometry {
-    /// Builds the BVH with the surface area heuristic (binned, [`SAH_BINS`] bins per axis).
+    /// Builds the BVH with the surface area heuristic (binned, `SAH_BINS` bins per axis).
     pub fn new(objects: Vec<Object>, planes: Vec<Plane>) -> Geometry {
         let mut binary = vec![];
         let mut items: Vec<Item> = objects

@@ -3,18 +3,23 @@
 //! and an accurate phase only when the bound cannot decide. Measured cost against `algebraic`:
 //! the README's figures, from `scripts/readme-figures` section 7.
 //!
-//! Three tiers, each rigorous, each handing on only what it cannot decide:
-//! 1. **First look** (`f32` inputs): [`first_look`], the textbook quadratic in `f64` and one
+//! Four tiers, each rigorous, each handing on only what it cannot decide:
+//! 1. **First look**: for `f32` inputs [`first_look`], the textbook quadratic in `f64` and one
 //!    division-free test of a two-term error bound against the exact distance to the nearest
-//!    `f32` rounding boundary. It is one branch-free lane ([`first_look_lane`]): the scalar
-//!    method runs its steps with early exits, the batch kernel ([`super::batch::Certified`])
-//!    runs it on 8 `f64` lanes per instruction and finishes the tests it leaves open with the
-//!    tiers below, so both give the same bits.
+//!    `f32` rounding boundary; for `f64` inputs its certain misses only (with an allowance for
+//!    underflow). It is one branch-free lane ([`first_look_lane`], [`first_look_lane_f64`]):
+//!    the scalar method runs its steps with early exits, the batch kernel
+//!    ([`super::batch::Certified`]) runs it on 8 `f64` lanes per instruction and finishes the
+//!    tests it leaves open with the tiers below, so both give the same bits.
 //! 2. **Quick phase** ([`quick_phase`]): the bounds below, quantity by quantity, with `C` and
 //!    `B` recomputed to about `2⁻⁷²` when `C` has lost bits (for `f32` inputs by splitting
 //!    `o − c` into `f32` halves, `split_at_zero`; for `f64` inputs in double-double), and
 //!    for `f64` inputs Newton steps with a double-double residual.
-//! 3. **Accurate phase**: the exact oracle's path.
+//! 3. **Near the surface** (`f64` inputs, [`near_surface_step`]): up to two Newton steps on
+//!    `P(t) = C + t(2B + At)` with `C`, `B` and `A` from two `VecSum` passes over their exact
+//!    products, for an origin so near the surface that `|f + t·d|² − r²`, off by `2⁻¹⁰⁶·r²`,
+//!    cannot tell the rounding.
+//! 4. **Accurate phase**: the exact oracle's path.
 //!
 //! `tests/certified.rs` prints the share of each case class that each tier answers.
 //!
