@@ -91,28 +91,26 @@ struct Level {
     near: Vec<Quad>,
 }
 
+/// The linear indices of cell `i`'s 3×3×3 neighbourhood (itself included) on a `dims` grid,
+/// clipped at the grid's faces.
+fn neighbourhood(i: usize, dims: [usize; 3]) -> impl Iterator<Item = usize> {
+    let c = [
+        i % dims[0],
+        (i / dims[0]) % dims[1],
+        i / (dims[0] * dims[1]),
+    ];
+    let r = move |k: usize| c[k].saturating_sub(1)..=(c[k] + 1).min(dims[k] - 1);
+    r(2).flat_map(move |z| {
+        r(1).flat_map(move |y| r(0).map(move |x| (z * dims[1] + y) * dims[0] + x))
+    })
+}
+
 impl Level {
     /// The level of `raw` per-cell bounds on a `dims` grid whose cells are `h` wide.
     fn new(raw: &[Quad], dims: [usize; 3], h: DVec3) -> Level {
         let near = (0..raw.len())
             .into_par_iter()
-            .map(|i| {
-                let c = [
-                    i % dims[0],
-                    (i / dims[0]) % dims[1],
-                    i / (dims[0] * dims[1]),
-                ];
-                let r = |k: usize| c[k].saturating_sub(1)..=(c[k] + 1).min(dims[k] - 1);
-                let mut m = [0.0; 4];
-                for z in r(2) {
-                    for y in r(1) {
-                        for x in r(0) {
-                            m = qmax(m, raw[(z * dims[1] + y) * dims[0] + x]);
-                        }
-                    }
-                }
-                m
-            })
+            .map(|i| neighbourhood(i, dims).fold([0.0; 4], |m, j| qmax(m, raw[j])))
             .collect();
         Level {
             dims,
@@ -178,18 +176,7 @@ impl LocalBounds {
         for r in 1..=MAX_RINGS {
             let next: Vec<bool> = (0..n)
                 .into_par_iter()
-                .map(|i| {
-                    let c = [
-                        i % dims[0],
-                        (i / dims[0]) % dims[1],
-                        i / (dims[0] * dims[1]),
-                    ];
-                    let rg = |k: usize| c[k].saturating_sub(1)..=(c[k] + 1).min(dims[k] - 1);
-                    free[i]
-                        && rg(2).all(|z| {
-                            rg(1).all(|y| rg(0).all(|x| free[(z * dims[1] + y) * dims[0] + x]))
-                        })
-                })
+                .map(|i| free[i] && neighbourhood(i, dims).all(|j| free[j]))
                 .collect();
             if !next.iter().any(|&b| b) {
                 break;
