@@ -412,3 +412,86 @@ fn underflowing_f64_scenes_are_exact() {
     eprintln!("underflowing f64 scenes: {hits} hits of 3000");
     assert!(hits > 500, "only {hits} hits among the underflowing scenes");
 }
+
+/// The second look (`f64`): its enclosures against the exact root (MPFR at 400 bits) on every
+/// class: each contains the root; and teeth: with the residual's bound or the curvature term
+/// cut to 1/1000, enclosures miss it. It must also answer most hits of the classes a renderer
+/// meets (otherwise it is dead weight before the quick phase).
+#[test]
+fn second_look_bound_holds_and_each_term_is_needed() {
+    use rayproof::shapes::sphere::certified::{second_look_enclosure, NewtonTerms};
+    use rug::Float;
+    let p = NewtonTerms::PROVED;
+    let variants = [
+        ("the proved terms", p),
+        (
+            "the residual bound / 1000",
+            NewtonTerms {
+                residual: 1e-3,
+                ..p
+            },
+        ),
+        (
+            "the curvature term / 1000",
+            NewtonTerms {
+                curvature: 1e-3,
+                ..p
+            },
+        ),
+    ];
+    let mut bad = [0usize; 3];
+    let (mut claimed, mut hits) = (0, 0);
+    let mut shares = vec![];
+    for class in Class::ALL {
+        let (mut class_hits, mut decided) = (0, 0);
+        for case in cases::<f64>(class).take(2000) {
+            let exact = case.is_valid().then(|| Exact::new(&case));
+            let Some(exact) = exact.filter(|e| e.verdict().is_hit()) else {
+                assert!(
+                    second_look_enclosure(&case, p).is_none(),
+                    "the second look claims a root on a case without one\n  {}",
+                    case.probe_args()
+                );
+                continue;
+            };
+            hits += 1;
+            class_hits += 1;
+            let (t1, t2) = root_enclosures(&exact, 400);
+            let root = if exact.verdict() == Verdict::Near {
+                t1
+            } else {
+                t2
+            };
+            for (i, (_, k)) in variants.iter().enumerate() {
+                let Some((th, tl, err)) = second_look_enclosure(&case, *k) else {
+                    continue;
+                };
+                claimed += (i == 0) as usize;
+                let centre = Float::with_val(400, th) + tl;
+                let lo = Float::with_val(400, &centre - err);
+                let hi = Float::with_val(400, &centre + err);
+                decided += (i == 0 && lo.to_f64() == hi.to_f64()) as usize;
+                if !(lo <= root.lo && root.hi <= hi) {
+                    bad[i] += 1;
+                    if i == 0 {
+                        eprintln!("  missed: {}", case.probe_args());
+                    }
+                }
+            }
+        }
+        shares.push(format!(
+            "{} {:.1} %",
+            class.name(),
+            100.0 * decided as f64 / class_hits.max(1) as f64
+        ));
+    }
+    eprintln!("second look: {claimed} enclosures claimed of {hits} hits");
+    eprintln!("  hits it answers (the enclosure rounds to one float): {}", shares.join(", "));
+    for ((name, _), b) in variants.iter().zip(bad) {
+        eprintln!("  with {name}: {b} miss the exact root");
+    }
+    assert!(claimed > hits / 2, "only {claimed} enclosures of {hits} hits");
+    assert_eq!(bad[0], 0, "a second-look enclosure misses the exact root");
+    assert!(bad[1] > 10, "teeth: a shrunken residual bound went unnoticed");
+    assert!(bad[2] > 10, "teeth: a shrunken curvature term went unnoticed");
+}

@@ -94,7 +94,7 @@
 
 use super::methods::{ilogb, mul_pow2, Ray, Sphere, SphereHit};
 use super::oracle::{nearest_root, Case};
-use crate::numerics::dd::{two_prod_split, two_sum};
+use crate::numerics::dd::{two_prod, two_prod_split, two_sum};
 use crate::numerics::real::Real;
 
 /// `u = 2⁻⁵³`, the unit roundoff of `f64`.
@@ -148,11 +148,20 @@ pub fn certified<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
         }
         return after_first_look_cold(&case);
     }
-    // f64 inputs: the first look's certain misses, then the quick phase
+    // f64 inputs: the first look's certain misses, then the second look and the rest
     if l.missed::<true>() || l.behind::<true>() {
         return None;
     }
-    after_first_look(&case)
+    let c64 = Case {
+        o: w(case.o),
+        d: w(case.d),
+        c: w(case.c),
+        r: case.r.to_f64(),
+    };
+    after_look_f64(&c64, &l).map(|t| SphereHit {
+        t: F::from_f64(t),
+        enclosure: None,
+    })
 }
 
 /// [`after_first_look`] out of line, for `f32` inputs, where it is rare: the first look's
@@ -163,13 +172,45 @@ fn after_first_look_cold<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
     after_first_look(case)
 }
 
-/// [`certified`] after the first look: the quick tiers, then the accurate phase. The batch
-/// kernel calls it for the tests its first look left [`UNSURE`].
+/// [`certified`] after the first look (for `f64` inputs, its look is recomputed): the tests the
+/// batch kernel's first look left [`UNSURE`].
 #[inline(always)]
 pub fn after_first_look<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
-    quick_tiers(case)
-        .unwrap_or_else(|| accurate(case))
-        .map(|t| SphereHit { t, enclosure: None })
+    let t = if F::MANT_BITS == 53 {
+        let w = |v: [F; 3]| v.map(|x| x.to_f64());
+        let c64 = Case {
+            o: w(case.o),
+            d: w(case.d),
+            c: w(case.c),
+            r: case.r.to_f64(),
+        };
+        after_look_f64(&c64, &look(c64.o, c64.d, c64.c, c64.r)).map(F::from_f64)
+    } else {
+        quick_tiers(case).unwrap_or_else(|| accurate(case))
+    };
+    t.map(|t| SphereHit { t, enclosure: None })
+}
+
+/// `f64` inputs after a first look `l` that is not a certain miss: the second look; when its
+/// enclosure does not decide the rounding, out of line, the near-surface tier from it, then
+/// the quick tiers and the accurate phase.
+#[inline(always)]
+fn after_look_f64(case: &Case<f64>, l: &Look) -> Option<f64> {
+    let found = second_look(case.o, case.d, case.c, case.r, l, NewtonTerms::PROVED);
+    if let Some(t) = found.and_then(|(th, tl, err)| round_certain::<f64>(th, tl, err)) {
+        return Some(t);
+    }
+    after_second_look(case, found)
+}
+
+/// The tiers after the second look (which found the enclosure `found`, or none).
+#[cold]
+#[inline(never)]
+fn after_second_look(case: &Case<f64>, found: Option<(f64, f64, f64)>) -> Option<f64> {
+    if let Some(t) = found.and_then(|(th, tl, err)| near_surface(case, th, tl, err)) {
+        return Some(t);
+    }
+    quick_tiers(case).unwrap_or_else(|| accurate(case))
 }
 
 /// The quick phase, and for `f64` inputs whose enclosure does not decide the rounding the
@@ -314,14 +355,24 @@ struct Estimate {
     hit: bool,
 }
 
+impl Look {
+    /// The root the look's signs point to (no bound): `|C|/m` with `m = |B| + √Δ` (the near
+    /// root outside, the far root inside when `B > 0`), else `m/A`; and `√Δ`, `m`. NaN when
+    /// `Δ̂ < 0`.
+    #[inline(always)]
+    fn root(&self) -> (f64, f64, f64) {
+        let s = self.disc.sqrt();
+        let m = self.b.abs() + s;
+        let use_c = (self.cc > 0.0) | (self.b > 0.0);
+        let t = if use_c { self.cc.abs() } else { m } / if use_c { m } else { self.a };
+        (t, s, m)
+    }
+}
+
 #[inline(always)]
 fn estimate(l: &Look, k: Terms) -> Estimate {
-    // m = |B| + √Δ; the near root |C|/m (origin outside, or inside with B > 0), else m/A
-    let s = l.disc.sqrt();
-    let m = l.b.abs() + s;
+    let (t, s, m) = l.root();
     let n = l.cc.abs();
-    let use_c = (l.cc > 0.0) | (l.b > 0.0);
-    let t = if use_c { n } else { m } / if use_c { m } else { l.a };
     // The bound 11·fr/|C| + 48·Q/(√Δ·m) (units of u·t), multiplied out by |C|·√Δ·m
     let sm = s * m;
     Estimate {
@@ -387,6 +438,207 @@ pub fn first_look_lane_f64(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> f64
     } else {
         UNSURE
     }
+}
+
+/// The second look's two error terms (see [`second_look_enclosure`]), scaled: the tests cut
+/// each to show it is needed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NewtonTerms {
+    /// Multiplies the residual's bound `e_P` (and the slope's, `e_P'`): 1 in use.
+    pub residual: f64,
+    /// Multiplies the curvature term `0.35·κ·|δ|`: 1 in use.
+    pub curvature: f64,
+}
+
+impl NewtonTerms {
+    /// The terms the proof gives.
+    pub const PROVED: NewtonTerms = NewtonTerms {
+        residual: 1.0,
+        curvature: 1.0,
+    };
+}
+
+impl Look {
+    /// `C < 0` certain for `f64` inputs (the bound of [`Look::behind`]): the origin is inside.
+    #[inline(always)]
+    fn certainly_inside(&self) -> bool {
+        self.cc < -(7.0 * U * self.fr + ETA_LOOK)
+    }
+}
+
+/// The second look, `f64` inputs: the enclosure `[th + tl − err, th + tl + err]` of the nearest
+/// root ahead, when the signs that identify it are certain; `None` hands the case on.
+///
+/// **The step.** From the look's root `t₀` (no bound needed), the exact residual quadratic
+/// `P(t₀ + x) = P(t₀) + P'(t₀)·x + A·x²` (pure algebra: `P` is a quadratic). With
+/// `κ = 4A·P(t₀)/P'(t₀)²` and `|κ| ≤ ½`, its root nearest 0 is real and is
+/// `x* = δ·2/(1 + √(1 − κ))` with `δ = −P(t₀)/P'(t₀)` (rationalise `(−P' ± √(P'² − 4AP))/2A`),
+/// so `|x* − δ| = |κ|·|δ|/(1 + √(1 − κ))² ≤ 0.35·|κ|·|δ|`: no bound on `t₀`'s own error is
+/// needed, only the residual's. Which root it is follows from the sign of `P'(t₀)`: negative,
+/// the smaller root `t₁` (`x* = (|P'| − √D)/2A`); positive, the larger `t₂`. `t₁` is the answer
+/// when it is `> 0`; `t₂` only when `t₁ ≤ 0`, which `C ≤ 0` certain gives (with `C = 0` the
+/// oracle's convention also answers `t₂`). The rounding check ([`round_certain`]) then proves
+/// the root `> 0` (it rounds to a positive float) and its rounding.
+///
+/// **The residual.** `f + t₀·d = gh + gl*` exactly (`o − c` by Knuth's sum, `t₀·dᵢ` by an exact
+/// product, their sum by Knuth's); `gl` rounds `gl* = e + pl + fl` in two additions. Then
+/// `Σ gh² − r²` is exactly `s₃` plus seven low parts (exact squares, Knuth's cascade), and
+/// `P(t₀) = s₃ + low` with `low` their sum plus `2Σ gh·gl + Σ gl²`. With `wᵢ = |fhᵢ| + |phᵢ|`
+/// and `M = fr + t₀²·A` (computed; `Σ wᵢ² ≤ 2.03·M`): `|gl*ᵢ| ≤ 2.01u·wᵢ`, `gl` is within
+/// `4.05u²·wᵢ` of `gl*`; `low` has 13 terms of total magnitude at most `u·(16.7·M + 2.1·r²)`,
+/// summed within `γ₁₂` plus `u` per product: `u²·(217·M + 27·r²)`; using `gl` for `gl*` costs
+/// at most `16.7u²·M`; the last addition `1.01u·|P̂|`. So `e_P = 272u²·M + 1.01u·|P̂|` (`r² ≤
+/// 1.01·fr ≤ 1.01·M`). The slope `P̂' = 2·Σ dᵢ·(ghᵢ + glᵢ)` is within `8.1u·Σ|dᵢ·ĝᵢ| +
+/// 4.2u²·(A + 2.03·M)` (`Σ|dᵢ|wᵢ ≤ (Σdᵢ² + Σwᵢ²)/2`). With `e_P' < 2⁻¹⁰·|P̂'|`,
+/// `1/|P'| ≤ v = 1.002·|1/P̂'|` (the reciprocal rounded once), so with `δ̂ = −P̂·(1/P̂')`
+/// (two roundings) `|δ̂ − δ| ≤ (e_P + 1.01|δ̂|·e_P')·v + 2.01u·|δ̂|` and
+/// `κ ≤ 4A(|P̂| + e_P)·v²`; a product that underflows to 0 there leaves `κ` below `2⁻¹⁰²²`,
+/// whose term [`ETA`] covers. Without scaling the inputs: every product that underflows is off by at most
+/// `2⁻¹⁰⁷⁵` (sums of floats are exact then), which [`ETA`]`·(1 + M + A)` covers many times over;
+/// any overflow leaves an infinity or a NaN that fails a test (`P̂` and `P̂'` must be finite).
+/// The bound's own roundings (about twenty, of positive terms) are covered by [`SAFETY`].
+///
+/// **Cost.** Products are exact in two instructions with FMA (Dekker's split takes about
+/// seventeen), so [`second_look`] runs this with FMA when the CPU has it: the same bits either
+/// way, since both products are exact.
+#[inline(always)]
+fn second_look_body<const FMA: bool>(
+    o: [f64; 3],
+    d: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+    l: &Look,
+    k: NewtonTerms,
+) -> Option<(f64, f64, f64)> {
+    // From the look's root (NaN when Δ̂ < 0, which fails every test), up to three steps: a
+    // guess far off (a grazing ray, a far sphere's cancelled discriminant) needs a second
+    let mut t0 = l.root().0;
+    let mut found = None;
+    for _ in 0..3 {
+        let (th, tl, err, left) = enclosing_step::<FMA>(o, d, c, r, l, t0, k)?;
+        // The root found: t1 when P'(t0) < 0 (the nearest ahead if it is ahead), else t2
+        // (the nearest ahead only inside); the enclosure must lie ahead (th − |tl| − err > 0)
+        let ahead = th > (err + tl.abs()) * (1.0 + 4.0 * U);
+        found = (ahead && (left || l.certainly_inside())).then_some((th, tl, err));
+        if found.is_none() || err < (th.next_up() - th) * (1.0 / 1024.0) {
+            break;
+        }
+        t0 = th;
+    }
+    found
+}
+
+/// One step of the second look from any `t0`: the enclosure `[th + tl ± err]` of the root of
+/// `P` nearest `t0`'s Newton step, and whether it is the smaller root (`P'(t0) < 0`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn enclosing_step<const FMA: bool>(
+    o: [f64; 3],
+    d: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+    l: &Look,
+    t0: f64,
+    k: NewtonTerms,
+) -> Option<(f64, f64, f64, bool)> {
+    let tp = |a: f64, b: f64| {
+        if FMA {
+            two_prod(a, b)
+        } else {
+            two_prod_split(a, b)
+        }
+    };
+    // g = f + t0·d = gh + gl*, exactly; gl rounds gl*
+    let (mut gh, mut gl) = ([0.0; 3], [0.0; 3]);
+    for i in 0..3 {
+        let (fh, fl) = two_sum(o[i], -c[i]);
+        let (ph, pl) = tp(t0, d[i]);
+        let (s, e) = two_sum(fh, ph);
+        gh[i] = s;
+        gl[i] = (e + pl) + fl;
+    }
+    // P(t0) = (Σ gh² − r², exactly s3 + seven low parts) + 2 Σ gh·gl + Σ gl²
+    let sq = gh.map(|x| tp(x, x));
+    let rr = tp(r, r);
+    let (s1, e1) = two_sum(sq[0].0, sq[1].0);
+    let (s2, e2) = two_sum(s1, sq[2].0);
+    let (s3, e3) = two_sum(s2, -rr.0);
+    let small = 2.0 * (gh[0] * gl[0] + gh[1] * gl[1] + gh[2] * gl[2])
+        + (gl[0] * gl[0] + gl[1] * gl[1] + gl[2] * gl[2]);
+    let low = ((e1 + e2) + (e3 + sq[0].1)) + ((sq[1].1 + sq[2].1) - rr.1) + small;
+    let p = s3 + low;
+    // P'(t0) = 2 d·g
+    let x = [0, 1, 2].map(|i| d[i] * (gh[i] + gl[i]));
+    let dp = 2.0 * (x[0] + x[1] + x[2]);
+    let sdg = x[0].abs() + x[1].abs() + x[2].abs();
+    // Their bounds (the second look's docs), and the underflow allowance
+    let big = l.fr + t0 * t0 * l.a;
+    let tiny = ETA * (1.0 + big + l.a);
+    let ep = ((272.0 * U * U) * big + 1.01 * U * p.abs()) * SAFETY * k.residual + tiny;
+    let edp = ((8.1 * U) * sdg + (4.2 * U * U) * (l.a + 2.03 * big)) * SAFETY * k.residual + tiny;
+    // One division: 1/|P'| ≤ v = |1/P̂'|·1.002 when e_P' < 2⁻¹⁰·|P̂'| (and |P̂'| < 2⁹⁹⁶, so
+    // that 1/P̂' is a normal float); the step δ = −P̂·(1/P̂') and its bound; κ ≤ 4A(|P̂| + e_P)·v²,
+    // and the curvature term
+    let inv = 1.0 / dp;
+    let v = inv.abs() * 1.002;
+    let ok = (edp * v < 1.0 / 1024.0) & (dp.abs() < 1e300) & p.is_finite();
+    let delta = -p * inv;
+    let ed = (ep + 1.01 * delta.abs() * edp) * v + 2.01 * U * delta.abs();
+    let kappa = 4.0 * (l.a * (1.0 + 4.0 * U) + ETA) * (p.abs() + ep) * v * v;
+    if !(ok && kappa <= 0.5) {
+        return None;
+    }
+    let err = (ed + 0.35 * kappa * (delta.abs() + ed) * k.curvature) * SAFETY + ETA;
+    let (th, tl) = two_sum(t0, delta);
+    (err.is_finite() && th.is_finite()).then_some((th, tl, err, dp < 0.0))
+}
+
+/// [`second_look_body`] with hardware FMA when the CPU has it, else with Dekker's products (the
+/// same bits: both are exact).
+#[inline(always)]
+fn second_look(
+    o: [f64; 3],
+    d: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+    l: &Look,
+    k: NewtonTerms,
+) -> Option<(f64, f64, f64)> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU has FMA
+            return unsafe { second_look_fma(o, d, c, r, l, k) };
+        }
+        second_look_body::<false>(o, d, c, r, l, k)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    second_look_body::<true>(o, d, c, r, l, k)
+}
+
+/// [`second_look_body`] compiled with FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+unsafe fn second_look_fma(
+    o: [f64; 3],
+    d: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+    l: &Look,
+    k: NewtonTerms,
+) -> Option<(f64, f64, f64)> {
+    second_look_body::<true>(o, d, c, r, l, k)
+}
+
+/// The second look's claim for an `f64` case, for the tests: the nearest root ahead lies in
+/// `[th + tl − err, th + tl + err]`, or `None` (a certain miss of the first look, or signs it
+/// cannot make certain).
+pub fn second_look_enclosure(case: &Case<f64>, k: NewtonTerms) -> Option<(f64, f64, f64)> {
+    let l = look(case.o, case.d, case.c, case.r);
+    if l.missed::<true>() || l.behind::<true>() {
+        return None;
+    }
+    second_look(case.o, case.d, case.c, case.r, &l, k)
 }
 
 /// The first look, for `f32` inputs: the quadratic in `f64` with the textbook discriminant

@@ -87,16 +87,17 @@ impl<F: Real> Case<F> {
             && self.d.iter().any(|&x| x != F::ZERO)
             && self.r > F::ZERO
     }
-    /// The replay line: `--origin X,Y,Z --dir X,Y,Z --center X,Y,Z --radius R` in hex floats.
+    /// The replay arguments of `rayproof probe sphere`: `--precision P -- ox oy oz dx dy dz cx cy cz r`
+    /// in hex floats.
     pub fn probe_args(&self) -> String {
-        let v = |a: [F; 3]| format!("{},{},{}", a[0].hex(), a[1].hex(), a[2].hex());
+        let v = |a: [F; 3]| format!("{} {} {}", a[0].hex(), a[1].hex(), a[2].hex());
         format!(
-            "--origin {} --dir {} --center {} --radius {} --precision {}",
+            "--precision {} -- {} {} {} {}",
+            F::NAME,
             v(self.o),
             v(self.d),
             v(self.c),
-            self.r.hex(),
-            F::NAME
+            self.r.hex()
         )
     }
 }
