@@ -128,89 +128,90 @@ pub enum Quick {
 /// `f64` phase with a rigorous error bound, or from the exact oracle's path when the bound
 /// cannot decide (see the [module docs](self)).
 pub fn certified<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
-    let case = case_of(ray, s);
-    let w = |v: [F; 3]| v.map(|x| x.to_f64());
-    let l = look(w(case.o), w(case.d), w(case.c), case.r.to_f64());
+    let case = to_f64(&case_of(ray, s));
+    let l = look(case.o, case.d, case.c, case.r);
     // f32 inputs: the first look answers nearly every case a renderer asks
-    if F::MANT_BITS == 24 {
+    let t = if F::MANT_BITS == 24 {
         if l.missed::<false>() {
             return None;
         }
         let (t, ok) = certain(&estimate(&l, Terms::PROVED));
         if ok {
-            return Some(SphereHit {
-                t: F::from_f64(t),
-                enclosure: None,
-            });
+            Some(F::from_f64(t))
+        } else if l.behind::<false>() {
+            None
+        } else {
+            after_look_cold::<F>(&case, &l)
         }
-        if l.behind::<false>() {
+    } else {
+        // f64 inputs: the first look's certain misses, then the second look and the rest
+        if l.missed::<true>() || l.behind::<true>() {
             return None;
         }
-        return after_first_look_cold(&case);
-    }
-    // f64 inputs: the first look's certain misses, then the second look and the rest
-    if l.missed::<true>() || l.behind::<true>() {
-        return None;
-    }
-    let c64 = Case {
-        o: w(case.o),
-        d: w(case.d),
-        c: w(case.c),
-        r: case.r.to_f64(),
-    };
-    after_look_f64(&c64, &l).map(|t| SphereHit {
-        t: F::from_f64(t),
-        enclosure: None,
-    })
-}
-
-/// [`after_first_look`] out of line, for `f32` inputs, where it is rare: the first look's
-/// path stays small (no spills for the quick phase).
-#[cold]
-#[inline(never)]
-fn after_first_look_cold<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
-    after_first_look(case)
-}
-
-/// [`certified`] after the first look (for `f64` inputs, its look is recomputed): the tests the
-/// batch kernel's first look left [`UNSURE`].
-#[inline(always)]
-pub fn after_first_look<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
-    let t = if F::MANT_BITS == 53 {
-        let w = |v: [F; 3]| v.map(|x| x.to_f64());
-        let c64 = Case {
-            o: w(case.o),
-            d: w(case.d),
-            c: w(case.c),
-            r: case.r.to_f64(),
-        };
-        after_look_f64(&c64, &look(c64.o, c64.d, c64.c, c64.r)).map(F::from_f64)
-    } else {
-        quick_tiers(case).unwrap_or_else(|| accurate(case))
+        after_look::<F>(&case, &l)
     };
     t.map(|t| SphereHit { t, enclosure: None })
 }
 
-/// `f64` inputs after a first look `l` that is not a certain miss: the second look; when its
-/// enclosure does not decide the rounding, out of line, the near-surface tier from it, then
-/// the quick tiers and the accurate phase.
+/// A case's inputs in `f64` (exactly).
 #[inline(always)]
-fn after_look_f64(case: &Case<f64>, l: &Look) -> Option<f64> {
+fn to_f64<F: Real>(case: &Case<F>) -> Case<f64> {
+    let w = |v: [F; 3]| v.map(|x| x.to_f64());
+    Case {
+        o: w(case.o),
+        d: w(case.d),
+        c: w(case.c),
+        r: case.r.to_f64(),
+    }
+}
+
+/// [`after_look`] out of line, for `f32` inputs, where it is rare: the first look's path stays
+/// small (no spills for the tiers after it).
+#[cold]
+#[inline(never)]
+fn after_look_cold<F: Real>(case: &Case<f64>, l: &Look) -> Option<F> {
+    after_look(case, l)
+}
+
+/// [`certified`] after the first look: the tests the batch kernel's first look left
+/// [`UNSURE`] (its look is recomputed).
+#[inline(always)]
+pub fn after_first_look<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
+    let case = to_f64(case);
+    after_look::<F>(&case, &look(case.o, case.d, case.c, case.r))
+        .map(|t| SphereHit { t, enclosure: None })
+}
+
+/// After a first look `l` that is not a certain miss (the case's inputs in `f64`): the second
+/// look; when its enclosure does not decide the rounding, out of line, the tiers after it.
+#[inline(always)]
+fn after_look<F: Real>(case: &Case<f64>, l: &Look) -> Option<F> {
     let found = second_look(case.o, case.d, case.c, case.r, l, NewtonTerms::PROVED);
-    if let Some(t) = found.and_then(|(th, tl, err)| round_certain::<f64>(th, tl, err)) {
+    if let Some(t) = found.and_then(|(th, tl, err)| round_certain::<F>(th, tl, err)) {
         return Some(t);
     }
     after_second_look(case, found)
 }
 
-/// The tiers after the second look (which found the enclosure `found`, or none).
+/// The tiers after the second look (which found the enclosure `found`, or none): for `f64`
+/// inputs the near-surface tier from that enclosure, then the quick tiers and the accurate
+/// phase.
 #[cold]
 #[inline(never)]
-fn after_second_look(case: &Case<f64>, found: Option<(f64, f64, f64)>) -> Option<f64> {
-    if let Some(t) = found.and_then(|(th, tl, err)| near_surface(case, th, tl, err)) {
-        return Some(t);
+fn after_second_look<F: Real>(case: &Case<f64>, found: Option<(f64, f64, f64)>) -> Option<F> {
+    if F::MANT_BITS == 53 {
+        if let Some(t) = found.and_then(|(th, tl, err)| near_surface(case, th, tl, err)) {
+            return Some(F::from_f64(t));
+        }
     }
-    quick_tiers(case).unwrap_or_else(|| accurate(case))
+    let v = |v: [f64; 3]| v.map(F::from_f64);
+    let case = Case {
+        o: v(case.o),
+        d: v(case.d),
+        c: v(case.c),
+        r: F::from_f64(case.r),
+    };
+    quick_tiers(&case).unwrap_or_else(|| accurate(&case))
 }
 
 /// The quick phase, and for `f64` inputs whose enclosure does not decide the rounding the
@@ -482,7 +483,7 @@ impl Look {
 ///
 /// **The residual.** `f + t₀·d = gh + gl*` exactly (`o − c` by Knuth's sum, `t₀·dᵢ` by an exact
 /// product, their sum by Knuth's); `gl` rounds `gl* = e + pl + fl` in two additions. Then
-/// `Σ gh² − r²` is exactly `s₃` plus seven low parts (exact squares, Knuth's cascade), and
+/// `Σ gh² − r²` is exactly `s₃` plus seven low parts (exact squares, three of Knuth's sums in a tree), and
 /// `P(t₀) = s₃ + low` with `low` their sum plus `2Σ gh·gl + Σ gl²`. With `wᵢ = |fhᵢ| + |phᵢ|`
 /// and `M = fr + t₀²·A` (computed; `Σ wᵢ² ≤ 2.03·M`): `|gl*ᵢ| ≤ 2.01u·wᵢ`, `gl` is within
 /// `4.05u²·wᵢ` of `gl*`; `low` has 13 terms of total magnitude at most `u·(16.7·M + 2.1·r²)`,
@@ -561,8 +562,8 @@ fn enclosing_step<const FMA: bool>(
     let sq = gh.map(|x| tp(x, x));
     let rr = tp(r, r);
     let (s1, e1) = two_sum(sq[0].0, sq[1].0);
-    let (s2, e2) = two_sum(s1, sq[2].0);
-    let (s3, e3) = two_sum(s2, -rr.0);
+    let (s2, e2) = two_sum(sq[2].0, -rr.0);
+    let (s3, e3) = two_sum(s1, s2);
     let small = 2.0 * (gh[0] * gl[0] + gh[1] * gl[1] + gh[2] * gl[2])
         + (gl[0] * gl[0] + gl[1] * gl[1] + gl[2] * gl[2]);
     let low = ((e1 + e2) + (e3 + sq[0].1)) + ((sq[1].1 + sq[2].1) - rr.1) + small;
@@ -1138,6 +1139,7 @@ fn round_certain<F: Real>(th: f64, tl: f64, err: f64) -> Option<F> {
     // f32 (tl = 0): the distance to the nearest rounding boundary, read off th's bits
     if F::MANT_BITS == 24 {
         let tf = th as f32;
+        let err = (err + tl.abs()) * (1.0 + 2.0 * U);
         let ok =
             f32_boundary_distance(th, tf) > err && th >= f32::MIN_POSITIVE as f64 && tf.is_finite();
         return ok.then(|| F::from_f64(tf as f64));
