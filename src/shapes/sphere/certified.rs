@@ -3,7 +3,7 @@
 //! and an accurate phase only when the bound cannot decide. Measured cost against `algebraic`:
 //! the README's figures, from `scripts/readme-figures` section 7.
 //!
-//! Four tiers, each rigorous, each handing on only what it cannot decide:
+//! Five tiers, each rigorous, each handing on only what it cannot decide:
 //! 1. **First look**: for `f32` inputs [`first_look`], the textbook quadratic in `f64` and one
 //!    division-free test of a two-term error bound against the exact distance to the nearest
 //!    `f32` rounding boundary; for `f64` inputs its certain misses only (with an allowance for
@@ -11,15 +11,21 @@
 //!    the scalar method runs its steps with early exits, the batch kernel
 //!    ([`super::batch::Certified`]) runs it on 8 `f64` lanes per instruction and finishes the
 //!    tests it leaves open with the tiers below, so both give the same bits.
-//! 2. **Quick phase** ([`quick_phase`]): the bounds below, quantity by quantity, with `C` and
+//! 2. **Second look** ([`second_look_enclosure`]): one Newton step (two for a guess far off)
+//!    from the look's root, with the residual from exact products (FMA when the CPU has it) and
+//!    an a-posteriori bound from the residual quadratic, so no bound on the look's own error is
+//!    needed; the sign of `P'` says which root it found. It answers most `f64` hits, and the
+//!    `f32` cases the first look leaves open.
+//! 3. **Quick phase** ([`quick_phase`]): the bounds below, quantity by quantity, with `C` and
 //!    `B` recomputed to about `2⁻⁷²` when `C` has lost bits (for `f32` inputs by splitting
 //!    `o − c` into `f32` halves, `split_at_zero`; for `f64` inputs in double-double), and
 //!    for `f64` inputs Newton steps with a double-double residual.
-//! 3. **Near the surface** (`f64` inputs, [`near_surface_step`]): up to two Newton steps on
+//! 4. **Near the surface** (`f64` inputs, [`near_surface_step`]): up to two Newton steps on
 //!    `P(t) = C + t(2B + At)` with `C`, `B` and `A` from two `VecSum` passes over their exact
 //!    products, for an origin so near the surface that `|f + t·d|² − r²`, off by `2⁻¹⁰⁶·r²`,
-//!    cannot tell the rounding.
-//! 4. **Accurate phase**: the exact oracle's path.
+//!    cannot tell the rounding; it starts from the second look's enclosure when there is one,
+//!    else from the quick phase's.
+//! 5. **Accurate phase**: the exact oracle's path.
 //!
 //! `tests/certified.rs` prints the share of each case class that each tier answers.
 //!
