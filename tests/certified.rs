@@ -419,7 +419,7 @@ fn underflowing_f64_scenes_are_exact() {
 /// meets (otherwise it is dead weight before the quick phase).
 #[test]
 fn second_look_bound_holds_and_each_term_is_needed() {
-    use rayproof::shapes::sphere::certified::{second_look_enclosure, NewtonTerms};
+    use rayproof::shapes::sphere::certified::{second_look_claim, NewtonTerms, Second};
     use rug::Float;
     let p = NewtonTerms::PROVED;
     let variants = [
@@ -440,7 +440,7 @@ fn second_look_bound_holds_and_each_term_is_needed() {
         ),
     ];
     let mut bad = [0usize; 3];
-    let (mut claimed, mut hits) = (0, 0);
+    let (mut claimed, mut hits, mut misses) = (0, 0, 0);
     let mut shares = vec![];
     for class in Class::ALL {
         let (mut class_hits, mut decided) = (0, 0);
@@ -455,14 +455,21 @@ fn second_look_bound_holds_and_each_term_is_needed() {
         });
         for case in cases::<f64>(class).take(2000).chain(from_f32) {
             let exact = case.is_valid().then(|| Exact::new(&case));
+            let claim = second_look_claim(&case, p);
             let Some(exact) = exact.filter(|e| e.verdict().is_hit()) else {
                 assert!(
-                    second_look_enclosure(&case, p).is_none(),
+                    matches!(claim, Second::Miss | Second::Open(None)),
                     "the second look claims a root on a case without one\n  {}",
                     case.probe_args()
                 );
+                misses += (claim == Second::Miss) as usize;
                 continue;
             };
+            assert!(
+                claim != Second::Miss,
+                "the second look calls a hit a miss\n  {}",
+                case.probe_args()
+            );
             hits += 1;
             class_hits += 1;
             let (t1, t2) = root_enclosures(&exact, 400);
@@ -472,7 +479,7 @@ fn second_look_bound_holds_and_each_term_is_needed() {
                 t2
             };
             for (i, (_, k)) in variants.iter().enumerate() {
-                let Some((th, tl, err)) = second_look_enclosure(&case, *k) else {
+                let Second::Open(Some((th, tl, err))) = second_look_claim(&case, *k) else {
                     continue;
                 };
                 claimed += (i == 0) as usize;
@@ -494,7 +501,7 @@ fn second_look_bound_holds_and_each_term_is_needed() {
             100.0 * decided as f64 / class_hits.max(1) as f64
         ));
     }
-    eprintln!("second look: {claimed} enclosures claimed of {hits} hits");
+    eprintln!("second look: {claimed} enclosures claimed of {hits} hits, {misses} misses");
     eprintln!(
         "  hits whose enclosure rounds to one f64: {}",
         shares.join(", ")

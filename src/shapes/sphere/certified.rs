@@ -3,7 +3,7 @@
 //! and an accurate phase only when the bound cannot decide. Measured cost against `algebraic`:
 //! the README's figures, from `scripts/readme-figures` section 7.
 //!
-//! Five tiers, each rigorous, each handing on only what it cannot decide:
+//! Four tiers, each rigorous, each handing on only what it cannot decide:
 //! 1. **First look**: for `f32` inputs [`first_look`], the textbook quadratic in `f64` and one
 //!    division-free test of a two-term error bound against the exact distance to the nearest
 //!    `f32` rounding boundary; for `f64` inputs its certain misses only (with an allowance for
@@ -11,21 +11,15 @@
 //!    the scalar method runs its steps with early exits, the batch kernel
 //!    ([`super::batch::Certified`]) runs it on 8 `f64` lanes per instruction and finishes the
 //!    tests it leaves open with the tiers below, so both give the same bits.
-//! 2. **Second look** ([`second_look_enclosure`]): one Newton step (two for a guess far off)
-//!    from the look's root, with the residual from exact products (FMA when the CPU has it) and
-//!    an a-posteriori bound from the residual quadratic, so no bound on the look's own error is
-//!    needed; the sign of `P'` says which root it found. It answers most `f64` hits, and the
-//!    `f32` cases the first look leaves open.
-//! 3. **Quick phase** ([`quick_phase`]): the bounds below, quantity by quantity, with `C` and
+//! 2. **Quick phase** ([`quick_phase`]): the bounds below, quantity by quantity, with `C` and
 //!    `B` recomputed to about `2⁻⁷²` when `C` has lost bits (for `f32` inputs by splitting
 //!    `o − c` into `f32` halves, `split_at_zero`; for `f64` inputs in double-double), and
 //!    for `f64` inputs Newton steps with a double-double residual.
-//! 4. **Near the surface** (`f64` inputs, [`near_surface_step`]): up to two Newton steps on
+//! 3. **Near the surface** (`f64` inputs, [`near_surface_step`]): up to two Newton steps on
 //!    `P(t) = C + t(2B + At)` with `C`, `B` and `A` from two `VecSum` passes over their exact
 //!    products, for an origin so near the surface that `|f + t·d|² − r²`, off by `2⁻¹⁰⁶·r²`,
-//!    cannot tell the rounding; it starts from the second look's enclosure when there is one,
-//!    else from the quick phase's.
-//! 5. **Accurate phase**: the exact oracle's path.
+//!    cannot tell the rounding.
+//! 4. **Accurate phase**: the exact oracle's path.
 //!
 //! `tests/certified.rs` prints the share of each case class that each tier answers.
 //!
@@ -192,19 +186,38 @@ pub fn after_first_look<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
 /// look; when its enclosure does not decide the rounding, out of line, the tiers after it.
 #[inline(always)]
 fn after_look<F: Real>(case: &Case<f64>, l: &Look) -> Option<F> {
-    let found = second_look(case.o, case.d, case.c, case.r, l, NewtonTerms::PROVED);
+    let (o, d, c, r) = (case.o, case.d, case.c, case.r);
+    let Second::Open(found) = second_look::<false>(o, d, c, r, l, NewtonTerms::PROVED) else {
+        return None;
+    };
     if let Some(t) = found.and_then(|(th, tl, err)| round_certain::<F>(th, tl, err)) {
         return Some(t);
     }
-    after_second_look(case, found)
+    after_second_look(case, l, found)
 }
 
-/// The tiers after the second look (which found the enclosure `found`, or none): for `f64`
-/// inputs the near-surface tier from that enclosure, then the quick tiers and the accurate
-/// phase.
+/// The tiers after the common second look (which found the enclosure `found`, or none): for
+/// an origin whose side the look could not tell the second look that finds the side first;
+/// for `f64` inputs the near-surface tier from the enclosure; then the quick tiers and the
+/// accurate phase.
 #[cold]
 #[inline(never)]
-fn after_second_look<F: Real>(case: &Case<f64>, found: Option<(f64, f64, f64)>) -> Option<F> {
+fn after_second_look<F: Real>(
+    case: &Case<f64>,
+    l: &Look,
+    found: Option<(f64, f64, f64)>,
+) -> Option<F> {
+    let mut found = found;
+    if found.is_none() && !l.side_certain() {
+        let (o, d, c, r) = (case.o, case.d, case.c, case.r);
+        match second_look::<true>(o, d, c, r, l, NewtonTerms::PROVED) {
+            Second::Miss => return None,
+            Second::Open(f) => found = f,
+        }
+        if let Some(t) = found.and_then(|(th, tl, err)| round_certain::<F>(th, tl, err)) {
+            return Some(t);
+        }
+    }
     if F::MANT_BITS == 53 {
         if let Some(t) = found.and_then(|(th, tl, err)| near_surface(case, th, tl, err)) {
             return Some(F::from_f64(t));
@@ -465,14 +478,6 @@ impl NewtonTerms {
     };
 }
 
-impl Look {
-    /// `C < 0` certain for `f64` inputs (the bound of [`Look::behind`]): the origin is inside.
-    #[inline(always)]
-    fn certainly_inside(&self) -> bool {
-        self.cc < -(7.0 * U * self.fr + ETA_LOOK)
-    }
-}
-
 /// The second look, `f64` inputs: the enclosure `[th + tl − err, th + tl + err]` of the nearest
 /// root ahead, when the signs that identify it are certain; `None` hands the case on.
 ///
@@ -509,24 +514,55 @@ impl Look {
 /// seventeen), so [`second_look`] runs this with FMA when the CPU has it: the same bits either
 /// way, since both products are exact.
 #[inline(always)]
-fn second_look_body<const FMA: bool>(
+fn second_look_body<const FMA: bool, const NEAR: bool>(
     o: [f64; 3],
     d: [f64; 3],
     c: [f64; 3],
     r: f64,
     l: &Look,
     k: NewtonTerms,
+) -> Second {
+    if !NEAR {
+        return Second::Open(newton_steps::<FMA>(o, d, c, r, l, k, l.certainly_inside()));
+    }
+    // An origin so near the surface that the look cannot tell its side: the side from the
+    // residual at 0 (C and 2B to about 2⁻⁹⁷); outside and heading away is a miss
+    let z = exact_residual::<FMA>(o, d, c, r, l, 0.0, k);
+    if !(z.p.is_finite() && z.dp.is_finite()) {
+        return Second::Open(None);
+    }
+    if z.p > z.ep && z.dp > z.edp {
+        return Second::Miss;
+    }
+    let inside = z.p < -z.ep;
+    if !(inside || z.p > z.ep) {
+        return Second::Open(None);
+    }
+    Second::Open(newton_steps::<FMA>(o, d, c, r, l, k, inside))
+}
+
+/// The second look's steps from the look's root (NaN when Δ̂ < 0, which fails every test), up
+/// to three: a guess far off (a grazing ray, a far sphere's cancelled discriminant, an origin
+/// near the surface) needs more than one. `inside`: `C < 0` is certain.
+#[inline(always)]
+fn newton_steps<const FMA: bool>(
+    o: [f64; 3],
+    d: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+    l: &Look,
+    k: NewtonTerms,
+    inside: bool,
 ) -> Option<(f64, f64, f64)> {
-    // From the look's root (NaN when Δ̂ < 0, which fails every test), up to three steps: a
-    // guess far off (a grazing ray, a far sphere's cancelled discriminant) needs a second
     let mut t0 = l.root().0;
     let mut found = None;
     for _ in 0..3 {
-        let (th, tl, err, left) = enclosing_step::<FMA>(o, d, c, r, l, t0, k)?;
+        let z = exact_residual::<FMA>(o, d, c, r, l, t0, k);
+        let (th, tl, err, left) = enclosing_step(z, l, t0, k)?;
         // The root found: t1 when P'(t0) < 0 (the nearest ahead if it is ahead), else t2
         // (the nearest ahead only inside); the enclosure must lie ahead (th − |tl| − err > 0)
         let ahead = th > (err + tl.abs()) * (1.0 + 4.0 * U);
-        found = (ahead && (left || l.certainly_inside())).then_some((th, tl, err));
+        found = (ahead && (left || inside)).then_some((th, tl, err));
         if found.is_none() || err < (th.next_up() - th) * (1.0 / 1024.0) {
             break;
         }
@@ -535,11 +571,20 @@ fn second_look_body<const FMA: bool>(
     found
 }
 
-/// One step of the second look from any `t0`: the enclosure `[th + tl ± err]` of the root of
-/// `P` nearest `t0`'s Newton step, and whether it is the smaller root (`P'(t0) < 0`).
+/// What the second look decided.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Second {
+    /// Certainly no root ahead (outside, heading away).
+    Miss,
+    /// The enclosure `(th, tl, err)` of the nearest root ahead, if the look found one: the
+    /// rounding check decides whether it answers.
+    Open(Option<(f64, f64, f64)>),
+}
+
+/// `P(t0)` and `P'(t0)` from exact products, with their bounds (the second look's docs).
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn enclosing_step<const FMA: bool>(
+fn exact_residual<const FMA: bool>(
     o: [f64; 3],
     d: [f64; 3],
     c: [f64; 3],
@@ -547,7 +592,7 @@ fn enclosing_step<const FMA: bool>(
     l: &Look,
     t0: f64,
     k: NewtonTerms,
-) -> Option<(f64, f64, f64, bool)> {
+) -> Residual {
     let tp = |a: f64, b: f64| {
         if FMA {
             two_prod(a, b)
@@ -583,6 +628,15 @@ fn enclosing_step<const FMA: bool>(
     let tiny = ETA * (1.0 + big + l.a);
     let ep = ((272.0 * U * U) * big + 1.01 * U * p.abs()) * SAFETY * k.residual + tiny;
     let edp = ((8.1 * U) * sdg + (4.2 * U * U) * (l.a + 2.03 * big)) * SAFETY * k.residual + tiny;
+    Residual { p, ep, dp, edp }
+}
+
+/// One step of the second look from `t0` and its residual `z`: the enclosure `[th + tl ± err]`
+/// of the root of `P` nearest `t0`'s Newton step, and whether it is the smaller root
+/// (`P'(t0) < 0`).
+#[inline(always)]
+fn enclosing_step(z: Residual, l: &Look, t0: f64, k: NewtonTerms) -> Option<(f64, f64, f64, bool)> {
+    let Residual { p, ep, dp, edp } = z;
     // One division: 1/|P'| ≤ v = |1/P̂'|·1.002 when e_P' < 2⁻¹⁰·|P̂'| (and |P̂'| < 2⁹⁹⁶, so
     // that 1/P̂' is a normal float); the step δ = −P̂·(1/P̂') and its bound; κ ≤ 4A(|P̂| + e_P)·v²,
     // and the curvature term
@@ -601,51 +655,76 @@ fn enclosing_step<const FMA: bool>(
 }
 
 /// [`second_look_body`] with hardware FMA when the CPU has it, else with Dekker's products (the
-/// same bits: both are exact).
+/// same bits: both are exact). `NEAR`: the look could not tell the origin's side.
 #[inline(always)]
-fn second_look(
+fn second_look<const NEAR: bool>(
     o: [f64; 3],
     d: [f64; 3],
     c: [f64; 3],
     r: f64,
     l: &Look,
     k: NewtonTerms,
-) -> Option<(f64, f64, f64)> {
+) -> Second {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("fma") {
             // SAFETY: the CPU has FMA
-            return unsafe { second_look_fma(o, d, c, r, l, k) };
+            return unsafe { second_look_fma::<NEAR>(o, d, c, r, l, k) };
         }
-        second_look_body::<false>(o, d, c, r, l, k)
+        second_look_body::<false, NEAR>(o, d, c, r, l, k)
     }
     #[cfg(not(target_arch = "x86_64"))]
-    second_look_body::<true>(o, d, c, r, l, k)
+    second_look_body::<true, NEAR>(o, d, c, r, l, k)
 }
 
 /// [`second_look_body`] compiled with FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "fma")]
-unsafe fn second_look_fma(
+unsafe fn second_look_fma<const NEAR: bool>(
     o: [f64; 3],
     d: [f64; 3],
     c: [f64; 3],
     r: f64,
     l: &Look,
     k: NewtonTerms,
-) -> Option<(f64, f64, f64)> {
-    second_look_body::<true>(o, d, c, r, l, k)
+) -> Second {
+    second_look_body::<true, NEAR>(o, d, c, r, l, k)
 }
 
-/// The second look's claim for an `f64` case, for the tests: the nearest root ahead lies in
-/// `[th + tl − err, th + tl + err]`, or `None` (a certain miss of the first look, or signs it
-/// cannot make certain).
-pub fn second_look_enclosure(case: &Case<f64>, k: NewtonTerms) -> Option<(f64, f64, f64)> {
+impl Look {
+    /// The side of the origin is certain (`|C| > e_C`, the bound of [`Look::behind`] for `f64`
+    /// inputs).
+    #[inline(always)]
+    fn side_certain(&self) -> bool {
+        self.cc.abs() > 7.0 * U * self.fr + ETA_LOOK
+    }
+
+    /// `C < 0` is certain: the origin is inside.
+    #[inline(always)]
+    fn certainly_inside(&self) -> bool {
+        self.cc < -(7.0 * U * self.fr + ETA_LOOK)
+    }
+}
+
+/// The second look in full: the common one, and for an origin whose side the look cannot tell,
+/// the one that finds the side first.
+fn second_look_full(case: &Case<f64>, l: &Look, k: NewtonTerms) -> Second {
+    let (o, d, c, r) = (case.o, case.d, case.c, case.r);
+    match second_look::<false>(o, d, c, r, l, k) {
+        Second::Open(None) if !l.side_certain() => second_look::<true>(o, d, c, r, l, k),
+        s => s,
+    }
+}
+
+/// The second look's claim for a case (inputs in `f64`), for the tests: a certain miss, or the
+/// enclosure of the nearest root ahead, or nothing (`Open(None)`, also for the first look's
+/// certain misses, which never reach it).
+pub fn second_look_claim(case: &Case<f64>, k: NewtonTerms) -> Second {
     let l = look(case.o, case.d, case.c, case.r);
     if l.missed::<true>() || l.behind::<true>() {
-        return None;
+        return Second::Open(None);
     }
-    second_look(case.o, case.d, case.c, case.r, &l, k)
+    second_look_full(case, &l, k)
 }
 
 /// The first look, for `f32` inputs: the quadratic in `f64` with the textbook discriminant
