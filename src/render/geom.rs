@@ -397,10 +397,8 @@ struct Node {
 /// lane each (structure of arrays, so that one box test covers the four lanes at once).
 #[derive(Clone, Copy, Debug)]
 struct Node4 {
-    /// Minimum corners: `lo[axis][lane]`.
-    lo: [[f64; 4]; 3],
-    /// Maximum corners: `hi[axis][lane]`.
-    hi: [[f64; 4]; 3],
+    /// Corners: `b[0][axis][lane]` the minimum, `b[1][axis][lane]` the maximum.
+    b: [[[f64; 4]; 3]; 2],
     /// Per lane: a leaf's first object, or an inner child's node index.
     child: [u32; 4],
     /// Per lane: a leaf's object count, or 0 for an inner child.
@@ -409,21 +407,44 @@ struct Node4 {
     lanes: u32,
 }
 
+/// What the slab tests need of a ray, computed once per ray: origin, reciprocal direction, and
+/// per axis which corner (`b[near[k]]`) is the plane the ray meets first (the minimum when
+/// `1/d` has its sign bit clear, so −0 counts as negative).
+#[derive(Clone, Copy, Debug)]
+struct Slabs {
+    o: [f64; 3],
+    inv_d: [f64; 3],
+    near: [usize; 3],
+}
+
+impl Slabs {
+    #[inline(always)]
+    fn new(o: DVec3, d: DVec3) -> Slabs {
+        let inv_d = d.recip().to_array();
+        Slabs {
+            o: o.to_array(),
+            inv_d,
+            near: inv_d.map(|x| x.is_sign_negative() as usize),
+        }
+    }
+}
+
 impl Node4 {
     /// The four lanes' slab tests at once, with pbrt's far-distance padding (1 + 2γ₃): the
     /// entry distance (clamped at 0) of each lane the ray meets before `tmax`, `+∞` for the
     /// others. A NaN slab distance (0·∞: the ray runs in a face's plane) leaves the interval as
     /// it is, so such a ray counts as meeting the box.
     #[inline(always)]
-    fn enter(&self, o: DVec3, inv_d: DVec3, tmax: f64) -> [f64; 4] {
-        // The interval starts as [0, tmax]; each slab narrows it. The updates are written as
-        // comparisons, so that a NaN loses and each is one min or max instruction
+    fn enter(&self, r: &Slabs, tmax: f64) -> [f64; 4] {
+        // The interval starts as [0, tmax]; each slab narrows it. The near and far planes are
+        // the ray's (no per-lane swap), and the updates are written as comparisons, so that a
+        // NaN loses and each is one min or max instruction
         let (mut tn, mut tf) = ([0.0; 4], [tmax; 4]);
         for k in 0..3 {
+            let (pn, pf) = (&self.b[r.near[k]][k], &self.b[1 - r.near[k]][k]);
             for i in 0..4 {
-                let a = (self.lo[k][i] - o[k]) * inv_d[k];
-                let b = (self.hi[k][i] - o[k]) * inv_d[k];
-                let (near, far) = if a > b { (b, a) } else { (a, b) };
+                let near = (pn[i] - r.o[k]) * r.inv_d[k];
+                let far = (pf[i] - r.o[k]) * r.inv_d[k];
                 tn[i] = if near > tn[i] { near } else { tn[i] };
                 tf[i] = if far < tf[i] { far } else { tf[i] };
             }
@@ -554,7 +575,7 @@ impl Geometry {
         if self.nodes.is_empty() {
             return;
         }
-        let inv_d = d.recip();
+        let slabs = Slabs::new(o, d);
         // Children put aside (child, count, entry distance); three per level at most. Only the
         // entries below `sp` are ever read, so the array is left uninitialised (zeroing it cost
         // more than a box test per ray)
@@ -571,7 +592,7 @@ impl Geometry {
                 // The four boxes at once; the lanes hit, nearest last
                 let node = &self.nodes[child as usize];
                 counts.bvh_nodes += node.lanes as u64;
-                let t = node.enter(o, inv_d, *limit);
+                let t = node.enter(&slabs, *limit);
                 let mut hits = [(0.0f64, 0u32, 0u32); 4];
                 let mut n = 0;
                 for (i, &ti) in t.iter().enumerate().take(node.lanes as usize) {
@@ -839,8 +860,7 @@ fn widen(binary: &[Node], i: usize, out: &mut Vec<Node4>) -> usize {
     let me = out.len();
     // Unused lanes: a box at +∞, which no ray enters before a finite or infinite `tmax`
     out.push(Node4 {
-        lo: [[f64::INFINITY; 4]; 3],
-        hi: [[f64::INFINITY; 4]; 3],
+        b: [[[f64::INFINITY; 4]; 3]; 2],
         child: [0; 4],
         count: [0; 4],
         lanes: kids.len() as u32,
@@ -848,8 +868,8 @@ fn widen(binary: &[Node], i: usize, out: &mut Vec<Node4>) -> usize {
     for (lane, &k) in kids.iter().enumerate() {
         let b = binary[k].b;
         for axis in 0..3 {
-            out[me].lo[axis][lane] = b.lo[axis];
-            out[me].hi[axis][lane] = b.hi[axis];
+            out[me].b[0][axis][lane] = b.lo[axis];
+            out[me].b[1][axis][lane] = b.hi[axis];
         }
         let (child, count) = if binary[k].count > 0 {
             (binary[k].start, binary[k].count)
