@@ -52,7 +52,10 @@ pub fn write_exr(r: &Render, path: &Path, layers: Layers) -> Result<()> {
     // Compressed on this thread: the parallel writer starts a thread pool per file, whose
     // threads cost more CPU than they save on a frame, and it writes the blocks in whatever
     // order they finish (a different file each run)
-    Ok(Image::from_layer(layer).write().non_parallel().to_file(path)?)
+    Ok(Image::from_layer(layer)
+        .write()
+        .non_parallel()
+        .to_file(path)?)
 }
 
 /// sRGB transfer of a linear value clamped to [0, 1].
