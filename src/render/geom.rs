@@ -477,6 +477,9 @@ pub struct Geometry {
     record: Option<(u64, std::sync::Arc<std::sync::Mutex<Vec<RecordedTest>>>)>,
     /// One sphere tracer per implicit shape, for [`Prim::Implicit`].
     pub marchers: Vec<crate::implicit::march::Marcher>,
+    /// Whether the CPU runs the AVX2 build of the queries (the same code, four `f64` box lanes
+    /// per instruction instead of two; the same results bit for bit).
+    avx2: bool,
 }
 
 impl Geometry {
@@ -512,6 +515,10 @@ impl Geometry {
             passes: 1,
             record: None,
             marchers: vec![],
+            #[cfg(target_arch = "x86_64")]
+            avx2: std::is_x86_feature_detected!("avx2"),
+            #[cfg(not(target_arch = "x86_64"))]
+            avx2: false,
         }
     }
 
@@ -563,7 +570,7 @@ impl Geometry {
     /// before `limit`; `leaf` may lower `limit`, or return `true` to stop. `NEAREST_FIRST`
     /// visits the children hit in order of entry (the nearest hit's search); without it they go
     /// in stored order (the any-hit search, for which order saves nothing and sorting costs).
-    #[inline]
+    #[inline(always)]
     fn traverse<const NEAREST_FIRST: bool>(
         &self,
         o: DVec3,
@@ -640,6 +647,38 @@ impl Geometry {
         tmax: f64,
         counts: &mut TestCounts,
     ) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (detected in `new`)
+            return unsafe { self.intersect_avx2::<F>(m, o, d, tmax, counts) };
+        }
+        self.nearest_hit::<F>(m, o, d, tmax, counts)
+    }
+
+    /// [`Geometry::intersect`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn intersect_avx2<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        counts: &mut TestCounts,
+    ) -> Option<Hit> {
+        self.nearest_hit::<F>(m, o, d, tmax, counts)
+    }
+
+    /// The body of [`Geometry::intersect`].
+    #[inline(always)]
+    fn nearest_hit<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        counts: &mut TestCounts,
+    ) -> Option<Hit> {
         let f = F::pick(m);
         let mut best: Option<Hit> = None;
         let mut limit = tmax;
@@ -687,6 +726,40 @@ impl Geometry {
     /// shadow rays' any-hit query, which stops at the first such hit. Objects that do not block
     /// are not tested (flat lists test every object, as for [`Geometry::intersect`]).
     pub fn occluded<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        blocks: impl Fn(usize) -> bool,
+        counts: &mut TestCounts,
+    ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (detected in `new`)
+            return unsafe { self.occluded_avx2::<F>(m, o, d, tmax, blocks, counts) };
+        }
+        self.any_hit::<F>(m, o, d, tmax, blocks, counts)
+    }
+
+    /// [`Geometry::occluded`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn occluded_avx2<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        blocks: impl Fn(usize) -> bool,
+        counts: &mut TestCounts,
+    ) -> bool {
+        self.any_hit::<F>(m, o, d, tmax, blocks, counts)
+    }
+
+    /// The body of [`Geometry::occluded`].
+    #[inline(always)]
+    fn any_hit<F: PickPrecision>(
         &self,
         m: &Method,
         o: DVec3,
