@@ -639,11 +639,26 @@ impl Lens {
     /// The unit direction through image point `(x, y)` in pixels (pixel centres at `+½`).
     #[inline]
     pub fn dir(&self, x: f64, y: f64) -> DVec3 {
-        let (u, v) = (x / self.w, y / self.h);
-        (self.fwd
-            + self.right * ((2.0 * u - 1.0) * self.half_w)
-            + self.up * ((1.0 - 2.0 * v) * self.half_h))
-            .normalize()
+        self.dir_from(self.across(x), self.down(y))
+    }
+
+    /// The image plane's horizontal offset at `x` pixels from the left edge.
+    #[inline]
+    fn across(&self, x: f64) -> DVec3 {
+        self.right * ((2.0 * (x / self.w) - 1.0) * self.half_w)
+    }
+
+    /// The image plane's vertical offset at `y` pixels from the top edge.
+    #[inline]
+    fn down(&self, y: f64) -> DVec3 {
+        self.up * ((1.0 - 2.0 * (y / self.h)) * self.half_h)
+    }
+
+    /// The unit direction from its two offsets ([`Lens::across`], [`Lens::down`]), which the
+    /// render loop computes once per column and once per row.
+    #[inline]
+    fn dir_from(&self, across: DVec3, down: DVec3) -> DVec3 {
+        (self.fwd + across + down).normalize()
     }
 }
 
@@ -684,6 +699,13 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
         .chunks_mut(w)
         .map(|beauty| (beauty, extra_rows.next()))
         .collect();
+    // The sub-pixel cell centres' offsets on the image plane, per column and per row
+    let g = grid as usize;
+    let cell = |k: usize, i: usize| k as f64 + (i as f64 + 0.5) / grid as f64;
+    let across: Vec<DVec3> = (0..w * g)
+        .map(|c| lens.across(cell(c / g, c % g)))
+        .collect();
+    let down: Vec<DVec3> = (0..h * g).map(|r| lens.down(cell(r / g, r % g))).collect();
     let counts = rows
         .into_par_iter()
         .enumerate()
@@ -692,13 +714,10 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
             for x in 0..w {
                 let before = counts.total();
                 let (mut sum, mut dsum, mut nsum, mut hits) = (DVec3::ZERO, 0.0, DVec3::ZERO, 0u32);
-                for j in 0..grid {
-                    for i in 0..grid {
+                for j in 0..g {
+                    for i in 0..g {
                         // Sub-pixel cell centre
-                        let d = lens.dir(
-                            x as f64 + (i as f64 + 0.5) / grid as f64,
-                            y as f64 + (j as f64 + 0.5) / grid as f64,
-                        );
+                        let d = lens.dir_from(across[x * g + i], down[y * g + j]);
                         counts.primary += 1;
                         let (l, first) = radiance::<F, SH, RF, RR>(ctx, pos, d, 1, &mut counts);
                         counts.primary_miss += first.is_none() as u64;
