@@ -483,6 +483,7 @@ pub struct Geometry {
     pub marchers: Vec<crate::implicit::march::Marcher>,
     /// Whether the CPU runs the AVX2 build of the queries (the same code, four `f64` box lanes
     /// per instruction instead of two; the same results bit for bit).
+    #[cfg(target_arch = "x86_64")]
     avx2: bool,
 }
 
@@ -521,8 +522,6 @@ impl Geometry {
             marchers: vec![],
             #[cfg(target_arch = "x86_64")]
             avx2: std::is_x86_feature_detected!("avx2"),
-            #[cfg(not(target_arch = "x86_64"))]
-            avx2: false,
         }
     }
 
