@@ -88,6 +88,8 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
         force_all_effects: a.all_effects,
         progress: std::io::stderr().is_terminal(),
         flat: a.flat,
+        // The depth, normal and rays planes are only written as EXR layers
+        beauty_only: a.output.is_none() || a.layers.is_empty(),
         ..Default::default()
     };
     let r = render::render(&sc, &ov);

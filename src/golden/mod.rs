@@ -347,6 +347,7 @@ fn make(suite: &Suite, t: &Test, frame: Frame, scratch: &Path) -> Result<Made, S
                 size: Some((fr.width, fr.height)),
                 force_all_effects: false,
                 progress: false,
+                beauty_only: true,
                 ..Default::default()
             };
             let r = render::render(&sc, &ov);

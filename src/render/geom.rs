@@ -14,8 +14,12 @@
 //! enters the children nearest first and skips any put aside that starts beyond the hit found
 //! so far; shadow rays ask [`Geometry::occluded`], which stops at the first blocker. The box
 //! test is conservative: pbrt's padding of the far distance, and a ray running exactly in a
-//! face's plane counts as entering the box. Counters: `bvh_nodes` counts boxes tested (one per
-//! child a wide node holds), as it counted nodes visited in the binary tree.
+//! face's plane counts as entering the box. Each ray picks once per axis which corner it meets
+//! first (from the sign of `1/d`), so a lane costs two differences, two products, a max and a
+//! min. Both queries are one body compiled twice, for the baseline x86-64 (two `f64` lanes per
+//! instruction) and for AVX2 (four), chosen at run time; neither build contracts or reorders
+//! an operation, so they answer the same bit for bit. Counters: `bvh_nodes` counts boxes tested
+//! (one per child a wide node holds), as it counted nodes visited in the binary tree.
 
 use crate::shapes::sphere::methods::{Method, PickPrecision, Ray as MRay, Sphere as MSphere};
 use glam::DVec3;
@@ -397,10 +401,8 @@ struct Node {
 /// lane each (structure of arrays, so that one box test covers the four lanes at once).
 #[derive(Clone, Copy, Debug)]
 struct Node4 {
-    /// Minimum corners: `lo[axis][lane]`.
-    lo: [[f64; 4]; 3],
-    /// Maximum corners: `hi[axis][lane]`.
-    hi: [[f64; 4]; 3],
+    /// Corners: `b[0][axis][lane]` the minimum, `b[1][axis][lane]` the maximum.
+    b: [[[f64; 4]; 3]; 2],
     /// Per lane: a leaf's first object, or an inner child's node index.
     child: [u32; 4],
     /// Per lane: a leaf's object count, or 0 for an inner child.
@@ -409,21 +411,44 @@ struct Node4 {
     lanes: u32,
 }
 
+/// What the slab tests need of a ray, computed once per ray: origin, reciprocal direction, and
+/// per axis which corner (`b[near[k]]`) is the plane the ray meets first (the minimum when
+/// `1/d` has its sign bit clear, so −0 counts as negative).
+#[derive(Clone, Copy, Debug)]
+struct Slabs {
+    o: [f64; 3],
+    inv_d: [f64; 3],
+    near: [usize; 3],
+}
+
+impl Slabs {
+    #[inline(always)]
+    fn new(o: DVec3, d: DVec3) -> Slabs {
+        let inv_d = d.recip().to_array();
+        Slabs {
+            o: o.to_array(),
+            inv_d,
+            near: inv_d.map(|x| x.is_sign_negative() as usize),
+        }
+    }
+}
+
 impl Node4 {
     /// The four lanes' slab tests at once, with pbrt's far-distance padding (1 + 2γ₃): the
     /// entry distance (clamped at 0) of each lane the ray meets before `tmax`, `+∞` for the
     /// others. A NaN slab distance (0·∞: the ray runs in a face's plane) leaves the interval as
     /// it is, so such a ray counts as meeting the box.
     #[inline(always)]
-    fn enter(&self, o: DVec3, inv_d: DVec3, tmax: f64) -> [f64; 4] {
-        // The interval starts as [0, tmax]; each slab narrows it. The updates are written as
-        // comparisons, so that a NaN loses and each is one min or max instruction
+    fn enter(&self, r: &Slabs, tmax: f64) -> [f64; 4] {
+        // The interval starts as [0, tmax]; each slab narrows it. The near and far planes are
+        // the ray's (no per-lane swap), and the updates are written as comparisons, so that a
+        // NaN loses and each is one min or max instruction
         let (mut tn, mut tf) = ([0.0; 4], [tmax; 4]);
         for k in 0..3 {
+            let (pn, pf) = (&self.b[r.near[k]][k], &self.b[1 - r.near[k]][k]);
             for i in 0..4 {
-                let a = (self.lo[k][i] - o[k]) * inv_d[k];
-                let b = (self.hi[k][i] - o[k]) * inv_d[k];
-                let (near, far) = if a > b { (b, a) } else { (a, b) };
+                let near = (pn[i] - r.o[k]) * r.inv_d[k];
+                let far = (pf[i] - r.o[k]) * r.inv_d[k];
                 tn[i] = if near > tn[i] { near } else { tn[i] };
                 tf[i] = if far < tf[i] { far } else { tf[i] };
             }
@@ -456,6 +481,10 @@ pub struct Geometry {
     record: Option<(u64, std::sync::Arc<std::sync::Mutex<Vec<RecordedTest>>>)>,
     /// One sphere tracer per implicit shape, for [`Prim::Implicit`].
     pub marchers: Vec<crate::implicit::march::Marcher>,
+    /// Whether the CPU runs the AVX2 build of the queries (the same code, four `f64` box lanes
+    /// per instruction instead of two; the same results bit for bit).
+    #[cfg(target_arch = "x86_64")]
+    avx2: bool,
 }
 
 impl Geometry {
@@ -491,6 +520,8 @@ impl Geometry {
             passes: 1,
             record: None,
             marchers: vec![],
+            #[cfg(target_arch = "x86_64")]
+            avx2: std::is_x86_feature_detected!("avx2"),
         }
     }
 
@@ -542,7 +573,7 @@ impl Geometry {
     /// before `limit`; `leaf` may lower `limit`, or return `true` to stop. `NEAREST_FIRST`
     /// visits the children hit in order of entry (the nearest hit's search); without it they go
     /// in stored order (the any-hit search, for which order saves nothing and sorting costs).
-    #[inline]
+    #[inline(always)]
     fn traverse<const NEAREST_FIRST: bool>(
         &self,
         o: DVec3,
@@ -554,7 +585,7 @@ impl Geometry {
         if self.nodes.is_empty() {
             return;
         }
-        let inv_d = d.recip();
+        let slabs = Slabs::new(o, d);
         // Children put aside (child, count, entry distance); three per level at most. Only the
         // entries below `sp` are ever read, so the array is left uninitialised (zeroing it cost
         // more than a box test per ray)
@@ -571,7 +602,7 @@ impl Geometry {
                 // The four boxes at once; the lanes hit, nearest last
                 let node = &self.nodes[child as usize];
                 counts.bvh_nodes += node.lanes as u64;
-                let t = node.enter(o, inv_d, *limit);
+                let t = node.enter(&slabs, *limit);
                 let mut hits = [(0.0f64, 0u32, 0u32); 4];
                 let mut n = 0;
                 for (i, &ti) in t.iter().enumerate().take(node.lanes as usize) {
@@ -612,6 +643,38 @@ impl Geometry {
 
     /// The nearest hit with `t` in (0, tmax), if any.
     pub fn intersect<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        counts: &mut TestCounts,
+    ) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (detected in `new`)
+            return unsafe { self.intersect_avx2::<F>(m, o, d, tmax, counts) };
+        }
+        self.nearest_hit::<F>(m, o, d, tmax, counts)
+    }
+
+    /// [`Geometry::intersect`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn intersect_avx2<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        counts: &mut TestCounts,
+    ) -> Option<Hit> {
+        self.nearest_hit::<F>(m, o, d, tmax, counts)
+    }
+
+    /// The body of [`Geometry::intersect`].
+    #[inline(always)]
+    fn nearest_hit<F: PickPrecision>(
         &self,
         m: &Method,
         o: DVec3,
@@ -666,6 +729,40 @@ impl Geometry {
     /// shadow rays' any-hit query, which stops at the first such hit. Objects that do not block
     /// are not tested (flat lists test every object, as for [`Geometry::intersect`]).
     pub fn occluded<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        blocks: impl Fn(usize) -> bool,
+        counts: &mut TestCounts,
+    ) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self.avx2 {
+            // SAFETY: the CPU has AVX2 (detected in `new`)
+            return unsafe { self.occluded_avx2::<F>(m, o, d, tmax, blocks, counts) };
+        }
+        self.any_hit::<F>(m, o, d, tmax, blocks, counts)
+    }
+
+    /// [`Geometry::occluded`] compiled for AVX2.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn occluded_avx2<F: PickPrecision>(
+        &self,
+        m: &Method,
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        blocks: impl Fn(usize) -> bool,
+        counts: &mut TestCounts,
+    ) -> bool {
+        self.any_hit::<F>(m, o, d, tmax, blocks, counts)
+    }
+
+    /// The body of [`Geometry::occluded`].
+    #[inline(always)]
+    fn any_hit<F: PickPrecision>(
         &self,
         m: &Method,
         o: DVec3,
@@ -839,8 +936,7 @@ fn widen(binary: &[Node], i: usize, out: &mut Vec<Node4>) -> usize {
     let me = out.len();
     // Unused lanes: a box at +∞, which no ray enters before a finite or infinite `tmax`
     out.push(Node4 {
-        lo: [[f64::INFINITY; 4]; 3],
-        hi: [[f64::INFINITY; 4]; 3],
+        b: [[[f64::INFINITY; 4]; 3]; 2],
         child: [0; 4],
         count: [0; 4],
         lanes: kids.len() as u32,
@@ -848,8 +944,8 @@ fn widen(binary: &[Node], i: usize, out: &mut Vec<Node4>) -> usize {
     for (lane, &k) in kids.iter().enumerate() {
         let b = binary[k].b;
         for axis in 0..3 {
-            out[me].lo[axis][lane] = b.lo[axis];
-            out[me].hi[axis][lane] = b.hi[axis];
+            out[me].b[0][axis][lane] = b.lo[axis];
+            out[me].b[1][axis][lane] = b.hi[axis];
         }
         let (child, count) = if binary[k].count > 0 {
             (binary[k].start, binary[k].count)

@@ -19,37 +19,41 @@ pub struct Layers {
 }
 
 /// Writes the EXR to `path` (a temporary file: the caller stages it, see [`crate::output::Outputs`]).
+/// The samples are read from the planes as the encoder asks for each pixel (no copy per channel).
 pub fn write_exr(r: &Render, path: &Path, layers: Layers) -> Result<()> {
-    let ch = |name: &str, f: &dyn Fn(usize) -> f32| {
-        AnyChannel::new(
-            name,
-            FlatSamples::F32((0..r.width * r.height).map(f).collect()),
-        )
+    let ch = |name: &str| ChannelDescription::named(name, SampleType::F32);
+    let opt = |on: bool, name: &str| on.then(|| ch(name));
+    let channels = (
+        ch("R"),
+        ch("G"),
+        ch("B"),
+        opt(layers.depth, "depth.Z"),
+        opt(layers.normal, "normal.X"),
+        opt(layers.normal, "normal.Y"),
+        opt(layers.normal, "normal.Z"),
+        opt(layers.rays, "rays.Y"),
+    );
+    // A layer's plane is empty when the render did not fill it; its channel is then not written
+    let at = |v: &[f32], i: usize| v.get(i).copied().unwrap_or(0.0);
+    let pixel = |p: Vec2<usize>| {
+        let i = p.y() * r.width + p.x();
+        let [cr, cg, cb] = r.beauty[i];
+        let [nx, ny, nz] = r.normal.get(i).copied().unwrap_or([0.0; 3]);
+        (cr, cg, cb, at(&r.depth, i), nx, ny, nz, at(&r.rays, i))
     };
-    let mut list = vec![
-        ch("R", &|i| r.beauty[i][0]),
-        ch("G", &|i| r.beauty[i][1]),
-        ch("B", &|i| r.beauty[i][2]),
-    ];
-    if layers.depth {
-        list.push(ch("depth.Z", &|i| r.depth[i]));
-    }
-    if layers.normal {
-        for (k, n) in ["normal.X", "normal.Y", "normal.Z"].iter().enumerate() {
-            list.push(ch(n, &|i| r.normal[i][k]));
-        }
-    }
-    if layers.rays {
-        list.push(ch("rays.Y", &|i| r.rays[i]));
-    }
-    let channels = AnyChannels::sort(list.into());
     let layer = Layer::new(
         (r.width, r.height),
         LayerAttributes::default(),
         Encoding::FAST_LOSSLESS,
-        channels,
+        SpecificChannels::new(channels, pixel),
     );
-    Ok(Image::from_layer(layer).write().to_file(path)?)
+    // Compressed on this thread: the parallel writer starts a thread pool per file, whose
+    // threads cost more CPU than they save on a frame, and it writes the blocks in whatever
+    // order they finish (a different file each run)
+    Ok(Image::from_layer(layer)
+        .write()
+        .non_parallel()
+        .to_file(path)?)
 }
 
 /// sRGB transfer of a linear value clamped to [0, 1].
