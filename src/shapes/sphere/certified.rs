@@ -78,8 +78,8 @@
 //! signs and the root from MPFR enclosures at rising precision (Ziv). It is the only code the
 //! quick phase can defer to, so on the cases that reach it the audit compares the oracle with
 //! itself; the oracle is checked against independent 300-digit truth in `tests/oracle.rs`.
-//! [`quick_phase_decides`] says which phase answered a case: the audit's sphere section prints
-//! the share of each class that reached the accurate phase.
+//! [`accurate_phase_runs`] counts its runs: `tests/certified.rs` prints the share of each
+//! class that reaches it.
 //!
 //! # Conventions
 //!
@@ -769,9 +769,15 @@ pub fn first_look<F: Real>(case: &Case<F>, k: Terms) -> FirstLook<F> {
     }
 }
 
-/// Whether the quick tiers answer this case (`false`: the accurate phase runs).
-pub fn quick_phase_decides<F: Real>(case: &Case<F>) -> bool {
-    quick_tiers(case).is_some()
+thread_local! {
+    /// How many times this thread ran the accurate phase.
+    static ACCURATE_RUNS: std::cell::Cell<u64> = const { std::cell::Cell::new(0) };
+}
+
+/// How many times this thread has run the accurate phase: the tests read it before and after
+/// a case to see which tier answered.
+pub fn accurate_phase_runs() -> u64 {
+    ACCURATE_RUNS.with(|n| n.get())
 }
 
 #[inline(always)]
@@ -787,6 +793,7 @@ fn case_of<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Case<F> {
 /// The accurate phase: the oracle's exact verdict and correctly rounded root.
 #[cold]
 fn accurate<F: Real>(case: &Case<F>) -> Option<F> {
+    ACCURATE_RUNS.with(|n| n.set(n.get() + 1));
     nearest_root(case)
 }
 
