@@ -433,7 +433,7 @@ fn proved_steps_never_cross_the_blob_surface() {
 fn inside_at(f: &Field, o: DVec3, d: DVec3, eps: f64, k: f64) -> Option<f64> {
     let mut t = 0.0;
     for _ in 0..4096 {
-        let v = f.step(o + d * t);
+        let v = f.step(o + d * t, Some(d));
         if v < 0.0 {
             return Some(t);
         }

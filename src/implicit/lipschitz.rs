@@ -6,7 +6,7 @@
 //! gradients and Hessians and the partition-of-unity weights; [`super::field`]: the blob's
 //! supports that meet the box). Per box `c` a field states ([`CellBound`]): `L_c ≥ sup |∇f|`,
 //! `H_c` a Lipschitz constant of `∇f`, `e_c ≥ |f̃ − f|` (the rounding of the computed value
-//! `f̃`), `g_c ≥ ||∇f̃| − |∇f||`, and whether `f` is provably zero-free on the box. Sampling
+//! `f̃`), `g_c ≥ |∇f̃ − ∇f|` (the rounding of the computed gradient vector), and whether `f` is provably zero-free on the box. Sampling
 //! never enters a bound; the tests sample to check them.
 //!
 //! # The step rule
@@ -19,19 +19,28 @@
 //!    convex set), so `y` would lie in the zero-free block; cells beyond `Ω` hold no zero.
 //! 3. **Local, per pyramid level `k`** (cells `2ᵏ` fine cells wide, bounds max-pooled): with
 //!    `L̂, Ĥ, ê, ĝ` the maxima over the 3×3×3 cells around `x`'s cell and `δ_k` half a cell
-//!    width, `min(t, δ_k)` where `t = max(a/L̂, 2a/(g + √(g² + 4Ĥa)))`, `a = (|f̃| − ê)⁺`,
-//!    `g = |∇f̃(x)| + ĝ` (the second form only where the gradient was computed: cells that are
-//!    not zero-free blocks).
+//!    width, `min(t, δ_k)` where `t = max(a/L̂, 2a/(p + √(p² + 2Ĥa)))`, `a = (|f̃| − ê)⁺`, and
+//!    `p` the rate at which `|f|` can fall from `x` (the second form only where the gradient
+//!    was computed: cells that are not zero-free blocks): in any direction (a ball, the step
+//!    of a cone or of a ray), `p = |∇f̃(x)| + ĝ`; along a ray of unit direction `u` (the step
+//!    then only says that the ray's segment holds no zero), `p = ĝ − sign(f̃)·u·∇f̃(x)`, which
+//!    is negative when the ray moves away from the zero set.
 //!
-//! **Why 3 is safe.** Take a zero `z` with `ρ = |x − z| < s ≤ δ_k`. The segment `[x, z]` lies in
-//! `Ω` (convex, holds both) and, as `ρ < δ_k`, in the cells around `x`'s (δ is half a cell, so
-//! a cell index off by one through rounding is covered too), where `|∇f| ≤ L̂` and, along the
-//! segment, `|∇f| ≤ |∇f(x)| + Ĥρ ≤ g + Ĥρ`. By the mean value theorem `|f(x)| ≤ L̂ρ < a` in
-//! the first form and `|f(x)| ≤ (g + Ĥρ)ρ < (g + Ĥs)s = a` in the second (`s` the root of
-//! `Ĥs² + gs = a`); both contradict `|f(x)| ≥ |f̃(x)| − ê ≥ a`. **A step never uses a bound
-//! beyond the region it was proved for**: the local forms are clamped to `δ_k`, inside the
-//! neighbourhood whose maxima they used; a coarser level (wider `δ`, larger maxima) is tried
-//! only while the finer one is clamped; the global form holds everywhere.
+//! **Why 3 is safe.** Take a zero `z` with `ρ = |x − z| < s ≤ δ_k` (along a ray: the first zero
+//! `z = x + ρu` on it). The segment `[x, z]` lies in `Ω` (convex, holds both) and, as
+//! `ρ < δ_k`, in the cells around `x`'s (δ is half a cell, so a cell index off by one through
+//! rounding is covered too), where `|∇f| ≤ L̂` and `∇f` is `Ĥ`-Lipschitz. By the mean value
+//! theorem `|f(x)| ≤ L̂ρ < a` in the first form. In the second, with `v = (z − x)/ρ` and
+//! `φ(τ) = f(x + τv)`: `|φ'(τ) − φ'(0)| ≤ Ĥτ`, so by Taylor `|φ(ρ)| ≥ |φ(0)| − ρ·σφ'(0) −
+//! Ĥρ²/2` (`σ = sign f(x)`, the sign that `|f|` falls with), and `−σφ'(0) = −σ v·∇f(x) ≤ p`
+//! because `|∇f̃ − ∇f| ≤ ĝ` (any `v`: `|v·∇f| ≤ |∇f̃| + ĝ`; `v = u`: `−σu·∇f ≤ −σu·∇f̃ + ĝ`).
+//! Hence `0 = |f(z)| ≥ |f(x)| − pρ − Ĥρ²/2 > |f(x)| − ps − Ĥs²/2 = |f(x)| − a ≥ 0` for `s` the
+//! positive root of `Ĥs²/2 + ps = a` (`|f(x)| ≥ |f̃(x)| − ê ≥ a`): a contradiction. The root is
+//! computed as `2a/(p + √(p² + 2Ĥa))`, whose denominator is positive for any sign of `p` when
+//! `Ĥa > 0`. **A step never uses a bound beyond the region it was proved for**: the local forms
+//! are clamped to `δ_k`, inside the neighbourhood whose maxima they used; a coarser level (wider
+//! `δ`, larger maxima) is tried only while the finer one is clamped; the global form holds
+//! everywhere.
 //!
 //! The step carries the sign of `f̃` (negative inside) and is at least `f64::MIN_POSITIVE` in
 //! magnitude so that the sign survives: a point whose `|f̃|` is within the rounding error of 0
@@ -62,7 +71,7 @@ pub struct CellBound {
     pub zero_free: bool,
     /// A Lipschitz constant of `∇f` over the box (a bound on `‖∇²f‖` where it exists).
     pub curvature: f64,
-    /// A bound on the rounding error of the computed `|∇f|` in the box.
+    /// A bound on the rounding error `|∇f̃ − ∇f|` of the computed gradient vector in the box.
     pub gradient_error: f64,
 }
 
@@ -274,10 +283,11 @@ impl LocalBounds {
     }
 
     /// The safe step from `x`, where the field's computed value is `f` and, optionally, the
-    /// computed `|∇f(x)|` is `grad` (module doc): signed as `f`, at least `f64::MIN_POSITIVE`
-    /// in magnitude.
+    /// computed gradient is `grad` (module doc): signed as `f`, at least `f64::MIN_POSITIVE` in
+    /// magnitude. With `dir` (a unit vector) the step holds for the ray from `x` along `dir`
+    /// only; without, for the ball around `x`.
     #[inline]
-    pub fn step(&self, x: DVec3, f: f64, grad: Option<f64>) -> f64 {
+    pub fn step(&self, x: DVec3, f: f64, grad: Option<DVec3>, dir: Option<DVec3>) -> f64 {
         let (lg, eg) = self.global;
         let mut s: f64 = 0.0;
         // Zero-free block around the cell of x's projection p onto Ω: a zero y within
@@ -299,10 +309,16 @@ impl LocalBounds {
                 let a = (f.abs() - e).max(0.0);
                 let mut t = a / l;
                 if let Some(g) = grad {
-                    // |∇f| ≤ g + H·s on the ball of radius s: the root of H·s² + g·s = a
-                    let g = g + ge;
-                    let q = 2.0 * a / (g + (g * g + 4.0 * h * a).sqrt());
-                    t = t.max(q * (1.0 - ROUNDING_SLACK));
+                    // The rate at which |f| can fall: along the ray, or in any direction
+                    let p = match dir {
+                        Some(u) => ge - u.dot(g) * f.signum(),
+                        None => g.length() + ge,
+                    };
+                    // The root of H·s²/2 + p·s = a (0 when a = 0, whatever p)
+                    let root = (p * p + 2.0 * h * a).sqrt();
+                    if a > 0.0 && p + root > 0.0 {
+                        t = t.max(2.0 * a / (p + root) * (1.0 - ROUNDING_SLACK));
+                    }
                 }
                 s = s.max(t.min(lv.delta));
                 if t <= lv.delta {
