@@ -78,8 +78,9 @@
 //!   rays lie in a cone of chord `c = 2 sin(θ/2)` around its centre ray; where the safe step `D`
 //!   at the axis point exceeds `t·c`, every pixel ray is free of surface on `[t, t + D − t·c)`.
 //!   Marching the axis certifies `[0, t)` for the whole block: past the scene's bounding sphere the
-//!   block is background; where the cone stalls it splits into four, down to 2×2 pixels, whose
-//!   pixels start at their certified `t` (always case ①). No pixel that per-pixel tracing hits can
+//!   block is background; where the cone stalls it splits into four, down to 2×2 pixels (a block
+//!   one pixel wide or tall is traced at once), whose pixels start at their certified `t` (always
+//!   case ①). No pixel that per-pixel tracing hits can
 //!   be lost, given valid Lipschitz bounds.
 //!
 //! # The proof: `rayproof implicit-check SCENE`
