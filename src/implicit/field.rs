@@ -253,7 +253,8 @@ fn blob_bounds(threshold: f64, components: &[BlobComponent]) -> LocalBounds {
             error,
             zero_free: flo > error + 1e-9 * mag || fhi < -(error + 1e-9 * mag),
             curvature: hess,
-            // ∇f = Σ −4s(1 − u)y/R²: ~10 roundings of terms ≤ 4|s|/R, 1e-10 relative over
+            // ∇f = Σ −4s(1 − u)y/R²: ~10 roundings per component of terms ≤ 4|s|/R, so the
+            // vector's error is far below 1e-10 relative
             gradient_error: 1e-10 * gmag,
         }
     })

@@ -94,6 +94,9 @@ pub struct Marcher {
     pub tracer: Tracer,
 }
 
+/// A bracket's end: its ray parameter and, where already computed, its [`Marcher::value`].
+type End = (f64, Option<(f64, usize)>);
+
 /// Distance from `p` to the box `[lo, hi]` (0 inside).
 #[inline]
 fn box_distance(p: DVec3, lo: DVec3, hi: DVec3) -> f64 {
@@ -211,13 +214,13 @@ impl Marcher {
         loop {
             if v < 0.0 {
                 // Crossed: only possible when a bound is too small (a measured MPU bound)
-                return self.bisect(o, d, prev, t, out);
+                return self.bisect(o, d, (prev, None), (t, None), out);
             }
             prev = t;
             if v < self.eps {
                 // Near the surface: a hit needs a sign change just ahead
                 match self.refine(o, d, t, &mut out) {
-                    Ok(hit) => return self.bisect(o, d, hit.0, hit.1, out),
+                    Ok((a, b)) => return self.bisect(o, d, a, b, out),
                     Err(beyond) => t = beyond,
                 }
             } else {
@@ -243,7 +246,7 @@ impl Marcher {
             let (v, _) = self.bound(at(t));
             out.steps += 1;
             if v >= 0.0 {
-                return self.bisect(o, d, t, inside, out);
+                return self.bisect(o, d, (t, None), (inside, None), out);
             }
             inside = t;
             // At least eps, so a surface touched from inside is crossed
@@ -261,20 +264,23 @@ impl Marcher {
 
     /// A converged forward step at `t`: look for a sign change just ahead, by probes at
     /// `t + eps·2ᵏ`, k ≤ 5 (a bound `f/L` under `eps` may still be `L/|∇f|` times farther from
-    /// the surface). `Ok` with the bracket (last outside probe, first inside one), or `Err` with
-    /// the last probe: the ray passes the surface without crossing it (a grazing ray, or a
-    /// secondary ray leaving its own surface) and marching goes on from there.
-    fn refine(&self, o: DVec3, d: DVec3, t: f64, out: &mut Traced) -> Result<(f64, f64), f64> {
-        let (mut a, mut h) = (t, self.eps);
+    /// the surface). `Ok` with the bracket (last outside probe, first inside one, each with its
+    /// [`Marcher::value`] where it was computed), or `Err` with the last probe: the ray passes
+    /// the surface without crossing it (a grazing ray, or a secondary ray leaving its own
+    /// surface) and marching goes on from there.
+    fn refine(&self, o: DVec3, d: DVec3, t: f64, out: &mut Traced) -> Result<(End, End), f64> {
+        let (mut a, mut h) = ((t, None), self.eps);
         for _ in 0..6 {
             out.steps += 1;
-            if self.bound(o + d * (t + h)).0 < 0.0 {
-                return Ok((a, t + h));
+            // Only the sign is needed: the value, without the gradient a step would compute
+            let v = self.value(o + d * (t + h));
+            if v.0 < 0.0 {
+                return Ok((a, (t + h, Some(v))));
             }
-            a = t + h;
+            a = (t + h, Some(v));
             h *= 2.0;
         }
-        Err(a)
+        Err(a.0)
     }
 
     /// The union's value at `p` scaled by the fields' global bounds, `min fᵢ(p)/Lᵢ` (outside a
@@ -307,10 +313,17 @@ impl Marcher {
     /// bracket (so that an estimate already within that of the root closes the bracket from
     /// the other side), and a bisection follows any two steps that did not halve the bracket
     /// together. The hit is the outside end: a point never past the surface.
-    fn bisect(&self, o: DVec3, d: DVec3, mut a: f64, mut b: f64, mut out: Traced) -> Traced {
+    fn bisect(&self, o: DVec3, d: DVec3, a: End, b: End, mut out: Traced) -> Traced {
         let at = |t: f64| self.value(o + d * t);
-        let ((mut fa, _), (mut fb, mut hit)) = (at(a), at(b));
-        out.steps += 2;
+        // The ends' values, computed unless known
+        let mut end = |(t, v): End| {
+            v.unwrap_or_else(|| {
+                out.steps += 1;
+                at(t)
+            })
+        };
+        let ((mut fa, _), (mut fb, mut hit)) = (end(a), end(b));
+        let (mut a, mut b) = (a.0, b.0);
         let mut side = 0i8;
         // The bracket's width two steps back
         let (mut w1, mut w2) = (f64::INFINITY, f64::INFINITY);

@@ -97,7 +97,9 @@
 //!   twice and each gradient `1e-12·(|bᵢ| + 3‖Hᵢ‖·|z|max)`; `e = 4(n + 100)·u·max Tᵢ` with
 //!   `Tᵢ` the sum of the magnitudes of `Q̃ᵢ`'s terms over `B` (`n` fits, each value ~15
 //!   roundings, the weighted mean `n` more; `|f| ≤ max|Q̃ᵢ|` as a mean), and the computed
-//!   `|∇f|` is within `1e-10·(L_B + Σ sup|∇wᵢ|·max Tᵢ/W_lo)`.
+//!   gradient vector is within `1e-10·(L_B + Σ sup|∇wᵢ|·max Tᵢ/W_lo)` of `∇f` (each component
+//!   is ~`n + 100` roundings of terms of at most these magnitudes: over 1000× below, enough for
+//!   the vector's norm, which the step along a ray uses, not only its length's).
 //!
 //! Outside `bounds()` the field is the box distance plus `floor` (1-Lipschitz, never above the
 //! distance to the zero set), so the grid's global floor is 1. On the bunny the proved bounds
@@ -1384,7 +1386,8 @@ impl Mpu {
             .sum::<f64>()
             / wsum
             + mix(&mut fits.iter().map(|a| a.k));
-        // The computed gradient's rounding: far above ~100 roundings of its terms' magnitudes
+        // The computed gradient vector's rounding: far above ~100 roundings of its terms'
+        // magnitudes
         let tmag = fits.iter().map(|f| f.t).fold(0.0, f64::max);
         let gerr = 1e-10 * (gmax + fits.iter().map(|f| f.dw).sum::<f64>() * tmag / wsum);
         // f's range: a mix of the fits' ranges Q̃ⱼ(x₀) ± (|∇Q̃ⱼ(x₀)|·r + Kⱼr²/2)
