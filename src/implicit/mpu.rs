@@ -82,8 +82,13 @@
 //!   point of `B`): `b` decreases, so `b(t_max) ≤ wᵢ ≤ b(t_min)`; `|∇wᵢ| ≤ (1.5/Rᵢ)·max |b'|`
 //!   (`|b'|` peaks at 1 at `t = 1/2`); `‖∇²wᵢ‖ ≤ 2(1.5/Rᵢ)²` (the radial and tangential
 //!   eigenvalues `s²b''` and `s²b'/t` lie in `[−2s², s²]`).
-//! - `W = Σ wⱼ ≥ max(Σ b(t_max), w_floor)`, `w_floor = b(0.75/alpha)`: every point lies in a
-//!   leaf cell whose ball (`R ≥ alpha·diagonal`) reaches it at `t ≤ 0.75/alpha`.
+//! - `W = Σ wⱼ ≥ W_lo = max(min_S Σ b(t_max,S), w_floor)`, the minimum over the box's
+//!   `WEIGHT_SPLIT³` sub-boxes `S` (which tile it: shared faces are computed by the same
+//!   operations) of the sum of each weight's least value on `S` (at `S`'s farthest point from
+//!   its centre); `w_floor = b(0.75/alpha)`: every point lies in a leaf cell whose ball
+//!   (`R ≥ alpha·diagonal`) reaches it at `t ≤ 0.75/alpha`. (One sum over the whole box, each
+//!   weight at its own farthest corner, was about half as large, and `W_lo` divides every term
+//!   below, squared in `H_B`.)
 //! - The shares `λⱼ = wⱼ/W` sum to 1 with `0 ≤ λⱼ ≤ b(t_min,ⱼ)/W_lo`; a "mix" of per-fit bounds
 //!   `mⱼ` is the largest `Σ λⱼmⱼ` under these constraints (fill the largest `mⱼ` first).
 //! - `∇f = Σ λᵢ∇Q̃ᵢ + Σ ∇wᵢ(Q̃ᵢ − f)/W` and `Q̃ᵢ − f = Σⱼ λⱼ(Q̃ᵢ − Q̃ⱼ)`, so
@@ -213,6 +218,9 @@ pub struct MpuStats {
 pub const LIPSCHITZ_SAFETY: f64 = 1.5;
 /// Cells per axis of the local Lipschitz grid per cell of the evaluation grid.
 pub const LIPSCHITZ_REFINE: usize = 3;
+
+/// Sub-boxes per axis over which a box's lower bound of `Σ wᵢ` is taken (module doc).
+const WEIGHT_SPLIT: usize = 4;
 /// Grid resolution per axis of the Lipschitz measurement.
 pub const LIPSCHITZ_GRID: usize = 64;
 /// `bounds()` = the points' bounding box grown by this fraction of its diagonal per side.
@@ -1276,7 +1284,8 @@ impl Mpu {
             k: f64,
             dw: f64,
             s2: f64,
-            wlo: f64,
+            c: DVec3,
+            s: f64,
             whi: f64,
             t: f64,
         }
@@ -1299,7 +1308,6 @@ impl Mpu {
                 } else {
                     1.0
                 };
-                let wlo = (bspline(tmax).0 * (1.0 - 1e-9) - 1e-15).max(0.0);
                 let whi = bspline(tmin).0 * (1.0 + 1e-9) + 1e-15;
                 let hn = l.hess_norm();
                 let zmax = (blo - l.m).abs().max((bhi - l.m).abs()).length();
@@ -1315,7 +1323,8 @@ impl Mpu {
                     k: 3.0 * hn,
                     dw: db * l.s,
                     s2: l.s * l.s,
-                    wlo,
+                    c: l.c,
+                    s: l.s,
                     whi,
                     t,
                 })
@@ -1324,8 +1333,36 @@ impl Mpu {
         // Evaluation error: n + 100 roundings of terms no larger than the largest Tᵢ, 4× over
         let tmax = fits.iter().map(|f| f.t).fold(0.0, f64::max);
         let err = 4.0 * (fits.len() as f64 + 100.0) * f64::EPSILON * 0.5 * tmax;
-        // Σ wᵢ ≥ the weights' lower bounds, and ≥ w_floor anywhere in bounds()
-        let wsum = fits.iter().map(|f| f.wlo).sum::<f64>().max(self.w_floor);
+        // Σ wᵢ on the box: on each of its WEIGHT_SPLIT³ sub-boxes at least the sum of the
+        // weights' least values there (each at the sub-box's farthest point from its centre), so
+        // on the box at least the smallest such sum; and ≥ w_floor anywhere in bounds()
+        let sub = (bhi - blo) / WEIGHT_SPLIT as f64;
+        let edge = |i: usize, k: usize| {
+            if i == WEIGHT_SPLIT {
+                bhi[k]
+            } else {
+                blo[k] + sub[k] * i as f64
+            }
+        };
+        let mut wsum = f64::INFINITY;
+        for n in 0..WEIGHT_SPLIT.pow(3) {
+            let c = [
+                n % WEIGHT_SPLIT,
+                (n / WEIGHT_SPLIT) % WEIGHT_SPLIT,
+                n / WEIGHT_SPLIT.pow(2),
+            ];
+            let slo = DVec3::from_array([0, 1, 2].map(|k| edge(c[k], k)));
+            let shi = DVec3::from_array([0, 1, 2].map(|k| edge(c[k] + 1, k)));
+            let w: f64 = fits
+                .iter()
+                .map(|f| {
+                    let far = (slo - f.c).abs().max((shi - f.c).abs()).length();
+                    (bspline(far * f.s).0 * (1.0 - 1e-9) - 1e-15).max(0.0)
+                })
+                .sum();
+            wsum = wsum.min(w);
+        }
+        let wsum = wsum.max(self.w_floor);
         if wsum <= 0.0 {
             return CellBound {
                 lipschitz: f64::INFINITY,
