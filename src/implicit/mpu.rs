@@ -71,7 +71,9 @@
 //! **Proved, per box** ([`Mpu::local_bounds`]: a grid of `LIPSCHITZ_REFINE³` boxes per cell of
 //! the evaluation grid over `bounds()`, see [`super::lipschitz`] for the step rule). For a box
 //! `B` (centre `x₀`, half-diagonal `r`), over the fits `i` whose ball meets `B`:
-//! - `Q̃ᵢ` is C¹ and `∇Q̃ᵢ` is `Kᵢ`-Lipschitz with `Kᵢ = 3‖Hᵢ‖_F`: inside the sphere
+//! - `Q̃ᵢ` is C¹ and `∇Q̃ᵢ` is `Kᵢ`-Lipschitz on `B` with `Kᵢ = ‖Hᵢ‖_F` when `B` lies inside
+//!   the sphere (its farthest point from `m` within `ρ`: there `Q̃ᵢ = Qᵢ`) and `Kᵢ = 3‖Hᵢ‖_F`
+//!   otherwise: inside the sphere
 //!   `∇²Q̃ = H`; outside, `∇Q̃ = ∇Q(π) + φ(|z|)·(Hu − (u·Hu)u)`, `u = z/|z|`,
 //!   `φ = ρ(1 − ρ/|z|)`, whose derivative is at most `‖H‖ρ/|z| ≤ ‖H‖` (first term) plus
 //!   `|φ'|·‖H‖ + (φ/|z|)·4‖H‖ ≤ ‖H‖ + ‖H‖` (`φ' = ρ²/|z|² ≤ 1`, `φ/|z| ≤ 1/4`). Hence, with
@@ -1320,7 +1322,12 @@ impl Mpu {
                     g,
                     // The computed gradient's rounding (~30 roundings of terms ≤ this scale)
                     gerr: 1e-12 * (l.b.length() + 3.0 * hn * zmax),
-                    k: 3.0 * hn,
+                    // Inside the sphere Q̃ = Q: ∇Q̃ is ‖H‖-Lipschitz there, 3‖H‖ elsewhere
+                    k: if zmax * (1.0 + 1e-12) <= l.rho {
+                        hn
+                    } else {
+                        3.0 * hn
+                    },
                     dw: db * l.s,
                     s2: l.s * l.s,
                     c: l.c,
