@@ -178,6 +178,10 @@ pub const RUNS: [(Mode, Tracer); 7] = [
     (Mode::Paper, Tracer::Paper),
 ];
 
+/// One configuration's render: the primary pass, the shaded image, the secondary rays and the
+/// shading time.
+type Rendered = (Primary, Vec<[f32; 3]>, RayCounts, f64);
+
 /// Runs the check.
 pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
     let (local, mats) = marcher(s)?;
@@ -197,8 +201,7 @@ pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
         };
         // Fastest of the repeats, taken in turns (every configuration once per round), so that
         // a shared machine's load changes reach every configuration alike
-        let mut bests: Vec<Option<(Primary, Vec<[f32; 3]>, RayCounts, f64)>> =
-            RUNS.iter().map(|_| None).collect();
+        let mut bests: Vec<Option<Rendered>> = RUNS.iter().map(|_| None).collect();
         for _ in 0..opts.repeat.max(1) {
             for ((mode, tracer), best) in RUNS.into_iter().zip(bests.iter_mut()) {
                 let m = marcher(tracer);
