@@ -132,8 +132,10 @@
 //! distance to the mesh, so `f/lipschitz()` stays below half of it there.
 //!
 //! # Cost (bunny, defaults, the 2-core dev machine)
-//! Fit ≈ 0.09 s on both cores, including the Lipschitz measurement, plus ≈ 3 s for the proved
-//! local bounds (75³ boxes, each with its ~17² pairs of fits); 2393 cells, 2094 leaves (1072
+//! Fit ≈ 0.09 s on both cores, including the Lipschitz measurement, plus the proved local
+//! bounds (75³ boxes, each with its ~17² pairs of fits and the weights on 4³ sub-boxes): loading
+//! the bunny scene took 2.3–2.4 s at load ~2 on 2026-11-25 04:17 UTC, against 1.6 s with one
+//! weight sum per box (the two builds alternated); 2393 cells, 2094 leaves (1072
 //! bivariate, 319 general, 703 empty); [`Mpu::eval`] ≈ 0.35 µs (≈ 15 contributing fits near
 //! the surface, ≈ 10 elsewhere), [`Mpu::eval_grad`] ≈ 0.45 µs.
 
@@ -1357,6 +1359,20 @@ impl Mpu {
                 blo[k] + sub[k] * i as f64
             }
         };
+        // Per fit, axis and slice of the split: the squared farthest distance along that axis
+        let sq: Vec<[[f64; WEIGHT_SPLIT]; 3]> = fits
+            .iter()
+            .map(|f| {
+                [0, 1, 2].map(|k| {
+                    std::array::from_fn(|i| {
+                        let d = (edge(i, k) - f.c[k])
+                            .abs()
+                            .max((edge(i + 1, k) - f.c[k]).abs());
+                        d * d
+                    })
+                })
+            })
+            .collect();
         let mut wsum = f64::INFINITY;
         for n in 0..WEIGHT_SPLIT.pow(3) {
             let c = [
@@ -1364,12 +1380,11 @@ impl Mpu {
                 (n / WEIGHT_SPLIT) % WEIGHT_SPLIT,
                 n / WEIGHT_SPLIT.pow(2),
             ];
-            let slo = DVec3::from_array([0, 1, 2].map(|k| edge(c[k], k)));
-            let shi = DVec3::from_array([0, 1, 2].map(|k| edge(c[k] + 1, k)));
             let w: f64 = fits
                 .iter()
-                .map(|f| {
-                    let far = (slo - f.c).abs().max((shi - f.c).abs()).length();
+                .zip(&sq)
+                .map(|(f, q)| {
+                    let far = (q[0][c[0]] + q[1][c[1]] + q[2][c[2]]).sqrt();
                     (bspline(far * f.s).0 * (1.0 - 1e-9) - 1e-15).max(0.0)
                 })
                 .sum();
