@@ -99,11 +99,12 @@
 //! rows, with nothing around it) and `speck` (a sphere 2.2 pixels across inside one block, between
 //! its samples).
 //!
-//! From one run each (`rayproof implicit-check reference/implicit/NAME.toml --repeat 3`, fastest of
-//! 3 rounds, 2 shared cores, 2026-11-25 04:12 UTC; the bunny from the `scripts/bench-implicit` run
-//! below, fastest of 5; steps count field evaluations of pixel traces, cones and shadow rays; the
-//! global bound's tracer, as the paper's; the last column is certified with local bounds, always
-//! 0 lost and 0 ghost):
+//! From one run each (`rayproof implicit-check reference/implicit/NAME.toml --repeat 3`, fastest
+//! of 3 rounds, 2 shared cores, 2026-11-25 04:12 UTC at f9f9433; the bunny from the
+//! `scripts/bench-implicit` run below, at bd40c5b, which takes the same steps, fastest of 5;
+//! steps count field evaluations of pixel traces, cones and shadow rays; the global bound's
+//! tracer, as the paper's; the last column is certified with local bounds, always 0 lost and 0
+//! ghost):
 //!
 //! | scene | surface px | paper: lost | certified: lost | primary rays full → certified | steps full → certified (no shadows) | speed-up paper / certified, no shadows | with shadows | certified, local bounds: steps, speed-up (no shadows) |
 //! |---|---:|---:|---:|---:|---:|---:|---:|---:|
@@ -111,7 +112,7 @@
 //! | sdf | 6,870 | 0 | 0 | 30,000 → 7,621 | 290,651 → 197,989 | 0.91× / 1.37× | 0.94× / 1.23× | 197,989, 1.39× |
 //! | thin | 2,576 | **166** (all `skipped`, the rod's row) | 0 | 30,000 → 3,149 | 149,832 → 84,314 | 1.19× / 1.63× | 1.21× / 1.43× | 84,314, 1.66× |
 //! | speck | 1,558 | **5** (the whole speck, `skipped`) | 0 | 30,000 → 2,559 | 67,516 → 49,231 | 1.04× / 1.39× | 1.04× / 1.31× | 49,231, 1.46× |
-//! | bunny (400×400) | 73,088 | 0 (3 moved) | 0 | 160,000 → 81,308 | 6,898,860 → 4,061,345 | 1.21× / 1.65× | 1.11× / 1.30× | 1,755,652, 2.09× |
+//! | bunny (400×400) | 73,088 | 0 (3 moved) | 0 | 160,000 → 81,308 | 6,898,860 → 4,061,345 | 1.26× / 1.71× | 1.11× / 1.29× | 1,755,652, 2.13× |
 //!
 //! (The SDFs have no local bounds, so their local tracer is the global one's: the same steps.)
 //!
@@ -143,36 +144,34 @@
 //! `paper` (the paper's renderer: sphere tracing from the eye with the global bound, no box
 //! clipping), `global` (the baseline: rays clipped to the scene box, box distances outside it,
 //! the global bound inside; the MPU's is measured), `local` (proved local bounds, [`lipschitz`]).
-//! One run (2026-11-25 04:10 UTC, rayproof f9f9433 with a doc comment being edited, 2 shared AMD EPYC cores at load average
-//! ~4), fastest of 5 rounds, every configuration once per round (only the ratios compare, and
-//! only within a column: the load changed between the two columns, so the shadow column's
-//! primary passes ran about twice as fast):
+//! One run (2026-11-25 04:18 UTC, rayproof bd40c5b, 2 shared AMD EPYC cores at load average
+//! ~2), fastest of 5 rounds, every configuration once per round (only the ratios compare):
 //!
 //! | | no shadows | shadows |
 //! |---|---:|---:|
 //! | paper: MPU's own ray tracing | 33.89 s | illegible in our copy |
 //! | paper: image-space subdivision | 8.25 s (**4.1×**) | 20.36 s |
-//! | the paper's renderer, per pixel | 0.995 s | 0.900 s |
-//! | the paper's renderer, its subdivision | 0.755 s (**1.32×**) | 0.795 s (1.13×) |
-//! | baseline: per pixel, global bound | 0.871 s | 0.866 s |
-//! | paper's subdivision, global bound | 0.721 s (1.21×) | 0.779 s (1.11×) |
-//! | certified, global bound | 0.528 s (1.65×), 0 lost | 0.665 s (1.30×), 0 lost |
-//! | per pixel, local bounds | 0.714 s (1.22×) | 0.802 s (1.08×) |
-//! | certified, local bounds | 0.417 s (**2.09×**), 0 lost, 0 ghost | 0.643 s (1.35×), 0 lost, 0 ghost |
+//! | the paper's renderer, per pixel | 0.496 s | 0.883 s |
+//! | the paper's renderer, its subdivision | 0.383 s (**1.29×**) | 0.768 s (1.15×) |
+//! | baseline: per pixel, global bound | 0.475 s | 0.855 s |
+//! | paper's subdivision, global bound | 0.376 s (1.26×) | 0.768 s (1.11×) |
+//! | certified, global bound | 0.278 s (1.71×), 0 lost | 0.661 s (1.29×), 0 lost |
+//! | per pixel, local bounds | 0.398 s (1.19×) | 0.782 s (1.09×) |
+//! | certified, local bounds | 0.223 s (**2.13×**), 0 lost, 0 ghost | 0.601 s (1.42×), 0 lost, 0 ghost |
 //!
 //! Primary field evaluations per surface pixel (73,088), no shadows: paper's renderer 136.3,
 //! baseline 94.4, certified 55.6; with local bounds, per pixel 48.2 and certified 24.0 (before
 //! the changes below: 168.3, 126.4, 88.4, 108.5 and 87.5). Shadow rays are traced by the
 //! renderer's own marcher, with local bounds, in every run; with shadows the primary pass of
-//! certified/local is 2.2× faster than the baseline's (0.205 s against 0.456 s) but shading
-//! and shadow rays take two thirds of the time. Two earlier runs that took each
-//! configuration's repeats back to back, at load ~5, gave 2.07× and 1.16× for certified/local
-//! without shadows: on this machine a single ratio moves with the load, and the turns are what
-//! makes it comparable.
+//! certified/local is 2.3× faster than the baseline's (0.199 s against 0.450 s) but shading
+//! and shadow rays take two thirds of the time. On this machine a single ratio moves with the
+//! load: an earlier run at f9f9433 (load ~4) gave 2.09× and 1.35×, and two runs that took each
+//! configuration's repeats back to back, at load ~5, gave 2.07× and 1.16× without shadows; the
+//! turns are what makes a run's ratios comparable.
 //!
 //! **The paper's 4× is not reproduced**, not even against the paper's own baseline, and the
 //! measurements say why. Removing box clipping costs little here (136 against 94 evaluations
-//! per surface pixel, 0.88× the time): outside the box the MPU's value is already the box
+//! per surface pixel, 0.96× the time): outside the box the MPU's value is already the box
 //! distance plus a floor, so an unclipped ray crosses empty space in a few steps; the paper's
 //! MPU renderer evidently paid far more for empty space. A ray that hits spends most of its
 //! evaluations in sphere tracing's geometric tail near the surface (each step shrinks the gap
