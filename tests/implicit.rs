@@ -394,46 +394,70 @@ fn blob_local_bounds_hold_on_samples_and_intervals() {
     assert!(worst_h > 0.0);
 }
 
-#[test]
-fn proved_steps_never_cross_the_blob_surface() {
-    // A safe trace (steps of at least eps) reaches the inside at most eps past the surface; a
-    // first inside point farther past the hit than 2·eps (or none) is a step that crossed it.
-    // The proved steps never do; doubled steps (every bound halved) do. (Each cell's halved
-    // Lipschitz bound is also caught by sampling: blob_local_bounds_hold_on_samples_and_intervals.)
-    let s = reference("blob");
-    let f = s.implicits.values().next().expect("blob").clone();
+/// Traces every pixel of `name` at `w`×`h` with the field's proved steps multiplied by each of
+/// `ks`, along the ray (`ray`) or as balls, and counts, per factor, the rays whose steps crossed
+/// the surface: a safe trace (steps of at least eps) reaches the inside at most eps past the
+/// surface, so a first inside point farther past the hit than 2·eps (or none) is a step that
+/// crossed it. Returns the hits and the counts.
+fn crossings(name: &str, (w, h): (usize, usize), ray: bool, ks: &[f64]) -> (u32, Vec<u32>) {
+    let s = reference(name);
+    let f = s.implicits.values().next().expect("implicit").clone();
     let m = Marcher::new(vec![f.clone()]);
-    let lens = rayproof::render::Lens::new(&s, 200, 150);
-    let mut crossed = [0u32; 4];
-    let ks = [1.0, 2.0, 4.0, 8.0];
+    let lens = rayproof::render::Lens::new(&s, w, h);
+    let mut crossed = vec![0u32; ks.len()];
     let mut hits = 0;
-    for y in 0..150 {
-        for x in 0..200 {
+    for y in 0..h {
+        for x in 0..w {
             let d = lens.dir(x as f64 + 0.5, y as f64 + 0.5);
             let Some((t, _)) = m.trace(lens.pos, d, 0.0).hit else {
                 continue;
             };
             hits += 1;
-            for (n, &k) in crossed.iter_mut().zip(&ks) {
-                *n +=
-                    inside_at(&f, lens.pos, d, m.eps, k).is_none_or(|b| b > t + 2.0 * m.eps) as u32;
+            for (n, &k) in crossed.iter_mut().zip(ks) {
+                let dir = ray.then_some(d);
+                *n += inside_at(&f, lens.pos, d, dir, m.eps, k).is_none_or(|b| b > t + 2.0 * m.eps)
+                    as u32;
             }
         }
     }
-    println!("hits {hits}, crossings for step factors {ks:?}: {crossed:?}");
-    assert!(hits > 5000, "{hits}");
-    assert_eq!(crossed[0], 0, "the proved steps cross the surface");
-    assert!(
-        crossed[1] > 100,
-        "doubled steps went unnoticed: {crossed:?}"
-    );
+    println!("{name}, steps along the ray: {ray}, hits {hits}, crossings for step factors {ks:?}: {crossed:?}");
+    (hits, crossed)
 }
 
-/// Sphere tracing with steps of `k·step` (bounds divided by `k`) to the first inside point.
-fn inside_at(f: &Field, o: DVec3, d: DVec3, eps: f64, k: f64) -> Option<f64> {
+#[test]
+fn proved_steps_never_cross_the_blob_surface() {
+    // The proved steps (balls and steps along the ray) never cross; doubled steps (every bound
+    // halved) do. (Each cell's halved Lipschitz bound is also caught by sampling:
+    // blob_local_bounds_hold_on_samples_and_intervals.)
+    for ray in [false, true] {
+        let (hits, crossed) = crossings("blob", (200, 150), ray, &[1.0, 2.0, 4.0, 8.0]);
+        assert!(hits > 5000, "{hits}");
+        assert_eq!(crossed[0], 0, "the proved steps cross the surface");
+        assert!(
+            crossed[1] > 100,
+            "doubled steps went unnoticed: {crossed:?}"
+        );
+    }
+}
+
+#[test]
+fn proved_steps_never_cross_the_bunny_surface() {
+    // The MPU's proved bounds (local quadrics and partition-of-unity weights, rules 3 and 4 of
+    // the step, balls and rays): never crossing, and with teeth, steps a quarter longer cross
+    for ray in [false, true] {
+        let (hits, crossed) = crossings("bunny", (160, 160), ray, &[1.0, 1.25, 2.0]);
+        assert!(hits > 10000, "{hits}");
+        assert_eq!(crossed[0], 0, "the proved steps cross the surface");
+        assert!(crossed[1] > 0, "longer steps went unnoticed: {crossed:?}");
+    }
+}
+
+/// Sphere tracing with steps of `k·step` (bounds divided by `k`; along `dir` or balls) to the
+/// first inside point.
+fn inside_at(f: &Field, o: DVec3, d: DVec3, dir: Option<DVec3>, eps: f64, k: f64) -> Option<f64> {
     let mut t = 0.0;
     for _ in 0..4096 {
-        let v = f.step(o + d * t);
+        let v = f.step(o + d * t, dir);
         if v < 0.0 {
             return Some(t);
         }

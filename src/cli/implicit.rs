@@ -16,7 +16,7 @@ pub struct ImplicitCheckArgs {
     /// Image width (the height keeps the camera's aspect ratio); default: the camera's.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=16384))]
     pub width: Option<u32>,
-    /// Render each configuration this many times and keep the fastest.
+    /// Render each configuration this many times, in turns, and keep the fastest.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100))]
     pub repeat: u32,
     /// Write the full report (every lost, ghost and moved pixel) as JSON.

@@ -123,7 +123,8 @@ pub struct Options {
     pub region: usize,
     /// Image width (height keeps the camera's aspect); `None`: the camera's.
     pub width: Option<u32>,
-    /// Repeats of each render; the fastest time is kept.
+    /// Repeats of each render, in turns (every configuration once per round); the fastest time
+    /// is kept.
     pub repeat: u32,
 }
 
@@ -177,6 +178,10 @@ pub const RUNS: [(Mode, Tracer); 7] = [
     (Mode::Paper, Tracer::Paper),
 ];
 
+/// One configuration's render: the primary pass, the shaded image, the secondary rays and the
+/// shading time.
+type Rendered = (Primary, Vec<[f32; 3]>, RayCounts, f64);
+
 /// Runs the check.
 pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
     let (local, mats) = marcher(s)?;
@@ -187,25 +192,19 @@ pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
     let marchers = [by(Tracer::Global), local.clone(), by(Tracer::Paper)];
     let m = &marchers[0];
     for shadows in [false, true] {
-        // Each tracer's per-pixel render (the first is the baseline's)
-        let mut fulls: Vec<(Tracer, Primary, Vec<[f32; 3]>, f64)> = vec![];
-        for (mode, tracer) in RUNS {
-            let m = &marchers[match tracer {
+        let marcher = |tracer: Tracer| {
+            &marchers[match tracer {
                 Tracer::Global => 0,
                 Tracer::Local => 1,
                 Tracer::Paper => 2,
-            }];
-            // A subdivision is judged against per-pixel tracing with its own tracer, and a
-            // per-pixel render against the baseline's
-            let full = if mode == Mode::Full {
-                fulls.first()
-            } else {
-                fulls.iter().find(|f| f.0 == tracer)
-            }
-            .map(|f| (&f.1, &f.2, f.3));
-            // Fastest of the repeats
-            let mut best: Option<(Primary, Vec<[f32; 3]>, RayCounts, f64)> = None;
-            for _ in 0..opts.repeat.max(1) {
+            }]
+        };
+        // Fastest of the repeats, taken in turns (every configuration once per round), so that
+        // a shared machine's load changes reach every configuration alike
+        let mut bests: Vec<Option<Rendered>> = RUNS.iter().map(|_| None).collect();
+        for _ in 0..opts.repeat.max(1) {
+            for ((mode, tracer), best) in RUNS.into_iter().zip(bests.iter_mut()) {
+                let m = marcher(tracer);
                 let p = subdiv::primary(m, &lens, (w, h), mode, opts.region);
                 let t0 = Instant::now();
                 let hits: Vec<Option<(f64, DVec3, usize)>> = p
@@ -226,9 +225,22 @@ pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
                     .as_ref()
                     .is_none_or(|b| p.seconds + shade < b.0.seconds + b.3)
                 {
-                    best = Some((p, beauty, counts, shade));
+                    *best = Some((p, beauty, counts, shade));
                 }
             }
+        }
+        // Each tracer's per-pixel render (the first is the baseline's)
+        let mut fulls: Vec<(Tracer, Primary, Vec<[f32; 3]>, f64)> = vec![];
+        for ((mode, tracer), best) in RUNS.into_iter().zip(bests) {
+            let m = marcher(tracer);
+            // A subdivision is judged against per-pixel tracing with its own tracer, and a
+            // per-pixel render against the baseline's
+            let full = if mode == Mode::Full {
+                fulls.first()
+            } else {
+                fulls.iter().find(|f| f.0 == tracer)
+            }
+            .map(|f| (&f.1, &f.2, f.3));
             let (p, beauty, counts, shade) = best.expect("at least one repeat");
             let seconds = p.seconds + shade;
             let versus_full = full.map(|(fp, fb, _)| compare(m, fp, fb, &p, &beauty, w, h));

@@ -253,7 +253,8 @@ fn blob_bounds(threshold: f64, components: &[BlobComponent]) -> LocalBounds {
             error,
             zero_free: flo > error + 1e-9 * mag || fhi < -(error + 1e-9 * mag),
             curvature: hess,
-            // ∇f = Σ −4s(1 − u)y/R²: ~10 roundings of terms ≤ 4|s|/R, 1e-10 relative over
+            // ∇f = Σ −4s(1 − u)y/R²: ~10 roundings per component of terms ≤ 4|s|/R, so the
+            // vector's error is far below 1e-10 relative
             gradient_error: 1e-10 * gmag,
         }
     })
@@ -282,30 +283,23 @@ impl Field {
     }
 
     /// A safe sphere-tracing step from `p`, signed as `f(p)` (negative inside): no surface point
-    /// lies closer. SDFs: `f` itself (1-Lipschitz); blobs and MPU: the local bounds
+    /// lies closer, or, with `dir` (a unit vector), none on the ray from `p` along `dir` within
+    /// the step. SDFs: `f` itself (1-Lipschitz); blobs and MPU: the local bounds
     /// ([`super::lipschitz`]).
     #[inline]
-    pub fn step(&self, p: DVec3) -> f64 {
+    pub fn step(&self, p: DVec3, dir: Option<DVec3>) -> f64 {
         match self {
             Field::Sdf { .. } => self.eval(p),
             Field::Blob { local, .. } => Self::step_with(
                 local,
                 p,
+                dir,
                 || self.eval(p),
-                || {
-                    let g = self.gradient(p);
-                    (self.eval(p), g.length())
-                },
+                || (self.eval(p), self.gradient(p)),
             ),
-            Field::Mpu(m) => Self::step_with(
-                m.local_bounds(),
-                p,
-                || m.eval(p),
-                || {
-                    let (f, g) = m.eval_grad(p);
-                    (f, g.length())
-                },
-            ),
+            Field::Mpu(m) => {
+                Self::step_with(m.local_bounds(), p, dir, || m.eval(p), || m.eval_grad(p))
+            }
         }
     }
 
@@ -314,14 +308,15 @@ impl Field {
     fn step_with(
         b: &LocalBounds,
         p: DVec3,
+        dir: Option<DVec3>,
         value: impl Fn() -> f64,
-        with_grad: impl Fn() -> (f64, f64),
+        with_grad: impl Fn() -> (f64, DVec3),
     ) -> f64 {
         if b.near_zero(p) {
             let (f, g) = with_grad();
-            b.step(p, f, Some(g))
+            b.step(p, f, Some(g), dir)
         } else {
-            b.step(p, value(), None)
+            b.step(p, value(), None, None)
         }
     }
 

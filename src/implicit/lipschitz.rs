@@ -6,7 +6,7 @@
 //! gradients and Hessians and the partition-of-unity weights; [`super::field`]: the blob's
 //! supports that meet the box). Per box `c` a field states ([`CellBound`]): `L_c ≥ sup |∇f|`,
 //! `H_c` a Lipschitz constant of `∇f`, `e_c ≥ |f̃ − f|` (the rounding of the computed value
-//! `f̃`), `g_c ≥ ||∇f̃| − |∇f||`, and whether `f` is provably zero-free on the box. Sampling
+//! `f̃`), `g_c ≥ |∇f̃ − ∇f|` (the rounding of the computed gradient vector), and whether `f` is provably zero-free on the box. Sampling
 //! never enters a bound; the tests sample to check them.
 //!
 //! # The step rule
@@ -19,19 +19,37 @@
 //!    convex set), so `y` would lie in the zero-free block; cells beyond `Ω` hold no zero.
 //! 3. **Local, per pyramid level `k`** (cells `2ᵏ` fine cells wide, bounds max-pooled): with
 //!    `L̂, Ĥ, ê, ĝ` the maxima over the 3×3×3 cells around `x`'s cell and `δ_k` half a cell
-//!    width, `min(t, δ_k)` where `t = max(a/L̂, 2a/(g + √(g² + 4Ĥa)))`, `a = (|f̃| − ê)⁺`,
-//!    `g = |∇f̃(x)| + ĝ` (the second form only where the gradient was computed: cells that are
-//!    not zero-free blocks).
+//!    width, `min(t, δ_k)` where `t = max(a/L̂, 2a/(p + √(p² + 2Ĥa)))`, `a = (|f̃| − ê)⁺`, and
+//!    `p` the rate at which `|f|` can fall from `x` (the second form only where the gradient
+//!    was computed: cells that are not zero-free blocks): in any direction (a ball, the step
+//!    of a cone or of a ray), `p = |∇f̃(x)| + ĝ`; along a ray of unit direction `u` (the step
+//!    then only says that the ray's segment holds no zero), `p = ĝ − sign(f̃)·u·∇f̃(x)`, which
+//!    is negative when the ray moves away from the zero set.
+//! 4. **Local, own cell**: the same `t` from the bounds of `x`'s own fine cell alone (not
+//!    max-pooled), clamped to how far the ball (or the ray) reaches inside that cell: the
+//!    smallest distance from `x` to the cell's faces (along a ray, the distance to where it
+//!    leaves the cell), shrunk by [`ROUNDING_SLACK`]. The box is recomputed by the same
+//!    floating-point operations as when its bounds were proved; if rounding put `x` just outside
+//!    its computed cell, a distance is negative and the rule gives nothing. Near the surface,
+//!    where steps are far shorter than a cell, this avoids the neighbours' maxima (the curvature
+//!    bound varies by 10× between neighbouring cells).
 //!
-//! **Why 3 is safe.** Take a zero `z` with `ρ = |x − z| < s ≤ δ_k`. The segment `[x, z]` lies in
-//! `Ω` (convex, holds both) and, as `ρ < δ_k`, in the cells around `x`'s (δ is half a cell, so
-//! a cell index off by one through rounding is covered too), where `|∇f| ≤ L̂` and, along the
-//! segment, `|∇f| ≤ |∇f(x)| + Ĥρ ≤ g + Ĥρ`. By the mean value theorem `|f(x)| ≤ L̂ρ < a` in
-//! the first form and `|f(x)| ≤ (g + Ĥρ)ρ < (g + Ĥs)s = a` in the second (`s` the root of
-//! `Ĥs² + gs = a`); both contradict `|f(x)| ≥ |f̃(x)| − ê ≥ a`. **A step never uses a bound
-//! beyond the region it was proved for**: the local forms are clamped to `δ_k`, inside the
-//! neighbourhood whose maxima they used; a coarser level (wider `δ`, larger maxima) is tried
-//! only while the finer one is clamped; the global form holds everywhere.
+//! **Why 3 and 4 are safe.** Take a zero `z` with `ρ = |x − z| < s ≤ δ_k` (along a ray: the first zero
+//! `z = x + ρu` on it). The segment `[x, z]` lies in `Ω` (convex, holds both) and, as
+//! `ρ < δ_k`, in the cells around `x`'s (δ is half a cell, so a cell index off by one through
+//! rounding is covered too), or for rule 4 in `x`'s own cell, where `|∇f| ≤ L̂` and `∇f` is
+//! `Ĥ`-Lipschitz. By the mean value
+//! theorem `|f(x)| ≤ L̂ρ < a` in the first form. In the second, with `v = (z − x)/ρ` and
+//! `φ(τ) = f(x + τv)`: `|φ'(τ) − φ'(0)| ≤ Ĥτ`, so by Taylor `|φ(ρ)| ≥ |φ(0)| − ρ·σφ'(0) −
+//! Ĥρ²/2` (`σ = sign f(x)`, the sign that `|f|` falls with), and `−σφ'(0) = −σ v·∇f(x) ≤ p`
+//! because `|∇f̃ − ∇f| ≤ ĝ` (any `v`: `|v·∇f| ≤ |∇f̃| + ĝ`; `v = u`: `−σu·∇f ≤ −σu·∇f̃ + ĝ`).
+//! Hence `0 = |f(z)| ≥ |f(x)| − pρ − Ĥρ²/2 > |f(x)| − ps − Ĥs²/2 = |f(x)| − a ≥ 0` for `s` the
+//! positive root of `Ĥs²/2 + ps = a` (`|f(x)| ≥ |f̃(x)| − ê ≥ a`): a contradiction. The root is
+//! computed as `2a/(p + √(p² + 2Ĥa))`, whose denominator is positive for any sign of `p` when
+//! `Ĥa > 0`. **A step never uses a bound beyond the region it was proved for**: the local forms
+//! are clamped to `δ_k`, inside the neighbourhood whose maxima they used; a coarser level (wider
+//! `δ`, larger maxima) is tried only while the finer one is clamped; the global form holds
+//! everywhere.
 //!
 //! The step carries the sign of `f̃` (negative inside) and is at least `f64::MIN_POSITIVE` in
 //! magnitude so that the sign survives: a point whose `|f̃|` is within the rounding error of 0
@@ -62,7 +80,7 @@ pub struct CellBound {
     pub zero_free: bool,
     /// A Lipschitz constant of `∇f` over the box (a bound on `‖∇²f‖` where it exists).
     pub curvature: f64,
-    /// A bound on the rounding error of the computed `|∇f|` in the box.
+    /// A bound on the rounding error `|∇f̃ − ∇f|` of the computed gradient vector in the box.
     pub gradient_error: f64,
 }
 
@@ -120,11 +138,42 @@ impl Level {
     }
 }
 
+/// Fine cell `c`'s box on the grid over `[lo, hi]` with cells `h` wide: the same floating-point
+/// operations wherever it is needed, so that a step uses the very box a bound was proved on.
+#[inline]
+fn cell_box(lo: DVec3, hi: DVec3, h: DVec3, c: [usize; 3]) -> (DVec3, DVec3) {
+    let blo = lo + h * DVec3::new(c[0] as f64, c[1] as f64, c[2] as f64);
+    (blo, (blo + h).min(hi))
+}
+
+/// The local step of a cell's (or neighbourhood's) bounds `[L, e, H, ĝ]` at a point where the
+/// computed value is `f` (module doc, rule 3, unclamped).
+#[inline]
+fn local_step([l, e, h, ge]: Quad, f: f64, grad: Option<DVec3>, dir: Option<DVec3>) -> f64 {
+    let a = (f.abs() - e).max(0.0);
+    let mut t = a / l;
+    if let Some(g) = grad {
+        // The rate at which |f| can fall: along the ray, or in any direction
+        let p = match dir {
+            Some(u) => ge - u.dot(g) * f.signum(),
+            None => g.length() + ge,
+        };
+        // The root of H·s²/2 + p·s = a (0 when a = 0, whatever p)
+        let root = (p * p + 2.0 * h * a).sqrt();
+        if a > 0.0 && p + root > 0.0 {
+            t = t.max(2.0 * a / (p + root) * (1.0 - ROUNDING_SLACK));
+        }
+    }
+    t
+}
+
 /// A grid of proved local Lipschitz bounds (module doc).
 #[derive(Clone, Debug)]
 pub struct LocalBounds {
     lo: DVec3,
     hi: DVec3,
+    /// The fine cells' width, and its reciprocal.
+    h: DVec3,
     inv_h: DVec3,
     /// Per fine cell: its own bounds.
     raw: Vec<Quad>,
@@ -161,8 +210,8 @@ impl LocalBounds {
                     (i / dims[0]) % dims[1],
                     i / (dims[0] * dims[1]),
                 );
-                let blo = lo + h * DVec3::new(x as f64, y as f64, z as f64);
-                cell(blo, (blo + h).min(hi))
+                let (blo, bhi) = cell_box(lo, hi, h, [x, y, z]);
+                cell(blo, bhi)
             })
             .collect();
         let raw: Vec<Quad> = cells
@@ -209,6 +258,7 @@ impl LocalBounds {
         LocalBounds {
             lo,
             hi,
+            h,
             inv_h: DVec3::ONE / h,
             raw,
             levels,
@@ -236,10 +286,8 @@ impl LocalBounds {
     /// Cell `i`'s box and its own `[L, e, H, g_e]` (inflated), for tests and reports.
     pub fn cell(&self, i: usize) -> ((DVec3, DVec3), [f64; 4]) {
         let d = self.dims();
-        let h = DVec3::ONE / self.inv_h;
-        let (x, y, z) = (i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1]));
-        let blo = self.lo + h * DVec3::new(x as f64, y as f64, z as f64);
-        ((blo, (blo + h).min(self.hi)), self.raw[i])
+        let c = [i % d[0], (i / d[0]) % d[1], i / (d[0] * d[1])];
+        (cell_box(self.lo, self.hi, self.h, c), self.raw[i])
     }
 
     /// The number of cells.
@@ -274,10 +322,11 @@ impl LocalBounds {
     }
 
     /// The safe step from `x`, where the field's computed value is `f` and, optionally, the
-    /// computed `|∇f(x)|` is `grad` (module doc): signed as `f`, at least `f64::MIN_POSITIVE`
-    /// in magnitude.
+    /// computed gradient is `grad` (module doc): signed as `f`, at least `f64::MIN_POSITIVE` in
+    /// magnitude. With `dir` (a unit vector) the step holds for the ray from `x` along `dir`
+    /// only; without, for the ball around `x`.
     #[inline]
-    pub fn step(&self, x: DVec3, f: f64, grad: Option<f64>) -> f64 {
+    pub fn step(&self, x: DVec3, f: f64, grad: Option<DVec3>, dir: Option<DVec3>) -> f64 {
         let (lg, eg) = self.global;
         let mut s: f64 = 0.0;
         // Zero-free block around the cell of x's projection p onto Ω: a zero y within
@@ -291,19 +340,32 @@ impl LocalBounds {
         if out2 == 0.0 {
             // Global (on Ω only: a field may jump at Ω's boundary, as the MPU's does)
             s = s.max((f.abs() - eg).max(0.0) / lg);
-            let c0 = cp;
-            // Finest level first; a coarser level helps only while the step is clamped
+            // The own cell (x's computed cell, which x may lie just outside of: then no reach)
+            let (blo, bhi) = cell_box(self.lo, self.hi, self.h, cp);
+            let (below, above) = (x - blo, bhi - x);
+            let reach = match dir {
+                // Where the ray leaves the box
+                Some(u) => [0, 1, 2]
+                    .map(|k| match u[k] {
+                        v if v > 0.0 => above[k] / v,
+                        v if v < 0.0 => -below[k] / v,
+                        _ => f64::INFINITY,
+                    })
+                    .into_iter()
+                    .fold(f64::INFINITY, f64::min),
+                None => below.min(above).min_element(),
+            };
+            if reach > 0.0 {
+                let own = self.raw[(cp[2] * d[1] + cp[1]) * d[0] + cp[0]];
+                let t = local_step(own, f, grad, dir);
+                s = s.max(t.min(reach * (1.0 - ROUNDING_SLACK)));
+            }
+            // The neighbourhoods, finest level first; a coarser level helps only while the
+            // step is clamped
             for (k, lv) in self.levels.iter().enumerate() {
-                let c = c0.map(|v| v >> k);
-                let [l, e, h, ge] = lv.near[(c[2] * lv.dims[1] + c[1]) * lv.dims[0] + c[0]];
-                let a = (f.abs() - e).max(0.0);
-                let mut t = a / l;
-                if let Some(g) = grad {
-                    // |∇f| ≤ g + H·s on the ball of radius s: the root of H·s² + g·s = a
-                    let g = g + ge;
-                    let q = 2.0 * a / (g + (g * g + 4.0 * h * a).sqrt());
-                    t = t.max(q * (1.0 - ROUNDING_SLACK));
-                }
+                let c = cp.map(|v| v >> k);
+                let near = lv.near[(c[2] * lv.dims[1] + c[1]) * lv.dims[0] + c[0]];
+                let t = local_step(near, f, grad, dir);
                 s = s.max(t.min(lv.delta));
                 if t <= lv.delta {
                     break;

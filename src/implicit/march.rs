@@ -2,7 +2,9 @@
 //! refinement and a miss criterion.
 //!
 //! **Safe step** ([`Tracer`]). `local` (the default): each field's proved local step
-//! ([`Field::step`], [`super::lipschitz`]). `global` (the baseline before local bounds): each
+//! ([`Field::step`], [`super::lipschitz`]); marching forward, the step that holds along the
+//! ray's direction only, which is larger where the ray meets the surface obliquely (near the
+//! surface it is a guarded Newton step along the ray). `global` (the baseline before local bounds): each
 //! field `i` has a global bound `Lᵢ` ([`super::field`]; measured for MPU), so no surface lies
 //! within `fᵢ(p)/Lᵢ` of `p`. For both, outside a field's box grown by a margin `m`, the box
 //! distance plus `m` is a cheaper bound that is also safe (the zero set lies in the box, and
@@ -12,7 +14,10 @@
 //!
 //! **Hit.** A hit is a proven sign change: when the step falls below `eps` (a fixed fraction of
 //! the scene's box diagonal), probes at `t + eps·2ᵏ` (k ≤ 5) look for an inside point, and the
-//! bracket is bisected to ~1e-15 relative. Without one, the ray passes the surface without
+//! bracket is closed to ~1e-15 relative by safeguarded regula falsi on the fields' values
+//! ([`Marcher::value`]; on the bunny about 6 evaluations per hit, the bracket's ends included,
+//! where the earlier guard, which replaced nearly every interpolated point by a midpoint, took
+//! 35 to 37). Without one, the ray passes the surface without
 //! crossing it and marching goes on from the last probe. Unlike Hart's plain `eps` criterion, a
 //! grazing ray is then a miss, and a secondary ray that starts on its surface needs no offset.
 //!
@@ -89,6 +94,9 @@ pub struct Marcher {
     pub tracer: Tracer,
 }
 
+/// A bracket's end: its ray parameter and, where already computed, its [`Marcher::value`].
+type End = (f64, Option<(f64, usize)>);
+
 /// Distance from `p` to the box `[lo, hi]` (0 inside).
 #[inline]
 fn box_distance(p: DVec3, lo: DVec3, hi: DVec3) -> f64 {
@@ -132,9 +140,18 @@ impl Marcher {
         }
     }
 
-    /// A safe step from `p` (negative inside a field) and the field that bounds it.
+    /// A safe step from `p` (negative inside a field) and the field that bounds it: no surface
+    /// lies within the step of `p`.
     #[inline]
     pub fn bound(&self, p: DVec3) -> (f64, usize) {
+        self.bound_dir(p, None)
+    }
+
+    /// As [`Marcher::bound`], or, with `dir` (a unit vector), a step that only guarantees no
+    /// surface on the ray from `p` along `dir` within it (larger where the ray meets the surface
+    /// obliquely or moves away from it; [`super::lipschitz`]).
+    #[inline]
+    pub fn bound_dir(&self, p: DVec3, dir: Option<DVec3>) -> (f64, usize) {
         let mut best = (f64::INFINITY, 0);
         for (i, f) in self.fields.iter().enumerate() {
             let (a, b) = self.boxes[i];
@@ -143,7 +160,7 @@ impl Marcher {
                 Tracer::Paper => f.eval(p) * self.inv_l[i],
                 _ if out > 0.0 => out + self.margin,
                 Tracer::Global => f.eval(p) * self.inv_l[i],
-                Tracer::Local => f.step(p),
+                Tracer::Local => f.step(p, dir),
             };
             if d < best.0 {
                 best = (d, i);
@@ -185,7 +202,7 @@ impl Marcher {
         let mut t = t_start.max(t0);
         let at = |t: f64| o + d * t;
         // Start inside: backward to the surface (case ②)
-        let (v, _) = self.bound(at(t));
+        let (v, _) = self.bound_dir(at(t), Some(d));
         out.steps += 1;
         if v < 0.0 {
             out.backward = true;
@@ -197,13 +214,13 @@ impl Marcher {
         loop {
             if v < 0.0 {
                 // Crossed: only possible when a bound is too small (a measured MPU bound)
-                return self.bisect(o, d, prev, t, out);
+                return self.bisect(o, d, (prev, None), (t, None), out);
             }
             prev = t;
             if v < self.eps {
                 // Near the surface: a hit needs a sign change just ahead
                 match self.refine(o, d, t, &mut out) {
-                    Ok(hit) => return self.bisect(o, d, hit.0, hit.1, out),
+                    Ok((a, b)) => return self.bisect(o, d, a, b, out),
                     Err(beyond) => t = beyond,
                 }
             } else {
@@ -216,7 +233,7 @@ impl Marcher {
                 out.capped = true;
                 return out;
             }
-            v = self.bound(at(t)).0;
+            v = self.bound_dir(at(t), Some(d)).0;
             out.steps += 1;
         }
     }
@@ -229,7 +246,7 @@ impl Marcher {
             let (v, _) = self.bound(at(t));
             out.steps += 1;
             if v >= 0.0 {
-                return self.bisect(o, d, t, inside, out);
+                return self.bisect(o, d, (t, None), (inside, None), out);
             }
             inside = t;
             // At least eps, so a surface touched from inside is crossed
@@ -247,51 +264,91 @@ impl Marcher {
 
     /// A converged forward step at `t`: look for a sign change just ahead, by probes at
     /// `t + eps·2ᵏ`, k ≤ 5 (a bound `f/L` under `eps` may still be `L/|∇f|` times farther from
-    /// the surface). `Ok` with the bracket (last outside probe, first inside one), or `Err` with
-    /// the last probe: the ray passes the surface without crossing it (a grazing ray, or a
-    /// secondary ray leaving its own surface) and marching goes on from there.
-    fn refine(&self, o: DVec3, d: DVec3, t: f64, out: &mut Traced) -> Result<(f64, f64), f64> {
-        let (mut a, mut h) = (t, self.eps);
+    /// the surface). `Ok` with the bracket (last outside probe, first inside one, each with its
+    /// [`Marcher::value`] where it was computed), or `Err` with the last probe: the ray passes
+    /// the surface without crossing it (a grazing ray, or a secondary ray leaving its own
+    /// surface) and marching goes on from there.
+    fn refine(&self, o: DVec3, d: DVec3, t: f64, out: &mut Traced) -> Result<(End, End), f64> {
+        let (mut a, mut h) = ((t, None), self.eps);
         for _ in 0..6 {
             out.steps += 1;
-            if self.bound(o + d * (t + h)).0 < 0.0 {
-                return Ok((a, t + h));
+            // Only the sign is needed: the value, without the gradient a step would compute
+            let v = self.value(o + d * (t + h));
+            if v.0 < 0.0 {
+                return Ok((a, (t + h, Some(v))));
             }
-            a = t + h;
+            a = (t + h, Some(v));
             h *= 2.0;
         }
-        Err(a)
+        Err(a.0)
+    }
+
+    /// The union's value at `p` scaled by the fields' global bounds, `min fᵢ(p)/Lᵢ` (outside a
+    /// field's grown box its box distance plus the margin, as in [`Marcher::bound`]): the
+    /// function whose computed sign decides a bracket's ends. For `paper` and `global` it is the
+    /// step itself; for `local` it is smooth (the local step is clamped and flat within the
+    /// rounding of `f`, which would stall an interpolation) and needs no gradient. With the
+    /// field that gives the minimum.
+    #[inline]
+    pub fn value(&self, p: DVec3) -> (f64, usize) {
+        let mut best = (f64::INFINITY, 0);
+        for (i, f) in self.fields.iter().enumerate() {
+            let (a, b) = self.boxes[i];
+            let out = box_distance(p, a, b);
+            let d = if out > 0.0 && self.tracer != Tracer::Paper {
+                out + self.margin
+            } else {
+                f.eval(p) * self.inv_l[i]
+            };
+            if d < best.0 {
+                best = (d, i);
+            }
+        }
+        best
     }
 
     /// Closes the bracket `[a, b]` (outside at `a`, inside at `b`) by the Illinois variant of
-    /// regula falsi on the safe step (superlinear on smooth fields), with a bisection whenever
-    /// an interpolated point would land within 1/16 of the bracket's end, to ~1e-15 relative.
-    /// The hit is the outside end: a point never past the surface.
-    fn bisect(&self, o: DVec3, d: DVec3, mut a: f64, mut b: f64, mut out: Traced) -> Traced {
-        let at = |t: f64| self.bound(o + d * t).0;
-        let (mut fa, mut fb) = (at(a), at(b));
-        out.steps += 2;
+    /// regula falsi on [`Marcher::value`] (superlinear on smooth fields) to ~1e-15 relative.
+    /// Safeguards: an interpolated point is kept a quarter of the final width inside the
+    /// bracket (so that an estimate already within that of the root closes the bracket from
+    /// the other side), and a bisection follows any two steps that did not halve the bracket
+    /// together. The hit is the outside end: a point never past the surface.
+    fn bisect(&self, o: DVec3, d: DVec3, a: End, b: End, mut out: Traced) -> Traced {
+        let at = |t: f64| self.value(o + d * t);
+        // The ends' values, computed unless known
+        let mut end = |(t, v): End| {
+            v.unwrap_or_else(|| {
+                out.steps += 1;
+                at(t)
+            })
+        };
+        let ((mut fa, _), (mut fb, mut hit)) = (end(a), end(b));
+        let (mut a, mut b) = (a.0, b.0);
         let mut side = 0i8;
+        // The bracket's width two steps back
+        let (mut w1, mut w2) = (f64::INFINITY, f64::INFINITY);
         for _ in 0..100 {
             let width = b - a;
-            if width <= 1e-15 * b.abs() || width <= f64::MIN_POSITIVE {
+            let tol = 1e-15 * b.abs();
+            if width <= tol || width <= f64::MIN_POSITIVE {
                 break;
             }
-            let mut m = if fa > 0.0 && fb < 0.0 {
-                a + width * fa / (fa - fb)
+            let mut m = if fa > 0.0 && fb < 0.0 && width <= 0.5 * w2 {
+                (a + width * fa / (fa - fb)).clamp(a + 0.25 * tol, b - 0.25 * tol)
             } else {
                 a + 0.5 * width
             };
-            if !(m > a + width / 16.0 && m < b - width / 16.0) {
+            if !(m > a && m < b) {
                 m = a + 0.5 * width;
+                if m <= a || m >= b {
+                    break;
+                }
             }
-            if m <= a || m >= b {
-                break;
-            }
-            let fm = at(m);
+            (w2, w1) = (w1, width);
+            let (fm, i) = at(m);
             out.steps += 1;
             if fm < 0.0 {
-                (b, fb) = (m, fm);
+                (b, fb, hit) = (m, fm, i);
                 // Illinois: halve the stale end's weight when the same end moves twice
                 if side == -1 {
                     fa *= 0.5;
@@ -305,8 +362,7 @@ impl Marcher {
                 side = 1;
             }
         }
-        let (_, i) = self.bound(o + d * b);
-        out.hit = Some((a, i));
+        out.hit = Some((a, hit));
         out
     }
 

@@ -78,8 +78,9 @@
 //!   rays lie in a cone of chord `c = 2 sin(θ/2)` around its centre ray; where the safe step `D`
 //!   at the axis point exceeds `t·c`, every pixel ray is free of surface on `[t, t + D − t·c)`.
 //!   Marching the axis certifies `[0, t)` for the whole block: past the scene's bounding sphere the
-//!   block is background; where the cone stalls it splits into four, down to 2×2 pixels, whose
-//!   pixels start at their certified `t` (always case ①). No pixel that per-pixel tracing hits can
+//!   block is background; where the cone stalls it splits into four, down to 2×2 pixels (a block
+//!   one pixel wide or tall is traced at once), whose pixels start at their certified `t` (always
+//!   case ①). No pixel that per-pixel tracing hits can
 //!   be lost, given valid Lipschitz bounds.
 //!
 //! # The proof: `rayproof implicit-check SCENE`
@@ -98,16 +99,22 @@
 //! rows, with nothing around it) and `speck` (a sphere 2.2 pixels across inside one block, between
 //! its samples).
 //!
-//! From one run each (`rayproof implicit-check reference/implicit/NAME.toml --repeat 3`, fastest of
-//! 3, 2 shared cores; steps count field evaluations of pixel traces, cones and shadow rays):
+//! From one run each (`rayproof implicit-check reference/implicit/NAME.toml --repeat 3`, fastest
+//! of 3 rounds, 2 shared cores, 2026-11-25 04:12 UTC at f9f9433; the bunny from the
+//! `scripts/bench-implicit` run below, at bd40c5b, which takes the same steps, fastest of 5;
+//! steps count field evaluations of pixel traces, cones and shadow rays; the global bound's
+//! tracer, as the paper's; the last column is certified with local bounds, always 0 lost and 0
+//! ghost):
 //!
-//! | scene | surface px | paper: lost | certified: lost | primary rays full → certified | steps full → certified (no shadows) | speed-up paper / certified, no shadows | with shadows |
-//! |---|---:|---:|---:|---:|---:|---:|---:|
-//! | blob | 7,043 | 0 | 0 | 30,000 → 7,778 | 1,074,468 → 690,918 | 0.92× / 1.57× | 0.96× / 1.29× |
-//! | sdf | 6,870 | 0 | 0 | 30,000 → 7,165 | 497,828 → 408,572 | 1.09× / 1.21× | 0.96× / 1.12× |
-//! | thin | 2,576 | **166** (all `skipped`, the rod's row) | 0 | 30,000 → 2,871 | 226,671 → 163,144 | 1.19× / 1.47× | 1.15× / 1.26× |
-//! | speck | 1,558 | **5** (the whole speck, `skipped`) | 0 | 30,000 → 1,641 | 113,218 → 96,882 | 1.17× / 1.62× | 1.02× / 1.32× |
-//! | bunny (400×400) | 73,088 | 0 (3 moved) | 0 | 160,000 → 76,835 | 9,240,899 → 6,458,505 | 1.15× / 1.40× | 1.07× / 1.13× |
+//! | scene | surface px | paper: lost | certified: lost | primary rays full → certified | steps full → certified (no shadows) | speed-up paper / certified, no shadows | with shadows | certified, local bounds: steps, speed-up (no shadows) |
+//! |---|---:|---:|---:|---:|---:|---:|---:|---:|
+//! | blob | 7,043 | 0 | 0 | 30,000 → 8,630 | 852,723 → 463,422 | 1.16× / 1.65× | 1.08× / 1.34× | 152,762, 2.02× |
+//! | sdf | 6,870 | 0 | 0 | 30,000 → 7,621 | 290,651 → 197,989 | 0.91× / 1.37× | 0.94× / 1.23× | 197,989, 1.39× |
+//! | thin | 2,576 | **166** (all `skipped`, the rod's row) | 0 | 30,000 → 3,149 | 149,832 → 84,314 | 1.19× / 1.63× | 1.21× / 1.43× | 84,314, 1.66× |
+//! | speck | 1,558 | **5** (the whole speck, `skipped`) | 0 | 30,000 → 2,559 | 67,516 → 49,231 | 1.04× / 1.39× | 1.04× / 1.31× | 49,231, 1.46× |
+//! | bunny (400×400) | 73,088 | 0 (3 moved) | 0 | 160,000 → 81,308 | 6,898,860 → 4,061,345 | 1.26× / 1.71× | 1.11× / 1.29× | 1,755,652, 2.13× |
+//!
+//! (The SDFs have no local bounds, so their local tracer is the global one's: the same steps.)
 //!
 //! The paper's sampling loses what falls between its samples when nothing around it is hit: the
 //! rod and the speck disappear entirely, exactly as the adversarial scenes were built to show.
@@ -137,42 +144,66 @@
 //! `paper` (the paper's renderer: sphere tracing from the eye with the global bound, no box
 //! clipping), `global` (the baseline: rays clipped to the scene box, box distances outside it,
 //! the global bound inside; the MPU's is measured), `local` (proved local bounds, [`lipschitz`]).
-//! One run, 2026-11-25, 2 shared AMD EPYC cores, fastest of 5 (only the ratios compare; the
-//! shadow column is noisy on the shared machine: the same primary pass took 0.80 s and 1.56 s):
+//! One run (2026-11-25 04:18 UTC, rayproof bd40c5b, 2 shared AMD EPYC cores at load average
+//! ~2), fastest of 5 rounds, every configuration once per round (only the ratios compare):
 //!
 //! | | no shadows | shadows |
 //! |---|---:|---:|
 //! | paper: MPU's own ray tracing | 33.89 s | illegible in our copy |
 //! | paper: image-space subdivision | 8.25 s (**4.1×**) | 20.36 s |
-//! | the paper's renderer, per pixel | 0.657 s | 2.767 s |
-//! | the paper's renderer, its subdivision | 0.547 s (**1.20×**) | 2.550 s (1.09×) |
-//! | baseline: per pixel, global bound | 0.641 s | 1.498 s |
-//! | paper's subdivision, global bound | 0.545 s (1.18×) | 1.404 s (1.07×) |
-//! | certified, global bound | 0.435 s (**1.47×**), 0 lost | 1.284 s (1.17×), 0 lost |
-//! | per pixel, local bounds | 0.993 s (0.64×) | 1.834 s (0.82×) |
-//! | certified, local bounds | 0.823 s (**0.78×**), 0 lost, 0 ghost | 3.129 s (0.48×), 0 lost, 0 ghost |
+//! | the paper's renderer, per pixel | 0.496 s | 0.883 s |
+//! | the paper's renderer, its subdivision | 0.383 s (**1.29×**) | 0.768 s (1.15×) |
+//! | baseline: per pixel, global bound | 0.475 s | 0.855 s |
+//! | paper's subdivision, global bound | 0.376 s (1.26×) | 0.768 s (1.11×) |
+//! | certified, global bound | 0.278 s (1.71×), 0 lost | 0.661 s (1.29×), 0 lost |
+//! | per pixel, local bounds | 0.398 s (1.19×) | 0.782 s (1.09×) |
+//! | certified, local bounds | 0.223 s (**2.13×**), 0 lost, 0 ghost | 0.601 s (1.42×), 0 lost, 0 ghost |
 //!
-//! Primary field evaluations per surface pixel (73,088), no shadows: paper's renderer 168.3,
-//! baseline 126.4, certified 88.4; with local bounds, per pixel 108.5 and certified 87.5.
-//! Shadow rays are traced by the renderer's own marcher, with local bounds, in every run.
+//! Primary field evaluations per surface pixel (73,088), no shadows: paper's renderer 136.3,
+//! baseline 94.4, certified 55.6; with local bounds, per pixel 48.2 and certified 24.0 (before
+//! the changes below: 168.3, 126.4, 88.4, 108.5 and 87.5). Shadow rays are traced by the
+//! renderer's own marcher, with local bounds, in every run; with shadows the primary pass of
+//! certified/local is 2.3× faster than the baseline's (0.199 s against 0.450 s) but shading
+//! and shadow rays take two thirds of the time. On this machine a single ratio moves with the
+//! load: an earlier run at f9f9433 (load ~4) gave 2.09× and 1.35×, and two runs that took each
+//! configuration's repeats back to back, at load ~5, gave 2.07× and 1.16× without shadows; the
+//! turns are what makes a run's ratios comparable.
 //!
 //! **The paper's 4× is not reproduced**, not even against the paper's own baseline, and the
-//! measurements say why. Removing box clipping costs little here (168 against 126 evaluations
-//! per surface pixel, 0.97× the time): outside the box the MPU's value is already the box
+//! measurements say why. Removing box clipping costs little here (136 against 94 evaluations
+//! per surface pixel, 0.96× the time): outside the box the MPU's value is already the box
 //! distance plus a floor, so an unclipped ray crosses empty space in a few steps; the paper's
 //! MPU renderer evidently paid far more for empty space. A ray that hits spends most of its
 //! evaluations in sphere tracing's geometric tail near the surface (each step shrinks the gap
-//! by only 1 − |∇f|cosθ/L with the measured L = 3.9) and in the root refinement, which a start
-//! length near the surface does not remove.
+//! by only 1 − |∇f|cosθ/L with the measured L = 3.9) and in the root refinement (6 evaluations
+//! per hit), which a start length near the surface does not remove.
 //!
-//! **Local bounds** cut the evaluations (126 → 109 per pixel; the curvature step near the
-//! surface is nearly Newton's) but cost more per step (the gradient, the bound lookups), and on
-//! the MPU the proved per-box bounds are loose: near the surface the median box bound is 3.4
-//! and the curvature bound ~100 (measured |∇f| ≤ 2.6), because a box is a third of a support
-//! radius across and the triangle inequality over ~17 overlapping fits loses the cancellation
-//! that keeps |∇f| near 1. The certified subdivision stays lossless with them (0 lost, 0 ghost
-//! against per-pixel tracing with the same bounds). Per pixel, the local tracer proves one
-//! grazing sign change at (41, 96) that the global tracer's probes step over.
+//! **Local bounds** cut the evaluations (94 → 48 per surface pixel per pixel, 24 certified)
+//! and now the time, though each step costs more (the gradient, ~1.3× a value, and the bound
+//! lookups). What it took, from a profile of where the evaluations went (per hit, certified,
+//! local bounds: 87.5 at the start):
+//! - **Root refinement**: the Illinois regula falsi replaced an interpolated point landing
+//!   within 1/16 of the bracket's end by a midpoint, which, once the estimate is good, is every
+//!   time: 35 evaluations per hit, plain bisection from `eps` to 1e-15 relative. Now the point is
+//!   kept a quarter of the final width inside the bracket, a bisection follows two steps that
+//!   did not halve it, and the values are the fields' (the local step is flat within the
+//!   rounding of `f`): 6 per hit, the ends included, in every tracer.
+//! - **Steps along the ray** ([`lipschitz`]): the Taylor form `Ĥs²/2 + ps = a` with `p` the
+//!   gradient's component along the ray (a guarded Newton step near the surface), instead of
+//!   `Ĥs² + |∇f|s = a` for a ball; cones keep the ball.
+//! - **The own box's bounds** out to its faces, not the 3×3×3 maxima.
+//! - **Tighter proved bounds** ([`mpu`]): the weight sum's lower bound over 4×4×4 sub-boxes, and
+//!   `‖Hᵢ‖` for a fit whose sphere holds the box: near the surface the median box bound on
+//!   `|∇f|` fell from 3.4 to 2.5 and the curvature bound from 103 to 51 (measured |∇f| ≤ 2.6).
+//!   The curvature bound is what the steps near the surface depend on, and it is still ~50×
+//!   the sampled curvature: the triangle inequality over ~17 overlapping fits loses the
+//!   cancellation between the weights' gradients.
+//! - **Certified blocks one pixel wide or tall** (from splitting odd widths) are traced at
+//!   once: their cones were rays marched with ball steps, 28 per cone.
+//!
+//! The certified subdivision stays lossless with them (0 lost, 0 ghost against per-pixel
+//! tracing with the same bounds). Per pixel, the local tracer proves one grazing sign change at
+//! (41, 96) that the global tracer's probes step over (the 1 ghost of `full/local`).
 
 pub mod check;
 pub mod field;

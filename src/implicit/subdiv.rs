@@ -24,7 +24,9 @@
 //! free of surface there. Marching the axis by that margin certifies `[0, t)` for every pixel of
 //! the block: it is skipped when `t` passes the scene's bounding sphere, and otherwise it splits
 //! into four narrower cones that continue from `t`, down to 2×2 pixels, whose pixels are traced
-//! from their certified `t` (always case ①). No pixel that per-pixel tracing hits can be lost,
+//! from their certified `t` (always case ①). A block one pixel wide or tall (from splitting an
+//! odd width) is not cone-marched: its cone is nearly a ray, and its pixels' own traces march
+//! with steps along their directions, which cost fewer evaluations than the cone's. No pixel that per-pixel tracing hits can be lost,
 //! given valid bounds: with the `local` tracer every bound is proved ([`super::lipschitz`]);
 //! with `global`, the MPU's is measured.
 
@@ -496,6 +498,12 @@ fn certify(
     st: &mut Stats,
     out: &mut Vec<(usize, Pixel)>,
 ) {
+    // A block one pixel wide or tall is traced pixel by pixel from t: its cone is (nearly) a
+    // ray, which its pixels' traces march with the cheaper steps along their own directions
+    if b.x1 - b.x0 == 1 || b.y1 - b.y0 == 1 {
+        trace_pixels(m, lens, w, b, t, st, out);
+        return;
+    }
     // The cone: axis through the block's centre, half-angle to the farthest corner pixel
     let axis = lens.dir((b.x0 + b.x1) as f64 * 0.5, (b.y0 + b.y1) as f64 * 0.5);
     let corners = [
@@ -548,6 +556,19 @@ fn certify(
         }
         return;
     }
+    trace_pixels(m, lens, w, b, t, st, out);
+}
+
+/// Traces block `b`'s pixels from the certified length `t`.
+fn trace_pixels(
+    m: &Marcher,
+    lens: &Lens,
+    w: usize,
+    b: Block,
+    t: f64,
+    st: &mut Stats,
+    out: &mut Vec<(usize, Pixel)>,
+) {
     for (x, y) in b.pixels() {
         let r = m.trace(lens.pos, lens.dir(x as f64 + 0.5, y as f64 + 0.5), t);
         st.ray(&r);
