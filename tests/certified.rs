@@ -414,8 +414,8 @@ fn underflowing_f64_scenes_are_exact() {
     assert!(hits > 500, "only {hits} hits among the underflowing scenes");
 }
 
-/// The second look: its enclosures against the exact root (MPFR at 400 bits) on every class, of
-/// `f64` and `f32` cases: each contains the root; and teeth: with the residual's bound or the curvature term
+/// The second look (`f64`): its enclosures against the exact root (MPFR at 400 bits) on every
+/// class: each contains the root; and teeth: with the residual's bound or the curvature term
 /// cut to 1/1000, enclosures miss it. It must also answer most hits of the classes a renderer
 /// meets (otherwise it is dead weight before the quick phase).
 #[test]
@@ -445,16 +445,7 @@ fn second_look_bound_holds_and_each_term_is_needed() {
     let mut shares = vec![];
     for class in Class::ALL {
         let (mut class_hits, mut decided) = (0, 0);
-        // f64 cases, and f32 cases (exact in f64: the certified f32 method runs the second
-        // look on the cases its first look leaves open)
-        let w = |v: [f32; 3]| v.map(|x| x as f64);
-        let from_f32 = cases::<f32>(class).take(1000).map(|c| Case {
-            o: w(c.o),
-            d: w(c.d),
-            c: w(c.c),
-            r: c.r as f64,
-        });
-        for case in cases::<f64>(class).take(2000).chain(from_f32) {
+        for case in cases::<f64>(class).take(2000) {
             let exact = case.is_valid().then(|| Exact::new(&case));
             let claim = second_look_claim(&case, p);
             let Some(exact) = exact.filter(|e| e.verdict().is_hit()) else {

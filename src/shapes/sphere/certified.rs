@@ -3,7 +3,7 @@
 //! and an accurate phase only when the bound cannot decide. Measured cost against `algebraic`:
 //! the README's figures, from `scripts/readme-figures` section 7.
 //!
-//! Four tiers, each rigorous, each handing on only what it cannot decide:
+//! Five tiers, each rigorous, each handing on only what it cannot decide:
 //! 1. **First look**: for `f32` inputs [`first_look`], the textbook quadratic in `f64` and one
 //!    division-free test of a two-term error bound against the exact distance to the nearest
 //!    `f32` rounding boundary; for `f64` inputs its certain misses only (with an allowance for
@@ -11,15 +11,23 @@
 //!    the scalar method runs its steps with early exits, the batch kernel
 //!    ([`super::batch::Certified`]) runs it on 8 `f64` lanes per instruction and finishes the
 //!    tests it leaves open with the tiers below, so both give the same bits.
-//! 2. **Quick phase** ([`quick_phase`]): the bounds below, quantity by quantity, with `C` and
+//! 2. **Second look** (`f64` inputs, [`second_look_claim`]): up to three Newton steps from the
+//!    look's root, with the residual from exact products (FMA when the CPU has it) and an
+//!    a-posteriori bound from the residual quadratic, so no bound on the look's own error is
+//!    needed; the sign of `P'` says which root it found. For an origin so near the surface that
+//!    the look cannot tell its side, the residual at 0 tells it first (and a ray leaving the
+//!    surface is a certain miss). It answers most `f64` hits. (For `f32` inputs the quick phase
+//!    measured as fast on what the first look leaves open, and faster on far small spheres.)
+//! 3. **Quick phase** ([`quick_phase`]): the bounds below, quantity by quantity, with `C` and
 //!    `B` recomputed to about `2⁻⁷²` when `C` has lost bits (for `f32` inputs by splitting
 //!    `o − c` into `f32` halves, `split_at_zero`; for `f64` inputs in double-double), and
 //!    for `f64` inputs Newton steps with a double-double residual.
-//! 3. **Near the surface** (`f64` inputs, [`near_surface_step`]): up to two Newton steps on
+//! 4. **Near the surface** (`f64` inputs, [`near_surface_step`]): up to two Newton steps on
 //!    `P(t) = C + t(2B + At)` with `C`, `B` and `A` from two `VecSum` passes over their exact
 //!    products, for an origin so near the surface that `|f + t·d|² − r²`, off by `2⁻¹⁰⁶·r²`,
-//!    cannot tell the rounding.
-//! 4. **Accurate phase**: the exact oracle's path.
+//!    cannot tell the rounding; it starts from the second look's enclosure when there is one,
+//!    else from the quick phase's.
+//! 5. **Accurate phase**: the exact oracle's path.
 //!
 //! `tests/certified.rs` prints the share of each case class that each tier answers.
 //!
@@ -186,6 +194,11 @@ pub fn after_first_look<F: Real>(case: &Case<F>) -> Option<SphereHit<F>> {
 /// look; when its enclosure does not decide the rounding, out of line, the tiers after it.
 #[inline(always)]
 fn after_look<F: Real>(case: &Case<f64>, l: &Look) -> Option<F> {
+    // f32 inputs: the quick tiers (the second look measured no faster on the few cases the
+    // first look leaves open, and slower on far small spheres, where it needs three steps)
+    if F::MANT_BITS == 24 {
+        return after_second_look(case, l, None, false);
+    }
     let (o, d, c, r) = (case.o, case.d, case.c, case.r);
     let Second::Open(found) = second_look::<false>(o, d, c, r, l, NewtonTerms::PROVED) else {
         return None;
@@ -193,11 +206,12 @@ fn after_look<F: Real>(case: &Case<f64>, l: &Look) -> Option<F> {
     if let Some(t) = found.and_then(|(th, tl, err)| round_certain::<F>(th, tl, err)) {
         return Some(t);
     }
-    after_second_look(case, l, found)
+    after_second_look(case, l, found, true)
 }
 
-/// The tiers after the common second look (which found the enclosure `found`, or none): for
-/// an origin whose side the look could not tell the second look that finds the side first;
+/// The tiers after the common second look (`looked`: it ran and found the enclosure `found`,
+/// or none): for an origin whose side the look could not tell the second look that finds the
+/// side first;
 /// for `f64` inputs the near-surface tier from the enclosure; then the quick tiers and the
 /// accurate phase.
 #[cold]
@@ -206,9 +220,10 @@ fn after_second_look<F: Real>(
     case: &Case<f64>,
     l: &Look,
     found: Option<(f64, f64, f64)>,
+    looked: bool,
 ) -> Option<F> {
     let mut found = found;
-    if found.is_none() && !l.side_certain() {
+    if looked && found.is_none() && !l.side_certain() {
         let (o, d, c, r) = (case.o, case.d, case.c, case.r);
         match second_look::<true>(o, d, c, r, l, NewtonTerms::PROVED) {
             Second::Miss => return None,
@@ -460,7 +475,7 @@ pub fn first_look_lane_f64(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> f64
     }
 }
 
-/// The second look's two error terms (see [`second_look_enclosure`]), scaled: the tests cut
+/// The second look's two error terms (see [`second_look_claim`]), scaled: the tests cut
 /// each to show it is needed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct NewtonTerms {
