@@ -515,3 +515,47 @@ fn second_look_bound_holds_and_each_term_is_needed() {
         "teeth: a shrunken curvature term went unnoticed"
     );
 }
+
+/// `f64` origins on the surface (rounded, so `C` is within the first look's bound of 0), rays
+/// almost along it (tilted by 2⁻⁶² to 2⁻⁴⁰, either way, seeded): the cases where the second
+/// look must find the origin's side from the residual at 0; every answer is the oracle's. (Two
+/// mutations of that side test, dropping the bound on `B` or on `C`, passed: with these bounds
+/// they change the answer only where `|C|` is below about `2⁻⁹⁷·r²`, which no seeded case
+/// reaches.)
+#[test]
+fn rays_along_the_surface_are_exact() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
+    let (mut hits, mut misses) = (0, 0);
+    for _ in 0..4000 {
+        let mut v = || rng.random_range(-1.0f64..1.0);
+        let c = [4.0 * v(), 4.0 * v(), 4.0 * v()];
+        let n = [v(), v(), v()];
+        let u = [v(), v(), v()];
+        let r: f64 = rng.random_range(0.5..3.0);
+        // n normalised; t = u − (u·n)n, perpendicular to n; the ray tilted by ±2^-k along n
+        let nl = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let n = n.map(|x| x / nl);
+        let un = u[0] * n[0] + u[1] * n[1] + u[2] * n[2];
+        let tilt = rng.random_range(40.0..62.0f64).exp2().recip()
+            * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+        let d = [0, 1, 2].map(|i| u[i] - un * n[i] + tilt * n[i]);
+        let o = [0, 1, 2].map(|i| c[i] + r * n[i]);
+        let case = Case { o, d, c, r };
+        let want = truth(&case);
+        let want_t = want
+            .t_in::<f64>()
+            .filter(|t| want.verdict.is_hit() && *t > 0.0 && t.is_finite());
+        hits += want_t.is_some() as usize;
+        misses += want_t.is_none() as usize;
+        let got = certified(&case.ray(), &case.sphere()).map(|h| h.t);
+        assert_eq!(
+            got.map(f64::to_bits),
+            want_t.map(f64::to_bits),
+            "certified f64 on a ray along the surface: got {got:?}, the oracle {want_t:?}\n  replay: rayproof probe sphere {}",
+            case.probe_args()
+        );
+    }
+    eprintln!("rays along the surface: {hits} hits, {misses} misses of 4000");
+    assert!(hits > 500 && misses > 500, "{hits} hits, {misses} misses");
+}
