@@ -135,6 +135,23 @@ impl<F: Real> SphereBatch<F> {
         b
     }
 
+    /// Tests `idx` (each `< len`) in `f64`, exactly, column by column.
+    pub fn gather_f64(&self, idx: &[usize]) -> SphereBatch<f64> {
+        let col = |v: &[F]| idx.iter().map(|&i| v[i].to_f64()).collect();
+        SphereBatch {
+            ox: col(&self.ox),
+            oy: col(&self.oy),
+            oz: col(&self.oz),
+            dx: col(&self.dx),
+            dy: col(&self.dy),
+            dz: col(&self.dz),
+            cx: col(&self.cx),
+            cy: col(&self.cy),
+            cz: col(&self.cz),
+            r: col(&self.r),
+        }
+    }
+
     /// Test `i` as an audit case (for replay lines), if it exists.
     pub fn case(&self, i: usize) -> Option<Case<F>> {
         (i < self.len()).then(|| {
@@ -228,28 +245,51 @@ pub fn rtg7_lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
     }
 }
 
+/// A lane's vector in `f64` (exactly). Indexed, not an array `map`: that one is not always
+/// inlined into a large lane function, and the kernel's loop then stays scalar.
+#[inline(always)]
+fn w<F: Real>(v: V<F>) -> [f64; 3] {
+    [v[0].to_f64(), v[1].to_f64(), v[2].to_f64()]
+}
+
+/// A lane function: one test on lane values, branch-free, so the kernel's loop vectorises.
+pub trait Lanes {
+    /// One test on lane values: `t`, or NaN for a miss (or a method's own mark for a test
+    /// that [`BatchMethod::finish`] completes).
+    fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F;
+}
+
 /// A method with a scalar form (in [`methods`]) and a lane form (here).
-pub trait BatchMethod {
+pub trait BatchMethod: Lanes {
     /// The method's name, as in [`methods::METHODS`].
     const NAME: &'static str;
     /// The scalar method of the same name.
     fn scalar<F: Real>(ray: &Ray<F>, sphere: &Sphere<F>) -> Option<SphereHit<F>>;
-    /// One test on lane values: `t`, or NaN for a miss (or a method's own mark for a test
-    /// that [`BatchMethod::finish`] completes).
-    fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F;
-    /// After the vectorised pass: completes the tests the lanes left open (none by default).
+    /// After the vectorised pass with `isa`: completes the tests the lanes left open (none by
+    /// default).
     #[inline(always)]
-    fn finish<F: Real>(_b: &SphereBatch<F>, _out: &mut [F]) {}
+    fn finish<F: Real>(_isa: Isa, _b: &SphereBatch<F>, _out: &mut [F]) {}
 }
 
-/// The correctly rounded method ([`methods::certified`]): the lanes run its first look
-/// ([`certified::first_look_lane`] for `f32` inputs; for `f64` inputs only its certain misses,
-/// [`certified::first_look_lane_f64`]), and the tests it leaves [`certified::UNSURE`] are
-/// finished by the scalar method's later phases, so each answer is the scalar method's, bit
-/// for bit.
-///
-/// [`methods::certified`]: super::methods::certified
+/// The correctly rounded method ([`methods::certified`]) in two vectorised passes and a scalar
+/// one: the lanes run its first look ([`certified::first_look_lane`] for `f32` inputs; for
+/// `f64` inputs only its certain misses, [`certified::first_look_lane_f64`]); the tests it
+/// leaves [`certified::UNSURE`] are gathered (in `f64`, exactly) and given its second look on
+/// lanes ([`SecondLook`]); what that cannot prove is finished by the scalar method's later
+/// phases. Every answer is the unique correctly rounded root (or a certain miss), so it is the
+/// scalar method's, bit for bit.
 pub struct Certified;
+
+impl Lanes for Certified {
+    #[inline(always)]
+    fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
+        F::from_f64(if F::MANT_BITS == 24 {
+            certified::first_look_lane(w(o), w(d), w(c), r.to_f64(), certified::Terms::PROVED)
+        } else {
+            certified::first_look_lane_f64(w(o), w(d), w(c), r.to_f64())
+        })
+    }
+}
 
 impl BatchMethod for Certified {
     const NAME: &'static str = "certified";
@@ -257,25 +297,51 @@ impl BatchMethod for Certified {
     fn scalar<F: Real>(ray: &Ray<F>, sphere: &Sphere<F>) -> Option<SphereHit<F>> {
         methods::certified(ray, sphere)
     }
+    fn finish<F: Real>(isa: Isa, b: &SphereBatch<F>, out: &mut [F]) {
+        // The open tests, gathered in f64
+        let open_mark = F::from_f64(certified::UNSURE);
+        let open: Vec<usize> = (0..out.len().min(b.len()))
+            .filter(|&i| out[i] == open_mark)
+            .collect();
+        if open.is_empty() {
+            return;
+        }
+        let sub = b.gather_f64(&open);
+        // The second look on lanes, rounding to the inputs' precision
+        let mut t = vec![0.0; sub.len()];
+        let _ = if F::MANT_BITS == 24 {
+            run_lanes::<SecondLook<true>, f64>(isa, &sub, &mut t)
+        } else {
+            run_lanes::<SecondLook<false>, f64>(isa, &sub, &mut t)
+        };
+        // Its answers back in place; what it left open, through the scalar tiers after it
+        for (&i, &t) in open.iter().zip(&t) {
+            out[i] = if t == certified::UNSURE {
+                b.case(i)
+                    .map_or(F::NAN, |case| to_output(certified::after_first_look(&case)))
+            } else {
+                F::from_f64(t)
+            };
+        }
+    }
+}
+
+/// [`methods::certified`]'s second look on lanes ([`certified::second_look_lane`], two Newton
+/// steps), for tests of `f32` inputs (`F32`) or of `f64` inputs, given in `f64`: the correctly
+/// rounded `t`, or [`certified::UNSURE`].
+///
+/// [`methods::certified`]: super::methods::certified
+pub struct SecondLook<const F32: bool>;
+
+impl<const F32: bool> Lanes for SecondLook<F32> {
     #[inline(always)]
     fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
-        let w = |v: V<F>| v.map(|x| x.to_f64());
-        F::from_f64(if F::MANT_BITS == 24 {
-            certified::first_look_lane(w(o), w(d), w(c), r.to_f64(), certified::Terms::PROVED)
-        } else {
-            certified::first_look_lane_f64(w(o), w(d), w(c), r.to_f64())
-        })
-    }
-    fn finish<F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
-        // The open tests, through the quick and accurate phases
-        let open = F::from_f64(certified::UNSURE);
-        for (i, x) in out.iter_mut().enumerate() {
-            if *x == open {
-                if let Some(case) = b.case(i) {
-                    *x = to_output(certified::after_first_look(&case));
-                }
-            }
-        }
+        F::from_f64(certified::second_look_lane::<F32>(
+            w(o),
+            w(d),
+            w(c),
+            r.to_f64(),
+        ))
     }
 }
 
@@ -290,6 +356,9 @@ impl BatchMethod for Geometric {
     fn scalar<F: Real>(ray: &Ray<F>, sphere: &Sphere<F>) -> Option<SphereHit<F>> {
         methods::geometric(ray, sphere)
     }
+}
+
+impl Lanes for Geometric {
     #[inline(always)]
     fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
         geometric_lanes::<F, false>(o, d, c, r)
@@ -308,6 +377,9 @@ impl BatchMethod for GeometricFma {
     fn scalar<F: Real>(ray: &Ray<F>, sphere: &Sphere<F>) -> Option<SphereHit<F>> {
         methods::geometric_fma(ray, sphere)
     }
+}
+
+impl Lanes for GeometricFma {
     #[inline(always)]
     fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
         geometric_lanes::<F, true>(o, d, c, r)
@@ -320,6 +392,9 @@ impl BatchMethod for Rtg7 {
     fn scalar<F: Real>(ray: &Ray<F>, sphere: &Sphere<F>) -> Option<SphereHit<F>> {
         methods::rtg7(ray, sphere)
     }
+}
+
+impl Lanes for Rtg7 {
     #[inline(always)]
     fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
         rtg7_lanes(o, d, c, r)
@@ -405,7 +480,7 @@ impl Isa {
 /// The loop every kernel is: one lane function per element over the columns, re-sliced to
 /// one length so that the bounds checks leave the loop and it vectorises.
 #[inline(always)]
-fn kernel<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
+fn kernel<M: Lanes, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
     let n = out.len().min(b.len());
     let (out, ox, oy, oz) = (&mut out[..n], &b.ox[..n], &b.oy[..n], &b.oz[..n]);
     let (dx, dy, dz) = (&b.dx[..n], &b.dy[..n], &b.dz[..n]);
@@ -421,7 +496,7 @@ fn kernel<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
 }
 
 #[inline(never)]
-fn kernel_portable<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
+fn kernel_portable<M: Lanes, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
     kernel::<M, F>(b, out)
 }
 
@@ -430,7 +505,7 @@ fn kernel_portable<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 #[inline(never)]
-fn kernel_avx2<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
+fn kernel_avx2<M: Lanes, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
     kernel::<M, F>(b, out)
 }
 
@@ -439,13 +514,25 @@ fn kernel_avx2<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,fma")]
 #[inline(never)]
-fn kernel_avx512<M: BatchMethod, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
+fn kernel_avx512<M: Lanes, F: Real>(b: &SphereBatch<F>, out: &mut [F]) {
     kernel::<M, F>(b, out)
 }
 
 /// Runs method `M` over the batch with `isa` (falling back to the portable path if this
 /// machine lacks it): `out[i]` is test `i`'s `t`, or NaN for a miss.
 pub fn run_batch<M: BatchMethod, F: Real>(
+    isa: Isa,
+    b: &SphereBatch<F>,
+    out: &mut [F],
+) -> Result<(), LengthMismatch> {
+    run_lanes::<M, F>(isa, b, out)?;
+    M::finish(isa, b, out);
+    Ok(())
+}
+
+/// The vectorised pass alone: lane function `L` over the batch with `isa` (or the portable
+/// path if this machine lacks it).
+pub fn run_lanes<L: Lanes, F: Real>(
     isa: Isa,
     b: &SphereBatch<F>,
     out: &mut [F],
@@ -460,16 +547,15 @@ pub fn run_batch<M: BatchMethod, F: Real>(
         #[cfg(target_arch = "x86_64")]
         Isa::Avx2 if isa.available() => {
             // SAFETY: the CPU was just checked to support AVX2
-            unsafe { kernel_avx2::<M, F>(b, out) }
+            unsafe { kernel_avx2::<L, F>(b, out) }
         }
         #[cfg(target_arch = "x86_64")]
         Isa::Avx512 if isa.available() => {
             // SAFETY: the CPU was just checked to support AVX-512 F, VL and DQ
-            unsafe { kernel_avx512::<M, F>(b, out) }
+            unsafe { kernel_avx512::<L, F>(b, out) }
         }
-        _ => kernel_portable::<M, F>(b, out),
+        _ => kernel_portable::<L, F>(b, out),
     }
-    M::finish(b, out);
     Ok(())
 }
 

@@ -625,7 +625,8 @@ fn exact_residual<const FMA: bool>(
         gl[i] = (e + pl) + fl;
     }
     // P(t0) = (Σ gh² − r², exactly s3 + seven low parts) + 2 Σ gh·gl + Σ gl²
-    let sq = gh.map(|x| tp(x, x));
+    // (no array `map` here: it stops the kernel's loop from vectorising)
+    let sq = [tp(gh[0], gh[0]), tp(gh[1], gh[1]), tp(gh[2], gh[2])];
     let rr = tp(r, r);
     let (s1, e1) = two_sum(sq[0].0, sq[1].0);
     let (s2, e2) = two_sum(sq[2].0, -rr.0);
@@ -635,7 +636,11 @@ fn exact_residual<const FMA: bool>(
     let low = ((e1 + e2) + (e3 + sq[0].1)) + ((sq[1].1 + sq[2].1) - rr.1) + small;
     let p = s3 + low;
     // P'(t0) = 2 d·g
-    let x = [0, 1, 2].map(|i| d[i] * (gh[i] + gl[i]));
+    let x = [
+        d[0] * (gh[0] + gl[0]),
+        d[1] * (gh[1] + gl[1]),
+        d[2] * (gh[2] + gl[2]),
+    ];
     let dp = 2.0 * (x[0] + x[1] + x[2]);
     let sdg = x[0].abs() + x[1].abs() + x[2].abs();
     // Their bounds (the second look's docs), and the underflow allowance
@@ -651,6 +656,18 @@ fn exact_residual<const FMA: bool>(
 /// (`P'(t0) < 0`).
 #[inline(always)]
 fn enclosing_step(z: Residual, l: &Look, t0: f64, k: NewtonTerms) -> Option<(f64, f64, f64, bool)> {
+    let (th, tl, err, left, ok) = enclosing_step_lane(z, l, t0, k);
+    ok.then_some((th, tl, err, left))
+}
+
+/// [`enclosing_step`] branch-free (for the lanes): the enclosure, `left`, and whether it holds.
+#[inline(always)]
+fn enclosing_step_lane(
+    z: Residual,
+    l: &Look,
+    t0: f64,
+    k: NewtonTerms,
+) -> (f64, f64, f64, bool, bool) {
     let Residual { p, ep, dp, edp } = z;
     // One division: 1/|P'| ≤ v = |1/P̂'|·1.002 when e_P' < 2⁻¹⁰·|P̂'| (and |P̂'| < 2⁹⁹⁶, so
     // that 1/P̂' is a normal float); the step δ = −P̂·(1/P̂') and its bound; κ ≤ 4A(|P̂| + e_P)·v²,
@@ -661,12 +678,59 @@ fn enclosing_step(z: Residual, l: &Look, t0: f64, k: NewtonTerms) -> Option<(f64
     let delta = -p * inv;
     let ed = (ep + 1.01 * delta.abs() * edp) * v + 2.01 * U * delta.abs();
     let kappa = 4.0 * (l.a * (1.0 + 4.0 * U) + ETA) * (p.abs() + ep) * v * v;
-    if !(ok && kappa <= 0.5) {
-        return None;
-    }
     let err = (ed + 0.35 * kappa * (delta.abs() + ed) * k.curvature) * SAFETY + ETA;
     let (th, tl) = two_sum(t0, delta);
-    (err.is_finite() && th.is_finite()).then_some((th, tl, err, dp < 0.0))
+    let ok = ok & (kappa <= 0.5) & err.is_finite() & th.is_finite();
+    (th, tl, err, dp < 0.0, ok)
+}
+
+/// The second look on lanes, for a test the first look left open (the inputs in `f64`,
+/// exactly; `F32`: the inputs were `f32`, so the answer is rounded to `f32`): the correctly
+/// rounded `t` (as an `f64`) when two Newton steps of [`second_look_body`]'s common path prove
+/// it, else [`UNSURE`]. Branch-free, products by FMA (`mul_add`: the hardware's in the AVX2 and
+/// AVX-512 kernels, the C library's in the portable one; exact either way), so the batch
+/// kernel runs it on 8 `f64` lanes; every answer is the unique correctly rounded root, so it is
+/// the scalar method's, bit for bit. Certain misses are the first look's, not its.
+#[inline(always)]
+pub fn second_look_lane<const F32: bool>(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> f64 {
+    let l = look(o, d, c, r);
+    let inside = l.certainly_inside();
+    // Two steps written out, not a loop: the kernel's loop must be the innermost to vectorise
+    let (t1, best, sure) = lane_step::<F32>(o, d, c, r, &l, inside, l.root().0, UNSURE, false);
+    lane_step::<F32>(o, d, c, r, &l, inside, t1, best, sure).1
+}
+
+/// One step of [`second_look_lane`] from `t0`: the next `t0`, and the answer so far (`best`,
+/// certain if `sure`).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn lane_step<const F32: bool>(
+    o: [f64; 3],
+    d: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+    l: &Look,
+    inside: bool,
+    t0: f64,
+    best: f64,
+    sure: bool,
+) -> (f64, f64, bool) {
+    let k = NewtonTerms::PROVED;
+    let z = exact_residual::<true>(o, d, c, r, l, t0, k);
+    let (th, tl, err, left, ok) = enclosing_step_lane(z, l, t0, k);
+    // The root found must be the nearest ahead (the scalar steps' condition), then rounded
+    let ahead = th > (err + tl.abs()) * (1.0 + 4.0 * U);
+    let (t, rounded) = if F32 {
+        round_f32_lane(th, tl, err)
+    } else {
+        round_f64_lane(th, tl, err)
+    };
+    let now = ok & ahead & (left | inside) & rounded & !sure;
+    (
+        if ok { th } else { t0 },
+        if now { t } else { best },
+        sure | now,
+    )
 }
 
 /// [`second_look_body`] with hardware FMA when the CPU has it, else with Dekker's products (the
@@ -1243,30 +1307,39 @@ fn f32_boundary_distance(t: f64, tf: f32) -> f64 {
 /// finite with a finite successor.
 #[inline(always)]
 fn round_certain<F: Real>(th: f64, tl: f64, err: f64) -> Option<F> {
-    // f32 (tl = 0): the distance to the nearest rounding boundary, read off th's bits
-    if F::MANT_BITS == 24 {
-        let tf = th as f32;
-        let err = (err + tl.abs()) * (1.0 + 2.0 * U);
-        let ok =
-            f32_boundary_distance(th, tf) > err && th >= f32::MIN_POSITIVE as f64 && tf.is_finite();
-        return ok.then(|| F::from_f64(tf as f64));
-    }
-    let tf = F::from_f64(th);
-    if !(tf > F::ZERO) {
-        return None;
-    }
-    let (up, down) = (tf.next_up(), tf.next_down());
-    if !up.is_finite() {
-        return None;
-    }
-    let v = tf.to_f64();
-    // Half-ulps below and above (exact), the offset of th from the float (exact: Sterbenz)
-    let half_lo = (v - down.to_f64()) * 0.5;
-    let half_hi = (up.to_f64() - v) * 0.5;
-    let off = th - v;
-    // Distances from the enclosure's centre to the two boundaries, with their rounding margin
-    let dl = half_lo + off + tl;
-    let dh = half_hi - off - tl;
-    let margin = 4.0 * U * (half_lo + half_hi + off.abs() + tl.abs());
-    (dl > err + margin && dh > err + margin).then_some(tf)
+    let (t, ok) = if F::MANT_BITS == 24 {
+        round_f32_lane(th, tl, err)
+    } else {
+        round_f64_lane(th, tl, err)
+    };
+    ok.then(|| F::from_f64(t))
+}
+
+/// [`round_certain`] to `f32`, branch-free: the float (as an `f64`) and whether it is certain.
+/// The distance to the nearest rounding boundary is read off `th`'s bits
+/// ([`f32_boundary_distance`]).
+#[inline(always)]
+fn round_f32_lane(th: f64, tl: f64, err: f64) -> (f64, bool) {
+    let tf = th as f32;
+    let err = (err + tl.abs()) * (1.0 + 2.0 * U);
+    let ok =
+        (f32_boundary_distance(th, tf) > err) & (th >= f32::MIN_POSITIVE as f64) & tf.is_finite();
+    (tf as f64, ok)
+}
+
+/// [`round_certain`] to `f64`, branch-free: `th` itself and whether it is certain. For
+/// `th > 0` finite its neighbours are the floats of the next and previous bit patterns; the
+/// half-ulps below and above are exact, and the distances from the enclosure's centre to the
+/// two boundaries carry their rounding margin.
+#[inline(always)]
+fn round_f64_lane(th: f64, tl: f64, err: f64) -> (f64, bool) {
+    let bits = th.to_bits();
+    let up = f64::from_bits(bits.wrapping_add(1));
+    let down = f64::from_bits(bits.wrapping_sub(1));
+    let half_lo = (th - down) * 0.5;
+    let half_hi = (up - th) * 0.5;
+    let (dl, dh) = (half_lo + tl, half_hi - tl);
+    let margin = 4.0 * U * (half_lo + half_hi + tl.abs());
+    let ok = (th > 0.0) & up.is_finite() & (dl > err + margin) & (dh > err + margin);
+    (th, ok)
 }
