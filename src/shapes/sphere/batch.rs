@@ -300,9 +300,15 @@ impl BatchMethod for Certified {
     fn finish<F: Real>(isa: Isa, b: &SphereBatch<F>, out: &mut [F]) {
         // The open tests, gathered in f64
         let open_mark = F::from_f64(certified::UNSURE);
-        let open: Vec<usize> = (0..out.len().min(b.len()))
-            .filter(|&i| out[i] == open_mark)
-            .collect();
+        let n = out.len().min(b.len());
+        let mut open = vec![];
+        // (16 at a time, a vectorised test first: most chunks have none)
+        for (k, chunk) in out[..n].chunks(16).enumerate() {
+            if chunk.iter().fold(false, |any, &x| any | (x == open_mark)) {
+                let first = 16 * k;
+                open.extend((first..first + chunk.len()).filter(|&i| out[i] == open_mark));
+            }
+        }
         if open.is_empty() {
             return;
         }

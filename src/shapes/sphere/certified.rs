@@ -608,13 +608,7 @@ fn exact_residual<const FMA: bool>(
     t0: f64,
     k: NewtonTerms,
 ) -> Residual {
-    let tp = |a: f64, b: f64| {
-        if FMA {
-            two_prod(a, b)
-        } else {
-            two_prod_split(a, b)
-        }
-    };
+    let tp = exact_prod::<FMA>;
     // g = f + t0·d = gh + gl*, exactly; gl rounds gl*
     let (mut gh, mut gl) = ([0.0; 3], [0.0; 3]);
     for i in 0..3 {
@@ -649,6 +643,17 @@ fn exact_residual<const FMA: bool>(
     let ep = ((272.0 * U * U) * big + 1.01 * U * p.abs()) * SAFETY * k.residual + tiny;
     let edp = ((8.1 * U) * sdg + (4.2 * U * U) * (l.a + 2.03 * big)) * SAFETY * k.residual + tiny;
     Residual { p, ep, dp, edp }
+}
+
+/// `a·b = p + e` exactly: by FMA (`FMA`, two instructions) or by Dekker's split (about
+/// seventeen); the same bits either way.
+#[inline(always)]
+fn exact_prod<const FMA: bool>(a: f64, b: f64) -> (f64, f64) {
+    if FMA {
+        two_prod(a, b)
+    } else {
+        two_prod_split(a, b)
+    }
 }
 
 /// One step of the second look from `t0` and its residual `z`: the enclosure `[th + tl ± err]`
@@ -1159,7 +1164,15 @@ fn sum2(v: &mut [f64]) -> (f64, f64, f64) {
 /// fraction of `|C|`, where `|f + t·d|² − r²` ([`residual`]) is off by about `2⁻¹⁰⁶·r²`, far
 /// more than `|C|` when the origin is within `2⁻⁵⁰` of a large sphere. Scaled `f64` inputs
 /// (every magnitude below 4, so nothing overflows; an underflowed product is within [`ETA`]).
-fn residual_near(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, t: f64) -> Residual {
+#[inline(always)]
+fn residual_near<const FMA: bool>(
+    o: [f64; 3],
+    d: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+    t: f64,
+) -> Residual {
+    let two_prod_split = exact_prod::<FMA>;
     // C = Σ (fh + fl)² − r², A = Σ d², B = Σ d·(fh + fl), from exact products
     let mut cv = [0.0; 20];
     let mut av = [0.0; 6];
@@ -1211,13 +1224,35 @@ fn residual_near(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, t: f64) -> Resid
 /// Fourth tier, `f64` inputs: the quick phase's enclosure `[th + tl ± err]` refined by up to two
 /// Newton steps with [`residual_near`] ([`near_surface_step`]), for an origin so near the
 /// surface that the quick phase's residual cannot tell the rounding. The correctly rounded
-/// `t`, or `None` (the accurate phase decides).
+/// `t`, or `None` (the accurate phase decides). Products by FMA when the CPU has it.
 #[cold]
 #[inline(never)]
 fn near_surface(case: &Case<f64>, th: f64, tl: f64, err: f64) -> Option<f64> {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU has FMA
+            return unsafe { near_surface_fma(case, th, tl, err) };
+        }
+        near_surface_body::<false>(case, th, tl, err)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    near_surface_body::<true>(case, th, tl, err)
+}
+
+/// [`near_surface_body`] compiled with FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+unsafe fn near_surface_fma(case: &Case<f64>, th: f64, tl: f64, err: f64) -> Option<f64> {
+    near_surface_body::<true>(case, th, tl, err)
+}
+
+/// [`near_surface`]'s steps, products by FMA (`FMA`) or Dekker's split.
+#[inline(always)]
+fn near_surface_body<const FMA: bool>(case: &Case<f64>, th: f64, tl: f64, err: f64) -> Option<f64> {
     let (mut th, mut tl, mut err) = (th, tl, err);
     for _ in 0..2 {
-        (th, tl, err) = near_surface_step(case, th, tl, err)?;
+        (th, tl, err) = near_surface_step_with::<FMA>(case, th, tl, err)?;
         if let Some(t) = round_certain::<f64>(th, tl, err) {
             return Some(t);
         }
@@ -1228,8 +1263,19 @@ fn near_surface(case: &Case<f64>, th: f64, tl: f64, err: f64) -> Option<f64> {
 /// One Newton step of the near-surface tier from the enclosure `[th + tl ± err]` of a hit's
 /// root (of `f64` inputs): the new enclosure, or `None` if the step is not defined (the slope
 /// is not certain, or `th` does not scale exactly). Public for the tests, which check it
-/// against MPFR's root.
+/// against MPFR's root (Dekker's products here; the tier itself uses FMA when it can: the same
+/// bits).
 pub fn near_surface_step(case: &Case<f64>, th: f64, tl: f64, err: f64) -> Option<(f64, f64, f64)> {
+    near_surface_step_with::<false>(case, th, tl, err)
+}
+
+#[inline(always)]
+fn near_surface_step_with<const FMA: bool>(
+    case: &Case<f64>,
+    th: f64,
+    tl: f64,
+    err: f64,
+) -> Option<(f64, f64, f64)> {
     let (o, d, c, r, back) = scaled(case.o, case.d, case.c, case.r);
     // The enclosure in the scaled coordinates (exact, or give up)
     let t = mul_pow2(th, -back);
@@ -1238,7 +1284,7 @@ pub fn near_surface_step(case: &Case<f64>, th: f64, tl: f64, err: f64) -> Option
     }
     let e = mul_pow2(err + tl.abs() * (1.0 + 2.0 * U), -back) + ETA;
     let a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-    let (th, tl, e) = newton_with(residual_near(o, d, c, r, t), a, t, e)?;
+    let (th, tl, e) = newton_with(residual_near::<FMA>(o, d, c, r, t), a, t, e)?;
     // Back to the inputs' scale (exact unless it over- or underflows, which the rounding catches)
     let k = |x: f64| mul_pow2(x, back);
     let (th, tl, e) = (k(th), k(tl), k(e) + ETA);
