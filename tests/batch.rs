@@ -251,3 +251,78 @@ fn report_throughput_table() {
     println!("{:?}", t.elapsed());
     assert!(rows.iter().all(|r| r.tests == 3072));
 }
+
+/// The second pass of the certified batch on its own ([`SecondLook`], run on every test, not
+/// only those the first look leaves open, and on wild bit patterns): every answer it claims is
+/// the scalar method's, bit for bit, with every instruction set; and on the mix it answers
+/// most of what the first look leaves open (the rest goes to the scalar tiers).
+fn second_look_lanes_claim_only_the_truth<F: Real, const F32: bool>() {
+    let mut rng = ChaCha8Rng::seed_from_u64(9);
+    let mut cases: Vec<Case<F>> = Class::ALL
+        .into_iter()
+        .flat_map(|class| class_cases::<F>(class, 400))
+        .collect();
+    cases.extend(
+        (0..4000).map(|_| Case::from_scalars(std::array::from_fn(|_| wild::<F>(&mut rng)))),
+    );
+    let b = SphereBatch::from_cases(&cases);
+    let all: Vec<usize> = (0..b.len()).collect();
+    let b64 = b.gather_f64(&all);
+    let mut claimed = 0;
+    for isa in Isa::all_available() {
+        let mut t = vec![0.0; b64.len()];
+        run_lanes::<SecondLook<F32>, f64>(isa, &b64, &mut t).unwrap();
+        for (i, &t) in t.iter().enumerate() {
+            if t == rayproof::shapes::sphere::certified::UNSURE {
+                continue;
+            }
+            claimed += 1;
+            let c = &cases[i];
+            let want = to_output(rayproof::shapes::sphere::methods::certified(
+                &c.ray(),
+                &c.sphere(),
+            ));
+            assert_eq!(
+                F::from_f64(t).to_bits_u64(),
+                want.to_bits_u64(),
+                "{} {}: test {i}: the second look's lanes claim {}, the method answers {}\n  replay: rayproof probe sphere {}",
+                F::NAME,
+                isa.name(),
+                F::from_f64(t).hex(),
+                want.hex(),
+                c.probe_args()
+            );
+        }
+    }
+    assert!(claimed > cases.len() / 3, "{claimed} claims");
+    // The share it answers of what the first look leaves open on the mix
+    let mix = SphereBatch::from_cases(&mix_cases::<F>(7, 512));
+    let mut first = vec![F::ZERO; mix.len()];
+    run_lanes::<Certified, F>(Isa::best(), &mix, &mut first).unwrap();
+    let open: Vec<usize> = (0..mix.len())
+        .filter(|&i| first[i].to_f64() == rayproof::shapes::sphere::certified::UNSURE)
+        .collect();
+    let mut t = vec![0.0; open.len()];
+    run_lanes::<SecondLook<F32>, f64>(Isa::best(), &mix.gather_f64(&open), &mut t).unwrap();
+    let left = t
+        .iter()
+        .filter(|&&t| t == rayproof::shapes::sphere::certified::UNSURE)
+        .count();
+    eprintln!(
+        "{}: the first look leaves {} of {} mix tests open, the second look's lanes {left}",
+        F::NAME,
+        open.len(),
+        mix.len()
+    );
+    assert!(left * 5 < open.len(), "{left} of {} left", open.len());
+}
+
+#[test]
+fn second_look_lanes_claim_only_the_truth_f32() {
+    second_look_lanes_claim_only_the_truth::<f32, true>();
+}
+
+#[test]
+fn second_look_lanes_claim_only_the_truth_f64() {
+    second_look_lanes_claim_only_the_truth::<f64, false>();
+}

@@ -16,9 +16,16 @@
 //! scalar method and in the lanes alike, so it too is bit-identical to its scalar form (with
 //! hardware FMA in the AVX2 and AVX-512 kernels, through the C library's `fma` elsewhere).
 //! [`Certified`]'s lanes run its first look, whose certain answers are the correctly rounded `t`
-//! (unique, so equal to the scalar method's), and [`BatchMethod::finish`] completes the tests
-//! it leaves open with the scalar method's later phases. The tests check all of this on every
-//! case class and on random bit patterns.
+//! (unique, so equal to the scalar method's); [`BatchMethod::finish`] gathers the tests it
+//! leaves open into a second, smaller batch in `f64` and runs its second look there on lanes
+//! ([`SecondLook`]: Newton steps with exact products by FMA), and only what that cannot prove
+//! goes to the scalar method's later tiers. The tests check all of this on every case class
+//! and on random bit patterns, and the second pass alone, run on every test, claims nothing
+//! but the scalar method's answers.
+//!
+//! **Keeping the loops vectorised.** The compiler vectorises only a kernel's innermost loop
+//! with everything in it inlined: a lane function has no loops of its own (steps are written
+//! out) and no array `map` (not always inlined into a large function).
 //!
 //! **Output.** One value per test: the hit's `t`, or **NaN for a miss**. NaN is never a hit of
 //! either scalar method (both require `t > 0`), while `geometric` can return a hit at `t = +∞`

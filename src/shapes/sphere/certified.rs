@@ -691,17 +691,20 @@ fn enclosing_step_lane(
 
 /// The second look on lanes, for a test the first look left open (the inputs in `f64`,
 /// exactly; `F32`: the inputs were `f32`, so the answer is rounded to `f32`): the correctly
-/// rounded `t` (as an `f64`) when two Newton steps of [`second_look_body`]'s common path prove
+/// rounded `t` (as an `f64`) when two Newton steps of the second look's common path ([`second_look_claim`]) prove
 /// it, else [`UNSURE`]. Branch-free, products by FMA (`mul_add`: the hardware's in the AVX2 and
 /// AVX-512 kernels, the C library's in the portable one; exact either way), so the batch
 /// kernel runs it on 8 `f64` lanes; every answer is the unique correctly rounded root, so it is
-/// the scalar method's, bit for bit. Certain misses are the first look's, not its.
+/// the scalar method's, bit for bit. Certain misses are the first look's, not its; invalid
+/// input (a radius not `> 0`, a non-finite value, a zero direction) is never answered.
 #[inline(always)]
 pub fn second_look_lane<const F32: bool>(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64) -> f64 {
     let l = look(o, d, c, r);
+    // (a radius that is not > 0 is invalid input: never answered)
     let inside = l.certainly_inside();
+    let r_ok = r > 0.0;
     // Two steps written out, not a loop: the kernel's loop must be the innermost to vectorise
-    let (t1, best, sure) = lane_step::<F32>(o, d, c, r, &l, inside, l.root().0, UNSURE, false);
+    let (t1, best, sure) = lane_step::<F32>(o, d, c, r, &l, inside, l.root().0, UNSURE, !r_ok);
     lane_step::<F32>(o, d, c, r, &l, inside, t1, best, sure).1
 }
 
@@ -723,14 +726,14 @@ fn lane_step<const F32: bool>(
     let k = NewtonTerms::PROVED;
     let z = exact_residual::<true>(o, d, c, r, l, t0, k);
     let (th, tl, err, left, ok) = enclosing_step_lane(z, l, t0, k);
-    // The root found must be the nearest ahead (the scalar steps' condition), then rounded
-    let ahead = th > (err + tl.abs()) * (1.0 + 4.0 * U);
+    // The root found must be the nearest ahead if it is ahead (t1, or t2 from inside); a
+    // certain rounding to a float > 0 proves the whole enclosure > 0 (the scalar steps' `ahead`)
     let (t, rounded) = if F32 {
         round_f32_lane(th, tl, err)
     } else {
         round_f64_lane(th, tl, err)
     };
-    let now = ok & ahead & (left | inside) & rounded & !sure;
+    let now = ok & (left | inside) & rounded & !sure;
     (
         if ok { th } else { t0 },
         if now { t } else { best },
