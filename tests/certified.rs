@@ -559,3 +559,93 @@ fn rays_along_the_surface_are_exact() {
     eprintln!("rays along the surface: {hits} hits, {misses} misses of 4000");
     assert!(hits > 500 && misses > 500, "{hits} hits, {misses} misses");
 }
+
+/// Rays that start on a sphere, as a renderer's reflection and shadow rays do, in `f32`: an
+/// origin on the surface rounded to `f32` (so `C` is a tiny number of either sign, far below the
+/// first look's bound), any direction (seeded). Every answer is the oracle's; the exact-`C`
+/// look (tier 1b) claims most of what the first look leaves open, every claimed enclosure holds
+/// the 400-bit root, and with the discriminant term cut to 1/1000 they miss it.
+#[test]
+fn rays_from_the_surface_f32_are_exact() {
+    use rand::{Rng, SeedableRng};
+    use rayproof::shapes::sphere::certified::{exact_c_enclosure, first_look, FirstLook, Terms};
+    use rug::Float;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+    let cut = Terms {
+        disc: Terms::EXACT_C.disc * 1e-3,
+        ..Terms::EXACT_C
+    };
+    let (mut open, mut claimed, mut bad_cut, mut hits) = (0, 0, 0, 0);
+    for _ in 0..4000 {
+        let mut v = || rng.random_range(-1.0f64..1.0);
+        let c = [4.0 * v(), 4.0 * v(), 4.0 * v()].map(|x| x as f32 as f64);
+        let n = [v(), v(), v()];
+        let d = [v(), v(), v()].map(|x| x as f32);
+        let r = rng.random_range(0.25..3.0f64) as f32 as f64;
+        let nl = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
+        let o = [0, 1, 2].map(|i| (c[i] + r * n[i] / nl) as f32);
+        let case = Case::<f32> {
+            o,
+            d,
+            c: c.map(|x| x as f32),
+            r: r as f32,
+        };
+        // The method against the oracle
+        let want = truth(&case);
+        let want_t = want
+            .t_in::<f32>()
+            .filter(|t| want.verdict.is_hit() && *t > 0.0 && t.is_finite());
+        hits += want_t.is_some() as usize;
+        let got = certified(&case.ray(), &case.sphere()).map(|h| h.t);
+        assert_eq!(
+            got.map(f32::to_bits),
+            want_t.map(f32::to_bits),
+            "certified f32 on a ray from the surface: got {got:?}, the oracle {want_t:?}\n  replay: rayproof probe sphere {}",
+            case.probe_args()
+        );
+        // Tier 1b's claims on what the first look leaves open
+        if first_look(&case, Terms::PROVED) != FirstLook::Unsure {
+            continue;
+        }
+        open += 1;
+        let Some((t, err)) = exact_c_enclosure(&case, Terms::EXACT_C) else {
+            continue;
+        };
+        claimed += 1;
+        let exact = Exact::new(&case);
+        assert!(
+            exact.verdict().is_hit(),
+            "tier 1b claims a root on a miss\n  replay: rayproof probe sphere {}",
+            case.probe_args()
+        );
+        let (t1, t2) = root_enclosures(&exact, 400);
+        let root = if exact.verdict() == Verdict::Near {
+            t1
+        } else {
+            t2
+        };
+        let holds = |t: f64, err: f64| {
+            Float::with_val(400, t) - err <= root.lo && root.hi <= Float::with_val(400, t) + err
+        };
+        assert!(
+            holds(t, err),
+            "a tier 1b enclosure misses the exact root\n  replay: rayproof probe sphere {}",
+            case.probe_args()
+        );
+        if let Some((t, err)) = exact_c_enclosure(&case, cut) {
+            bad_cut += !holds(t, err) as usize;
+        }
+    }
+    eprintln!(
+        "rays from the surface (f32): {hits} hits of 4000; the first look leaves {open} open, tier 1b claims {claimed}; with the discriminant term / 1000, {bad_cut} claims miss the root"
+    );
+    assert!(hits > 500 && open > 1000, "{hits} hits, {open} open");
+    assert!(
+        claimed * 10 > open * 9,
+        "tier 1b claims only {claimed} of {open}"
+    );
+    assert!(
+        bad_cut > 10,
+        "teeth: a shrunken discriminant term went unnoticed"
+    );
+}

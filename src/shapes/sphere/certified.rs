@@ -9,8 +9,13 @@
 //!    `f32` rounding boundary; for `f64` inputs its certain misses only (with an allowance for
 //!    underflow). It is one branch-free lane ([`first_look_lane`], [`first_look_lane_f64`]):
 //!    the scalar method runs its steps with early exits, the batch kernel
-//!    ([`super::batch::Certified`]) runs it on 8 `f64` lanes per instruction and finishes the
-//!    tests it leaves open with the tiers below, so both give the same bits.
+//!    ([`super::batch::Certified`]) runs it on 8 `f64` lanes per instruction, then the second
+//!    look on lanes for the tests it leaves open, and the scalar tiers below for the rest; every
+//!    certain answer is the unique correctly rounded one, so both give the same bits.
+//!
+//!    For `f32` inputs the first look's test runs once more, out of line, with `C` from exact
+//!    products (tier 1b, [`exact_c_enclosure`]): rays that start on a surface, a renderer's
+//!    reflection and shadow rays, have a `C` far below the look's bound on it.
 //! 2. **Second look** (`f64` inputs, [`second_look_claim`]): up to three Newton steps from the
 //!    look's root, with the residual from exact products (FMA when the CPU has it) and an
 //!    a-posteriori bound from the residual quadratic, so no bound on the look's own error is
@@ -173,12 +178,90 @@ fn to_f64<F: Real>(case: &Case<F>) -> Case<f64> {
     }
 }
 
-/// [`after_look`] out of line, for `f32` inputs, where it is rare: the first look's path stays
-/// small (no spills for the tiers after it).
+/// For `f32` inputs, out of line (the first look's path stays small, no spills for the tiers
+/// after it): the first look again with `C` from exact products ([`exact_c_look`]), then
+/// [`after_look`].
 #[cold]
 #[inline(never)]
 fn after_look_cold<F: Real>(case: &Case<f64>, l: &Look) -> Option<F> {
+    match exact_c_look(case, l, Terms::EXACT_C) {
+        ExactC::Miss => return None,
+        ExactC::Look(l2) => {
+            if let (t, true) = certain(&estimate(&l2, Terms::EXACT_C)) {
+                return Some(F::from_f64(t));
+            }
+        }
+        ExactC::Open => {}
+    }
     after_look(case, l)
+}
+
+/// What the exact-`C` look found.
+#[derive(Clone, Copy, Debug)]
+enum ExactC {
+    /// Outside and heading away, both certain.
+    Miss,
+    /// The look with `C` replaced by the nearly exact one; both signs (of `C` and `B`) certain.
+    Look(Look),
+    /// A sign is not certain.
+    Open,
+}
+
+/// **Tier 1b** (`f32` inputs, when the first look cannot decide): the first look's test again
+/// with `C` from exact products, `C' = P(0)` of [`exact_residual`] (FMA when the CPU has it),
+/// within `e = 272u²·fr + 1.01u·|C'|`. It answers what the first look leaves open most often in
+/// a renderer: rays that start on a surface (reflections, shadows), where `C` is a tiny fraction
+/// of `F + r²` and the look's `C`, off by `6u·(F + r²)`, loses its bits.
+///
+/// **Why the test still holds**, with [`Terms::EXACT_C`] (`k.c = 300u`, `k.disc = 48`): when
+/// the signs of `C'` (`|C'| > e`) and of `B` (`B² > 17u²·Q`, [`Look::behind`]'s test) are both
+/// certain, the root's formula is the right one (the look's term for a wrong sign of `B` inside
+/// the sphere, `4.01u·(1 + R/|C|)`, is not needed). `Δ̂`, `√Δ̂` and `m = |B̂| + √Δ̂` are the
+/// look's, with the look's bounds (`e_Δ` covers the look's `Ĉ`, whatever `C'` is): `m` within
+/// `u·(23.3·Q/(√Δ·m) + 2.02)`. The near root (outside) and the far root from inside heading
+/// away, `|C'|/m`, are then within `u·(272u·fr/|C'| + 1.01 + 23.3·Q/(√Δ·m) + 2.02 + 1.01)`,
+/// the far root `m/A` heading in within `u·(23.3·Q/(√Δ·m) + 5.04)`; with `1 ≤ 2Q/(√Δ·m)` both
+/// are below `u·(272u·fr/|C'| + 33.4·Q/(√Δ·m))`, and the constants leave the room the first
+/// look's test relies on (second-order terms, the test's own roundings). The test's other
+/// consequences hold as in [`first_look`]: it implies `Δ > 73u·Q > e_Δ`, so the hit is certain.
+/// Nothing underflows: `A`, `r²` are at least `2⁻²⁹⁸` for `f32` inputs, so when the test passes
+/// `fr·√Δ·m ≥ 48·Q·fr·2⁻²⁸ > 2⁻⁹²⁰` and `Q·|C'| ≥ Q·e > 2⁻¹⁰⁰⁰`.
+#[inline(always)]
+fn exact_c_look(case: &Case<f64>, l: &Look, k: Terms) -> ExactC {
+    let z = exact_residual_at_zero(case, l);
+    let heading_away = (l.b > 0.0) & (l.b2 > (17.0 * U * U) * l.q);
+    let heading_in = (l.b < 0.0) & (l.b2 > (17.0 * U * U) * l.q);
+    let e = z.ep * k.c / Terms::EXACT_C.c;
+    if !(z.p.abs() > e && (heading_away || heading_in) && l.r > 0.0) {
+        return ExactC::Open;
+    }
+    if z.p > 0.0 && heading_away {
+        return ExactC::Miss;
+    }
+    ExactC::Look(Look { cc: z.p, ..*l })
+}
+
+/// `C' = P(0)` and `2B = P'(0)` from exact products ([`exact_residual`] at `t = 0`), with FMA
+/// when the CPU has it (the same bits).
+fn exact_residual_at_zero(case: &Case<f64>, l: &Look) -> Residual {
+    let (o, d, c, r) = (case.o, case.d, case.c, case.r);
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU has FMA
+            return unsafe { exact_residual_fma(o, d, c, r, l) };
+        }
+        exact_residual::<false>(o, d, c, r, l, 0.0, NewtonTerms::PROVED)
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    exact_residual::<true>(o, d, c, r, l, 0.0, NewtonTerms::PROVED)
+}
+
+/// [`exact_residual`] at 0 compiled with FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+unsafe fn exact_residual_fma(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, l: &Look) -> Residual {
+    exact_residual::<true>(o, d, c, r, l, 0.0, NewtonTerms::PROVED)
 }
 
 /// [`certified`] after the first look: the tests the batch kernel's first look left
@@ -301,6 +384,12 @@ impl Terms {
     /// The terms the proof gives (with room).
     pub const PROVED: Terms = Terms {
         c: 11.0,
+        disc: 48.0,
+    };
+    /// The terms of the exact-`C` look (tier 1b, [`exact_c_enclosure`]): `C'` within `272u²·fr + 1.01u·|C'|`,
+    /// so the `C` term is `300u` (tier 1b's docs).
+    pub const EXACT_C: Terms = Terms {
+        c: 300.0 * U,
         disc: 48.0,
     };
 }
@@ -440,10 +529,31 @@ fn certain(e: &Estimate) -> (f64, bool) {
 pub fn first_look_enclosure(case: &Case<f32>, k: Terms) -> Option<(f64, f64)> {
     let w = |v: [f32; 3]| v.map(|x| x as f64);
     let l = look(w(case.o), w(case.d), w(case.c), case.r as f64);
-    let e = estimate(&l, k);
+    (!l.missed::<false>() && !l.behind::<false>())
+        .then(|| enclosure(&l, k))
+        .flatten()
+}
+
+/// The exact-`C` look's claim (tier 1b: the proof is in the docs of `exact_c_look`) for an `f32` case, for the tests, as
+/// [`first_look_enclosure`]: `k.c` scales the bound on `C'` (and with it the signs it trusts).
+pub fn exact_c_enclosure(case: &Case<f32>, k: Terms) -> Option<(f64, f64)> {
+    let case = to_f64(case);
+    let l = look(case.o, case.d, case.c, case.r);
+    if l.missed::<false>() {
+        return None;
+    }
+    match exact_c_look(&case, &l, k) {
+        ExactC::Look(l2) => enclosure(&l2, k),
+        ExactC::Miss | ExactC::Open => None,
+    }
+}
+
+/// A look's enclosure `(t, err)` of the root its signs point to, when the bound is below `2²⁷`
+/// units and the signs allow a hit.
+fn enclosure(l: &Look, k: Terms) -> Option<(f64, f64)> {
+    let e = estimate(l, k);
     let units = e.lhs / e.scale * (1.0 + 1.0 / 1_048_576.0);
-    (!l.missed::<false>() && !l.behind::<false>() && e.hit && units < 134_217_728.0)
-        .then(|| (e.t, units * U * e.t * (1.0 + 1.0 / 1_048_576.0)))
+    (e.hit && units < 134_217_728.0).then(|| (e.t, units * U * e.t * (1.0 + 1.0 / 1_048_576.0)))
 }
 
 /// The first look for one test of `f32` inputs (given in `f64`, exactly), branch-free: the
