@@ -538,7 +538,8 @@ impl Geometry {
         self
     }
 
-    /// Records the inputs of every `every`-th sphere test (per thread's counter) into `store`.
+    /// Records the inputs of every `every`-th sphere test (each image row counts its own) into
+    /// `store`.
     pub fn recording(
         mut self,
         every: u64,

@@ -314,7 +314,8 @@ pub struct Render {
     pub effects: Effects,
     /// Wall-clock seconds of the tracing (scene loading and BVH building excluded).
     pub seconds: f64,
-    /// Sampled sphere-test inputs, when [`Overrides::record_every`] asked for them.
+    /// Sampled sphere-test inputs, when [`Overrides::record_every`] asked for them, sorted by
+    /// their bits (the same list every run, whatever the threads did).
     pub recorded: Vec<geom::RecordedTest>,
     /// Name of the ray–sphere method used.
     pub method: &'static str,
@@ -599,7 +600,10 @@ pub fn render(s: &Scene, ov: &Overrides) -> Render {
         false, true, true; true, true, true; false, false, true; true, false, true
     );
     let seconds = start.elapsed().as_secs_f64();
-    let recorded = std::mem::take(&mut *store.lock().unwrap_or_else(|e| e.into_inner()));
+    // Rows push their tests in whatever order the threads run; sorted, the list is the same
+    // every run (the set is: each row counts its own tests)
+    let mut recorded = std::mem::take(&mut *store.lock().unwrap_or_else(|e| e.into_inner()));
+    recorded.sort_unstable_by_key(|x| x.map(f64::to_bits));
     Render {
         width: size.0,
         height: size.1,
