@@ -148,13 +148,15 @@ pub fn certified<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
         if l.missed::<false>() {
             return None;
         }
-        let (t, ok) = certain(&estimate(&l, Terms::PROVED));
+        let root = l.root();
+        let e = estimate_with(&l, Terms::PROVED, root);
+        let (t, ok) = certain(&e);
         if ok {
             Some(F::from_f64(t))
         } else if l.behind::<false>() {
             None
         } else {
-            after_look_cold::<F>(&case, &l)
+            after_look_cold::<F>(&case, &l, &e, root.1)
         }
     } else {
         // f64 inputs: the first look's certain misses, then the second look and the rest
@@ -179,19 +181,24 @@ fn to_f64<F: Real>(case: &Case<F>) -> Case<f64> {
 }
 
 /// For `f32` inputs, out of line (the first look's path stays small, no spills for the tiers
-/// after it): the first look again with `C` from exact products ([`exact_c_look`]), then
-/// [`after_look`].
+/// after it), after the first look's estimate `e` (`s = √Δ̂`): when its test fails on its `C`
+/// term (it would pass without it), the test again with `C` from exact products
+/// ([`exact_c_look`]); then [`after_look`].
 #[cold]
 #[inline(never)]
-fn after_look_cold<F: Real>(case: &Case<f64>, l: &Look) -> Option<F> {
-    match exact_c_look(case, l, Terms::EXACT_C) {
-        ExactC::Miss => return None,
-        ExactC::Look(l2) => {
-            if let (t, true) = certain(&estimate(&l2, Terms::EXACT_C)) {
-                return Some(F::from_f64(t));
+fn after_look_cold<F: Real>(case: &Case<f64>, l: &Look, e: &Estimate, s: f64) -> Option<F> {
+    let dist = f32_boundary_distance(e.t, e.t as f32);
+    if e.lhs_disc * ((2.0 * U) * e.t) < dist * e.scale {
+        match exact_c_look(case, l, Terms::EXACT_C) {
+            ExactC::Miss => return None,
+            ExactC::Look(l2) => {
+                let e2 = estimate_with(&l2, Terms::EXACT_C, l2.root_with(s));
+                if let (t, true) = certain(&e2) {
+                    return Some(F::from_f64(t));
+                }
             }
+            ExactC::Open => {}
         }
-        ExactC::Open => {}
     }
     after_look(case, l)
 }
@@ -475,6 +482,8 @@ struct Estimate {
     lhs: f64,
     /// `|C|·√Δ·m`.
     scale: f64,
+    /// `k.disc·Q·|C|`: `lhs` without the `C` term.
+    lhs_disc: f64,
     /// The look's signs allow a hit (`Δ̂ > 0`, and inside or heading in).
     hit: bool,
 }
@@ -485,7 +494,12 @@ impl Look {
     /// `Δ̂ < 0`.
     #[inline(always)]
     fn root(&self) -> (f64, f64, f64) {
-        let s = self.disc.sqrt();
+        self.root_with(self.disc.sqrt())
+    }
+
+    /// [`Look::root`] with `√Δ̂` given.
+    #[inline(always)]
+    fn root_with(&self, s: f64) -> (f64, f64, f64) {
         let m = self.b.abs() + s;
         let use_c = (self.cc > 0.0) | (self.b > 0.0);
         let t = if use_c { self.cc.abs() } else { m } / if use_c { m } else { self.a };
@@ -495,7 +509,12 @@ impl Look {
 
 #[inline(always)]
 fn estimate(l: &Look, k: Terms) -> Estimate {
-    let (t, s, m) = l.root();
+    estimate_with(l, k, l.root())
+}
+
+/// [`estimate`] from the look's root `(t, √Δ̂, m)`.
+#[inline(always)]
+fn estimate_with(l: &Look, k: Terms, (t, s, m): (f64, f64, f64)) -> Estimate {
     let n = l.cc.abs();
     // The bound 11·fr/|C| + 48·Q/(√Δ·m) (units of u·t), multiplied out by |C|·√Δ·m
     let sm = s * m;
@@ -503,6 +522,7 @@ fn estimate(l: &Look, k: Terms) -> Estimate {
         t,
         lhs: k.c * l.fr * sm + k.disc * l.q * n,
         scale: n * sm,
+        lhs_disc: k.disc * l.q * n,
         hit: (l.disc > 0.0) & ((l.cc < 0.0) | (l.b < 0.0)),
     }
 }
