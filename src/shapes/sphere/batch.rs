@@ -327,11 +327,13 @@ impl BatchMethod for Certified {
         } else {
             run_lanes::<SecondLook<false>, f64>(isa, &sub, &mut t)
         };
-        // Its answers back in place; what it left open, through the scalar tiers after it
+        // Its answers back in place; what it left open, through the scalar method (its first
+        // look again, then the tiers after the second look)
         for (&i, &t) in open.iter().zip(&t) {
             out[i] = if t == certified::UNSURE {
-                b.case(i)
-                    .map_or(F::NAN, |case| to_output(certified::after_first_look(&case)))
+                b.case(i).map_or(F::NAN, |case| {
+                    to_output(Certified::scalar(&case.ray(), &case.sphere()))
+                })
             } else {
                 F::from_f64(t)
             };
