@@ -303,14 +303,9 @@ fn after_look<F: Real, const FMA: bool>(case: &Case<f64>, l: &Look) -> Option<F>
         return after_second_look(case, l, None, false);
     }
     let (o, d, c, r) = (case.o, case.d, case.c, case.r);
-    // (with FMA known here, else through the run-time dispatch)
-    let k = NewtonTerms::PROVED;
-    let second = if FMA {
-        second_look_body::<true, false>(o, d, c, r, l, k)
-    } else {
-        second_look::<false>(o, d, c, r, l, k)
-    };
-    let Second::Open(found) = second else {
+    // (FMA: what [`certified`]'s dispatch found)
+    let Second::Open(found) = second_look_body::<FMA, false>(o, d, c, r, l, NewtonTerms::PROVED)
+    else {
         return None;
     };
     if let Some(t) = found.and_then(|(th, tl, err)| round_certain::<F>(th, tl, err)) {
@@ -676,8 +671,9 @@ impl NewtonTerms {
 /// The bound's own roundings (about twenty, of positive terms) are covered by [`SAFETY`].
 ///
 /// **Cost.** Products are exact in two instructions with FMA (Dekker's split takes about
-/// seventeen), so [`second_look`] runs this with FMA when the CPU has it: the same bits either
-/// way, since both products are exact.
+/// seventeen), so the `f64` path runs this compiled with FMA when the CPU has it ([`certified`]
+/// dispatches once; [`second_look`] for the out-of-line entries): the same answers either way,
+/// since both products are exact (and a correctly rounded answer is unique).
 #[inline(always)]
 fn second_look_body<const FMA: bool, const NEAR: bool>(
     o: [f64; 3],
