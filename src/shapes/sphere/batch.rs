@@ -46,7 +46,8 @@
 //!   `vcmpneq_oqps`, …) with `vblendvps`/`vblendvpd` as the selects;
 //! - AVX-512 path: the EVEX forms on `zmm` registers (`vsqrtps`, `vdivps`, `vcmpltps` into
 //!   `k` masks, `korw`, `kmovw`);
-//! - `vfmadd*` only in the `geometric_fma` kernels of the AVX2 and AVX-512 paths.
+//! - `vfmadd*` only in the `geometric_fma` kernels and in [`SecondLook`]'s (its exact products)
+//!   of the AVX2 and AVX-512 paths.
 //!
 //! [`methods::geometric`]: super::methods::geometric
 //! [`methods::geometric_fma`]: super::methods::geometric_fma
