@@ -148,25 +148,27 @@ pub fn certified<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     #[cfg(target_arch = "x86_64")]
     if F::MANT_BITS == 53 && std::arch::is_x86_feature_detected!("fma") {
         // SAFETY: the CPU has FMA
-        return unsafe { certified_fma(ray, s) };
+        let t = unsafe { certified_fma(ray, s) };
+        return t.map(|t| SphereHit { t, enclosure: None });
     }
     certified_body::<F, { cfg!(not(target_arch = "x86_64")) }>(ray, s)
+        .map(|t| SphereHit { t, enclosure: None })
 }
 
 /// [`certified`] compiled with FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "fma")]
-unsafe fn certified_fma<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
+unsafe fn certified_fma<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<F> {
     certified_body::<F, true>(ray, s)
 }
 
 /// [`certified`]'s steps, with exact products by FMA (`FMA`) or Dekker's split.
 #[inline(always)]
-fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
+fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Option<F> {
     let case = to_f64(&case_of(ray, s));
     let l = look(case.o, case.d, case.c, case.r);
     // f32 inputs: the first look answers nearly every case a renderer asks
-    let t = if F::MANT_BITS == 24 {
+    if F::MANT_BITS == 24 {
         if l.missed::<false>() {
             return None;
         }
@@ -186,8 +188,7 @@ fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Opti
             return None;
         }
         after_look::<F, FMA>(&case, &l)
-    };
-    t.map(|t| SphereHit { t, enclosure: None })
+    }
 }
 
 /// A case's inputs in `f64` (exactly).
