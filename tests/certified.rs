@@ -649,3 +649,28 @@ fn rays_from_the_surface_f32_are_exact() {
         "teeth: a shrunken discriminant term went unnoticed"
     );
 }
+
+/// The `f64` path as a CPU without FMA runs it (the second look's products by Dekker's split)
+/// gives the same bits as the method on every case of every class and on `f64` rays along a
+/// surface: the path no CPU with FMA would otherwise run. (Both are correctly rounded, so they
+/// must agree; a slip in the Dekker path's bounds or branches shows here.)
+#[test]
+fn the_path_without_fma_gives_the_same_bits() {
+    use rayproof::shapes::sphere::certified::certified_without_fma;
+    let mut n = 0;
+    for class in Class::ALL {
+        for case in cases::<f64>(class).take(2000) {
+            let (r, s) = (case.ray(), case.sphere());
+            let (a, b) = (certified(&r, &s), certified_without_fma(&r, &s));
+            assert_eq!(
+                a.map(|h| h.t.to_bits()),
+                b.map(|h| h.t.to_bits()),
+                "certified f64 with and without FMA differ on a {} case\n  replay: rayproof probe sphere {}",
+                class.name(),
+                case.probe_args()
+            );
+            n += 1;
+        }
+    }
+    assert!(n > 10_000, "{n} cases");
+}

@@ -156,6 +156,13 @@ pub fn certified<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
         .map(|t| SphereHit { t, enclosure: None })
 }
 
+/// [`certified`] as a CPU without FMA runs it: the second look's products by Dekker's split
+/// (the tiers out of line still take FMA when the CPU has it). For the tests, which compare it
+/// with [`certified`] bit for bit: on a CPU with FMA nothing else runs this path.
+pub fn certified_without_fma<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
+    certified_body::<F, false>(ray, s).map(|t| SphereHit { t, enclosure: None })
+}
+
 /// [`certified`] compiled with FMA.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "fma")]
