@@ -4,9 +4,9 @@
 //! the README's figures, from `scripts/readme-figures` section 7.
 //!
 //! Five tiers, each rigorous, each handing on only what it cannot decide:
-//! 1. **First look**: for `f32` inputs [`first_look`], the textbook quadratic in `f64` and one
-//!    division-free test of a two-term error bound against the exact distance to the nearest
-//!    `f32` rounding boundary; for `f64` inputs its certain misses only (with an allowance for
+//! 1. **First look**: for `f32` inputs [`first_look`], the textbook quadratic in `f64` and a
+//!    two-term error bound on its root: when both ends of the enclosure round to the same `f32`,
+//!    that is the answer; for `f64` inputs its certain misses only (with an allowance for
 //!    underflow). It is one branch-free lane ([`first_look_lane`], [`first_look_lane_f64`]):
 //!    the scalar method runs its steps with early exits, the batch kernel
 //!    ([`super::batch::Certified`]) runs it on 8 `f64` lanes per instruction, then the second
@@ -188,7 +188,7 @@ fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Opti
         } else if l.behind::<false>() {
             None
         } else {
-            after_look_cold::<F>(&case, &l, &e, root.1)
+            after_look_cold::<F>(&case, &l, &e)
         }
     } else {
         // f64 inputs: the first look's certain misses, then the second look and the rest
@@ -213,23 +213,50 @@ fn to_f64<F: Real>(case: &Case<F>) -> Case<f64> {
 
 /// For `f32` inputs, out of line (the first look's path stays small, no spills for the tiers
 /// after it), after the first look's estimate `e` (`s = √Δ̂`): when its test fails on its `C`
-/// term (it would pass without it), the test again with `C` from exact products
-/// ([`exact_c_look`]); then [`after_look`].
+/// term (it would pass without it), tier 1b ([`from_the_surface`]); else [`after_look`].
 #[cold]
 #[inline(never)]
-fn after_look_cold<F: Real>(case: &Case<f64>, l: &Look, e: &Estimate, s: f64) -> Option<F> {
+fn after_look_cold<F: Real>(case: &Case<f64>, l: &Look, e: &Estimate) -> Option<F> {
     let dist = f32_boundary_distance(e.t, e.t as f32);
     if e.lhs_disc * ((2.0 * U) * e.t) < dist * e.scale {
-        match exact_c_look(case, l, Terms::EXACT_C) {
-            ExactC::Miss => return None,
-            ExactC::Look(l2) => {
-                let e2 = estimate_with(&l2, Terms::EXACT_C, l2.root_with(s));
-                if let (t, true) = certain(&e2) {
-                    return Some(F::from_f64(t));
-                }
+        return from_the_surface::<F>(case, l);
+    }
+    after_look::<F, false>(case, l)
+}
+
+/// Tier 1b for `f32` inputs ([`exact_c_look`]), with its exact products by FMA when the CPU
+/// has it (the same bits): for a first look `l` whose `C` has lost its bits, the look's test
+/// with `C` from exact products; when that cannot decide, [`after_look`].
+#[inline(never)]
+fn from_the_surface<F: Real>(case: &Case<f64>, l: &Look) -> Option<F> {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU has FMA
+        return unsafe { from_the_surface_fma(case, l) };
+    }
+    from_the_surface_body::<F, { cfg!(not(target_arch = "x86_64")) }>(case, l)
+}
+
+/// [`from_the_surface`] compiled with FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+unsafe fn from_the_surface_fma<F: Real>(case: &Case<f64>, l: &Look) -> Option<F> {
+    from_the_surface_body::<F, true>(case, l)
+}
+
+/// [`from_the_surface`]'s steps, with exact products by FMA (`FMA`) or Dekker's split.
+#[inline(always)]
+fn from_the_surface_body<F: Real, const FMA: bool>(case: &Case<f64>, l: &Look) -> Option<F> {
+    // (√Δ̂ is the look's, taken again beside the exact products rather than stored)
+    let s = l.disc.sqrt();
+    match exact_c_look::<FMA>(case, l, Terms::EXACT_C) {
+        ExactC::Miss => return None,
+        ExactC::Look(l2) => {
+            if let (t, true) = certain(&estimate_with(&l2, Terms::EXACT_C, l2.root_with(s))) {
+                return Some(F::from_f64(t));
             }
-            ExactC::Open => {}
         }
+        ExactC::Open => {}
     }
     after_look::<F, false>(case, l)
 }
@@ -246,7 +273,7 @@ enum ExactC {
 }
 
 /// **Tier 1b** (`f32` inputs, when the first look cannot decide): the first look's test again
-/// with `C` from exact products, `C' = P(0)` of [`exact_residual`] (FMA when the CPU has it),
+/// with `C` from exact products, `C' = P(0)` of [`exact_residual`] (by FMA with `FMA`),
 /// within `e = 272u²·fr + 1.01u·|C'|`. It answers what the first look leaves open most often in
 /// a renderer: rays that start on a surface (reflections, shadows), where `C` is a tiny fraction
 /// of `F + r²` and the look's `C`, off by `6u·(F + r²)`, loses its bits.
@@ -265,11 +292,13 @@ enum ExactC {
 /// Nothing underflows: `A`, `r²` are at least `2⁻²⁹⁸` for `f32` inputs, so when the test passes
 /// `fr·√Δ·m ≥ 48·Q·fr·2⁻²⁸ > 2⁻⁹²⁰` and `Q·|C'| ≥ Q·e > 2⁻¹⁰⁰⁰`.
 #[inline(always)]
-fn exact_c_look(case: &Case<f64>, l: &Look, k: Terms) -> ExactC {
-    let z = exact_residual_at_zero(case, l);
+fn exact_c_look<const FMA: bool>(case: &Case<f64>, l: &Look, k: Terms) -> ExactC {
+    let (o, d, c, r) = (case.o, case.d, case.c, case.r);
+    let z = exact_residual::<FMA>(o, d, c, r, l, 0.0, NewtonTerms::PROVED);
     let heading_away = (l.b > 0.0) & (l.b2 > (17.0 * U * U) * l.q);
     let heading_in = (l.b < 0.0) & (l.b2 > (17.0 * U * U) * l.q);
-    let e = z.ep * k.c / Terms::EXACT_C.c;
+    // (the ratio a constant: 1 in use, so no division at run time)
+    let e = z.ep * (k.c / Terms::EXACT_C.c);
     if !(z.p.abs() > e && (heading_away || heading_in) && l.r > 0.0) {
         return ExactC::Open;
     }
@@ -277,29 +306,6 @@ fn exact_c_look(case: &Case<f64>, l: &Look, k: Terms) -> ExactC {
         return ExactC::Miss;
     }
     ExactC::Look(Look { cc: z.p, ..*l })
-}
-
-/// `C' = P(0)` and `2B = P'(0)` from exact products ([`exact_residual`] at `t = 0`), with FMA
-/// when the CPU has it (the same bits).
-fn exact_residual_at_zero(case: &Case<f64>, l: &Look) -> Residual {
-    let (o, d, c, r) = (case.o, case.d, case.c, case.r);
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU has FMA
-            return unsafe { exact_residual_fma(o, d, c, r, l) };
-        }
-        exact_residual::<false>(o, d, c, r, l, 0.0, NewtonTerms::PROVED)
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    exact_residual::<true>(o, d, c, r, l, 0.0, NewtonTerms::PROVED)
-}
-
-/// [`exact_residual`] at 0 compiled with FMA.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "fma")]
-unsafe fn exact_residual_fma(o: [f64; 3], d: [f64; 3], c: [f64; 3], r: f64, l: &Look) -> Residual {
-    exact_residual::<true>(o, d, c, r, l, 0.0, NewtonTerms::PROVED)
 }
 
 /// After a first look `l` that is not a certain miss (the case's inputs in `f64`): the second
@@ -508,7 +514,10 @@ struct Estimate {
     scale: f64,
     /// `k.disc·Q·|C|`: `lhs` without the `C` term.
     lhs_disc: f64,
-    /// The look's signs allow a hit (`Δ̂ > 0`, and inside or heading in).
+    /// The enclosure's half-width `2.2u·t·lhs/scale`, by its own division (beside `t`'s).
+    err: f64,
+    /// The look's signs allow a hit (`Δ̂ > 0`, and inside or heading in), and `√Δ̂` and `|Ĉ|`
+    /// are above `2⁻³⁰⁰` (so that nothing in `err` underflows).
     hit: bool,
 }
 
@@ -542,27 +551,32 @@ fn estimate_with(l: &Look, k: Terms, (t, s, m): (f64, f64, f64)) -> Estimate {
     let n = l.cc.abs();
     // The bound 11·fr/|C| + 48·Q/(√Δ·m) (units of u·t), multiplied out by |C|·√Δ·m
     let sm = s * m;
+    let lhs = k.c * l.fr * sm + k.disc * l.q * n;
+    // Its half-width 2u·t·lhs/(|C|·√Δ·m) with t = |C|/m or m/A: |C| or m cancels, so the
+    // division runs beside t's, not after it (the latency a renderer's hit waits for)
+    let use_c = (l.cc > 0.0) | (l.b > 0.0);
+    let den = s * if use_c { m * m } else { l.a * n };
+    let tiny = f64::from_bits(723 << 52);
     Estimate {
         t,
-        lhs: k.c * l.fr * sm + k.disc * l.q * n,
+        lhs,
         scale: n * sm,
         lhs_disc: k.disc * l.q * n,
-        hit: (l.disc > 0.0) & ((l.cc < 0.0) | (l.b < 0.0)),
+        err: ((2.05 * U) * lhs) / den,
+        hit: (l.disc > 0.0) & ((l.cc < 0.0) | (l.b < 0.0)) & (s > tiny) & (n > tiny),
     }
 }
 
 /// The correctly rounded `f32` of an [`Estimate`] (as an `f64`) and whether it is certain:
-/// the bound, times `2u·t`, is below the distance from `t` to the nearest `f32` rounding
-/// boundary ([`f32_boundary_distance`]), both sides multiplied by `|C|·√Δ·m`: no division.
+/// both ends of the enclosure `[t − err, t + err]`, rounded to `f64` and then to `f32`, give
+/// the same normal finite `f32` (rounding is monotone, so every point between them rounds to
+/// it too). Three operations after `t`.
 #[inline(always)]
 fn certain(e: &Estimate) -> (f64, bool) {
-    let tf = e.t as f32;
-    let dist = f32_boundary_distance(e.t, tf);
-    let ok = e.hit
-        & (e.lhs * ((2.0 * U) * e.t) < dist * e.scale)
-        & (e.t >= f32::MIN_POSITIVE as f64)
-        & tf.is_finite();
-    (tf as f64, ok)
+    let lo = (e.t - e.err) as f32;
+    let hi = (e.t + e.err) as f32;
+    let ok = e.hit & (lo == hi) & (lo >= f32::MIN_POSITIVE) & lo.is_finite();
+    (lo as f64, ok)
 }
 
 /// The first look's claim for an `f32` case, for the tests: the exact root lies within
@@ -586,7 +600,8 @@ pub fn exact_c_enclosure(case: &Case<f32>, k: Terms) -> Option<(f64, f64)> {
     if l.missed::<false>() {
         return None;
     }
-    match exact_c_look(&case, &l, k) {
+    // (Dekker's products: the same bits as FMA's, and the path a CPU without FMA takes)
+    match exact_c_look::<false>(&case, &l, k) {
         ExactC::Look(l2) => enclosure(&l2, k),
         ExactC::Miss | ExactC::Open => None,
     }
@@ -970,11 +985,14 @@ pub fn second_look_claim(case: &Case<f64>, k: NewtonTerms) -> Second {
 }
 
 /// The first look, for `f32` inputs: the quadratic in `f64` with the textbook discriminant
-/// `Δ = B² − A·C` and one test, `(11·fr/|C| + 48·Q/(√Δ·m))·2u·t < dist` with `fr = F + r²`,
-/// `Q = A·fr`, `m = |B| + √Δ` and `dist` the distance from `t` to the nearest `f32` rounding
-/// boundary (`f32_boundary_distance`, at most `2⁻²⁴·t`), multiplied out by `|C|·√Δ·m` so that
-/// it needs no division. `k` scales the two terms: [`Terms::PROVED`] in use. A certain miss
-/// (`Δ < −24u·Q`, or outside and heading away) is decided from the same bounds.
+/// `Δ = B² − A·C`, its root `t = |C|/m` or `m/A`, and the bound `E = (11·fr/|C| +
+/// 48·Q/(√Δ·m))·2u·t` on its error, with `fr = F + r²`, `Q = A·fr`, `m = |B| + √Δ`; when
+/// `t − E` and `t + E` round to the same `f32` (a normal, finite one), that is the correctly
+/// rounded root. `E` is computed as `2.05u·lhs/D` with `lhs` the bound multiplied out by
+/// `|C|·√Δ·m` and `D = √Δ·m²` (or `√Δ·A·|C|` for `m/A`): `|C|` or `m` cancels, so its division
+/// runs beside `t`'s and the answer waits only for two roundings after `t`. `k` scales the two
+/// terms: [`Terms::PROVED`] in use. A certain miss (`Δ < −24u·Q`, or outside and heading
+/// away) is decided from the same bounds.
 ///
 /// **Why the test is enough.** With `S = Σ|dᵢfᵢ| ≤ √(A·F)` (Cauchy–Schwarz) and `R = F + r²`,
 /// the computed values are within `e_A = 2.01u·A`, `e_B = 4.01u·S`, `e_C = 6.03u·R` and
@@ -988,16 +1006,27 @@ pub fn second_look_claim(case: &Case<f64>, k: NewtonTerms) -> Second {
 /// `4.01u·(1 + R/|C|)·t` (`√Δ ≥ √(A|C|)`). The worst case, `10.04·R/|C| + 23.3·Q/(√Δ·m) + 9.05`
 /// with `1 ≤ 2Q/(√Δ·m)`, is below `10.1·R/|C| + 41.5·Q/(√Δ·m)`. The constants 11 and 48 leave
 /// 8 % of room, which covers the second-order terms (the test keeps the bound below `2⁻²⁵`)
-/// and the test's own roundings (a few `u`); the factor 2 in `2u·t` covers `t* ≤ t̂(1 + 2⁻²⁵)`.
+/// and the roundings of `lhs` (a few `u`); the factor 2 in `2u·t` covers `t* ≤ t̂(1 + 2⁻²⁵)`.
+///
+/// **The ends.** As `Q/(√Δ·m) ≥ ½`, `E ≥ 48u·t`. The computed `Ê` is `2.05u·lhs/D` after four
+/// roundings, and `lhs/D = (lhs/scale)·(num/den)` with `num/den = t̂(1 ± u)`, so
+/// `Ê ≥ 1.025·E·(1 − 5u) ≥ E + 1.19u·t̂`. The check can only pass with `Ê < 2⁻²³·t̂` (ends
+/// farther apart round to different `f32`s), and then each end, rounded to `f64`, moves by at
+/// most `u·(t̂ + Ê) < 1.01u·t̂`: the rounded ends still enclose `[t̂ − E, t̂ + E]`, and as
+/// rounding is monotone, every point between two ends that round to the same `f32` rounds to
+/// it. Nothing under- or overflows in `Ê`: for `f32` inputs `A`, `fr`, `Q` lie between `2⁻²⁹⁸`
+/// and `2⁵¹⁶`, `m ≤ 2²⁶⁰`, and the look requires `√Δ̂` and `|Ĉ|` above `2⁻³⁰⁰`, so `lhs` and
+/// `D` (and the products in them) lie between `2⁻⁹⁰⁰` and `2⁸⁰⁰`; `Ê` is then the rounded
+/// quotient of normal numbers, and when the check passes (`t ≥ 2⁻¹²⁶`) it is above
+/// `48u·2⁻¹²⁶`, far from underflow.
 ///
 /// The test also settles the verdict: it implies `√Q/(2√Δ) ≤ Q/(√Δ·m) < 2²³`, so
 /// `Δ > 73u·Q > e_Δ` (a hit is certain), `|C| > 11·2⁻²⁸R ≫ e_C` (the side is certain), and
 /// from outside `|B| ≥ √Δ ≫ e_B` (the direction is certain). Certain misses use the same
 /// bounds (`C > 7u·fr`, `B² > 17u²·Q` for `B > e_B`, `Δ < −24u·Q`). Nothing over- or
-/// underflows: every non-zero product of the inputs' differences is between `2⁻⁵⁹⁶` and
-/// `2⁵¹⁶`, and when the test passes `fr·√Δ·m` and `Q·|C|` are above `2⁻⁹²⁰`
-/// (`√Δ·m > 48Q·2⁻²⁸`, `|C| > 11R·2⁻²⁸`), so neither side was rounded by underflow.
-/// Non-finite input makes every comparison false: the quick phase decides it.
+/// underflows in the look: every non-zero product of the inputs' differences is between
+/// `2⁻⁵⁹⁶` and `2⁵¹⁶`. Non-finite input makes every comparison false (a NaN end never equals
+/// the other): the quick phase decides it.
 #[inline(always)]
 pub fn first_look<F: Real>(case: &Case<F>, k: Terms) -> FirstLook<F> {
     let w = |v: [F; 3]| v.map(|x| x.to_f64());
