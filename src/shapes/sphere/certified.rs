@@ -4,9 +4,9 @@
 //! the README's figures, from `scripts/readme-figures` section 7.
 //!
 //! Five tiers, each rigorous, each handing on only what it cannot decide:
-//! 1. **First look**: for `f32` inputs [`first_look`], the textbook quadratic in `f64` and a
-//!    two-term error bound on its root: when both ends of the enclosure round to the same `f32`,
-//!    that is the answer; for `f64` inputs its certain misses only (with an allowance for
+//! 1. **First look**: for `f32` inputs [`first_look`], the textbook quadratic in `f64` and one
+//!    division-free test of a two-term error bound against the exact distance to the nearest
+//!    `f32` rounding boundary; for `f64` inputs its certain misses only (with an allowance for
 //!    underflow). It is one branch-free lane ([`first_look_lane`], [`first_look_lane_f64`]):
 //!    the scalar method runs its steps with early exits, the batch kernel
 //!    ([`super::batch::Certified`]) runs it on 8 `f64` lanes per instruction, then the second
@@ -177,7 +177,7 @@ fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Opti
     let l = look(case.o, case.d, case.c, case.r);
     // f32 inputs: the first look answers nearly every case a renderer asks
     if F::MANT_BITS == 24 {
-        if l.missed::<false>() {
+        if l.missed::<false>() | l.behind::<false>() {
             return None;
         }
         let root = l.root();
@@ -185,8 +185,6 @@ fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Opti
         let (t, ok) = certain(&e);
         if ok {
             Some(F::from_f64(t))
-        } else if l.behind::<false>() {
-            None
         } else {
             after_look_cold::<F>(&case, &l, &e)
         }
@@ -514,10 +512,7 @@ struct Estimate {
     scale: f64,
     /// `k.disc·Q·|C|`: `lhs` without the `C` term.
     lhs_disc: f64,
-    /// The enclosure's half-width `2.2u·t·lhs/scale`, by its own division (beside `t`'s).
-    err: f64,
-    /// The look's signs allow a hit (`Δ̂ > 0`, and inside or heading in), and `√Δ̂` and `|Ĉ|`
-    /// are above `2⁻³⁰⁰` (so that nothing in `err` underflows).
+    /// The look's signs allow a hit (`Δ̂ > 0`, and inside or heading in).
     hit: bool,
 }
 
@@ -551,32 +546,27 @@ fn estimate_with(l: &Look, k: Terms, (t, s, m): (f64, f64, f64)) -> Estimate {
     let n = l.cc.abs();
     // The bound 11·fr/|C| + 48·Q/(√Δ·m) (units of u·t), multiplied out by |C|·√Δ·m
     let sm = s * m;
-    let lhs = k.c * l.fr * sm + k.disc * l.q * n;
-    // Its half-width 2u·t·lhs/(|C|·√Δ·m) with t = |C|/m or m/A: |C| or m cancels, so the
-    // division runs beside t's, not after it (the latency a renderer's hit waits for)
-    let use_c = (l.cc > 0.0) | (l.b > 0.0);
-    let den = s * if use_c { m * m } else { l.a * n };
-    let tiny = f64::from_bits(723 << 52);
     Estimate {
         t,
-        lhs,
+        lhs: k.c * l.fr * sm + k.disc * l.q * n,
         scale: n * sm,
         lhs_disc: k.disc * l.q * n,
-        err: ((2.05 * U) * lhs) / den,
-        hit: (l.disc > 0.0) & ((l.cc < 0.0) | (l.b < 0.0)) & (s > tiny) & (n > tiny),
+        hit: (l.disc > 0.0) & ((l.cc < 0.0) | (l.b < 0.0)),
     }
 }
 
 /// The correctly rounded `f32` of an [`Estimate`] (as an `f64`) and whether it is certain:
-/// both ends of the enclosure `[t − err, t + err]`, rounded to `f64` and then to `f32`, give
-/// the same normal finite `f32` (rounding is monotone, so every point between them rounds to
-/// it too). Three operations after `t`.
+/// the bound, times `2u·t`, is below the distance from `t` to the nearest `f32` rounding
+/// boundary ([`f32_boundary_distance`]), both sides multiplied by `|C|·√Δ·m`: no division.
 #[inline(always)]
 fn certain(e: &Estimate) -> (f64, bool) {
-    let lo = (e.t - e.err) as f32;
-    let hi = (e.t + e.err) as f32;
-    let ok = e.hit & (lo == hi) & (lo >= f32::MIN_POSITIVE) & lo.is_finite();
-    (lo as f64, ok)
+    let tf = e.t as f32;
+    let dist = f32_boundary_distance(e.t, tf);
+    let ok = e.hit
+        & (e.lhs * ((2.0 * U) * e.t) < dist * e.scale)
+        & (e.t >= f32::MIN_POSITIVE as f64)
+        & tf.is_finite();
+    (tf as f64, ok)
 }
 
 /// The first look's claim for an `f32` case, for the tests: the exact root lies within
@@ -985,14 +975,11 @@ pub fn second_look_claim(case: &Case<f64>, k: NewtonTerms) -> Second {
 }
 
 /// The first look, for `f32` inputs: the quadratic in `f64` with the textbook discriminant
-/// `Δ = B² − A·C`, its root `t = |C|/m` or `m/A`, and the bound `E = (11·fr/|C| +
-/// 48·Q/(√Δ·m))·2u·t` on its error, with `fr = F + r²`, `Q = A·fr`, `m = |B| + √Δ`; when
-/// `t − E` and `t + E` round to the same `f32` (a normal, finite one), that is the correctly
-/// rounded root. `E` is computed as `2.05u·lhs/D` with `lhs` the bound multiplied out by
-/// `|C|·√Δ·m` and `D = √Δ·m²` (or `√Δ·A·|C|` for `m/A`): `|C|` or `m` cancels, so its division
-/// runs beside `t`'s and the answer waits only for two roundings after `t`. `k` scales the two
-/// terms: [`Terms::PROVED`] in use. A certain miss (`Δ < −24u·Q`, or outside and heading
-/// away) is decided from the same bounds.
+/// `Δ = B² − A·C` and one test, `(11·fr/|C| + 48·Q/(√Δ·m))·2u·t < dist` with `fr = F + r²`,
+/// `Q = A·fr`, `m = |B| + √Δ` and `dist` the distance from `t` to the nearest `f32` rounding
+/// boundary (`f32_boundary_distance`, at most `2⁻²⁴·t`), multiplied out by `|C|·√Δ·m` so that
+/// it needs no division. `k` scales the two terms: [`Terms::PROVED`] in use. A certain miss
+/// (`Δ < −24u·Q`, or outside and heading away) is decided from the same bounds.
 ///
 /// **Why the test is enough.** With `S = Σ|dᵢfᵢ| ≤ √(A·F)` (Cauchy–Schwarz) and `R = F + r²`,
 /// the computed values are within `e_A = 2.01u·A`, `e_B = 4.01u·S`, `e_C = 6.03u·R` and
@@ -1006,27 +993,16 @@ pub fn second_look_claim(case: &Case<f64>, k: NewtonTerms) -> Second {
 /// `4.01u·(1 + R/|C|)·t` (`√Δ ≥ √(A|C|)`). The worst case, `10.04·R/|C| + 23.3·Q/(√Δ·m) + 9.05`
 /// with `1 ≤ 2Q/(√Δ·m)`, is below `10.1·R/|C| + 41.5·Q/(√Δ·m)`. The constants 11 and 48 leave
 /// 8 % of room, which covers the second-order terms (the test keeps the bound below `2⁻²⁵`)
-/// and the roundings of `lhs` (a few `u`); the factor 2 in `2u·t` covers `t* ≤ t̂(1 + 2⁻²⁵)`.
-///
-/// **The ends.** As `Q/(√Δ·m) ≥ ½`, `E ≥ 48u·t`. The computed `Ê` is `2.05u·lhs/D` after four
-/// roundings, and `lhs/D = (lhs/scale)·(num/den)` with `num/den = t̂(1 ± u)`, so
-/// `Ê ≥ 1.025·E·(1 − 5u) ≥ E + 1.19u·t̂`. The check can only pass with `Ê < 2⁻²³·t̂` (ends
-/// farther apart round to different `f32`s), and then each end, rounded to `f64`, moves by at
-/// most `u·(t̂ + Ê) < 1.01u·t̂`: the rounded ends still enclose `[t̂ − E, t̂ + E]`, and as
-/// rounding is monotone, every point between two ends that round to the same `f32` rounds to
-/// it. Nothing under- or overflows in `Ê`: for `f32` inputs `A`, `fr`, `Q` lie between `2⁻²⁹⁸`
-/// and `2⁵¹⁶`, `m ≤ 2²⁶⁰`, and the look requires `√Δ̂` and `|Ĉ|` above `2⁻³⁰⁰`, so `lhs` and
-/// `D` (and the products in them) lie between `2⁻⁹⁰⁰` and `2⁸⁰⁰`; `Ê` is then the rounded
-/// quotient of normal numbers, and when the check passes (`t ≥ 2⁻¹²⁶`) it is above
-/// `48u·2⁻¹²⁶`, far from underflow.
+/// and the test's own roundings (a few `u`); the factor 2 in `2u·t` covers `t* ≤ t̂(1 + 2⁻²⁵)`.
 ///
 /// The test also settles the verdict: it implies `√Q/(2√Δ) ≤ Q/(√Δ·m) < 2²³`, so
 /// `Δ > 73u·Q > e_Δ` (a hit is certain), `|C| > 11·2⁻²⁸R ≫ e_C` (the side is certain), and
 /// from outside `|B| ≥ √Δ ≫ e_B` (the direction is certain). Certain misses use the same
 /// bounds (`C > 7u·fr`, `B² > 17u²·Q` for `B > e_B`, `Δ < −24u·Q`). Nothing over- or
-/// underflows in the look: every non-zero product of the inputs' differences is between
-/// `2⁻⁵⁹⁶` and `2⁵¹⁶`. Non-finite input makes every comparison false (a NaN end never equals
-/// the other): the quick phase decides it.
+/// underflows: every non-zero product of the inputs' differences is between `2⁻⁵⁹⁶` and
+/// `2⁵¹⁶`, and when the test passes `fr·√Δ·m` and `Q·|C|` are above `2⁻⁹²⁰`
+/// (`√Δ·m > 48Q·2⁻²⁸`, `|C| > 11R·2⁻²⁸`), so neither side was rounded by underflow.
+/// Non-finite input makes every comparison false: the quick phase decides it.
 #[inline(always)]
 pub fn first_look<F: Real>(case: &Case<F>, k: Terms) -> FirstLook<F> {
     let w = |v: [F; 3]| v.map(|x| x.to_f64());

@@ -23,7 +23,7 @@
 //! | `hearn_baker` | discriminant `r² − \|Δp − (Δp·d̂)d̂\|²` from the perpendicular vector | hit | no (normalises internally) |
 //! | `rtg7` | Ray Tracing Gems ch. 7, method 5: the perpendicular discriminant with Press's root pair | hit | no |
 //! | `promote` | `rtg7`, computed in f64 for f32 inputs or in double-double for f64 inputs, after an exact power-of-two prescale, and rounded once | hit | no |
-//! | `certified` | the exact verdict and the correctly rounded `t`: a first look (for `f32` inputs the `f64` root with a two-term error bound, certain when both ends of its enclosure round to one `f32`; for `f64` inputs its certain misses), a quick `f64` phase with per-quantity bounds (for `f64` inputs Newton steps with a double-double residual, and near the surface on `C + t(2B + At)` with `C` nearly exact), the oracle's exact path when no bound decides ([`certified`]) | hit | no |
+//! | `certified` | the exact verdict and the correctly rounded `t`: a first look (for `f32` inputs a division-free test of the `f64` root against the nearest `f32` rounding boundary; for `f64` inputs its certain misses), a quick `f64` phase with per-quantity bounds (for `f64` inputs Newton steps with a double-double residual, and near the surface on `C + t(2B + At)` with `C` nearly exact), the oracle's exact path when no bound decides ([`certified`]) | hit | no |
 //! | `interval` | pbrt-v4 `Sphere::BasicIntersect` in outward-rounded interval arithmetic; returns the midpoint and the enclosure | hit only if provable | no |
 //!
 //! # Case classes
