@@ -13,6 +13,10 @@
 //!    look on lanes for the tests it leaves open, and the scalar tiers below for the rest; every
 //!    certain answer is the unique correctly rounded one, so both give the same bits.
 //!
+//!    For `f32` inputs the common case is decided first by a cheaper sufficient test
+//!    (`certain_fast`: a bound below `2²⁰` units and a root far from every rounding boundary,
+//!    read off its bits), as the scalar method runs it.
+//!
 //!    For `f32` inputs the first look's test runs once more, out of line, with `C` from exact
 //!    products (tier 1b, [`exact_c_enclosure`]): rays that start on a surface, a renderer's
 //!    reflection and shadow rays, have a `C` far below the look's bound on it.
@@ -181,6 +185,9 @@ fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Opti
             return None;
         }
         let root = l.root();
+        if let (t, true) = certain_fast(&l, root) {
+            return Some(F::from_f64(t));
+        }
         let e = estimate_with(&l, Terms::PROVED, root);
         let (t, ok) = certain(&e);
         if ok {
@@ -567,6 +574,34 @@ fn certain(e: &Estimate) -> (f64, bool) {
         & (e.t >= f32::MIN_POSITIVE as f64)
         & tf.is_finite();
     (tf as f64, ok)
+}
+
+/// The first look's rounding check in its common case, in a dozen operations (half of them on
+/// integers) where [`certain`] takes two dozen: the correctly rounded `f32` of the look's root
+/// `t` (as an `f64`) and whether it is certain, when the bound's two terms are each at most
+/// `2¹⁹` units and `t` is at least `2²²` `f64` ulps from the nearest `f32` rounding boundary.
+/// When it cannot tell, [`certain`] decides.
+///
+/// **Why.** With `11·fr/|C| ≤ 2¹⁹` and `48·Q/(√Δ·m) ≤ 2¹⁹` (each product rounded once, so
+/// within `1 + u` of the test), the bound of [`first_look`]'s proof is at most `2²⁰(1 + u)` units
+/// of `u·t*`, and as `u·t* < 1.0001·u·t̂ < 1.0001` `f64` ulps of `t̂` (`t̂ = 2^e·(1 + x)`,
+/// `x < 1`, ulp `2^(e−52)`), the root is within `2²¹` ulps of `t̂`. In `t̂`'s binade the `f32`
+/// rounding boundaries are the points whose low 29 bits of mantissa are `2²⁸` (half an `f32`
+/// ulp), so `|low₂₉ − 2²⁸|` is the distance to the nearest of them in ulps; the boundaries
+/// outside the binade are at least `2²⁷` ulps away. At `2²²` or more, none lies within `2²¹`
+/// ulps: the root rounds as `t̂` does. `2⁻¹²⁶ ≤ t̂ < f32::MAX` makes that `f32` normal and
+/// finite, and the two terms' limits imply the first look's own (`Q/(√Δ·m) < 2²³`,
+/// `|C| > 11·2⁻²⁸R`), so the verdict is settled as there. A NaN fails every comparison.
+/// `tests/certified.rs` (`roots_whose_look_rounds_wrong_are_exact`) finds looks more than `2¹⁰`
+/// ulps from a boundary they crossed, with bounds within these limits.
+#[inline(always)]
+fn certain_fast(l: &Look, (t, s, m): (f64, f64, f64)) -> (f64, bool) {
+    let small = (l.fr * (11.0 / 524_288.0) <= l.cc.abs()) & (l.q * (48.0 / 524_288.0) <= s * m);
+    let low = (t.to_bits() & ((1 << 29) - 1)) as i64 - (1 << 28);
+    let far = low.abs() >= 1 << 22;
+    let range = (t >= f32::MIN_POSITIVE as f64) & (t < f32::MAX as f64);
+    let hit = (l.disc > 0.0) & ((l.cc < 0.0) | (l.b < 0.0));
+    (t as f32 as f64, small & far & range & hit)
 }
 
 /// The first look's claim for an `f32` case, for the tests: the exact root lies within
