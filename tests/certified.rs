@@ -752,3 +752,47 @@ fn roots_whose_look_rounds_wrong_are_exact() {
         "teeth: the look is never far from the boundary it crosses ({farthest} ulps)"
     );
 }
+
+/// Rays that leave a sphere's surface into it at a grazing angle (`f32`, seeded: the direction
+/// `2⁻¹⁶…2⁻⁴` off the tangent plane, so the chord is short and the bound's discriminant term,
+/// `Q/(√Δ·m) ≈ 1/cos²θ`, is large): every answer is the oracle's. (Their look's actual error is
+/// far below that term: `Δ ≈ B²` is computed to a few `u` here, so cutting the term does not
+/// show on them; `roots_whose_look_rounds_wrong_are_exact` is where it does.)
+#[test]
+fn grazing_rays_from_the_surface_f32_are_exact() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(41);
+    let mut hits = 0;
+    for _ in 0..4000 {
+        let mut v = || rng.random_range(-1.0f64..1.0);
+        let c = [4.0 * v(), 4.0 * v(), 4.0 * v()].map(|x| x as f32);
+        let (n, w) = ([v(), v(), v()], [v(), v(), v()]);
+        let r = rng.random_range(0.25..3.0f64) as f32;
+        // The outward normal, a tangent direction, and the direction into the sphere
+        let unit = |a: [f64; 3]| {
+            let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+            a.map(|x| x / l)
+        };
+        let n = unit(n);
+        let wn = w[0] * n[0] + w[1] * n[1] + w[2] * n[2];
+        let tan = unit([0, 1, 2].map(|i| w[i] - wn * n[i]));
+        let dip = 2f64.powf(-rng.random_range(4.0..16.0));
+        let o = [0, 1, 2].map(|i| (f64::from(c[i]) + f64::from(r) * n[i]) as f32);
+        let d = [0, 1, 2].map(|i| (tan[i] - dip * n[i]) as f32);
+        let case = Case::<f32> { o, d, c, r };
+        let want = truth(&case);
+        let want_t = want
+            .t_in::<f32>()
+            .filter(|t| want.verdict.is_hit() && *t > 0.0 && t.is_finite());
+        hits += want_t.is_some() as usize;
+        let got = certified(&case.ray(), &case.sphere()).map(|h| h.t);
+        assert_eq!(
+            got.map(f32::to_bits),
+            want_t.map(f32::to_bits),
+            "certified f32 on a grazing ray from the surface: got {got:?}, the oracle {want_t:?}\n  replay: rayproof probe sphere {}",
+            case.probe_args()
+        );
+    }
+    eprintln!("grazing rays from the surface (f32): {hits} hits of 4000");
+    assert!(hits > 2000, "{hits} hits");
+}

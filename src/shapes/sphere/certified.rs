@@ -185,8 +185,13 @@ fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Opti
             return None;
         }
         let root = l.root();
-        if let (t, true) = certain_fast(&l, root) {
+        if let (t, true) = certain_fast(&l, Terms::PROVED, root) {
             return Some(F::from_f64(t));
+        }
+        if l.fr * (11.0 / 268_435_456.0) >= l.cc.abs() {
+            // The C term alone is 2²⁸ units or more, beyond any test's reach (an origin on a
+            // surface): C from exact products at once
+            return from_the_surface::<F>(&case, &l);
         }
         let e = estimate_with(&l, Terms::PROVED, root);
         let (t, ok) = certain(&e);
@@ -257,7 +262,11 @@ fn from_the_surface_body<F: Real, const FMA: bool>(case: &Case<f64>, l: &Look) -
     match exact_c_look::<FMA>(case, l, Terms::EXACT_C) {
         ExactC::Miss => return None,
         ExactC::Look(l2) => {
-            if let (t, true) = certain(&estimate_with(&l2, Terms::EXACT_C, l2.root_with(s))) {
+            let root = l2.root_with(s);
+            if let (t, true) = certain_fast(&l2, Terms::EXACT_C, root) {
+                return Some(F::from_f64(t));
+            }
+            if let (t, true) = certain(&estimate_with(&l2, Terms::EXACT_C, root)) {
                 return Some(F::from_f64(t));
             }
         }
@@ -580,9 +589,10 @@ fn certain(e: &Estimate) -> (f64, bool) {
 /// integers) where [`certain`] takes two dozen: the correctly rounded `f32` of the look's root
 /// `t` (as an `f64`) and whether it is certain, when the bound's two terms are each at most
 /// `2¹⁹` units and `t` is at least `2²²` `f64` ulps from the nearest `f32` rounding boundary.
-/// When it cannot tell, [`certain`] decides.
+/// When it cannot tell, [`certain`] decides. Tier 1b runs it too, with its terms
+/// ([`Terms::EXACT_C`]: the same structure of bound, proved in [`exact_c_look`]'s docs).
 ///
-/// **Why.** With `11·fr/|C| ≤ 2¹⁹` and `48·Q/(√Δ·m) ≤ 2¹⁹` (each product rounded once, so
+/// **Why.** With `11·fr/|C| ≤ 2¹⁹` and `48·Q/(√Δ·m) ≤ 2¹⁹` (`k`'s terms; each product rounded once, so
 /// within `1 + u` of the test), the bound of [`first_look`]'s proof is at most `2²⁰(1 + u)` units
 /// of `u·t*`, and as `u·t* < 1.0001·u·t̂ < 1.0001` `f64` ulps of `t̂` (`t̂ = 2^e·(1 + x)`,
 /// `x < 1`, ulp `2^(e−52)`), the root is within `2²¹` ulps of `t̂`. In `t̂`'s binade the `f32`
@@ -595,8 +605,9 @@ fn certain(e: &Estimate) -> (f64, bool) {
 /// `tests/certified.rs` (`roots_whose_look_rounds_wrong_are_exact`) finds looks more than `2¹⁰`
 /// ulps from a boundary they crossed, with bounds within these limits.
 #[inline(always)]
-fn certain_fast(l: &Look, (t, s, m): (f64, f64, f64)) -> (f64, bool) {
-    let small = (l.fr * (11.0 / 524_288.0) <= l.cc.abs()) & (l.q * (48.0 / 524_288.0) <= s * m);
+fn certain_fast(l: &Look, k: Terms, (t, s, m): (f64, f64, f64)) -> (f64, bool) {
+    let limit = 1.0 / 524_288.0;
+    let small = (l.fr * (k.c * limit) <= l.cc.abs()) & (l.q * (k.disc * limit) <= s * m);
     let low = (t.to_bits() & ((1 << 29) - 1)) as i64 - (1 << 28);
     let far = low.abs() >= 1 << 22;
     let range = (t >= f32::MIN_POSITIVE as f64) & (t < f32::MAX as f64);
