@@ -592,10 +592,10 @@ fn certain(e: &Estimate) -> (f64, bool) {
 /// When it cannot tell, [`certain`] decides. Tier 1b runs it too, with its terms
 /// ([`Terms::EXACT_C`]: the same structure of bound, proved in [`exact_c_look`]'s docs).
 ///
-/// **Why.** With `11·fr/|C| ≤ 2¹⁹` and `48·Q/(√Δ·m) ≤ 2¹⁹` (`k`'s terms; each product rounded once, so
-/// within `1 + u` of the test), the bound of [`first_look`]'s proof is at most `2²⁰(1 + u)` units
-/// of `u·t*`, and as `u·t* < 1.0001·u·t̂ < 1.0001` `f64` ulps of `t̂` (`t̂ = 2^e·(1 + x)`,
-/// `x < 1`, ulp `2^(e−52)`), the root is within `2²¹` ulps of `t̂`. In `t̂`'s binade the `f32`
+/// **Why.** With `11·fr/|C| ≤ 2¹⁹` and `48·Q/(√Δ·m) ≤ 2¹⁹` (`k`'s terms; each product
+/// rounded once, so within `1 + u` of the test), the bound of [`first_look`]'s proof is at most
+/// `2²⁰(1 + u)` units of `u·t*`, and as `u·t* < 1.0001·u·t̂ < 1.0001` `f64` ulps of `t̂`
+/// (`t̂ = 2^e·(1 + x)`, `x < 1`, ulp `2^(e−52)`), the root is within `2²¹` ulps of `t̂`. In `t̂`'s binade the `f32`
 /// rounding boundaries are the points whose low 29 bits of mantissa are `2²⁸` (half an `f32`
 /// ulp), so `|low₂₉ − 2²⁸|` is the distance to the nearest of them in ulps; the boundaries
 /// outside the binade are at least `2²⁷` ulps away. At `2²²` or more, none lies within `2²¹`
