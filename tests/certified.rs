@@ -17,6 +17,27 @@ fn cases<F: Real>(class: Class) -> impl Iterator<Item = Case<F>> {
     (0..PER_CLASS).filter_map(move |i| generate::<F>(SEED, class, i))
 }
 
+/// The oracle's answer to `case` in its precision (the correctly rounded `t` of the nearest
+/// root ahead; `None` for a miss, or a root that rounds to zero or overflows), after asserting
+/// that `certified` gives its bits (the message names `what` and the replay line).
+fn assert_as_the_oracle<F: Real>(case: &Case<F>, what: &str) -> Option<F> {
+    let want = truth(case);
+    let want_t = want
+        .t_in::<F>()
+        .filter(|t| want.verdict.is_hit() && *t > F::ZERO && t.is_finite());
+    let got = certified(&case.ray(), &case.sphere()).map(|h| h.t);
+    assert_eq!(
+        got.map(|t| t.to_bits_u64()),
+        want_t.map(|t| t.to_bits_u64()),
+        "certified {} on {what}: got {:?}, the oracle {:?}\n  replay: rayproof probe sphere {}",
+        F::NAME,
+        got.map(|t| t.hex()),
+        want_t.map(|t| t.hex()),
+        case.probe_args()
+    );
+    want_t
+}
+
 /// certified against the oracle on every case, ill-posed included: the same verdict, and the
 /// same bits of t (the oracle's correctly rounded root in the case's precision).
 fn agrees_everywhere<F: Real>() {
@@ -396,18 +417,8 @@ fn underflowing_f64_scenes_are_exact() {
                 c,
                 r,
             };
-            let want = truth(&case);
-            let want_t = want
-                .t_in::<f64>()
-                .filter(|t| want.verdict.is_hit() && *t > 0.0 && t.is_finite());
+            let want_t = assert_as_the_oracle(&case, "an underflowing scene");
             hits += want_t.is_some() as usize;
-            let got = certified(&case.ray(), &case.sphere()).map(|h| h.t);
-            assert_eq!(
-                got.map(f64::to_bits),
-                want_t.map(f64::to_bits),
-                "certified f64 on an underflowing scene: got {got:?}, the oracle {want_t:?}\n  replay: rayproof probe sphere {}",
-                case.probe_args()
-            );
         }
     }
     eprintln!("underflowing f64 scenes: {hits} hits of 3000");
@@ -542,19 +553,9 @@ fn rays_along_the_surface_are_exact() {
         let d = [0, 1, 2].map(|i| u[i] - un * n[i] + tilt * n[i]);
         let o = [0, 1, 2].map(|i| c[i] + r * n[i]);
         let case = Case { o, d, c, r };
-        let want = truth(&case);
-        let want_t = want
-            .t_in::<f64>()
-            .filter(|t| want.verdict.is_hit() && *t > 0.0 && t.is_finite());
+        let want_t = assert_as_the_oracle(&case, "a ray along the surface");
         hits += want_t.is_some() as usize;
         misses += want_t.is_none() as usize;
-        let got = certified(&case.ray(), &case.sphere()).map(|h| h.t);
-        assert_eq!(
-            got.map(f64::to_bits),
-            want_t.map(f64::to_bits),
-            "certified f64 on a ray along the surface: got {got:?}, the oracle {want_t:?}\n  replay: rayproof probe sphere {}",
-            case.probe_args()
-        );
     }
     eprintln!("rays along the surface: {hits} hits, {misses} misses of 4000");
     assert!(hits > 500 && misses > 500, "{hits} hits, {misses} misses");
@@ -591,18 +592,8 @@ fn rays_from_the_surface_f32_are_exact() {
             r: r as f32,
         };
         // The method against the oracle
-        let want = truth(&case);
-        let want_t = want
-            .t_in::<f32>()
-            .filter(|t| want.verdict.is_hit() && *t > 0.0 && t.is_finite());
+        let want_t = assert_as_the_oracle(&case, "a ray from the surface");
         hits += want_t.is_some() as usize;
-        let got = certified(&case.ray(), &case.sphere()).map(|h| h.t);
-        assert_eq!(
-            got.map(f32::to_bits),
-            want_t.map(f32::to_bits),
-            "certified f32 on a ray from the surface: got {got:?}, the oracle {want_t:?}\n  replay: rayproof probe sphere {}",
-            case.probe_args()
-        );
         // Tier 1b's claims on what the first look leaves open
         if first_look(&case, Terms::PROVED) != FirstLook::Unsure {
             continue;
@@ -723,15 +714,7 @@ fn roots_whose_look_rounds_wrong_are_exact() {
             continue;
         }
         crossed += 1;
-        let want = truth(&case);
-        let want_t = want.t_in::<f32>().filter(|_| want.verdict.is_hit());
-        let got = certified(&case.ray(), &case.sphere()).map(|h| h.t);
-        assert_eq!(
-            got.map(f32::to_bits),
-            want_t.map(f32::to_bits),
-            "certified f32 where the look rounds wrong: got {got:?}, the oracle {want_t:?}\n  replay: rayproof probe sphere {}",
-            case.probe_args()
-        );
+        assert_as_the_oracle(&case, "a ray whose look rounds wrong");
         // How far the look lies from the boundary it crossed, in f64 ulps, when its bound is
         // within the fast check's 2^20 units
         if err / (t * f64::EPSILON / 2.0) <= f64::from(1u32 << 20) {
@@ -780,18 +763,8 @@ fn grazing_rays_from_the_surface_f32_are_exact() {
         let o = [0, 1, 2].map(|i| (f64::from(c[i]) + f64::from(r) * n[i]) as f32);
         let d = [0, 1, 2].map(|i| (tan[i] - dip * n[i]) as f32);
         let case = Case::<f32> { o, d, c, r };
-        let want = truth(&case);
-        let want_t = want
-            .t_in::<f32>()
-            .filter(|t| want.verdict.is_hit() && *t > 0.0 && t.is_finite());
+        let want_t = assert_as_the_oracle(&case, "a grazing ray from the surface");
         hits += want_t.is_some() as usize;
-        let got = certified(&case.ray(), &case.sphere()).map(|h| h.t);
-        assert_eq!(
-            got.map(f32::to_bits),
-            want_t.map(f32::to_bits),
-            "certified f32 on a grazing ray from the surface: got {got:?}, the oracle {want_t:?}\n  replay: rayproof probe sphere {}",
-            case.probe_args()
-        );
     }
     eprintln!("grazing rays from the surface (f32): {hits} hits of 4000");
     assert!(hits > 2000, "{hits} hits");
