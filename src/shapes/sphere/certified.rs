@@ -763,8 +763,12 @@ fn second_look_body<const FMA: bool, const NEAR: bool>(
 }
 
 /// The second look's steps from the look's root (NaN when Δ̂ < 0, which fails every test), up
-/// to three: a guess far off (a grazing ray, a far sphere's cancelled discriminant, an origin
-/// near the surface) needs more than one. `inside`: `C < 0` is certain.
+/// to three: a guess far off (a grazing ray, a far sphere's cancelled discriminant) needs more
+/// than one. It stops as soon as the enclosure decides the `f64` rounding, and when the
+/// residual's own bound keeps it above an eighth of an ulp (an origin near the surface, where
+/// more steps of this residual cannot help and the near-surface tier takes over); every
+/// enclosure it returns is rigorous, so where it stops changes the cost, not the answer.
+/// `inside`: `C < 0` is certain.
 #[inline(always)]
 fn newton_steps<const FMA: bool>(
     o: [f64; 3],
@@ -779,12 +783,21 @@ fn newton_steps<const FMA: bool>(
     let mut found = None;
     for _ in 0..3 {
         let z = exact_residual::<FMA>(o, d, c, r, l, t0, k);
+        // (the residual's bound at any t near t0, 272u²·M, over the slope: the width below
+        // which no further step can shrink the enclosure)
+        let floor = (272.0 * U * U) * (l.fr + t0 * t0 * l.a);
+        let slope = z.dp.abs();
         let (th, tl, err, left) = enclosing_step(z, l, t0, k)?;
         // The root found: t1 when P'(t0) < 0 (the nearest ahead if it is ahead), else t2
         // (the nearest ahead only inside); the enclosure must lie ahead (th − |tl| − err > 0)
         let ahead = th > (err + tl.abs()) * (1.0 + 4.0 * U);
         found = (ahead && (left || inside)).then_some((th, tl, err));
-        if found.is_none() || err < (th.next_up() - th) * (1.0 / 1024.0) {
+        // Stop when the enclosure decides the f64 rounding, is tight (the root is that near a
+        // boundary), or cannot shrink below an eighth of an ulp (an origin near the surface:
+        // the near-surface tier's residual can)
+        let ulp = th.next_up() - th;
+        let stuck = floor * 8.0 >= ulp * slope;
+        if found.is_none() || err < ulp * (1.0 / 1024.0) || round_f64_lane(th, tl, err).1 || stuck {
             break;
         }
         t0 = th;
