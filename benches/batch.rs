@@ -17,8 +17,8 @@ use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, Criterion, Throughput};
 use rayproof::numerics::real::Real;
 use rayproof::shapes::sphere::batch::{
-    check_identical, mix_cases, run_batch, run_scalar, BatchMethod, Certified, Geometric,
-    GeometricFma, Isa, Rtg7, SphereBatch,
+    check_identical, mix_cases, run_batch, run_scalar, BatchMethod, Certified, CertifiedFloor,
+    Geometric, GeometricFma, Isa, Rtg7, SphereBatch,
 };
 use rayproof::shapes::sphere::methods::{Ray, Sphere, SphereHit};
 use std::hint::black_box;
@@ -103,11 +103,13 @@ fn batch(c: &mut Criterion) {
     time::<GeometricFma, f32>(&mut g, &x32);
     time::<Rtg7, f32>(&mut g, &x32);
     time::<Certified, f32>(&mut g, &x32);
+    time::<CertifiedFloor, f32>(&mut g, &x32);
     g.throughput(Throughput::Elements(x64.batch.len() as u64));
     time::<Geometric, f64>(&mut g, &x64);
     time::<GeometricFma, f64>(&mut g, &x64);
     time::<Rtg7, f64>(&mut g, &x64);
     time::<Certified, f64>(&mut g, &x64);
+    time::<CertifiedFloor, f64>(&mut g, &x64);
     g.finish();
 }
 

@@ -8,6 +8,10 @@
 //!   method), as the renderer passes them: what a real frame asks of the test. These cases have
 //!   no class, so only a method held to zero in every class refuses to time on them.
 //!
+//! Beside the methods, `certified_floor` ([`rayproof::shapes::sphere::certified::floors`]): the
+//! part of `certified` every answer computes, without its certificate, the least a certified
+//! answer can cost.
+//!
 //! One iteration runs a method over the whole batch; the throughput is the batch length, so
 //! criterion's elements/s is tests/s (and time/iteration ÷ length is ns/test).
 //!
@@ -25,7 +29,8 @@ use rayproof::audit::{judge, probe_line, Shape};
 use rayproof::numerics::Precision;
 use rayproof::render::{render, scene, Overrides};
 use rayproof::shapes::sphere::cases::{generate, Class};
-use rayproof::shapes::sphere::methods::{PickPrecision, Ray, Sphere, METHODS};
+use rayproof::shapes::sphere::certified::floors::floor;
+use rayproof::shapes::sphere::methods::{PickPrecision, Ray, Sphere, SphereHit, METHODS};
 use rayproof::shapes::sphere::oracle::{truth, Case, Truth};
 use rayproof::shapes::sphere::SphereShape;
 use std::hint::black_box;
@@ -161,12 +166,17 @@ fn validate<F: PickPrecision>(b: &Batch<F>) {
     }
 }
 
-// Time every method over the whole batch
+/// One test as the methods take it.
+type Test<F> = fn(&Ray<F>, &Sphere<F>) -> Option<SphereHit<F>>;
+
+// Time every method over the whole batch, and certified's floor (its part without the
+// certificate: not a method, so not validated)
 fn time<F: PickPrecision>(g: &mut BenchmarkGroup<'_, WallTime>, b: &Batch<F>) {
     g.throughput(Throughput::Elements(b.cases.len() as u64));
-    for m in METHODS {
-        let f = F::pick(m);
-        g.bench_function(format!("{}/{}", m.name, F::NAME), |bench| {
+    let floor: Test<F> = floor;
+    let methods = METHODS.iter().map(|m| (m.name, F::pick(m)));
+    for (name, f) in methods.chain([("certified_floor", floor)]) {
+        g.bench_function(format!("{}/{}", name, F::NAME), |bench| {
             bench.iter(|| {
                 let f = black_box(f);
                 let mut sum = 0.0f64;

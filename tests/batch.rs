@@ -24,6 +24,9 @@ fn assert_identical<F: Real>(b: &SphereBatch<F>) {
         if let Err(e) = check_identical::<Certified, F>(isa, b) {
             panic!("{e}");
         }
+        if let Err(e) = check_identical::<CertifiedFloor, F>(isa, b) {
+            panic!("{e}");
+        }
     }
 }
 

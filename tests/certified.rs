@@ -769,3 +769,47 @@ fn grazing_rays_from_the_surface_f32_are_exact() {
     eprintln!("grazing rays from the surface (f32): {hits} hits of 4000");
     assert!(hits > 2000, "{hits} hits");
 }
+
+/// Certified's floor (its part without the certificate, timed beside it) computes what the
+/// method computes first: on the mix, the same verdict as certified on every case (the look's
+/// certain misses; every other case of the mix is a hit), the same `f32` bits on nearly every
+/// case (the look's root rounds correctly but for the few the first look leaves open), and the
+/// `f64` root within an ulp on most (one Newton step from the look's root: far small spheres,
+/// grazing rays and origins near a surface need more), so the benches' floor figures measure
+/// the right work.
+#[test]
+fn the_floor_is_certified_without_its_certificate() {
+    use rayproof::shapes::sphere::batch::mix_cases;
+    use rayproof::shapes::sphere::certified::floors::floor;
+    fn agree<F: Real>(ulps: u64) -> (usize, usize, usize) {
+        let cases = mix_cases::<F>(7, 512);
+        let (mut verdicts, mut close) = (0, 0);
+        for c in &cases {
+            let (r, s) = (c.ray(), c.sphere());
+            match (floor(&r, &s), certified(&r, &s)) {
+                (None, None) => (verdicts, close) = (verdicts + 1, close + 1),
+                (Some(a), Some(b)) => {
+                    verdicts += 1;
+                    close += usize::from(a.t.ulps_between(b.t) <= ulps);
+                }
+                _ => eprintln!(
+                    "  verdicts differ: rayproof probe sphere {}",
+                    c.probe_args()
+                ),
+            }
+        }
+        (verdicts, close, cases.len())
+    }
+    let (v32, s32, n32) = agree::<f32>(0);
+    let (v64, s64, n64) = agree::<f64>(1);
+    eprintln!(
+        "floor against certified on the mix: f32 {s32} of {n32} the same bits, f64 {s64} of {n64} within 1 ulp"
+    );
+    assert_eq!(
+        (v32, v64),
+        (n32, n64),
+        "the floor's verdicts must be certified's"
+    );
+    assert!(s32 * 100 >= n32 * 99, "f32 floor: {s32} of {n32}");
+    assert!(s64 * 100 >= n64 * 90, "f64 floor: {s64} of {n64}");
+}

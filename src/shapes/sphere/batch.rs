@@ -342,6 +342,32 @@ impl BatchMethod for Certified {
     }
 }
 
+/// [`certified::floors`] on lanes: the part of `certified` that every answer computes, without
+/// its certificate (not a method: a measuring stick, timed beside it in `benches/batch.rs`).
+pub struct CertifiedFloor;
+
+impl Lanes for CertifiedFloor {
+    #[inline(always)]
+    fn lanes<F: Real>(o: V<F>, d: V<F>, c: V<F>, r: F) -> F {
+        let f32 = F::MANT_BITS == 24;
+        F::from_f64(certified::floors::floor_lane::<true>(
+            w(o),
+            w(d),
+            w(c),
+            r.to_f64(),
+            f32,
+        ))
+    }
+}
+
+impl BatchMethod for CertifiedFloor {
+    const NAME: &'static str = "certified_floor";
+    #[inline(always)]
+    fn scalar<F: Real>(ray: &Ray<F>, sphere: &Sphere<F>) -> Option<SphereHit<F>> {
+        certified::floors::floor(ray, sphere)
+    }
+}
+
 /// [`methods::certified`]'s second look on lanes ([`certified::second_look_lane`], two Newton
 /// steps), for tests of `f32` inputs (`F32`) or of `f64` inputs, given in `f64`: the correctly
 /// rounded `t`, or [`certified::UNSURE`].

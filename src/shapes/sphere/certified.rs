@@ -109,6 +109,8 @@
 // Negated comparisons (`!(x > e)`) on purpose: a NaN must take the unsure or miss branch
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
+pub mod floors;
+
 use super::methods::{ilogb, mul_pow2, Ray, Sphere, SphereHit};
 use super::oracle::{nearest_root, Case};
 use crate::numerics::dd::{two_prod, two_prod_split, two_sum};

@@ -1,0 +1,80 @@
+//! **Floors**: the part of [`certified`](super::certified) that every certified answer computes,
+//! with its certificate left out. Not a method (its answers are not proven; it is in no table
+//! of the audit): a measuring stick for what the speed targets leave room for. Timed
+//! beside `algebraic` and `certified` in `benches/sphere.rs` and `benches/batch.rs`.
+//!
+//! - `f32` inputs: the first look's root (the quadratic in `f64`, its square root and its
+//!   division, the certain misses decided as the method decides them), rounded to `f32`, with
+//!   no rounding check and no later tier. A certified `f32` answer cannot cost less: the look is
+//!   its first step on every case.
+//! - `f64` inputs: the look's root and one Newton step with the residual from exact products
+//!   (the second look's, FMA when the CPU has it), with no error bound, no rounding
+//!   check and no later step. No `f64` computation alone proves its `t` within one ulp (the
+//!   last three roundings of the textbook formula already allow `2.5u·t`, more than an ulp
+//!   anywhere in a binade), so a certified `f64` hit needs a residual beyond `f64` at least
+//!   once: this is the least of that.
+
+use super::{case_of, exact_residual, look, to_f64, NewtonTerms};
+use crate::numerics::real::Real;
+use crate::shapes::sphere::methods::{Ray, Sphere, SphereHit};
+
+/// The floor's answer for one test (see the [module docs](self)): `t`, or `None` for a miss.
+pub fn floor<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
+    #[cfg(target_arch = "x86_64")]
+    if F::MANT_BITS == 53 && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU has FMA
+        return unsafe { floor_fma(ray, s) };
+    }
+    floor_body::<F, { cfg!(not(target_arch = "x86_64")) }>(ray, s)
+}
+
+/// [`floor`] compiled with FMA.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "fma")]
+unsafe fn floor_fma<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
+    floor_body::<F, true>(ray, s)
+}
+
+#[inline(always)]
+fn floor_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
+    let case = to_f64(&case_of(ray, s));
+    let t = floor_lane::<FMA>(case.o, case.d, case.c, case.r, F::MANT_BITS == 24);
+    (t > 0.0).then(|| SphereHit {
+        t: F::from_f64(t),
+        enclosure: None,
+    })
+}
+
+/// [`floor`] for one test on lane values (the inputs in `f64`, exactly; `f32`: they were `f32`),
+/// branch-free: `t`, or NaN for a miss. Products by FMA (`FMA`) or Dekker's split: the same
+/// bits.
+#[inline(always)]
+pub fn floor_lane<const FMA: bool>(
+    o: [f64; 3],
+    d: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+    f32: bool,
+) -> f64 {
+    // The look and its root; the certain misses as the method decides them
+    let l = look(o, d, c, r);
+    let missed = if f32 {
+        l.missed::<false>() | l.behind::<false>()
+    } else {
+        l.missed::<true>() | l.behind::<true>()
+    };
+    let t0 = l.root().0;
+    let t = if f32 {
+        t0 as f32 as f64
+    } else {
+        // One Newton step with the exact residual
+        let z = exact_residual::<FMA>(o, d, c, r, &l, t0, NewtonTerms::PROVED);
+        t0 - z.p / z.dp
+    };
+    // (one NaN for every miss, as the scalar form's `None` gives)
+    if missed | !(t > 0.0) {
+        f64::NAN
+    } else {
+        t
+    }
+}
