@@ -9,10 +9,10 @@
 //!   its first step on every case.
 //! - `f64` inputs: the look's root and one Newton step with the residual from exact products
 //!   (the second look's, FMA when the CPU has it), with no error bound, no rounding
-//!   check and no later step. No `f64` computation alone proves its `t` within one ulp (the
-//!   last three roundings of the textbook formula already allow `2.5u·t`, more than an ulp
-//!   anywhere in a binade), so a certified `f64` hit needs a residual beyond `f64` at least
-//!   once: this is the least of that.
+//!   check and no later step. The textbook formula in `f64` cannot prove its `t` within one
+//!   ulp: its last three roundings (square root, sum, division) alone allow `2.5u·t`, more than
+//!   an ulp anywhere in a binade. So a certified `f64` hit evaluates something beyond `f64` at
+//!   least once; this is the least of that the method does.
 
 use super::{case_of, exact_residual, look, to_f64, NewtonTerms};
 use crate::numerics::real::Real;
