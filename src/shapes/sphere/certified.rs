@@ -183,7 +183,7 @@ fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Opti
     let l = look(case.o, case.d, case.c, case.r);
     // f32 inputs: the first look answers nearly every case a renderer asks
     if F::MANT_BITS == 24 {
-        if l.missed::<false>() | l.behind::<false>() {
+        if l.behind::<false>() || l.missed::<false>() {
             return None;
         }
         let root = l.root();
@@ -204,7 +204,7 @@ fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Opti
         }
     } else {
         // f64 inputs: the first look's certain misses, then the second look and the rest
-        if l.missed::<true>() || l.behind::<true>() {
+        if l.behind::<true>() || l.missed::<true>() {
             return None;
         }
         after_look::<F, FMA>(&case, &l)
