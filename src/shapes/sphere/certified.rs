@@ -310,7 +310,7 @@ enum ExactC {
 #[inline(always)]
 fn exact_c_look<const FMA: bool>(case: &Case<f64>, l: &Look, k: Terms) -> ExactC {
     let (o, d, c, r) = (case.o, case.d, case.c, case.r);
-    let z = exact_residual::<FMA>(o, d, c, r, l, 0.0, NewtonTerms::PROVED);
+    let z = exact_residual_at_zero::<FMA>(o, d, c, r, l, NewtonTerms::PROVED);
     let heading_away = (l.b > 0.0) & (l.b2 > (17.0 * U * U) * l.q);
     let heading_in = (l.b < 0.0) & (l.b2 > (17.0 * U * U) * l.q);
     // (the ratio a constant: 1 in use, so no division at run time)
@@ -750,7 +750,7 @@ fn second_look_body<const FMA: bool, const NEAR: bool>(
     }
     // An origin so near the surface that the look cannot tell its side: the side from the
     // residual at 0 (C and 2B to about 2⁻⁹⁷); outside and heading away is a miss
-    let z = exact_residual::<FMA>(o, d, c, r, l, 0.0, k);
+    let z = exact_residual_at_zero::<FMA>(o, d, c, r, l, k);
     if !(z.p.is_finite() && z.dp.is_finite()) {
         return Second::Open(None);
     }
@@ -829,16 +829,51 @@ fn exact_residual<const FMA: bool>(
     t0: f64,
     k: NewtonTerms,
 ) -> Residual {
-    let tp = exact_prod::<FMA>;
     // g = f + t0·d = gh + gl*, exactly; gl rounds gl*
     let (mut gh, mut gl) = ([0.0; 3], [0.0; 3]);
     for i in 0..3 {
         let (fh, fl) = two_sum(o[i], -c[i]);
-        let (ph, pl) = tp(t0, d[i]);
+        let (ph, pl) = exact_prod::<FMA>(t0, d[i]);
         let (s, e) = two_sum(fh, ph);
         gh[i] = s;
         gl[i] = (e + pl) + fl;
     }
+    residual_at::<FMA>(gh, gl, d, r, l, t0, k)
+}
+
+/// [`exact_residual`] at `t0 = 0` (`C` and `2B`): there `t0·dᵢ = ±0` and Knuth's sum of it with
+/// `fh` is `(fh, 0)`, so `g = fh + fl` (`o − c` by Knuth's sum) is the same point, and the same
+/// bounds hold; without the product and the second sum, which lie on the longest chain of
+/// dependent operations (tier 1b's, [`exact_c_look`], on every ray that starts on a surface).
+#[inline(always)]
+fn exact_residual_at_zero<const FMA: bool>(
+    o: [f64; 3],
+    d: [f64; 3],
+    c: [f64; 3],
+    r: f64,
+    l: &Look,
+    k: NewtonTerms,
+) -> Residual {
+    let (mut gh, mut gl) = ([0.0; 3], [0.0; 3]);
+    for i in 0..3 {
+        (gh[i], gl[i]) = two_sum(o[i], -c[i]);
+    }
+    residual_at::<FMA>(gh, gl, d, r, l, 0.0, k)
+}
+
+/// [`exact_residual`] from the point `g = gh + gl` at `t0`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn residual_at<const FMA: bool>(
+    gh: [f64; 3],
+    gl: [f64; 3],
+    d: [f64; 3],
+    r: f64,
+    l: &Look,
+    t0: f64,
+    k: NewtonTerms,
+) -> Residual {
+    let tp = exact_prod::<FMA>;
     // P(t0) = (Σ gh² − r², exactly s3 + seven low parts) + 2 Σ gh·gl + Σ gl²
     // (no array `map` here: it stops the kernel's loop from vectorising)
     let sq = [tp(gh[0], gh[0]), tp(gh[1], gh[1]), tp(gh[2], gh[2])];
