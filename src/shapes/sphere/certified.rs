@@ -186,14 +186,14 @@ fn certified_body<F: Real, const FMA: bool>(ray: &Ray<F>, s: &Sphere<F>) -> Opti
         if l.behind::<false>() || l.missed::<false>() {
             return None;
         }
+        if l.fr * (11.0 / 268_435_456.0) >= l.cc.abs() {
+            // The C term alone is 2²⁸ units or more, beyond any test's reach (an origin on a
+            // surface): C from exact products at once, before the look's root
+            return from_the_surface::<F>(&case, &l);
+        }
         let root = l.root();
         if let (t, true) = certain_fast(&l, Terms::PROVED, root) {
             return Some(F::from_f64(t));
-        }
-        if l.fr * (11.0 / 268_435_456.0) >= l.cc.abs() {
-            // The C term alone is 2²⁸ units or more, beyond any test's reach (an origin on a
-            // surface): C from exact products at once
-            return from_the_surface::<F>(&case, &l);
         }
         let e = estimate_with(&l, Terms::PROVED, root);
         let (t, ok) = certain(&e);
