@@ -44,7 +44,7 @@ fn validate(shape: &dyn Shape, prec: Precision, cases: &[(usize, Vec<f64>)]) {
         let mut wrong = 0;
         for ((class, input), truth) in cases.iter().zip(&truths) {
             let well_posed = matches!(truth, Truth::Answer(e) if !e.ill_posed);
-            let j = judge(truth, &shape.run(m, input, prec), shape.info().metric, prec);
+            let j = judge(truth, &shape.run(m, input, prec), shape.info(), prec);
             let class = shape.info().classes[*class];
             let forbidden = table.forbids(shape.name(), info.name, prec, class, j);
             if well_posed && (j.is_wrong() || forbidden) {

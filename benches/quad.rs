@@ -38,7 +38,7 @@ fn validate(shape: &dyn Shape, prec: Precision, cases: &[Vec<f64>]) {
         for v in cases {
             let truth = shape.oracle(v, prec);
             let ill = matches!(&truth, Truth::Answer(e) if e.ill_posed);
-            let j = judge(&truth, &shape.run(m, v, prec), shape.info().metric, prec);
+            let j = judge(&truth, &shape.run(m, v, prec), shape.info(), prec);
             if !ill && j.is_wrong() {
                 wrong += 1;
                 let by_design = shape.name() == "box" && j == rayproof::audit::Judgement::FalseHit;

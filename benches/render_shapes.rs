@@ -13,7 +13,7 @@ use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::DVec3;
 use rand::SeedableRng;
 use rayproof::audit::Judgement;
-use rayproof::audit::{judge, Answer, Metric, Truth};
+use rayproof::audit::{judge, Answer, Truth};
 use rayproof::numerics::Precision;
 use rayproof::render::geom::{routine_input, sample_rays, solid_hit, Prim};
 use rayproof::render::{build_geometry, scene};
@@ -49,7 +49,7 @@ fn validate(p: &Prim, rays: &[(DVec3, DVec3)]) -> usize {
             continue;
         }
         let answer = solid_hit(p, o, d).map_or(Answer::miss(), |(t, _)| Answer::hit(vec![t]));
-        match judge(&truth, &answer, Metric::Ulps, Precision::F64) {
+        match judge(&truth, &answer, shape.info(), Precision::F64) {
             Judgement::Ok { .. } => judged += 1,
             j => panic!(
                 "{name}: {j:?}; refusing to time. Replay: {}",

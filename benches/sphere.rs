@@ -132,7 +132,7 @@ fn validate<F: PickPrecision>(b: &Batch<F>) {
             posed += 1;
             let input: Vec<f64> = case.scalars().iter().map(|x| x.to_f64()).collect();
             let exact = shape.oracle(&input, p);
-            let j = judge(&exact, &shape.run(k, &input, p), shape.info().metric, p);
+            let j = judge(&exact, &shape.run(k, &input, p), shape.info(), p);
             if !j.is_wrong() {
                 continue;
             }

@@ -61,7 +61,7 @@ fn validate<F: Real>(b: &Batch<F>, p: Precision) {
                 continue;
             }
             posed += 1;
-            let j = judge(truth, &Torus.run(m, x, p), Torus.info().metric, p);
+            let j = judge(truth, &Torus.run(m, x, p), Torus.info(), p);
             let forbidden = table.forbids("torus", info.name, p, cases::CLASSES[*class], j);
             let beyond = j.ulps().is_some() && forbidden;
             if !j.is_wrong() && !beyond {

@@ -48,7 +48,7 @@ fn validate(shape: &dyn Shape, cases: &[Vec<f64>], prec: Precision) {
             if matches!(t, Truth::Answer(e) if e.ill_posed) {
                 continue;
             }
-            let j = judge(t, &shape.run(m, v, prec), shape.info().metric, prec);
+            let j = judge(t, &shape.run(m, v, prec), shape.info(), prec);
             if j.is_wrong() || (matches!(t, Truth::Invalid) && j.verdict_word() != "invalid") {
                 wrong += 1;
                 assert!(

@@ -179,8 +179,16 @@ fn bad_files_are_refused_with_one_line() {
         "line 2: 'zz' is not a number",
     );
     refused(
-        &score(&cases, &put("empty.txt", "0\n1\n0\n0\n0\n")),
-        "count 1 but no value",
+        &score(&cases, &put("negative.txt", "0\n-1 4\n0\n0\n0\n")),
+        "line 2: '-1' is not a count",
+    );
+    // A hit without its value is an answer, a malformed one (tests/contract.rs): the row fails
+    let o = score(&cases, &put("empty.txt", "0\n1\n0\n0\n0\n"));
+    assert_eq!(
+        o.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
     );
     refused(
         &score(&put("notcases.txt", "hello\n"), &good),

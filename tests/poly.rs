@@ -59,12 +59,7 @@ fn expected(shape: &dyn Shape, input: &[f64], prec: Precision) -> rayproof::audi
 
 fn verdict(shape: &dyn Shape, m: usize, input: &[f64], prec: Precision) -> Judgement {
     let truth = shape.oracle(input, prec);
-    judge(
-        &truth,
-        &shape.run(m, input, prec),
-        shape.info().metric,
-        prec,
-    )
+    judge(&truth, &shape.run(m, input, prec), shape.info(), prec)
 }
 
 // ---- the oracle on exact cases ----

@@ -734,7 +734,7 @@ fn rays_from_inside_and_degenerate_directions_never_panic() {
 fn renderer_calls_agree_with_the_exact_oracles() {
     use rand::SeedableRng;
     use rayproof::audit::Judgement;
-    use rayproof::audit::{judge, Metric, Truth};
+    use rayproof::audit::{judge, Truth};
     use rayproof::numerics::Precision;
     use rayproof::render::geom::{routine_input, sample_rays, solid_hit};
     use rayproof::shapes::shape_by_name;
@@ -763,7 +763,7 @@ fn renderer_calls_agree_with_the_exact_oracles() {
                 ill += 1;
                 return;
             }
-            match judge(&truth, &answer, Metric::Ulps, Precision::F64) {
+            match judge(&truth, &answer, shape.info(), Precision::F64) {
                 Judgement::Ok { ulps } => {
                     ok += 1;
                     if ulps.unwrap_or(0) > max_ulps {

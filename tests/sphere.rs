@@ -211,26 +211,20 @@ fn teeth_a_wrong_answer_is_judged_wrong() {
         c: [0.0; 3],
         r: 1.0,
     };
-    let (f32_, metric) = (Precision::F32, SphereShape.info().metric);
+    let (f32_, info) = (Precision::F32, SphereShape.info());
     let t = SphereShape.oracle(&input(&case), f32_);
     let hit = |t: f32| Answer::hit(vec![t as f64]);
     assert_eq!(
-        judge(&t, &hit(4.0), metric, f32_),
+        judge(&t, &hit(4.0), info, f32_),
         Judgement::Ok { ulps: Some(0) }
     );
     assert_eq!(
-        judge(&t, &hit(4.0f32.next_up()), metric, f32_),
+        judge(&t, &hit(4.0f32.next_up()), info, f32_),
         Judgement::Ok { ulps: Some(1) }
     );
-    assert_eq!(judge(&t, &hit(6.0), metric, f32_), Judgement::WrongRoot);
-    assert_eq!(
-        judge(&t, &Answer::miss(), metric, f32_),
-        Judgement::FalseMiss
-    );
-    assert_eq!(
-        judge(&t, &hit(f32::NAN), metric, f32_),
-        Judgement::NonfiniteT
-    );
+    assert_eq!(judge(&t, &hit(6.0), info, f32_), Judgement::WrongRoot);
+    assert_eq!(judge(&t, &Answer::miss(), info, f32_), Judgement::FalseMiss);
+    assert_eq!(judge(&t, &hit(f32::NAN), info, f32_), Judgement::NonfiniteT);
 }
 
 // ---- oracle on hand-derived cases ----

@@ -342,7 +342,7 @@ fn normal_oracle_on_known_points() {
 fn a_wrong_answer_is_judged_wrong() {
     let x = [-10.0, 0.0, 0.0, 1.0, 0.0, 0.0, 2.0, 1.0];
     let t = Torus.oracle(&x, Precision::F32);
-    let j = |a: Answer| judge(&t, &a, Torus.info().metric, Precision::F32);
+    let j = |a: Answer| judge(&t, &a, Torus.info(), Precision::F32);
     assert_eq!(j(Answer::hit(vec![7.0])), Judgement::Ok { ulps: Some(0) });
     assert_eq!(
         j(Answer::hit(vec![(7.0f32).next_up() as f64])),
@@ -452,7 +452,7 @@ fn special_values_never_panic_and_robust_rejects_invalid() {
                     for (m, info) in METHODS.iter().enumerate() {
                         let a = shape.run(m, &x, p);
                         if info.robust {
-                            let j = judge(&truth, &a, shape.info().metric, p);
+                            let j = judge(&truth, &a, shape.info(), p);
                             assert!(!j.is_wrong(), "{} {i} {s} {p:?}: {j:?}", shape.name());
                             if truth == Truth::Invalid {
                                 assert_eq!(a.count, 0);
@@ -552,7 +552,7 @@ proptest! {
                     if e.ill_posed {
                         continue;
                     }
-                    let j = judge(&truth, &shape.run(3, &x, p), shape.info().metric, p);
+                    let j = judge(&truth, &shape.run(3, &x, p), shape.info(), p);
                     let probe = rayproof::audit::shape::probe_line(shape.name(), p, &x);
                     prop_assert!(!j.is_wrong(), "{:?}: {}", j, probe);
                     if let Judgement::Ok { ulps: Some(u) } = j {

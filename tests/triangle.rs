@@ -211,7 +211,7 @@ fn teeth_judge_catches_a_planted_false_hit() {
     let v = case([1.0, 1.0, 1.0], [0.0, 0.0, -1.0]);
     let truth = Triangle.oracle(&v, Precision::F64);
     let planted = rayproof::audit::shape::Answer::hit(vec![1.0]);
-    assert!(judge(&truth, &planted, Triangle.info().metric, Precision::F64).is_wrong());
+    assert!(judge(&truth, &planted, Triangle.info(), Precision::F64).is_wrong());
 }
 
 // ---- watertightness ----

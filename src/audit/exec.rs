@@ -36,8 +36,8 @@
 //! 388,000 cases/s end to end; the sphere's audit through the same child is bound by its oracle,
 //! 99,000 cases/s.
 
+use super::contract::parse_line;
 use super::shape::{hex_text, probe_line, Answer, Method};
-use crate::numerics::real::parse_f64;
 use crate::numerics::Precision;
 use std::time::Duration;
 
@@ -51,40 +51,6 @@ pub struct Exec {
     pub shape: String,
     /// How long one batch may take.
     pub timeout: Duration,
-}
-
-/// A number of an answer: decimal or hex, `inf`, `-inf`, `nan`.
-fn number(s: &str) -> Option<f64> {
-    match s {
-        "nan" | "NaN" => Some(f64::NAN),
-        _ => parse_f64(s),
-    }
-}
-
-/// Parses one answer line, rounding values once to the precision.
-pub fn parse_answer(line: &str, prec: Precision) -> Result<Answer, String> {
-    let mut w = line.split_whitespace();
-    let first = w.next().ok_or("an empty line")?;
-    let count: u32 = first
-        .parse()
-        .map_err(|_| format!("'{first}' is not a count"))?;
-    let values = w
-        .map(|s| {
-            let v = number(s).ok_or_else(|| format!("'{s}' is not a number"))?;
-            Ok(match prec {
-                Precision::F32 => v as f32 as f64,
-                Precision::F64 => v,
-            })
-        })
-        .collect::<Result<Vec<f64>, String>>()?;
-    if count > 0 && values.is_empty() {
-        return Err(format!("count {count} but no value"));
-    }
-    Ok(Answer {
-        count,
-        values,
-        enclosure: None,
-    })
 }
 
 /// One case as the child reads it.
@@ -136,7 +102,7 @@ impl Method for Exec {
             .zip(inputs)
             .enumerate()
             .map(|(i, (l, x))| {
-                parse_answer(l, prec).map_err(|e| {
+                parse_line(l, prec).map_err(|e| {
                     format!(
                         "{what}: answer {} ('{}'): {e} (case: {})",
                         i + 1,

@@ -1,7 +1,8 @@
 //! How one method's answer compares with the oracle's truth on one case: one rule for every
-//! shape.
+//! shape, after the one check of the answer contract ([`super::contract`]).
 
-use super::shape::{Answer, Metric, Truth};
+use super::contract;
+use super::shape::{Answer, Metric, ShapeInfo, Truth};
 use crate::numerics::{exact, Precision};
 use serde::{Deserialize, Serialize};
 
@@ -28,11 +29,16 @@ pub enum Judgement {
     InvalidNanT,
     /// Invalid input, answered with a finite hit.
     InvalidHit,
+    /// An answer the contract does not allow (a count the shape cannot have, values that do not
+    /// match the count): never right, on any case.
+    Malformed,
+    /// A hit outside the shape's interval (`t ≤ 0` for a ray): a wrong verdict.
+    OutOfRange,
 }
 
 impl Judgement {
     /// The short verdict word used in JSON: ok, false_hit, false_miss, wrong_root, nonfinite_t,
-    /// invalid.
+    /// out_of_range, malformed, invalid.
     pub fn verdict_word(self) -> &'static str {
         match self {
             Judgement::Ok { .. } => "ok",
@@ -40,10 +46,13 @@ impl Judgement {
             Judgement::FalseMiss => "false_miss",
             Judgement::WrongRoot => "wrong_root",
             Judgement::NonfiniteT => "nonfinite_t",
+            Judgement::OutOfRange => "out_of_range",
+            Judgement::Malformed => "malformed",
             Judgement::Rejected | Judgement::InvalidNanT | Judgement::InvalidHit => "invalid",
         }
     }
-    /// A wrong answer on valid input (counted only when the case is well posed).
+    /// A wrong answer on valid input (a wrong verdict when the case is well posed, a
+    /// disagreement when it is ill-posed). A malformed answer is wrong on every case.
     pub fn is_wrong(self) -> bool {
         matches!(
             self,
@@ -51,6 +60,8 @@ impl Judgement {
                 | Judgement::FalseMiss
                 | Judgement::WrongRoot
                 | Judgement::NonfiniteT
+                | Judgement::OutOfRange
+                | Judgement::Malformed
         )
     }
     /// The value error of a right answer.
@@ -62,8 +73,12 @@ impl Judgement {
     }
 }
 
-/// Judges an answer against the truth.
-pub fn judge(truth: &Truth, a: &Answer, metric: Metric, prec: Precision) -> Judgement {
+/// Judges an answer against the truth: first the answer contract (a malformed answer is
+/// malformed on any case), then the verdict, then the value's error by the shape's metric.
+pub fn judge(truth: &Truth, a: &Answer, shape: &ShapeInfo, prec: Precision) -> Judgement {
+    if contract::malformed(shape, a).is_some() {
+        return Judgement::Malformed;
+    }
     // Invalid input: only a rejection is right
     let e = match truth {
         Truth::Invalid => {
@@ -80,6 +95,14 @@ pub fn judge(truth: &Truth, a: &Answer, metric: Metric, prec: Precision) -> Judg
     // The verdict: non-finite values, then the count
     if a.count > 0 && a.values.iter().any(|v| !v.is_finite()) {
         return Judgement::NonfiniteT;
+    }
+    // A hit outside the shape's interval (t ≤ 0), whatever the exact answer
+    let exact_zero = e
+        .values
+        .first()
+        .is_some_and(|&v| v == 0.0 && v.is_sign_positive());
+    if contract::out_of_range(shape, a, exact_zero) {
+        return Judgement::OutOfRange;
     }
     if a.count > e.count {
         return Judgement::FalseHit;
@@ -104,7 +127,7 @@ pub fn judge(truth: &Truth, a: &Answer, metric: Metric, prec: Precision) -> Judg
         return Judgement::WrongRoot;
     }
     Judgement::Ok {
-        ulps: Some(value_error(&e.values, &a.values, metric, prec)),
+        ulps: Some(value_error(&e.values, &a.values, shape.metric, prec)),
     }
 }
 

@@ -34,10 +34,10 @@
 //! cases file whose case is not the one this rayproof generates, a missing or extra answer, or a
 //! malformed number gives one line naming the file and line, and exit 2.
 
+use super::contract::{number, parse_line};
 use super::plan::{Options, Plan};
 use super::run::generate;
 use super::shape::{hex_text, Answer, PerCase, Shape};
-use crate::numerics::real::parse_f64;
 use crate::numerics::Precision;
 use std::collections::HashMap;
 
@@ -89,14 +89,6 @@ fn content(text: &str) -> impl Iterator<Item = (usize, &str)> {
         .enumerate()
         .map(|(i, l)| (i + 1, l.trim()))
         .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'))
-}
-
-/// A number as an audit reads it: decimal or hex, `inf`, `-inf`, `nan`.
-fn number(s: &str) -> Option<f64> {
-    match s {
-        "nan" | "NaN" => Some(f64::NAN),
-        _ => parse_f64(s),
-    }
 }
 
 /// Reads a cases file; the error is one line naming the file's line.
@@ -180,29 +172,9 @@ pub fn read_answers(text: &str, file: &str, cases: &CasesFile) -> Result<Vec<Ans
                 cases.lines.len()
             )));
         };
-        let w: Vec<&str> = l.split_whitespace().collect();
-        let count: u32 = w[0]
-            .parse()
-            .map_err(|_| at(format!("'{}' is not a count", w[0])))?;
-        // One rounding to the case's precision
-        let values = w[1..]
-            .iter()
-            .map(|s| {
-                let v = number(s).ok_or_else(|| at(format!("'{s}' is not a number")))?;
-                Ok(match prec {
-                    Precision::F32 => v as f32 as f64,
-                    Precision::F64 => v,
-                })
-            })
-            .collect::<Result<Vec<f64>, String>>()?;
-        if count > 0 && values.is_empty() {
-            return Err(at(format!("count {count} but no value")));
-        }
-        out.push(Answer {
-            count,
-            values,
-            enclosure: None,
-        });
+        // The one parser of the text protocol (values rounded once to the case's precision);
+        // the contract is the judge's
+        out.push(parse_line(l, prec).map_err(at)?);
     }
     if out.len() < cases.lines.len() {
         return Err(format!(

@@ -12,8 +12,10 @@
 //! The routine answers the `n` cases: `count[i]` is 0 for a miss (no real root, total internal
 //! reflection) and otherwise the number of values it wrote to `out[i]` (1 for a hit's `t`, the
 //! number of distinct real roots, 3 for a vector); it returns 0, or anything else to report a
-//! failure. rayproof fills `count` with a sentinel before the call, so a count left unwritten or
-//! above `OUT` (a wrong signature) is an error, not an answer.
+//! failure. rayproof fills `count` with a sentinel before the call, so a count left unwritten (a
+//! wrong signature) is an error, not an answer. What the routine wrote is judged by the answer
+//! contract ([`super::contract`]) as an `--exec` answer line would be: a count the shape cannot
+//! have (2 for the sphere, 3 for the quadratic) is a malformed answer, counted in its row.
 //!
 //! A routine that crashes the process (a segmentation fault) is caught by a signal handler
 //! installed around the call: one line naming the library and symbol, exit 4, no report.
@@ -307,7 +309,9 @@ impl Method for Plugin {
                 "plugin {spec} returned {status} (a failure) for a batch of {n} cases"
             ));
         }
-        // Every count written and within the outputs
+        // Every count written (else the protocol is broken: a wrong signature). The answer is
+        // what the routine wrote: a count the shape cannot have is the contract's to judge
+        // (malformed), as it is for every other way in
         let answers = count
             .iter()
             .enumerate()
@@ -317,17 +321,13 @@ impl Method for Plugin {
                         "plugin {spec} left count[{i}] unwritten (a wrong signature? see `rayproof header`)"
                     ));
                 }
+                // The values it wrote: the first `count` (at most OUT) for the polynomials, all
+                // OUT for a hit of any other shape
                 let k = match (c, self.counted) {
                     (0, _) => 0,
-                    (c, true) => c as usize,
+                    (c, true) => (c as usize).min(self.outputs),
                     _ => self.outputs,
                 };
-                if k > self.outputs || (!self.counted && c > 1) {
-                    return Err(format!(
-                        "plugin {spec}: count[{i}] = {c}, but a case has at most {} values (a wrong signature? see `rayproof header`)",
-                        self.outputs
-                    ));
-                }
                 Ok(Answer {
                     count: c,
                     values: values[i * self.outputs..i * self.outputs + k].to_vec(),
@@ -356,7 +356,15 @@ pub fn header(shapes: &[&'static dyn super::shape::Shape]) -> String {
         " * count[i] = 0 for a miss (no real root, total internal reflection) and 1 for a hit with",
         " * every out[i] value written (t, or a vector's components); the polynomial shapes write",
         " * their number of distinct real roots, ascending in out[i][0 .. count[i]]. It returns 0",
-        " * (anything else reports a failure). Build with -shared -fPIC. */",
+        " * (anything else reports a failure). Build with -shared -fPIC.",
+        " *",
+        " * The answer contract (the same for --plugin, --exec answer lines, score files and the Rust",
+        " * API; each shape's own is stated beside its signature): a count the shape cannot have is",
+        " * a malformed answer, counted in its row and failing it whatever its tolerance rule; a hit's",
+        " * values are finite (NaN or Inf is a non-finite, wrong value); a ray's t lies in t > 0 (a",
+        " * hit at t < 0, -0 or +0 is out of range, a wrong verdict, unless the exact t itself rounds",
+        " * to +0); invalid input (NaN or Inf inputs, a degenerate shape) is answered with count 0.",
+        " * Directions need not be normalised. A count left unwritten stops the audit (exit 4). */",
         "#ifndef RAYPROOF_H",
         "#define RAYPROOF_H",
         "#include <stddef.h>",
@@ -368,11 +376,12 @@ pub fn header(shapes: &[&'static dyn super::shape::Shape]) -> String {
         let info = s.info();
         let (i, o) = (info.args.len(), info.values.len());
         out += &format!(
-            "\n/* {}: {}\n * in:  {}\n * out: {} */\n",
+            "\n/* {}: {}\n * in:  {}\n * out: {}\n * contract: {} */\n",
             info.name,
             info.about,
             info.args.join(" "),
-            info.values.join(" ")
+            info.values.join(" "),
+            super::contract::describe(info)
         );
         for (t, p) in [("float", "f32"), ("double", "f64")] {
             out += &format!(

@@ -21,9 +21,10 @@
 //! `rayproof probe … --plugin PATH:SYMBOL:f32 --name N -- …` (see [`super::exec`],
 //! [`super::plugin`]).
 
+use super::contract;
 use super::judge::Judgement;
 use super::run::judge_all;
-use super::shape::{hex_text, Method, Shape, Truth};
+use super::shape::{hex_text, Answer, Method, Shape, Truth};
 use crate::numerics::Precision;
 use serde_json::{json, Value};
 
@@ -90,13 +91,19 @@ pub fn probe_json(
             json!({
                 "method": m.name(),
                 "robust": m.robust(),
+                "count": s.count,
                 "values": hex(&s.values),
                 "judgement": s.judgement.verdict_word(),
                 "finding": match s.judgement {
-                    Judgement::Rejected => Some("rejected"),
-                    Judgement::InvalidNanT => Some("nan_value"),
-                    Judgement::InvalidHit => Some("hit_on_invalid"),
-                    Judgement::NonfiniteT => Some("nonfinite_value"),
+                    Judgement::Rejected => Some("rejected".to_string()),
+                    Judgement::InvalidNanT => Some("nan_value".to_string()),
+                    Judgement::InvalidHit => Some("hit_on_invalid".to_string()),
+                    Judgement::NonfiniteT => Some("nonfinite_value".to_string()),
+                    Judgement::OutOfRange => Some(contract::interval(info).to_string()),
+                    Judgement::Malformed => contract::malformed(
+                        info,
+                        &Answer { count: s.count, values: s.values.clone(), enclosure: None },
+                    ),
                     _ => None,
                 },
                 "ulps": s.judgement.ulps(),
@@ -194,6 +201,11 @@ pub fn probe_text(
         }
         if let Some(x) = r["residual_ulps"].as_f64() {
             extra += &format!("  residual {x:.3} ulps");
+        }
+        if let (Some(f), "out_of_range" | "malformed") =
+            (r["finding"].as_str(), r["judgement"].as_str().unwrap_or(""))
+        {
+            extra += &format!("  (count {}: {f})", r["count"]);
         }
         if let Some(h) = r["enclosure_holds"].as_bool() {
             extra += if h {

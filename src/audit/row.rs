@@ -101,6 +101,14 @@ pub struct Row {
     pub wrong_root: u64,
     /// Well-posed cases answered with a NaN or infinite value.
     pub nonfinite_t: u64,
+    /// Well-posed cases answered with a hit outside the shape's interval (`t ≤ 0`).
+    pub out_of_range: u64,
+    /// Ill-posed cases answered with a hit outside the shape's interval: never excused, the row
+    /// fails.
+    pub ill_posed_out_of_range: u64,
+    /// Cases of any kind answered outside the answer contract (a count the shape cannot have,
+    /// values that do not match the count): the row fails whatever its rule.
+    pub malformed: u64,
     /// Wrong verdicts / well-posed valid cases.
     pub wrong_rate: f64,
     /// Ill-posed cases on which the method's verdict differs from the exact one (not failures).
@@ -130,9 +138,10 @@ pub struct Row {
 }
 
 impl Row {
-    /// Wrong verdicts on well-posed cases: false hits, false misses, wrong roots, non-finite values.
+    /// Wrong verdicts on well-posed cases: false hits, false misses, wrong roots, non-finite
+    /// values, hits out of range.
     pub fn wrong(&self) -> u64 {
-        self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t
+        self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t + self.out_of_range
     }
 }
 
@@ -185,6 +194,9 @@ impl Tally {
             false_miss: self.false_miss,
             wrong_root: self.wrong_root,
             nonfinite_t: self.nonfinite_t,
+            out_of_range: self.out_of_range,
+            ill_posed_out_of_range: self.ill_posed_out_of_range,
+            malformed: self.malformed,
             wrong_rate: self.wrong() as f64 / self.well_posed.max(1) as f64,
             ill_posed_disagree: self.ill_posed_disagree,
             ulps: self.ulps.stats(),

@@ -130,7 +130,7 @@ fn sample(
     answer: Answer,
     prec: Precision,
 ) -> Sample {
-    let judgement = judge(truth, &answer, shape.info().metric, prec);
+    let judgement = judge(truth, &answer, shape.info(), prec);
     let right_hit = judgement.ulps().is_some();
     let residual = right_hit
         .then(|| shape.residual(input, prec, &answer))
@@ -139,8 +139,10 @@ fn sample(
         .enclosure
         .filter(|_| right_hit)
         .map(|e| (enclosure_holds(truth, e), exact::ulps(e[0], e[1], prec)));
+    let count = answer.count;
     Sample {
         judgement,
+        count,
         values: answer.values,
         residual,
         enclosure,

@@ -9,6 +9,7 @@
 //! **values** (`t`, the roots in ascending order, vector components), each correctly rounded by
 //! the oracle.
 
+pub use super::contract::Domain;
 use crate::numerics::Precision;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -129,6 +130,8 @@ pub struct ShapeInfo {
     /// The count is the number of values (the polynomials' distinct real roots); otherwise a
     /// non-zero count comes with all the values (`t`, or a vector's components).
     pub count_is_values: bool,
+    /// Where a hit's first value must lie (the answer contract's interval, [`super::contract`]).
+    pub domain: Domain,
 }
 
 impl ShapeInfo {
@@ -146,6 +149,7 @@ impl ShapeInfo {
         reports_cond: false,
         reports_residual: false,
         count_is_values: false,
+        domain: Domain::Real,
     };
 }
 

@@ -39,10 +39,19 @@ fn word(r: &Row) -> &'static str {
 }
 
 fn wrong(r: &Row) -> String {
-    format!(
+    let mut s = format!(
         "{}/{}/{}/{}",
         r.false_hit, r.false_miss, r.wrong_root, r.nonfinite_t
-    )
+    );
+    // Outside the contract: shown only where it happened, so the usual columns stay narrow
+    let range = r.out_of_range + r.ill_posed_out_of_range;
+    if range > 0 {
+        s += &format!(" +{range} t≤0");
+    }
+    if r.malformed > 0 {
+        s += &format!(" +{} malformed", r.malformed);
+    }
+    s
 }
 
 fn invalid(r: &Row) -> String {
@@ -61,7 +70,7 @@ pub fn legend(report_seed: u64, shard: &str) -> String {
     format!(
         "rayproof audit — seed {report_seed} (shard {shard})\n\
          well = well-posed cases; ill = ill-posed (a 1-ulp input change flips the exact verdict), reported apart\n\
-         wrong = false hit / false miss / wrong root / non-finite value on well-posed cases; rate = wrong / well\n\
+         wrong = false hit / false miss / wrong root / non-finite value on well-posed cases (+N t≤0: hits outside t > 0; +N malformed: answers outside the contract, see `rayproof header`); rate = wrong / well\n\
          ulps = error against the correctly rounded value (norm_ulps: in ulps of the largest component); bits = log2(1+ulps)\n\
          err/cond = max of ulps / (ulps the value moves when every input moves 1 ulp): ≈1 is as good as the inputs allow\n\
          resid = hit point's distance from the surface in ulps of its size; invalid = invalid inputs rejected / NaN / hit\n\

@@ -15,6 +15,8 @@ use serde::{Deserialize, Serialize};
 pub struct Sample {
     /// How the answer compares with the oracle.
     pub judgement: Judgement,
+    /// The method's count.
+    pub count: u32,
     /// The method's values, exactly.
     pub values: Vec<f64>,
     /// The hit point's residual, for shapes that report one (right-verdict hits only).
@@ -79,12 +81,14 @@ pub struct Candidate {
 }
 
 /// The kinds of example, in the order a row lists them (worst first, residual last).
-pub const KINDS: [&str; 9] = [
+pub const KINDS: [&str; 11] = [
     "worst_ulps",
+    "malformed",
     "false_hit",
     "false_miss",
     "wrong_root",
     "nonfinite_t",
+    "out_of_range",
     "enclosure_violation",
     "invalid_nan_t",
     "invalid_hit",
@@ -119,6 +123,17 @@ pub struct Tally {
     pub wrong_root: u64,
     /// Well-posed cases answered with a NaN or infinite value.
     pub nonfinite_t: u64,
+    /// Well-posed cases answered with a hit outside the shape's interval (`t ≤ 0`).
+    #[serde(default)]
+    pub out_of_range: u64,
+    /// Ill-posed cases answered with a hit outside the shape's interval (never excused: no
+    /// one-ulp move makes `t ≤ 0` right).
+    #[serde(default)]
+    pub ill_posed_out_of_range: u64,
+    /// Cases of any kind (valid or invalid, well- or ill-posed) answered outside the answer
+    /// contract ([`super::contract`]): a row with one fails whatever its rule.
+    #[serde(default)]
+    pub malformed: u64,
     /// Ill-posed cases on which the method's verdict differs from the exact one.
     pub ill_posed_disagree: u64,
     /// What the method did on invalid inputs.
@@ -142,7 +157,7 @@ pub struct Tally {
 impl Tally {
     /// Wrong verdicts on well-posed valid cases.
     pub fn wrong(&self) -> u64 {
-        self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t
+        self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t + self.out_of_range
     }
 
     /// Keeps `c` as the example of `kind` if it beats the one kept.
@@ -183,12 +198,18 @@ impl Tally {
                 key,
             }
         };
+        // Outside the contract: counted on every case, never excused
+        if s.judgement == Judgement::Malformed {
+            self.malformed += 1;
+            self.offer("malformed", candidate(None, 0), 0, case.index);
+        }
         let e = match truth {
             // Invalid input: a rejection is right
             Truth::Invalid => {
                 self.invalid.cases += 1;
                 match s.judgement {
                     Judgement::Rejected => self.invalid.rejected += 1,
+                    Judgement::Malformed => {}
                     Judgement::InvalidNanT => {
                         self.invalid.nonfinite_t += 1;
                         self.offer("invalid_nan_t", candidate(None, 0), 0, case.index);
@@ -207,6 +228,10 @@ impl Tally {
         if e.ill_posed {
             self.ill_posed += 1;
             self.ill_posed_disagree += s.judgement.is_wrong() as u64;
+            if s.judgement == Judgement::OutOfRange {
+                self.ill_posed_out_of_range += 1;
+                self.offer("out_of_range", candidate(None, 0), 0, case.index);
+            }
             return;
         }
         self.well_posed += 1;
@@ -216,6 +241,7 @@ impl Tally {
             Judgement::FalseMiss => ("false_miss", &mut self.false_miss),
             Judgement::WrongRoot => ("wrong_root", &mut self.wrong_root),
             Judgement::NonfiniteT => ("nonfinite_t", &mut self.nonfinite_t),
+            Judgement::OutOfRange => ("out_of_range", &mut self.out_of_range),
             Judgement::Ok { ulps: Some(u) } => {
                 self.add_right(case, k, u, e.cond, candidate);
                 return;
@@ -270,6 +296,9 @@ impl Tally {
         self.false_miss += o.false_miss;
         self.wrong_root += o.wrong_root;
         self.nonfinite_t += o.nonfinite_t;
+        self.out_of_range += o.out_of_range;
+        self.ill_posed_out_of_range += o.ill_posed_out_of_range;
+        self.malformed += o.malformed;
         self.ill_posed_disagree += o.ill_posed_disagree;
         self.invalid.merge(&o.invalid);
         self.ulps.merge(&o.ulps);

@@ -528,7 +528,7 @@ fn pct(x: f64) -> String {
 }
 
 /// What every row must show, whatever its rule: the generator, the oracle and the enclosures
-/// kept their promises.
+/// kept their promises, and every answer kept the answer contract.
 fn promises(row: &Row) -> Vec<String> {
     let mut fail = vec![];
     if row.generator_failures > 0 {
@@ -541,6 +541,12 @@ fn promises(row: &Row) -> Vec<String> {
         fail.push(format!(
             "the oracle reached its precision cap on {} case(s)",
             row.cap_reached
+        ));
+    }
+    if row.malformed > 0 {
+        fail.push(format!(
+            "{} answer(s) outside the answer contract (malformed: see `rayproof header`)",
+            row.malformed
         ));
     }
     if let Some(e) = row.enclosure.as_ref().filter(|e| e.violations > 0) {
@@ -688,6 +694,20 @@ fn verdict(
             notes.push(note);
         }
         fail.extend(bounds(rule, row));
+        // Hits at t ≤ 0 on ill-posed cases: no one-ulp move makes them right, so they are not
+        // excused as disagreements are; only a known failure's rule accepts them
+        let n = row.ill_posed_out_of_range;
+        if n > 0 {
+            if matches!(rule.wrong, Some(Wrong::Known { .. })) {
+                notes.push(format!(
+                    "known failure shown: {n} hit(s) outside the shape's interval (t ≤ 0) on ill-posed cases"
+                ));
+            } else if checked {
+                fail.push(format!(
+                    "{n} hit(s) outside the shape's interval (t ≤ 0) on ill-posed cases (no one-ulp move makes them right)"
+                ));
+            }
+        }
     }
     if !fail.is_empty() {
         status = Status::Fail;

@@ -17,7 +17,7 @@
 //! answer between the entry and the exit.
 
 use super::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
-use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Domain, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
@@ -359,6 +359,7 @@ const BOX: ShapeInfo = ShapeInfo {
     ],
     classes: CLASSES,
     methods: METHODS,
+    domain: Domain::RayParameter,
     ..ShapeInfo::DEFAULTS
 };
 

@@ -24,7 +24,7 @@
 //! surface, or the near root crossing a cap plane), as in the sphere's oracle.
 
 use super::sample::{self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
-use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Domain, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact;
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
@@ -807,6 +807,7 @@ pub static ELLIPSOID: QuadricShape = QuadricShape {
         args: &["ox", "oy", "oz", "dx", "dy", "dz", "r", "m", "n"],
         classes: ELLIPSOID_CLASSES,
         methods: ELLIPSOID_METHODS,
+        domain: Domain::RayParameter,
         ..ShapeInfo::DEFAULTS
     },
 };
@@ -877,6 +878,7 @@ const ELLIPSOID_NORMAL: ShapeInfo = ShapeInfo {
     values: &["nx", "ny", "nz"],
     methods: NORMAL_METHODS,
     metric: Metric::NormUlps,
+    domain: Domain::Real,
     ..ELLIPSOID.info
 };
 

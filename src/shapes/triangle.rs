@@ -20,7 +20,7 @@
 
 use super::offset::gamma;
 use crate::audit::run::generate as gen_case;
-use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Domain, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{self, decompose, nudge, round_q};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
@@ -803,6 +803,7 @@ const TRIANGLE: ShapeInfo = ShapeInfo {
     args: &ARGS,
     classes: &CLASSES,
     methods: &METHODS,
+    domain: Domain::RayParameter,
     ..ShapeInfo::DEFAULTS
 };
 

@@ -141,7 +141,7 @@ pub mod certified;
 pub mod methods;
 pub mod oracle;
 
-use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Domain, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
 use cases::Class;
@@ -190,6 +190,7 @@ const INFO: ShapeInfo = ShapeInfo {
     methods: &METHOD_INFO,
     reports_cond: true,
     reports_residual: true,
+    domain: Domain::RayParameter,
     ..ShapeInfo::DEFAULTS
 };
 

@@ -13,7 +13,7 @@ pub mod oracle;
 
 pub use methods::{torus_normal, torus_robust, torus_robust_hit, ERR_GAMMA};
 
-use crate::audit::shape::{Answer, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::audit::shape::{Answer, Domain, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
 use rand_chacha::ChaCha8Rng;
@@ -107,6 +107,7 @@ const TORUS: ShapeInfo = ShapeInfo {
     // The exact quartic oracle (Sturm isolation and one-ulp ill-posedness over 8 inputs) costs
     // milliseconds per case.
     default_cases: 500,
+    domain: Domain::RayParameter,
     ..ShapeInfo::DEFAULTS
 };
 
@@ -130,6 +131,7 @@ const TORUS_NORMAL: ShapeInfo = ShapeInfo {
     about: "§3 unit normal (normalised gradient) at the ray–torus hit",
     values: &["nx", "ny", "nz"],
     metric: Metric::NormUlps,
+    domain: Domain::Real,
     ..TORUS
 };
 
