@@ -207,18 +207,101 @@ fn merge_of_three_shards_in_any_order_is_the_unsharded_audit() {
         let sel = selection(1, 90);
         let full = unsharded(&sel, &dir, &extra);
         assert_eq!(full.code, Some(want_code), "{extra:?}");
+        // The shards are run with the table (they carry it to the merge)
+        let shard_sel: Vec<String> = sel
+            .iter()
+            .cloned()
+            .chain(extra.iter().map(|e| e.to_string()))
+            .collect();
         let shards: Vec<PathBuf> = (0..3).map(|k| dir.join(format!("s{k}.json"))).collect();
         for (k, p) in shards.iter().enumerate() {
-            write_shard(&sel, k as u64, 3, p);
+            write_shard(&shard_sel, k as u64, 3, p);
         }
         let merge = merged(&[&shards[2], &shards[0], &shards[1]], &dir, &extra);
         assert_same(&full, &merge, ROWS);
-        // and in order
-        let merge = merged(&[&shards[0], &shards[1], &shards[2]], &dir, &extra);
+        // and in order, and without --tolerances on the merge: the shards' table judges
+        let merge = merged(&[&shards[0], &shards[1], &shards[2]], &dir, &[]);
         assert_same(&full, &merge, ROWS);
         let md = String::from_utf8_lossy(&merge.markdown);
         assert!(md.contains("| f32 | far_small | algebraic |"), "{md}");
     }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn shards_carry_their_tolerance_table() {
+    // The reproducer: shards run with --tolerances of a failing audit, merged without
+    // it, exited 0 "pass" where the unsharded audit exits 1
+    let dir = scratch("carry");
+    let strict = strict_table(&dir);
+    let sel = selection(1, 40);
+    let with: Vec<String> = sel
+        .iter()
+        .cloned()
+        .chain(["--tolerances".to_string(), s(&strict)])
+        .collect();
+    let full = unsharded(&with, &dir, &[]);
+    assert_eq!(full.code, Some(1));
+    let p = |name: &str| dir.join(name);
+    for k in 0..2 {
+        write_shard(&with, k, 2, &p(&format!("t{k}.json")));
+    }
+    let (t0, t1) = (p("t0.json"), p("t1.json"));
+    let merge = merged(&[&t0, &t1], &dir, &[]);
+    assert_eq!(merge.code, Some(1), "{}", merge.table);
+    assert_same(&full, &merge, ROWS);
+    // Shards run with two different tables, or one with and one without, are not one audit
+    let other = dir.join("other.toml");
+    std::fs::write(
+        &other,
+        std::fs::read_to_string(&strict)
+            .unwrap()
+            .replace("a test", "another test"),
+    )
+    .unwrap();
+    let mut with_other = sel.clone();
+    with_other.extend(["--tolerances".to_string(), s(&other)]);
+    write_shard(&with_other, 1, 2, &p("o1.json"));
+    assert_refused(&dir, &[&t0, &p("o1.json")], 3, "tolerance table");
+    write_shard(&sel, 1, 2, &p("n1.json"));
+    assert_refused(&dir, &[&t0, &p("n1.json")], 3, "tolerance table");
+    // A merge given another table than the shards carry is refused; the same one is accepted
+    for (shards, table) in [
+        ([&t0, &t1], &other),
+        ([&p("n0.json"), &p("n1.json")], &strict),
+    ] {
+        write_shard(&sel, 0, 2, &p("n0.json"));
+        let out = dir.join("refused.json");
+        let o = run(&[
+            "merge".into(),
+            s(shards[0]),
+            s(shards[1]),
+            "--tolerances".into(),
+            s(table),
+            "--json".into(),
+            s(&out),
+        ]);
+        assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+        assert_eq!(stderr(&o).trim_end().lines().count(), 1, "{}", stderr(&o));
+        assert!(stderr(&o).contains("is not the table the shards were run with"));
+        assert!(!out.exists());
+    }
+    let merge = merged(
+        &[&t1, &t0],
+        &dir,
+        &["--tolerances", strict.to_str().unwrap()],
+    );
+    assert_same(&full, &merge, ROWS);
+    // A carried table whose text no longer matches its hash is a corrupt shard
+    let mut v: Value = serde_json::from_slice(&std::fs::read(&t1).unwrap()).unwrap();
+    v["tolerances"]["text"] = "".into();
+    std::fs::write(p("bad.json"), serde_json::to_vec(&v).unwrap()).unwrap();
+    assert_refused(
+        &dir,
+        &[&t0, &p("bad.json")],
+        2,
+        "does not match its SHA-256",
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -292,7 +375,7 @@ fn shard_files_hold_no_decimal_floats() {
     write_shard(&selection(1, 40), 1, 2, &shard);
     let v: Value = serde_json::from_slice(&std::fs::read(&shard).unwrap()).unwrap();
     assert_eq!(v["format"], "rayproof-audit-shard");
-    assert_eq!(v["format_version"], 2);
+    assert_eq!(v["format_version"], 3);
     assert_eq!(v["shard"]["k"], 1);
     assert_eq!(v["shard"]["n"], 2);
     // Every number is an integer; floats are hex text, so they round-trip exactly

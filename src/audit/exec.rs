@@ -37,7 +37,7 @@
 //! 99,000 cases/s.
 
 use super::contract::parse_line;
-use super::shape::{hex_text, probe_line, Answer, Method};
+use super::shape::{hex_text, probe_line_with, Answer, Method};
 use crate::numerics::Precision;
 use std::time::Duration;
 
@@ -94,7 +94,7 @@ impl Method for Exec {
                 "{what} answered {} lines to {} cases (the first unanswered: {})",
                 lines.len(),
                 inputs.len(),
-                probe_line(&self.shape, prec, at)
+                probe_line_with(&self.shape, prec, self.replay().as_deref(), at)
             ));
         }
         lines
@@ -107,7 +107,7 @@ impl Method for Exec {
                         "{what}: answer {} ('{}'): {e} (case: {})",
                         i + 1,
                         l.trim(),
-                        probe_line(&self.shape, prec, x)
+                        probe_line_with(&self.shape, prec, self.replay().as_deref(), x)
                     )
                 })
             })

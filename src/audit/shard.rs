@@ -21,6 +21,11 @@
 //! ```
 //!
 //! A shard run exits 0 and leaves the tolerance table to the merge, which judges the whole run.
+//! **A shard carries its judgement**: the user's rules it was run with (`--tolerances FILE`: the
+//! file's name, text and SHA-256) are in the file, and the merge judges with exactly them,
+//! given `--tolerances` again or not, so a merged audit exits as the unsharded one does. Shards
+//! run with different tables (or some with and some without) are not one audit (exit 3), and so
+//! is a merge given a `--tolerances` file that is not the one the shards carry.
 //! The merge takes the files in any order, and runs the reintersection and watertightness tests
 //! itself for the shapes whose built-in methods and classes the audit covers (they are not
 //! sharded; about 12 s for every shape). It refuses, with one line on stderr, a set that is not
@@ -33,8 +38,8 @@
 //! # The shard file
 //!
 //! A shard file (format [`SHARD_FORMAT`], version [`SHARD_FORMAT_VERSION`]) is one line of JSON
-//! with `"format": "rayproof-audit-shard"`, `"format_version": 2`, `tool`,
-//! `seed`, `every_shape`, `"shard": {"k", "n"}` and `shapes`: per shape its selection
+//! with `"format": "rayproof-audit-shard"`, `"format_version": 3`, `tool`,
+//! `seed`, `every_shape`, `"shard": {"k", "n"}`, `tolerances` and `shapes`: per shape its selection
 //! (`cases_per_class`, `methods` with their `robust` flag, `precisions`, `classes`) and `groups`,
 //! one per precision × class in selection order, each with one tally per method (counts, the value
 //! errors as a `{value: count}` histogram, err/cond and residuals as histograms of values rounded
@@ -58,7 +63,44 @@ use serde::{Deserialize, Serialize};
 /// The tag in the `format` field of a shard file.
 pub const SHARD_FORMAT: &str = "rayproof-audit-shard";
 /// The version in the `format_version` field; a reader refuses any other.
-pub const SHARD_FORMAT_VERSION: u32 = 2;
+pub const SHARD_FORMAT_VERSION: u32 = 3;
+
+/// The user's tolerance rules a shard was run with (`--tolerances FILE`), carried whole so that
+/// the merge judges with exactly them: the file's name as given (rule origins name it), its
+/// text and the SHA-256 of the text.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UserTable {
+    /// The file as the shard's command line named it.
+    pub file: String,
+    /// The SHA-256 of `text`, hex.
+    pub sha256: String,
+    /// The rules, as read.
+    pub text: String,
+}
+
+impl UserTable {
+    /// The table of a file named `file` with this text.
+    pub fn new(file: &str, text: &str) -> UserTable {
+        use sha2::{Digest, Sha256};
+        let sha256 = Sha256::digest(text.as_bytes())
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        UserTable {
+            file: file.to_string(),
+            sha256,
+            text: text.to_string(),
+        }
+    }
+    /// One line naming it: the file and the start of its hash.
+    pub fn label(t: &Option<UserTable>) -> String {
+        match t {
+            Some(t) => format!("--tolerances {} (sha256 {})", t.file, &t.sha256[..12]),
+            None => "the built-in table alone (no --tolerances)".into(),
+        }
+    }
+}
 
 /// One precision × class of a shard: a tally per method.
 #[derive(Debug, Serialize, Deserialize)]
@@ -107,6 +149,8 @@ pub struct Shard {
     /// The audit covers every shape (the merge then adds the reintersection tests).
     pub every_shape: bool,
     shard: ShardId,
+    /// The user's tolerance rules the shard was run with (`None`: the built-in table alone).
+    pub tolerances: Option<UserTable>,
     /// One entry per shape, in audit order.
     pub shapes: Vec<ShapeShard>,
 }
@@ -125,6 +169,7 @@ impl Shard {
         seed: u64,
         every_shape: bool,
         (k, n): (u64, u64),
+        tolerances: Option<UserTable>,
         parts: &[Tallies],
     ) -> Shard {
         let shapes = parts
@@ -167,6 +212,7 @@ impl Shard {
             seed,
             every_shape,
             shard: ShardId { k, n },
+            tolerances,
             shapes,
         }
     }
@@ -224,6 +270,14 @@ impl Shard {
         }
         if file.shapes.is_empty() {
             return corrupt("no shape".into());
+        }
+        if let Some(t) = &file.tolerances {
+            if UserTable::new(&t.file, &t.text).sha256 != t.sha256 {
+                return corrupt(format!(
+                    "its tolerance table ({}) does not match its SHA-256",
+                    t.file
+                ));
+            }
         }
         for s in &file.shapes {
             let Some(shape) = shape_by_name(&s.shape) else {
@@ -332,6 +386,7 @@ fn check_one_audit(tool: &str, shards: &[(String, Shard)]) -> Result<(), Incompa
             ),
             ("classes", sel(&|x| x.classes.join(","))),
             ("shard count N", s.shard.n.to_string()),
+            ("tolerance table", UserTable::label(&s.tolerances)),
         ]
     };
     let want = key(first);
@@ -383,6 +438,7 @@ pub fn merge(
     check_one_audit(tool, &shards)?;
     // Merge the tallies group by group
     let (seed, every_shape) = (shards[0].1.seed, shards[0].1.every_shape);
+    let tolerances = shards[0].1.tolerances.clone();
     let mut parts = shards.into_iter().map(|(_, s)| s.shapes);
     let mut shapes: Vec<Tallies> = vec![];
     for s in parts.next().expect("one shard") {
@@ -422,6 +478,7 @@ pub fn merge(
     Ok(Merged {
         seed,
         every_shape,
+        tolerances,
         shapes,
     })
 }
@@ -432,6 +489,8 @@ pub struct Merged {
     pub seed: u64,
     /// The audit covers every shape (the reintersection and watertightness tests are added).
     pub every_shape: bool,
+    /// The user's tolerance rules every shard was run with: the merge judges with them.
+    pub tolerances: Option<UserTable>,
     /// Each shape's merged tallies.
     pub shapes: Vec<Tallies>,
 }

@@ -5,7 +5,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use rayproof::audit::plan::{Options, Plan};
 use rayproof::audit::run::Tallies;
-use rayproof::audit::shard::{self, Shard};
+use rayproof::audit::shard::{self, Shard, UserTable};
 use rayproof::audit::tolerance::{Known, Status, Table};
 use rayproof::audit::{table, Report, ShapeReport, TOOL};
 use rayproof::numerics::Precision;
@@ -184,17 +184,26 @@ pub struct MergeArgs {
     pub out: AuditOutput,
 }
 
+/// The user's tolerance file, read (its name as given, its text and hash).
+fn read_user_table(user: &Option<PathBuf>) -> Result<Option<UserTable>> {
+    user.as_ref()
+        .map(|p| {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            Ok(UserTable::new(&p.display().to_string(), &text))
+        })
+        .transpose()
+}
+
+/// The tolerance table, with the user's rules first; one line on any error.
+fn table_of(user: &Option<UserTable>, known: &Known) -> Result<Table> {
+    let file = user.as_ref().map(|t| (t.file.as_str(), t.text.as_str()));
+    Table::load(file, known).map_err(|e| anyhow!("tolerances: {e}"))
+}
+
 /// The tolerance table, with the user's rules first; one line on any error.
 pub(super) fn load_table(user: &Option<PathBuf>, known: &Known) -> Result<Table> {
-    let text = match user {
-        Some(p) => Some(
-            std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
-        ),
-        None => None,
-    };
-    let name = user.as_ref().map(|p| p.display().to_string());
-    let file = name.as_deref().zip(text.as_deref());
-    Table::load(file, known).map_err(|e| anyhow!("tolerances: {e}"))
+    table_of(&read_user_table(user)?, known)
 }
 
 /// Prints a shape's summary, or with `--verbose` its table and worst cases.
@@ -236,7 +245,8 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         !a.method.is_empty(),
         !a.precision.is_empty(),
     )?;
-    let table = load_table(&a.out.tolerances, &plan.known())?;
+    let user_table = read_user_table(&a.out.tolerances)?;
+    let table = table_of(&user_table, &plan.known())?;
     check_output_dirs(&[&a.out.json, &a.out.markdown, &a.shard_out])?;
     let shard_label = format!("{}/{}", a.shard.0, a.shard.1);
     // A shard is judged by its merge, not here
@@ -277,7 +287,8 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
             robustness: None,
         };
         write_files(&report, &a.out.json, &a.out.markdown)?;
-        let file = Shard::new(TOOL, a.seed, plan.every_shape, a.shard, &runs);
+        // The shard carries the rules it was run with: its merge judges with them
+        let file = Shard::new(TOOL, a.seed, plan.every_shape, a.shard, user_table, &runs);
         write_atomic(p, file.to_json().as_bytes())?;
         say!(
             "shard {}/{} written to {}; the tolerance table is checked by `rayproof merge`",
@@ -338,8 +349,20 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
         .iter()
         .flat_map(|t| t.methods.iter().map(|x| (t.shape.name(), x.name.clone())))
         .collect();
-    let table = load_table(
-        &m.out.tolerances,
+    // Judged with the rules the shards carry; a --tolerances file here must be the same one
+    if let Some(p) = &m.out.tolerances {
+        let given = read_user_table(&Some(p.clone()))?;
+        let carried = merged.tolerances.as_ref().map(|t| &t.sha256);
+        if given.as_ref().map(|t| &t.sha256) != carried {
+            return Err(anyhow::Error::new(shard::IncompatibleShards(format!(
+                "--tolerances {} is not the table the shards were run with ({})",
+                p.display(),
+                UserTable::label(&merged.tolerances)
+            ))));
+        }
+    }
+    let table = table_of(
+        &merged.tolerances,
         &rayproof::audit::plan::known_names(extra),
     )?;
     print_legend(merged.seed, "0/1", &m.out);
