@@ -24,7 +24,10 @@ fn main() -> ExitCode {
     };
     // A TERM or INT removes the temporaries of outputs being written
     rayproof::output::clean_up_on_signals();
-    match run(cli) {
+    let result = run(cli);
+    // An interrupted run ends in the signal handler (exit 130), never here
+    rayproof::output::wait_if_interrupted();
+    match result {
         Ok(code) => ExitCode::from(code),
         Err(e) => {
             eprintln!("error: {e:#}");

@@ -32,11 +32,32 @@ fn live(f: impl FnOnce(&mut Vec<PathBuf>)) {
     }
 }
 
+/// Set by the signal handler before it does anything else.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Whether SIGINT or SIGTERM arrived.
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst)
+}
+
+/// Once SIGINT or SIGTERM arrived, the handler ends the run (exit 130): a thread that sees the
+/// effects of the interruption (a child killed by the handler) waits here instead of reporting
+/// them as its own failure.
+pub fn wait_if_interrupted() {
+    while interrupted() {
+        std::thread::sleep(std::time::Duration::from_secs(1));
+    }
+}
+
 /// On SIGINT or SIGTERM, removes every temporary being written and exits with 130 (the
 /// shell's code for an interrupted command), so a killed command leaves no `.NAME.tmpPID`.
 /// (A SIGKILL cannot be caught: the next write of the same output removes what it left.)
 pub fn clean_up_on_signals() {
     let _ = ctrlc::set_handler(|| {
+        // From now on no other thread decides how the run ends
+        INTERRUPTED.store(true, std::sync::atomic::Ordering::SeqCst);
+        // The outside commands running now, and all they started, go first
+        crate::process::kill_all();
         live(|v| {
             for p in v.drain(..) {
                 let _ = std::fs::remove_file(&p).or_else(|_| std::fs::remove_dir_all(&p));

@@ -1,27 +1,221 @@
-//! Running an outside command with a time limit: `sh -c CMD` in its own process group, its
-//! standard input written and closed, its output read to the end, the whole group killed when
-//! the limit passes. The one runner of the crate: `audit --exec` (a routine's batch) and
-//! `check --suite` (a renderer's command) both use it.
+//! Running an outside command under control: the one runner of the crate (`audit --exec`
+//! batches, `check` renderers, `reference` renderers and their version probes).
+//!
+//! - **Its own process group**: `sh -c CMD` starts a new group, and everything it starts without
+//!   leaving the group is killed with it.
+//! - **A deadline that does not depend on its pipes**: the run ends at the deadline whatever the
+//!   command does with its standard streams (closes them, redirects them to a file, hands them to
+//!   a background process). Standard input is written and closed and both outputs are read in
+//!   one `poll(2)` loop whose every wait ends at the deadline.
+//! - **Nothing outlives the run**: rayproof is the *subreaper* of its descendants
+//!   (`PR_SET_CHILD_SUBREAPER`), so a process that left the group (`setsid`) and outlived its
+//!   parent becomes rayproof's child. When the command ends, or at its deadline, its group is
+//!   killed and so is every such orphan, and all are reaped.
+//! - **Capped output**: standard output up to a cap the caller gives (beyond it the command is
+//!   killed and the error says the cap); standard error keeps its first and last 64 KiB.
+//! - **Killed on SIGINT and SIGTERM**: the running groups are registered, and the signal handler
+//!   ([`crate::output::clean_up_on_signals`]) kills them and the orphans before it exits.
 
 use std::io::{Read, Write};
-use std::os::unix::process::CommandExt;
+use std::os::fd::AsRawFd;
+use std::os::unix::process::{CommandExt, ExitStatusExt};
 use std::path::Path;
-use std::process::{Command, Stdio};
-use std::sync::mpsc;
-use std::time::Duration;
+use std::process::{Command, ExitStatus, Stdio};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
-/// Runs `sh -c command` (in `dir` when given) with `input` on its standard input; its standard
-/// output (invalid UTF-8 replaced by U+FFFD), or one line saying why it failed: it could not start, did not finish within
-/// `timeout` (then its process group is killed), or exited with a failure (with the first
-/// non-empty line of its standard error). `what` names the command in those lines.
-pub fn run_with_timeout(
+/// Standard output kept by default: 256 MiB (a batch of answers or a renderer's log is far
+/// smaller).
+pub const STDOUT_CAP: usize = 256 << 20;
+/// Standard error kept: this much of its start and of its end.
+const STDERR_KEEP: usize = 64 << 10;
+
+/// The process groups running now (their leaders' pids), killed on SIGINT or SIGTERM.
+static GROUPS: Mutex<Vec<i32>> = Mutex::new(Vec::new());
+
+fn groups(f: impl FnOnce(&mut Vec<i32>)) {
+    if let Ok(mut g) = GROUPS.lock() {
+        f(&mut g);
+    }
+}
+
+/// Makes rayproof the subreaper of its descendants, once: orphans become its children.
+fn become_subreaper() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        // SAFETY: prctl with integer arguments only
+        unsafe {
+            libc::prctl(libc::PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0);
+        }
+    });
+}
+
+/// Kills every running group and every orphan rayproof adopted (the signal handler's step).
+pub fn kill_all() {
+    let mut running = vec![];
+    groups(|g| running = g.clone());
+    for &pgid in &running {
+        // SAFETY: kill(2) on a process group; no memory is touched
+        unsafe {
+            libc::kill(-pgid, libc::SIGKILL);
+        }
+    }
+    settle(&running);
+    kill_orphans();
+}
+
+/// A process as `/proc/PID/stat` shows it.
+struct Proc {
+    pid: i32,
+    ppid: i32,
+    pgrp: i32,
+    zombie: bool,
+}
+
+/// Every process `/proc` shows.
+fn processes() -> Vec<Proc> {
+    let Ok(dir) = std::fs::read_dir("/proc") else {
+        return vec![];
+    };
+    dir.flatten()
+        .filter_map(|e| {
+            let pid = e.file_name().to_str()?.parse::<i32>().ok()?;
+            let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
+            // After the command's closing parenthesis: state, ppid, pgrp
+            let mut w = stat.rsplit_once(')')?.1.split_whitespace();
+            let state = w.next()?;
+            Some(Proc {
+                pid,
+                ppid: w.next()?.parse().ok()?,
+                pgrp: w.next()?.parse().ok()?,
+                zombie: state == "Z" || state == "X",
+            })
+        })
+        .collect()
+}
+
+/// Waits (up to a second) until no live process is left in these killed groups, so that their
+/// children have been handed to rayproof, the subreaper, before the orphans are collected.
+fn settle(killed: &[i32]) {
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(1)
+        && processes()
+            .iter()
+            .any(|p| !p.zombie && killed.contains(&p.pgrp))
+    {
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+/// The pids of rayproof's own children.
+fn children() -> Vec<i32> {
+    let me = std::process::id() as i32;
+    processes()
+        .into_iter()
+        .filter(|p| p.ppid == me)
+        .map(|p| p.pid)
+        .collect()
+}
+
+/// Kills and reaps every child of rayproof that is not a running command's leader: orphans
+/// adopted from the commands' process trees. Repeats while killing them orphans more.
+fn kill_orphans() {
+    for _ in 0..64 {
+        let mut running = vec![];
+        groups(|g| running = g.clone());
+        let orphans: Vec<i32> = children()
+            .into_iter()
+            .filter(|p| !running.contains(p))
+            .collect();
+        if orphans.is_empty() {
+            return;
+        }
+        for &pid in &orphans {
+            // SAFETY: kill(2) and waitpid(2) on a child of ours; its group goes too
+            unsafe {
+                libc::kill(pid, libc::SIGKILL);
+                libc::kill(-pid, libc::SIGKILL);
+                libc::waitpid(pid, std::ptr::null_mut(), 0);
+            }
+        }
+    }
+}
+
+/// Whether the child `pid` has exited, without reaping it (its pid, and so its group's id,
+/// stay reserved until it is reaped).
+fn has_exited(pid: i32) -> bool {
+    // SAFETY: waitid(2) with WNOWAIT fills a siginfo_t we own and reaps nothing
+    unsafe {
+        let mut info: libc::siginfo_t = std::mem::zeroed();
+        libc::waitid(
+            libc::P_PID,
+            pid as libc::id_t,
+            &mut info,
+            libc::WEXITED | libc::WNOHANG | libc::WNOWAIT,
+        ) == 0
+            && info.si_pid() != 0
+    }
+}
+
+/// What a finished command left.
+pub struct Finished {
+    /// Its exit status.
+    pub status: ExitStatus,
+    /// Its standard output (up to the cap).
+    pub stdout: Vec<u8>,
+    /// Its standard error (the first and last 64 KiB).
+    pub stderr: String,
+}
+
+/// How a run went wrong before an exit status could tell.
+enum Stop {
+    Deadline,
+    StdoutCap(usize),
+}
+
+/// Standard error kept as its first and last [`STDERR_KEEP`] bytes.
+#[derive(Default)]
+struct Tail {
+    head: Vec<u8>,
+    tail: std::collections::VecDeque<u8>,
+    dropped: usize,
+}
+
+impl Tail {
+    fn push(&mut self, bytes: &[u8]) {
+        let room = STDERR_KEEP.saturating_sub(self.head.len());
+        let (h, rest) = bytes.split_at(room.min(bytes.len()));
+        self.head.extend_from_slice(h);
+        self.tail.extend(rest);
+        while self.tail.len() > STDERR_KEEP {
+            self.tail.pop_front();
+            self.dropped += 1;
+        }
+    }
+    fn text(self) -> String {
+        let mut s = String::from_utf8_lossy(&self.head).into_owned();
+        if self.dropped > 0 {
+            s += &format!(
+                "\n[… {} bytes of standard error left out …]\n",
+                self.dropped
+            );
+        }
+        s + &String::from_utf8_lossy(&self.tail.into_iter().collect::<Vec<u8>>())
+    }
+}
+
+/// Runs `sh -c command` (in `dir` when given) with `input` on its standard input, under the
+/// rules of the module: its output, or why it could not run, was stopped (deadline, output cap:
+/// its group killed) or failed. `what` names the command in the error lines.
+pub fn run(
     what: &str,
     command: &str,
     dir: Option<&Path>,
-    input: String,
+    input: &[u8],
     timeout: Duration,
-) -> Result<String, String> {
-    // Its own process group, so that a timeout kills whatever it started
+    stdout_cap: usize,
+) -> Result<Finished, String> {
+    become_subreaper();
     let mut cmd = Command::new("sh");
     cmd.arg("-c")
         .arg(command)
@@ -32,62 +226,215 @@ pub fn run_with_timeout(
     if let Some(d) = dir {
         cmd.current_dir(d);
     }
+    let deadline = Instant::now() + timeout;
     let mut child = cmd
         .spawn()
         .map_err(|e| format!("{what}: cannot start: {e}"))?;
-    // Write the input and close it, while the output is read
-    let mut stdin = child.stdin.take().expect("piped");
-    let writer = std::thread::spawn(move || {
-        let _ = stdin.write_all(input.as_bytes());
-    });
-    let (mut out, mut err) = (
-        child.stdout.take().expect("piped"),
-        child.stderr.take().expect("piped"),
-    );
-    let (tx, rx) = mpsc::channel();
-    let reader = std::thread::spawn(move || {
-        // Bytes that are not UTF-8 (a renderer's progress bar) are kept as U+FFFD, never an error
-        let mut bytes = Vec::new();
-        let r = out
-            .read_to_end(&mut bytes)
-            .map(|_| String::from_utf8_lossy(&bytes).into_owned());
-        let _ = tx.send(r);
-    });
-    let errs = std::thread::spawn(move || {
-        let mut text = String::new();
-        let _ = err.read_to_string(&mut text);
-        text
-    });
-    // The whole run within the limit, or the group is killed
-    let out = match rx.recv_timeout(timeout) {
-        Ok(r) => r,
-        Err(_) => {
-            // SAFETY: kill(2) on the child's process group; no memory is touched
-            unsafe {
-                libc::kill(-(child.id() as i32), libc::SIGKILL);
-            }
-            let _ = child.wait();
-            let _ = (writer.join(), reader.join(), errs.join());
-            return Err(format!(
-                "{what}: did not finish within {} s (killed)",
-                timeout.as_secs_f64()
-            ));
+    let pgid = child.id() as i32;
+    groups(|g| g.push(pgid));
+    let mut stdin = child.stdin.take();
+    let mut out = child.stdout.take();
+    let mut err = child.stderr.take();
+    for fd in [
+        stdin.as_ref().map(|s| s.as_raw_fd()),
+        out.as_ref().map(|s| s.as_raw_fd()),
+        err.as_ref().map(|s| s.as_raw_fd()),
+    ]
+    .into_iter()
+    .flatten()
+    {
+        // SAFETY: fcntl on a pipe we own
+        unsafe {
+            let flags = libc::fcntl(fd, libc::F_GETFL);
+            libc::fcntl(fd, libc::F_SETFL, flags | libc::O_NONBLOCK);
         }
+    }
+    let (mut stdout, mut stderr) = (Vec::new(), Tail::default());
+    let mut written = 0;
+    let mut status: Option<ExitStatus> = None;
+    let mut stop = None;
+    let mut buf = vec![0u8; 1 << 16];
+    let mut exited_at: Option<Instant> = None;
+    loop {
+        if stdin.is_some() && written == input.len() {
+            stdin = None; // closed: the command sees the end of its input
+        }
+        if status.is_none() && has_exited(pgid) {
+            // The command ended: its group and whatever it left behind go now, while its
+            // unreaped leader still holds the group's id (so no other group can have taken it)
+            // SAFETY: kill(2) on the group it led
+            unsafe {
+                libc::kill(-pgid, libc::SIGKILL);
+            }
+            settle(&[pgid]);
+            kill_orphans();
+            status = child.try_wait().ok().flatten();
+            exited_at = Some(Instant::now());
+        }
+        if status.is_some() && out.is_none() && err.is_none() {
+            break;
+        }
+        // Pipes still open after the command and its tree are gone: held by a process we
+        // could not see; give them a moment, then stop reading
+        if exited_at.is_some_and(|t| t.elapsed() > Duration::from_millis(500)) {
+            break;
+        }
+        let now = Instant::now();
+        if now >= deadline {
+            stop = Some(Stop::Deadline);
+            break;
+        }
+        // Wait for any stream, at most until the deadline (and briefly, to see the exit)
+        let mut fds = vec![];
+        for (fd, ev) in [
+            (stdin.as_ref().map(|s| s.as_raw_fd()), libc::POLLOUT),
+            (out.as_ref().map(|s| s.as_raw_fd()), libc::POLLIN),
+            (err.as_ref().map(|s| s.as_raw_fd()), libc::POLLIN),
+        ] {
+            if let Some(fd) = fd {
+                fds.push(libc::pollfd {
+                    fd,
+                    events: ev,
+                    revents: 0,
+                });
+            }
+        }
+        let wait = (deadline - now).min(Duration::from_millis(20));
+        // SAFETY: poll(2) on a valid array of pollfd
+        unsafe {
+            libc::poll(
+                fds.as_mut_ptr(),
+                fds.len() as libc::nfds_t,
+                wait.as_millis() as i32,
+            );
+        }
+        if let Some(s) = stdin.as_mut() {
+            match s.write(&input[written..]) {
+                Ok(n) => written += n,
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                Err(_) => stdin = None, // the command closed its input: it chose to stop reading
+            }
+        }
+        if let Some(o) = out.as_mut() {
+            match o.read(&mut buf) {
+                Ok(0) => out = None,
+                Ok(n) => {
+                    stdout.extend_from_slice(&buf[..n]);
+                    if stdout.len() > stdout_cap {
+                        stop = Some(Stop::StdoutCap(stdout_cap));
+                        break;
+                    }
+                }
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                Err(_) => out = None,
+            }
+        }
+        if let Some(e) = err.as_mut() {
+            match e.read(&mut buf) {
+                Ok(0) => err = None,
+                Ok(n) => stderr.push(&buf[..n]),
+                Err(x) if x.kind() == std::io::ErrorKind::WouldBlock => {}
+                Err(_) => err = None,
+            }
+        }
+    }
+    // Whatever happened, nothing of it outlives the run (a group whose leader was reaped was
+    // killed before)
+    if status.is_none() {
+        // SAFETY: kill(2) on the group its unreaped leader holds
+        unsafe {
+            libc::kill(-pgid, libc::SIGKILL);
+        }
+        settle(&[pgid]);
+    }
+    let status = status.or_else(|| child.wait().ok());
+    kill_orphans();
+    groups(|g| g.retain(|&p| p != pgid));
+    // Killed by the signal handler: not the command's failure; the handler ends the run
+    crate::output::wait_if_interrupted();
+    match stop {
+        Some(Stop::Deadline) => Err(format!(
+            "{what}: did not finish within {} s (killed)",
+            timeout.as_secs_f64()
+        )),
+        Some(Stop::StdoutCap(cap)) => Err(format!(
+            "{what}: wrote more than {} MiB to standard output (killed; the cap is {cap} bytes)",
+            cap >> 20
+        )),
+        None => Ok(Finished {
+            status: status.unwrap_or_else(|| ExitStatus::from_raw(-1)),
+            stdout,
+            stderr: stderr.text(),
+        }),
+    }
+}
+
+/// The lines of a failed command's standard error that explain it, as one line: those that say
+/// error, fatal or cannot, then the last three non-empty lines (a renderer's first line is often
+/// noise, its last ones the reason), without repeats, joined by ` | `.
+pub fn explain(stderr: &str) -> String {
+    let lines: Vec<&str> = stderr
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect();
+    let says = |l: &str| {
+        let l = l.to_lowercase();
+        ["error", "fatal", "cannot", "can't", "failed", "traceback"]
+            .iter()
+            .any(|w| l.contains(w))
     };
-    // Its exit status, with the first line it wrote to standard error
-    let status = child.wait().map_err(|e| format!("{what}: {e}"))?;
-    let _ = (writer.join(), reader.join());
-    let stderr = errs.join().unwrap_or_default();
-    let first_err = stderr.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
-    if !status.success() {
+    let mut picked: Vec<&str> = lines.iter().copied().filter(|l| says(l)).take(3).collect();
+    for l in &lines[lines.len().saturating_sub(3)..] {
+        if !picked.contains(l) {
+            picked.push(l);
+        }
+    }
+    let mut s = picked.join(" | ");
+    if s.chars().count() > 600 {
+        s = s.chars().take(600).collect::<String>() + " …";
+    }
+    s
+}
+
+/// Runs `sh -c command` as [`run`] does and returns its standard output as text (invalid UTF-8
+/// replaced by U+FFFD), or one line saying why it failed: it could not start, did not finish
+/// within `timeout`, wrote more than [`STDOUT_CAP`], or exited with a failure (with the lines
+/// of its standard error that explain it).
+pub fn run_with_timeout(
+    what: &str,
+    command: &str,
+    dir: Option<&Path>,
+    input: String,
+    timeout: Duration,
+) -> Result<String, String> {
+    run_capped(what, command, dir, input, timeout, STDOUT_CAP)
+}
+
+/// [`run_with_timeout`] with another cap on standard output.
+pub fn run_capped(
+    what: &str,
+    command: &str,
+    dir: Option<&Path>,
+    input: String,
+    timeout: Duration,
+    stdout_cap: usize,
+) -> Result<String, String> {
+    let f = run(what, command, dir, input.as_bytes(), timeout, stdout_cap)?;
+    if !f.status.success() {
+        let why = explain(&f.stderr);
+        let status = match f.status.signal() {
+            Some(s) => format!("signal: {s}"),
+            None => format!("exit status: {}", f.status.code().unwrap_or(-1)),
+        };
         return Err(format!(
             "{what} failed ({status}){}",
-            if first_err.is_empty() {
+            if why.is_empty() {
                 String::new()
             } else {
-                format!(": {}", first_err.trim())
+                format!(": {why}")
             }
         ));
     }
-    out.map_err(|e| format!("{what}: cannot read its output: {e}"))
+    Ok(String::from_utf8_lossy(&f.stdout).into_owned())
 }

@@ -448,3 +448,92 @@ fn a_renderer_that_prints_bytes_that_are_not_text_is_judged_as_any_other() {
     assert_eq!(status(&out, "a", "ext"), "PASS", "{out}{err}");
     assert_eq!(code, Some(1), "{out}"); // its golden is still NEW
 }
+
+/// The suite of `fixture` with its `[thresholds]` replaced and `extra_b` added to test b.
+fn with_thresholds(dir: &Path, thresholds: &str, extra_b: &str) {
+    let p = dir.join("suite.toml");
+    let text = std::fs::read_to_string(&p)
+        .unwrap()
+        .replace(
+            "[thresholds]\nfail = 0.01\nfailpercent = 0.1\n",
+            &format!("[thresholds]\n{thresholds}\n"),
+        )
+        .replace("name = \"b\"\n", &format!("name = \"b\"\n{extra_b}"));
+    std::fs::write(p, text).unwrap();
+}
+
+#[test]
+fn a_nan_pixel_fails_every_comparison_whatever_the_thresholds() {
+    // The reproducer: the README's thresholds let a render with NaN pixels through as
+    // WARNING, mean 0, exit 0, no <failure> in the JUnit file
+    for (tag, thresholds) in [
+        ("readme", "fail = 0.01\nfailpercent = 0.1\nmax_mean = 1e-3"),
+        (
+            "lax",
+            "fail = 1e30\nfailpercent = 100\nallowfailures = 1000000\nhardfail = inf\nwarn = 1e30\nhardwarn = inf\nmax_mean = inf",
+        ),
+    ] {
+        let dir = fixture(&format!("nan-{tag}"), "--nan", "");
+        with_thresholds(&dir, thresholds, "");
+        let junit = dir.join("junit.xml");
+        let (code, out, err) = check(&dir, &["--test", "b", "--junit", junit.to_str().unwrap()]);
+        assert_eq!(code, Some(1), "{tag}: {out}{err}");
+        assert_eq!(status(&out, "b", "ext"), "FAILURE", "{tag}: {out}");
+        let row = out.lines().find(|l| l.starts_with("b ")).unwrap();
+        assert!(row.contains("1 NaN and 0 Inf pixel(s)"), "{tag}: {row}");
+        let xml = std::fs::read_to_string(&junit).unwrap();
+        let failure = xml
+            .lines()
+            .find(|l| l.contains("<failure"))
+            .unwrap_or_else(|| panic!("{tag}: no <failure> in {xml}"));
+        assert!(failure.contains("NaN"), "{tag}: {failure}");
+    }
+    // A test that allows them explicitly is judged by its thresholds alone
+    let dir = fixture("nan-allowed", "--nan", "");
+    with_thresholds(
+        &dir,
+        "fail = 0.01\nfailpercent = 0.1\nmax_mean = 1e-3",
+        "allow_nonfinite = true\n",
+    );
+    let (_, out, _) = check(&dir, &["--test", "b"]);
+    assert_eq!(status(&out, "b", "ext"), "WARNING", "{out}");
+    assert!(!out.contains("NaN and"), "{out}");
+}
+
+#[test]
+fn a_renderer_that_closes_its_pipes_is_killed_at_its_timeout() {
+    // The reproducer: `exec ./hang.sh {out} > render.log 2>&1` with timeout = 3 ran
+    // until the script ended by itself; a real hang never ends
+    let dir = fixture("closes-pipes", "", "");
+    std::fs::write(
+        dir.join("hang.sh"),
+        "echo $$ > hang.pid\nsleep 20 &\necho $! > sleep.pid\nwait\n",
+    )
+    .unwrap();
+    let p = dir.join("suite.toml");
+    let text = std::fs::read_to_string(&p)
+        .unwrap()
+        .replace("timeout = 5", "timeout = 3")
+        .replace(
+            "[[test]]\nname = \"a\"\n",
+            "[[test]]\nname = \"a\"\ncommand = \"exec sh hang.sh {out} > render.log 2>&1\"\n",
+        );
+    std::fs::write(&p, text).unwrap();
+    let t0 = std::time::Instant::now();
+    let (code, out, err) = check(&dir, &["--test", "a"]);
+    let wall = t0.elapsed().as_secs_f64();
+    assert_eq!(code, Some(3), "{out}{err}");
+    assert!(out.contains("did not finish within 3 s"), "{out}");
+    assert!(wall < 5.0, "took {wall:.1} s for a 3 s timeout");
+    // Nothing of it outlives the run
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    for f in ["hang.pid", "sleep.pid"] {
+        let pid = std::fs::read_to_string(dir.join(f)).unwrap();
+        let stat = std::fs::read_to_string(format!("/proc/{}/stat", pid.trim()));
+        let alive = stat.is_ok_and(|s| {
+            let state = s.rsplit(')').next().unwrap_or("").trim_start();
+            !state.starts_with('Z') && !state.starts_with('X')
+        });
+        assert!(!alive, "{f} {}: still running after the run", pid.trim());
+    }
+}

@@ -41,6 +41,9 @@ use super::shape::{hex_text, probe_line_with, Answer, Method};
 use crate::numerics::Precision;
 use std::time::Duration;
 
+/// Standard output an `--exec` child may write per batch: 16 MiB.
+pub const STDOUT_CAP: usize = 16 << 20;
+
 /// A routine run by a command.
 pub struct Exec {
     /// The method's name in rows and replay lines.
@@ -60,10 +63,11 @@ pub fn case_line(prec: Precision, input: &[f64]) -> String {
 }
 
 impl Exec {
-    /// Runs the child on one batch: its standard output, or why it failed.
+    /// Runs the child on one batch: its standard output, or why it failed. The output is capped
+    /// at [`STDOUT_CAP`] (a batch's answers are a few hundred kilobytes).
     fn run_batch(&self, input: String) -> Result<String, String> {
         let what = format!("exec '{}'", self.command);
-        crate::process::run_with_timeout(&what, &self.command, None, input, self.timeout)
+        crate::process::run_capped(&what, &self.command, None, input, self.timeout, STDOUT_CAP)
     }
 }
 

@@ -433,9 +433,21 @@ fn make(suite: &Suite, t: &Test, frame: Frame, scratch: &Path) -> Result<Made, S
     })
 }
 
-/// Judges one comparison under its rule; the z-test's verdict replaces idiff's when given.
-fn judge(c: &Comparison, z: Option<&images::ZTest>, rule: &Rule) -> (Status, String) {
+/// Judges one comparison under its rule; the z-test's verdict replaces idiff's when given. A
+/// test image with NaN or Inf pixels (`nonfinite`: how many with each) fails whatever the
+/// thresholds, unless the test allows them.
+fn judge(
+    c: &Comparison,
+    z: Option<&images::ZTest>,
+    rule: &Rule,
+    nonfinite: Option<(usize, usize)>,
+) -> (Status, String) {
     let mut why = vec![];
+    if let Some((nan, inf)) = nonfinite.filter(|(nan, inf)| nan + inf > 0) {
+        why.push(format!(
+            "the test image has {nan} NaN and {inf} Inf pixel(s): never a pass (allow_nonfinite = true in the test allows them)"
+        ));
+    }
     let verdict = z.map(|z| z.verdict).unwrap_or(c.verdict);
     if verdict == Verdict::Failure {
         why.push(match z {
@@ -478,10 +490,22 @@ fn judge(c: &Comparison, z: Option<&images::ZTest>, rule: &Rule) -> (Status, Str
 
 /// Pixels with a NaN or an infinity in some channel.
 fn nonfinite_pixels(img: &Image) -> usize {
-    img.data
-        .chunks(img.channels.len().max(1))
-        .filter(|p| p.iter().any(|v| !v.is_finite()))
-        .count()
+    let (nan, inf) = nan_inf_pixels(img);
+    nan + inf
+}
+
+/// Pixels with a NaN in some channel, and pixels with an infinity (and no NaN).
+fn nan_inf_pixels(img: &Image) -> (usize, usize) {
+    let pixels = img.data.chunks(img.channels.len().max(1));
+    pixels.fold((0, 0), |(nan, inf), p| {
+        if p.iter().any(|v| v.is_nan()) {
+            (nan + 1, inf)
+        } else if p.iter().any(|v| v.is_infinite()) {
+            (nan, inf + 1)
+        } else {
+            (nan, inf)
+        }
+    })
 }
 
 /// The warnings of one comparison: encodings, sampling grids, NaN/Inf.
@@ -706,7 +730,8 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
                 } else {
                     None
                 };
-                (r.status, r.note) = judge(&c, z.as_ref(), rule);
+                let nonfinite = (!t.allow_nonfinite).then(|| nan_inf_pixels(&made.image));
+                (r.status, r.note) = judge(&c, z.as_ref(), rule, nonfinite);
                 if let (Some(dir), Some(map)) = (&o.report, map) {
                     r.images = Some(write_images(dir, &r, reference, &made.image, &map)?);
                 }

@@ -33,6 +33,10 @@
 //! (rayproof renders `scene` itself). Placeholders: `{scene}`, `{out}` (the file the command
 //! must write), `{variance}` (its variance image, for the z-test), `{width}`, `{grid}`, `{spp}`,
 //! `{name}`. Commands run through `sh -c` in the suite file's directory, placeholders shell-quoted.
+//!
+//! A NaN or an infinity in a test image fails every comparison of the test, whatever its
+//! thresholds (idiff lets a few through under `failpercent`); a test whose image may hold them on
+//! purpose says `allow_nonfinite = true`.
 
 use super::references::Rule;
 use crate::golden::Config;
@@ -76,6 +80,7 @@ struct TestSpec {
     grid: Option<u32>,
     variance: Option<String>,
     variance_spp: Option<u64>,
+    allow_nonfinite: Option<bool>,
     golden: Option<toml::Value>,
     #[serde(default)]
     thresholds: toml::Table,
@@ -149,6 +154,9 @@ pub struct Test {
     pub variance: Option<String>,
     /// Samples per pixel behind the variance image (the z-test's `spp`); at least 1, default 1.
     pub variance_spp: u64,
+    /// NaN or Inf pixels in the test image are allowed (`allow_nonfinite = true`); by default
+    /// one fails every comparison of the test, whatever the thresholds.
+    pub allow_nonfinite: bool,
     /// The golden image `--update` may write, with its rule.
     pub golden: Option<(PathBuf, Rule)>,
     /// The references the test image is compared with.
@@ -340,6 +348,7 @@ impl Suite {
                 grid: t.grid,
                 variance: t.variance.clone(),
                 variance_spp: t.variance_spp.unwrap_or(1).max(1),
+                allow_nonfinite: t.allow_nonfinite.unwrap_or(false),
                 golden,
                 references,
             });

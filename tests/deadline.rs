@@ -1,0 +1,168 @@
+//! Every outside process under control: an `--exec` child (and everything it starts) is killed
+//! with its process group at its deadline, whatever it does with its pipes, and nothing of it
+//! outlives the run. (The renderer of a suite: tests/suite.rs.)
+
+mod common;
+
+use common::{rayproof_in, scratch, stderr};
+use std::path::Path;
+use std::time::Instant;
+
+/// Whether a process is alive (not a zombie) by the pid written in `file`.
+fn alive(file: &Path) -> bool {
+    let Ok(pid) = std::fs::read_to_string(file) else {
+        return false;
+    };
+    std::fs::read_to_string(format!("/proc/{}/stat", pid.trim())).is_ok_and(|s| {
+        let state = s.rsplit(')').next().unwrap_or("").trim_start();
+        !state.starts_with('Z') && !state.starts_with('X')
+    })
+}
+
+#[test]
+fn an_exec_child_is_killed_at_its_deadline_whatever_it_does_with_its_pipes() {
+    let dir = scratch("deadline-exec");
+    for (tag, cmd, want) in [
+        // Closes its stdout and stderr and lives on
+        (
+            "closes",
+            "echo $$ > closes.pid; exec sleep 30 > /dev/null 2> /dev/null",
+            Some(4),
+        ),
+        // Hands stdout to a file and hangs (the check renderer of the issue, through --exec)
+        (
+            "log",
+            "echo $$ > log.pid; exec sh -c 'sleep 30' > exec.log 2>&1",
+            Some(4),
+        ),
+        // A grandchild holds only stderr while the child hangs
+        (
+            "stderr",
+            "sh -c 'echo $$ > stderr.pid; exec sleep 30' > /dev/null & sleep 30",
+            Some(4),
+        ),
+        // A grandchild that left the group (setsid) keeps stdout; the child answers and exits:
+        // the answers count, the grandchild is killed with the run
+        (
+            "setsid",
+            "setsid sh -c 'echo $$ > setsid.pid; exec sleep 300' & awk '{print 0}'",
+            Some(0),
+        ),
+    ] {
+        let t0 = Instant::now();
+        let o = rayproof_in(
+            Some(&dir),
+            &[
+                "audit",
+                "--shape",
+                "sphere",
+                "--class",
+                "random",
+                "--precision",
+                "f64",
+                "--cases",
+                "20",
+                "--exec",
+                cmd,
+                "--exec-timeout",
+                "2",
+            ],
+        );
+        let wall = t0.elapsed().as_secs_f64();
+        let err = stderr(&o);
+        let code = o.status.code();
+        if want == Some(4) {
+            assert_eq!(code, Some(4), "{tag}: {err}");
+            assert!(
+                err.contains("did not finish within 2 s (killed)"),
+                "{tag}: {err}"
+            );
+            assert_eq!(err.trim_end().lines().count(), 1, "{tag}: {err}");
+        } else {
+            assert!(matches!(code, Some(0 | 1)), "{tag}: {err}");
+        }
+        assert!(wall < 4.0, "{tag}: took {wall:.1} s for a 2 s deadline");
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        let pid = dir.join(format!("{tag}.pid"));
+        assert!(pid.exists(), "{tag}: the command did not start");
+        assert!(!alive(&pid), "{tag}: a process outlived the run");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn an_exec_child_that_floods_stdout_is_stopped_at_the_cap() {
+    // `yes` prints forever: stopped by the deadline or the output cap, never an exhausted memory
+    let dir = scratch("deadline-flood");
+    let t0 = Instant::now();
+    let o = rayproof_in(
+        Some(&dir),
+        &[
+            "audit",
+            "--shape",
+            "sphere",
+            "--class",
+            "random",
+            "--cases",
+            "20",
+            "--exec",
+            "yes",
+            "--exec-timeout",
+            "3",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(4), "{}", stderr(&o));
+    assert!(t0.elapsed().as_secs_f64() < 6.0);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn sigterm_and_sigint_kill_the_exec_child_and_all_it_started() {
+    let dir = scratch("deadline-signal");
+    for (tag, sig) in [("term", libc::SIGTERM), ("int", libc::SIGINT)] {
+        let cmd = format!(
+            "echo $$ > {tag}.pid; setsid sh -c 'echo $$ > {tag}-away.pid; exec sleep 300' & sleep 300"
+        );
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
+            .current_dir(&dir)
+            .args([
+                "audit",
+                "--shape",
+                "sphere",
+                "--class",
+                "random",
+                "--cases",
+                "20",
+                "--exec",
+                &cmd,
+                "--exec-timeout",
+                "600",
+            ])
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // Wait until both have started
+        let t0 = Instant::now();
+        while !(dir.join(format!("{tag}.pid")).exists()
+            && dir.join(format!("{tag}-away.pid")).exists())
+        {
+            assert!(
+                t0.elapsed().as_secs() < 20,
+                "{tag}: the child never started"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        // SAFETY: kill(2) on the rayproof process this test started
+        unsafe {
+            libc::kill(child.id() as i32, sig);
+        }
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(130), "{tag}");
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        for f in [format!("{tag}.pid"), format!("{tag}-away.pid")] {
+            assert!(!alive(&dir.join(&f)), "{tag}: {f} outlived rayproof");
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
