@@ -460,6 +460,19 @@ fn nan_against_a_number_is_an_infinite_error_and_fails() {
     let j = serde_json::to_value(&c).unwrap();
     assert_eq!(j["max_error"], "inf");
     assert_eq!(j["max_values"][1], "nan");
+    // Whatever the percentages allow: one NaN in a 64×64 image is 0.02 % of the pixels
+    let r = flat(64, 64, 1.0);
+    let t = with(flat(64, 64, 1.0), 5, 7, 0, f32::NAN);
+    let lax = Thresholds {
+        failpercent: 100.0,
+        warnpercent: 100.0,
+        allowfailures: 0,
+        ..Thresholds::default()
+    };
+    assert_eq!(compare(&r, &t, &lax).unwrap().verdict, Verdict::Failure);
+    // idiff's own semantics (--idiff-compat) stay idiff's
+    let c = rayproof::images::compare_as(&r, &t, &lax, rayproof::images::Semantics::Idiff).unwrap();
+    assert_eq!(c.verdict, Verdict::Pass);
 }
 
 #[test]

@@ -194,6 +194,17 @@ fn bad_files_are_refused_with_one_line() {
         &score(&put("notcases.txt", "hello\n"), &good),
         "not a rayproof cases file",
     );
+    // No case is no verdict (it was "verdict: pass")
+    refused(
+        &score(
+            &put(
+                "zero.txt",
+                "# rayproof cases 1 shape=sphere seed=1 cases=0\n",
+            ),
+            &put("none.txt", ""),
+        ),
+        "cases=0: nothing to judge",
+    );
     // An edited case is not the case rayproof generates
     let edited: String = text.replacen(" 0x", " -0x", 1);
     refused(

@@ -121,3 +121,55 @@ fn a_missing_renderer_is_one_line_exit_3_and_nothing_written() {
     assert!(err.contains("pip install mitsuba"), "{err}");
     assert!(!d.join("diffuse").exists());
 }
+
+#[test]
+fn a_renderer_image_that_cannot_be_a_reference_is_not_written() {
+    // A stand-in on PATH named povray (not a claim about POV-Ray: what rayproof does with a
+    // renderer that exits 0 with a bad image): NaN values, or another size than the frame's
+    let outside = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/outside");
+    for (tag, value, extra_rows, want) in [
+        ("nan", "float('nan')", 0, "NaN or Inf value(s): not written"),
+        ("size", "0.5", 4, "where the frame is"),
+    ] {
+        let d = scratch(&format!("bad-{tag}"));
+        let bin = d.join("bin");
+        std::fs::create_dir_all(&bin).unwrap();
+        let fake = bin.join("povray");
+        std::fs::write(
+            &fake,
+            format!(
+                r#"#!/bin/sh
+case "$1" in --version) echo "POV-Ray 3.7.0.10 (stand-in)"; exit 0;; esac
+for a in "$@"; do case "$a" in +O*) out="${{a#+O}}";; +W[0-9]*) w="${{a#+W}}";; +H[0-9]*) h="${{a#+H}}";; esac; done
+exec python3 -c "import sys; sys.path.insert(0, '{o}'); import standin_render as s; w, h = $w, $h + {extra_rows}; s.write_exr('$out', w, h, [[[{value}] * 3 for x in range(w)] for y in range(h)])"
+"#,
+                o = outside.display()
+            ),
+        )
+        .unwrap();
+        std::fs::set_permissions(&fake, std::os::unix::fs::PermissionsExt::from_mode(0o755))
+            .unwrap();
+        let path = format!("{}:{}", bin.display(), std::env::var("PATH").unwrap());
+        let scene = d.join("scenes/diffuse.toml");
+        let (code, out, err) = rayproof(
+            &[
+                "reference",
+                scene.to_str().unwrap(),
+                "--with",
+                "povray",
+                "--width",
+                "16",
+                "--grid",
+                "1",
+            ],
+            Some(Path::new(&path)),
+        );
+        assert_eq!(code, Some(3), "{tag}: {out}{err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{tag}: {err}");
+        assert!(err.contains(want), "{tag}: {err}");
+        assert!(
+            !d.join("diffuse/povray.exr").exists(),
+            "{tag}: a reference was written"
+        );
+    }
+}

@@ -564,6 +564,46 @@ fn merge_refuses_corrupt_files_with_one_line() {
         v["shapes"][0]["cases_per_class"] = u64::MAX.into()
     });
     assert_refused(&dir, &[&s0, &f], 2, "corrupt shard");
+    // Counts a run cannot make: a finding zeroed (its example kept), an ill-posed case
+    // dropped, a finding added without its example
+    let mut edits = 0;
+    for (name, key, delta, want) in [
+        ("fh.json", "false_hit", None, "an example for each finding"),
+        (
+            "posed.json",
+            "ill_posed",
+            Some(-1),
+            "cases = generator failures",
+        ),
+        (
+            "fm.json",
+            "false_miss",
+            Some(1),
+            "an example for each finding",
+        ),
+    ] {
+        let f = tampered(name, &|v| {
+            // The first tally with this finding (or any tally, to add one)
+            for g in v["shapes"][0]["groups"].as_array_mut().unwrap() {
+                for t in g["tallies"].as_array_mut().unwrap() {
+                    let n = t[key].as_i64().unwrap();
+                    let apply = match delta {
+                        None => n > 0,
+                        Some(d) if d > 0 => n == 0,
+                        Some(_) => n > 0,
+                    };
+                    if apply {
+                        t[key] = delta.map_or(0, |d| n + d).into();
+                        return;
+                    }
+                }
+            }
+        });
+        let changed = std::fs::read(&f).unwrap() != good;
+        edits += changed as usize;
+        assert_refused(&dir, &[&s0, &f], 2, want);
+    }
+    assert_eq!(edits, 3);
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -488,6 +488,16 @@ fn a_nan_pixel_fails_every_comparison_whatever_the_thresholds() {
             .unwrap_or_else(|| panic!("{tag}: no <failure> in {xml}"));
         assert!(failure.contains("NaN"), "{tag}: {failure}");
     }
+    // Not even as an expected failure (a known failure is about differences, not NaN)
+    let dir = fixture("nan-xfail", "--nan", "");
+    with_thresholds(
+        &dir,
+        "fail = 0.01\nfailpercent = 0.1",
+        "thresholds = { known_failure = \"a known difference\" }\n",
+    );
+    let (code, out, _) = check(&dir, &["--test", "b"]);
+    assert_eq!(code, Some(1), "{out}");
+    assert_eq!(status(&out, "b", "ext"), "FAILURE", "{out}");
     // A test that allows them explicitly is judged by its thresholds alone
     let dir = fixture("nan-allowed", "--nan", "");
     with_thresholds(
@@ -536,4 +546,19 @@ fn a_renderer_that_closes_its_pipes_is_killed_at_its_timeout() {
         });
         assert!(!alive, "{f} {}: still running after the run", pid.trim());
     }
+}
+
+#[test]
+fn a_test_that_compares_nothing_is_refused_not_passed() {
+    // Every reference optional and missing, no golden: nothing was compared, so no pass
+    let dir = fixture("nothing", "", "");
+    let p = dir.join("suite.toml");
+    let text = std::fs::read_to_string(&p).unwrap().replace(
+        "[[test]]\nname = \"a\"\nreference = [{ name = \"ext\", path = \"refs/a.exr\" }]",
+        "[[test]]\nname = \"a\"\ngolden = false\nreference = [{ name = \"ext\", path = \"refs/gone.exr\", required = false }]",
+    );
+    std::fs::write(&p, text).unwrap();
+    let (code, out, _) = check(&dir, &["--test", "a"]);
+    assert_eq!(code, Some(3), "{out}");
+    assert!(out.contains("nothing to compare with"), "{out}");
 }

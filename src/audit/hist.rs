@@ -139,6 +139,10 @@ impl FloatHist {
         }
         self.max = self.max.max(other.max);
     }
+    /// How many values were counted.
+    pub fn count(&self) -> u64 {
+        self.runs.values().sum()
+    }
     /// Summary: exact maximum; quantiles and mean of the rounded values.
     pub fn stats(&self) -> Stats {
         summarise(

@@ -119,6 +119,12 @@ pub fn read_cases(
             .map_err(|_| format!("{file} line 1: {k}= is not a whole number"))
     };
     let (seed, cases) = (int("seed")?, int("cases")?);
+    // No case judged is no verdict: never a pass
+    if cases == 0 {
+        return Err(format!(
+            "{file} line 1: cases=0: nothing to judge (a verdict needs at least one case)"
+        ));
+    }
     // The cases
     let info = shape.info();
     let mut lines = vec![];

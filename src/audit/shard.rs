@@ -329,6 +329,12 @@ impl Shard {
                         t.cases, s.cases_per_class
                     ));
                 }
+                // Counts that a run cannot make (an edited or damaged file) judge nothing
+                for (t, m) in g.tallies.iter().zip(&s.methods) {
+                    if let Err(e) = t.check() {
+                        return corrupt(format!("{at} {}: {e}", m.name));
+                    }
+                }
             }
         }
         Ok(file)

@@ -284,6 +284,112 @@ impl Tally {
         }
     }
 
+    /// Whether the tally is one a run can make: its counts add up (every case counted once,
+    /// each finding within what it counts over, as many samples as right answers) and an
+    /// example is kept for each kind of finding that occurred, and none for one that did not.
+    /// A shard file's tallies pass this before a merge judges them. The error names the first
+    /// count that does not add up.
+    pub fn check(&self) -> Result<(), String> {
+        let sum = |v: &[u64]| v.iter().try_fold(0u64, |a, &b| a.checked_add(b));
+        let i = &self.invalid;
+        let wrong = sum(&[
+            self.false_hit,
+            self.false_miss,
+            self.wrong_root,
+            self.nonfinite_t,
+            self.out_of_range,
+        ]);
+        let rules: [(&str, bool); 13] = [
+            (
+                "cases = generator failures + invalid + ill-posed + well-posed",
+                sum(&[
+                    self.generator_failures,
+                    i.cases,
+                    self.ill_posed,
+                    self.well_posed,
+                ]) == Some(self.cases),
+            ),
+            (
+                "invalid outcomes ≤ invalid cases",
+                sum(&[i.rejected, i.nonfinite_t, i.hit]).is_some_and(|n| n <= i.cases),
+            ),
+            (
+                "wrong verdicts ≤ well-posed cases",
+                wrong.is_some_and(|w| w <= self.well_posed),
+            ),
+            (
+                "oracle hits ≤ well-posed cases",
+                self.oracle_hits <= self.well_posed,
+            ),
+            (
+                "ill-posed findings ≤ ill-posed cases",
+                self.ill_posed_disagree <= self.ill_posed
+                    && self.ill_posed_out_of_range <= self.ill_posed_disagree,
+            ),
+            ("malformed ≤ cases", self.malformed <= self.cases),
+            (
+                "cap reached ≤ valid cases",
+                self.cap_reached <= self.ill_posed.saturating_add(self.well_posed),
+            ),
+            (
+                "value errors ≤ right verdicts",
+                wrong
+                    .is_some_and(|w| self.ulps.count() <= self.well_posed - w.min(self.well_posed)),
+            ),
+            (
+                "err/cond and residual samples ≤ value errors",
+                self.err_over_cond.count() <= self.ulps.count()
+                    && self.residual.count() <= self.ulps.count(),
+            ),
+            (
+                "enclosures ≤ value errors, violations ≤ enclosures, widths = enclosures",
+                self.enclosures <= self.ulps.count()
+                    && self.enclosure_violations <= self.enclosures
+                    && self.enclosure_widths.count() == self.enclosures,
+            ),
+            (
+                "examples of known kinds, once each",
+                self.examples
+                    .iter()
+                    .all(|(k, _)| KINDS.contains(&k.as_str()))
+                    && (1..self.examples.len()).all(|j| {
+                        !self.examples[..j]
+                            .iter()
+                            .any(|(k, _)| *k == self.examples[j].0)
+                    }),
+            ),
+            (
+                "an example for each finding that occurred, none for one that did not",
+                [
+                    ("malformed", self.malformed),
+                    ("false_hit", self.false_hit),
+                    ("false_miss", self.false_miss),
+                    ("wrong_root", self.wrong_root),
+                    ("nonfinite_t", self.nonfinite_t),
+                    (
+                        "out_of_range",
+                        self.out_of_range
+                            .saturating_add(self.ill_posed_out_of_range),
+                    ),
+                    ("enclosure_violation", self.enclosure_violations),
+                    ("invalid_nan_t", i.nonfinite_t),
+                    ("invalid_hit", i.hit),
+                ]
+                .iter()
+                .all(|(k, n)| self.examples.iter().any(|(e, _)| e == k) == (*n > 0)),
+            ),
+            (
+                "a worst-error example exactly when some error is above 0",
+                self.examples.iter().any(|(e, _)| e == "worst_ulps")
+                    == self.ulps.max().is_some_and(|m| m > 0),
+            ),
+        ];
+        match rules.iter().find(|(_, holds)| !holds) {
+            Some((rule, _)) => Err(format!("its counts do not add up ({rule})")),
+            None => Ok(()),
+        }
+    }
+
     /// Adds another tally of the same row (another slice of its cases).
     pub fn merge(&mut self, o: &Tally) {
         self.cases += o.cases;

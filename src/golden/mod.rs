@@ -443,11 +443,12 @@ fn judge(
     nonfinite: Option<(usize, usize)>,
 ) -> (Status, String) {
     let mut why = vec![];
-    if let Some((nan, inf)) = nonfinite.filter(|(nan, inf)| nan + inf > 0) {
-        why.push(format!(
+    // Never a pass, not even as an expected failure: a known failure is about differences
+    let nonfinite = nonfinite.filter(|(nan, inf)| nan + inf > 0).map(|(nan, inf)| {
+        format!(
             "the test image has {nan} NaN and {inf} Inf pixel(s): never a pass (allow_nonfinite = true in the test allows them)"
-        ));
-    }
+        )
+    });
     let verdict = z.map(|z| z.verdict).unwrap_or(c.verdict);
     if verdict == Verdict::Failure {
         why.push(match z {
@@ -473,6 +474,10 @@ fn judge(
         if f > max {
             why.push(format!("mean ꟻLIP {f:.4} > max_flip {max}"));
         }
+    }
+    if let Some(n) = nonfinite {
+        why.insert(0, n);
+        return (Status::Failure, why.join("; "));
     }
     let failed = !why.is_empty();
     let note = why.join("; ");
@@ -637,6 +642,15 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
         }
     }
     if loaded.is_empty() && !golden_missing {
+        // A test that compares nothing proves nothing: not a pass
+        if rows.iter().all(|r| r.status == Status::Skipped) {
+            rows.push(row(
+                t,
+                "-",
+                Status::Refused,
+                "nothing to compare with: every reference is optional and missing, and the test has no golden".into(),
+            ));
+        }
         return Ok((rows, None));
     }
     // The frame: the test's, else the references' manifests' (which must agree)

@@ -71,6 +71,28 @@ fn mitsuba_python() -> String {
     std::env::var("RAYPROOF_MITSUBA_PYTHON").unwrap_or_else(|_| "python3".into())
 }
 
+/// A renderer's image fit to be a reference: the frame's size, every value finite.
+fn check_reference_image(
+    renderer: &str,
+    img: &crate::images::Image,
+    w: u32,
+    h: u32,
+) -> Result<(), RendererFailed> {
+    if (img.width, img.height) != (w as usize, h as usize) {
+        return Err(RendererFailed(format!(
+            "{renderer} made a {}×{} image where the frame is {w}×{h}: not written",
+            img.width, img.height
+        )));
+    }
+    let bad = img.data.iter().filter(|v| !v.is_finite()).count();
+    if bad > 0 {
+        return Err(RendererFailed(format!(
+            "{renderer}'s image has {bad} NaN or Inf value(s): not written"
+        )));
+    }
+    Ok(())
+}
+
 /// The renderer's version, or why it cannot run (with how to install it).
 fn find(renderer: &str) -> Result<String, RendererFailed> {
     let run = |cmd: &str| {
@@ -158,6 +180,7 @@ pub fn make(req: &Request) -> Result<Vec<PathBuf>> {
                     .map_err(|e| RendererFailed(format!("povray's image: {e}")))?;
                 let img = export::downsample(&big, g as usize)?;
                 let out = tmp.0.join("povray.exr");
+                check_reference_image("povray", &img, w, h)?;
                 crate::images::write_exr_rgb(&out, &img)?;
                 let commands = vec![
                     format!("rayproof export --to povray {shown} --width {w} --grid {g} > scene.pov"),
@@ -182,8 +205,12 @@ pub fn make(req: &Request) -> Result<Vec<PathBuf>> {
                     req.timeout,
                 )
                 .map_err(RendererFailed)?;
-                let bytes = std::fs::read(tmp.0.join("mitsuba.exr"))
+                let file = tmp.0.join("mitsuba.exr");
+                let bytes = std::fs::read(&file)
                     .map_err(|e| RendererFailed(format!("mitsuba wrote no image: {e}")))?;
+                let img = crate::images::read_image(&file)
+                    .map_err(|e| RendererFailed(format!("mitsuba's image: {e}")))?;
+                check_reference_image("mitsuba", &img, w, h)?;
                 let commands = vec![
                     format!(
                         "rayproof export --to mitsuba {shown} --width {w} --grid {g} > scene.xml"

@@ -252,7 +252,8 @@ pub(super) fn same_nonfinite(a: f64, b: f64) -> bool {
 #[serde(rename_all = "snake_case")]
 pub enum Semantics {
     /// rayproof's, stricter for CI: a NaN/Inf mismatch is a failing pixel (also +Inf against
-    /// −Inf) and stays out of the sums; images of different size or channels are refused.
+    /// −Inf) and stays out of the sums, and one makes the verdict FAILURE whatever
+    /// `failpercent` or `allowfailures` allow; images of different size or channels are refused.
     #[default]
     Rayproof,
     /// idiff 2.4's exactly (`--idiff-compat`): a NaN/Inf mismatch only sets the max error to
@@ -418,7 +419,11 @@ pub fn compare_as(
         flip_mean: None,
         flip_kind: None,
         semantics,
-        verdict: verdict(n_fail, n_warn, max_error, npels, t),
+        // rayproof's semantics: a NaN/Inf mismatch is a failure whatever the percentages allow
+        verdict: match verdict(n_fail, n_warn, max_error, npels, t) {
+            _ if !idiff && n_nonfinite > 0 => Verdict::Failure,
+            v => v,
+        },
     })
 }
 
