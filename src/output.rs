@@ -1,30 +1,42 @@
-//! Writing output files. Every file goes through a temporary sibling (`.NAME.tmpPID`) and a
-//! rename, so a failed or interrupted command never leaves a half-written file and never
-//! replaces a good one. This is the one atomic writer of the crate.
+//! Writing output files: the one way every command writes.
 //!
-//! - A command that writes several files (`render -o X.exr --png Y.png` and its `X.exr.json`)
-//!   renames them only when every one was written.
-//! - An output path that exists and is not a regular file (a directory, a symbolic link, a FIFO, a
-//!   device) is refused, never replaced.
-//! - Output paths are checked before the work starts (their directory exists and takes a
-//!   temporary file).
-//! - SIGINT or SIGTERM removes the temporaries being written and exits with 130; what a SIGKILL
-//!   leaves (`.NAME.tmpPID`) is removed by the next write of the same output.
+//! - **All outputs of a run are staged and committed together** ([`Outputs`]): each file is
+//!   written to a temporary sibling, each directory output (a report) is built in a temporary
+//!   sibling directory, and only when the work is done are they renamed into place, together
+//!   (a directory replaces its previous version in one atomic exchange, `renameat2`). If any
+//!   write fails, or the set is dropped uncommitted, every temporary is removed and no output is
+//!   touched.
+//! - **Never over an input, never over what rayproof did not make.** A run declares its inputs
+//!   ([`Outputs::reading`], [`check_outputs`]); an output that is one of them (the same file by
+//!   path or by inode), or that is named twice, is refused before the work starts. An output path
+//!   that exists and is not a regular file (a directory, a symbolic link, a FIFO, a device) is
+//!   refused; a directory output replaces only a directory that rayproof made (it holds the
+//!   marker file [`MARKER`]).
+//! - **Temporaries no user file can be mistaken for**: `.NAME.rayproof-PID-NONCE.tmp` (files) and
+//!   `.NAME.rayproof-PID-NONCE.dir` (directories, which hold [`MARKER`]). What a killed run left is
+//!   removed by the next run writing the same output: only regular files of that exact pattern,
+//!   and only directories of that pattern that hold the marker, whose process no longer exists.
+//! - **Signals**: SIGINT or SIGTERM stops the run. The handler kills the outside commands running
+//!   ([`crate::process`]), waits for a commit in progress to finish whole (a commit that has not
+//!   started never starts), removes every temporary and exits with 130. So an interrupted run
+//!   leaves every old output byte-identical, or the run's new outputs all in place; never a mix.
+//!   (A SIGKILL cannot be caught: its temporaries are removed by the next run.)
 
 use anyhow::{bail, Context, Result};
+use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
-/// The temporary sibling of `path`: `.NAME.tmpPID` in the same directory.
-fn tmp_for(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    path.with_file_name(format!(".{name}.tmp{}", std::process::id()))
-}
+/// The file inside every directory rayproof makes as an output (a report): a directory without
+/// it is never replaced, and a stale temporary directory without it is never removed.
+pub const MARKER: &str = ".rayproof-output";
 
 /// The temporaries being written now, removed by [`clean_up_on_signals`]'s handler.
-static LIVE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+/// Held while a commit renames its outputs: the signal handler waits for it.
+static COMMIT: Mutex<()> = Mutex::new(());
+/// Set by the signal handler before it does anything else.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 fn live(f: impl FnOnce(&mut Vec<PathBuf>)) {
     if let Ok(mut v) = LIVE.lock() {
@@ -32,8 +44,18 @@ fn live(f: impl FnOnce(&mut Vec<PathBuf>)) {
     }
 }
 
-/// Set by the signal handler before it does anything else.
-static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+/// Removes a temporary: a file, or a directory with everything in it.
+fn remove_temporary(p: &Path) {
+    match std::fs::symlink_metadata(p) {
+        Ok(m) if m.is_dir() => {
+            let _ = std::fs::remove_dir_all(p);
+        }
+        Ok(_) => {
+            let _ = std::fs::remove_file(p);
+        }
+        Err(_) => {}
+    }
+}
 
 /// Whether SIGINT or SIGTERM arrived.
 pub fn interrupted() -> bool {
@@ -49,21 +71,22 @@ pub fn wait_if_interrupted() {
     }
 }
 
-/// On SIGINT or SIGTERM, removes every temporary being written and exits with 130 (the
-/// shell's code for an interrupted command), so a killed command leaves no `.NAME.tmpPID`.
-/// (A SIGKILL cannot be caught: the next write of the same output removes what it left.)
+/// On SIGINT or SIGTERM: stop the outside commands, let a commit in progress finish, remove
+/// every temporary, exit with 130 (the shell's code for an interrupted command).
 pub fn clean_up_on_signals() {
     let _ = ctrlc::set_handler(|| {
-        // From now on no other thread decides how the run ends
+        // From now on no other thread decides how the run ends, and no commit starts
         INTERRUPTED.store(true, std::sync::atomic::Ordering::SeqCst);
         // The outside commands running now, and all they started, go first
         crate::process::kill_all();
+        // A commit in progress finishes whole
+        let _commit = COMMIT.lock().unwrap_or_else(|e| e.into_inner());
         live(|v| {
             for p in v.drain(..) {
-                let _ = std::fs::remove_file(&p).or_else(|_| std::fs::remove_dir_all(&p));
+                remove_temporary(&p);
             }
         });
-        eprintln!("error: interrupted; temporary files removed");
+        eprintln!("error: interrupted; temporary files removed, no output replaced");
         std::process::exit(130);
     });
 }
@@ -77,9 +100,51 @@ pub fn tracked<T>(path: &Path, f: impl FnOnce() -> T) -> T {
     r
 }
 
-/// Removes the temporaries an earlier, killed run left beside `path`: `.NAME.KINDPID` (a file
-/// or a directory) whose process no longer exists.
-pub fn remove_stale(path: &Path, kind: &str) {
+/// A fresh nonce for a temporary's name.
+fn nonce() -> u64 {
+    use std::hash::{BuildHasher, Hasher};
+    static COUNT: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+    h.write_u64(COUNT.fetch_add(1, std::sync::atomic::Ordering::Relaxed));
+    h.write_u128(
+        std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_nanos())
+            .unwrap_or(0),
+    );
+    h.finish()
+}
+
+/// The temporary sibling of `path`: `.NAME.rayproof-PID-NONCE.KIND` in the same directory.
+fn tmp_for(path: &Path, kind: &str) -> PathBuf {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(
+        ".{name}.rayproof-{}-{:016x}.{kind}",
+        std::process::id(),
+        nonce()
+    ))
+}
+
+/// The process id in a temporary's name `.NAME.rayproof-PID-NONCE.KIND`, if `file` is exactly
+/// such a name for `name` and `kind`.
+fn temporary_pid(file: &str, name: &str, kind: &str) -> Option<u32> {
+    let rest = file
+        .strip_prefix(&format!(".{name}.rayproof-"))?
+        .strip_suffix(&format!(".{kind}"))?;
+    let (pid, nonce) = rest.split_once('-')?;
+    if nonce.len() != 16 || !nonce.bytes().all(|b| b.is_ascii_hexdigit()) {
+        return None;
+    }
+    pid.parse().ok()
+}
+
+/// Removes the temporaries an earlier, killed run left beside `path`: regular files named
+/// `.NAME.rayproof-PID-NONCE.tmp`, and directories named `.NAME.rayproof-PID-NONCE.dir` that hold
+/// [`MARKER`], whose process no longer exists. Nothing else, whatever its name.
+pub fn remove_stale(path: &Path) {
     let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
         return;
     };
@@ -88,16 +153,46 @@ pub fn remove_stale(path: &Path, kind: &str) {
     } else {
         dir
     };
-    let prefix = format!(".{}.{kind}", name.to_string_lossy());
+    let name = name.to_string_lossy();
     for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
-        let n = e.file_name().to_string_lossy().into_owned();
-        let Some(pid) = n.strip_prefix(&prefix).and_then(|p| p.parse::<u32>().ok()) else {
+        let file = e.file_name().to_string_lossy().into_owned();
+        let Ok(meta) = std::fs::symlink_metadata(e.path()) else {
+            continue;
+        };
+        let pid = if meta.is_file() {
+            temporary_pid(&file, &name, "tmp")
+        } else if meta.is_dir() && e.path().join(MARKER).is_file() {
+            temporary_pid(&file, &name, "dir")
+        } else {
+            None
+        };
+        let Some(pid) = pid else {
             continue;
         };
         if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
-            let _ = std::fs::remove_file(e.path()).or_else(|_| std::fs::remove_dir_all(e.path()));
+            remove_temporary(&e.path());
         }
     }
+}
+
+/// What identifies a file: its device and inode when it exists, else the canonical path of its
+/// directory joined with its name.
+#[derive(Clone, Debug, PartialEq)]
+enum Identity {
+    Inode(u64, u64),
+    Path(PathBuf),
+}
+
+fn identity(path: &Path) -> Identity {
+    if let Ok(m) = std::fs::metadata(path) {
+        return Identity::Inode(m.dev(), m.ino());
+    }
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
+    Identity::Path(dir.join(path.file_name().unwrap_or_default()))
 }
 
 /// Refuses an output path that exists and is not a regular file: a directory, a symbolic link,
@@ -122,18 +217,122 @@ fn check_target(path: &Path) -> Result<()> {
     }
 }
 
-/// Several output files committed together: each is written to its temporary sibling, and
-/// only when every one has been written are they renamed into place. If any write fails, or
+/// Refuses a directory output that exists and is not a directory rayproof made.
+fn check_dir_target(path: &Path) -> Result<()> {
+    if path.file_name().is_none() {
+        bail!("{}: output directory has no name", path.display());
+    }
+    match std::fs::symlink_metadata(path) {
+        Ok(m) if m.is_dir() && path.join(MARKER).is_file() => Ok(()),
+        Ok(m) if m.is_dir() => bail!(
+            "{}: is a directory rayproof did not make (no {MARKER} in it); rayproof only replaces its own output directories: give a new one",
+            path.display()
+        ),
+        Ok(_) => bail!(
+            "{}: exists and is not a directory; rayproof never replaces it",
+            path.display()
+        ),
+        Err(_) => Ok(()),
+    }
+}
+
+/// Fails with one line if an output's directory does not exist or cannot take a temporary, if
+/// an output is one of the inputs or is named twice, or if it exists and may not be replaced
+/// (checked before a long run, so that the run is not wasted). Directory outputs go in `dirs`.
+pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Result<()> {
+    let mut seen: Vec<(Identity, &Path)> = inputs.iter().map(|p| (identity(p), *p)).collect();
+    let n_inputs = seen.len();
+    for (p, is_dir) in files
+        .iter()
+        .map(|p| (*p, false))
+        .chain(dirs.iter().map(|p| (*p, true)))
+    {
+        let id = identity(p);
+        if let Some((k, (_, other))) = seen.iter().enumerate().find(|(_, (i, _))| *i == id) {
+            if k < n_inputs {
+                bail!(
+                    "{}: is an input of this run ({}); rayproof never writes over its inputs",
+                    p.display(),
+                    other.display()
+                );
+            }
+            bail!("{}: named as two outputs of this run", p.display());
+        }
+        seen.push((id, p));
+        let dir = p
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        if !dir.is_dir() {
+            bail!(
+                "{}: directory {} does not exist",
+                p.display(),
+                dir.display()
+            );
+        }
+        if is_dir {
+            check_dir_target(p)?;
+        } else {
+            check_target(p)?;
+        }
+        // Can a temporary be created there? (a read-only directory, /proc, …)
+        let tmp = tmp_for(p, "tmp");
+        std::fs::File::create(&tmp)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
+        let _ = std::fs::remove_file(&tmp);
+    }
+    Ok(())
+}
+
+/// [`check_outputs`] for files of a run that declares no input.
+pub fn check_output_dirs(paths: &[&Option<PathBuf>]) -> Result<()> {
+    let files: Vec<&Path> = paths.iter().filter_map(|p| p.as_deref()).collect();
+    check_outputs(&files, &[], &[])
+}
+
+/// One staged output: its temporary and its place.
+struct Staged {
+    tmp: PathBuf,
+    path: PathBuf,
+    dir: bool,
+}
+
+/// All the outputs of one run, committed together: each is written to its temporary sibling,
+/// and only when every one has been written are they renamed into place. If any write fails, or
 /// the set is dropped uncommitted, every temporary is removed and no output is touched.
 #[derive(Default)]
 pub struct Outputs {
-    staged: Vec<(PathBuf, PathBuf)>,
+    staged: Vec<Staged>,
+    inputs: Vec<(Identity, PathBuf)>,
 }
 
 impl Outputs {
     /// An empty set of staged outputs.
     pub fn new() -> Outputs {
         Outputs::default()
+    }
+
+    /// Declares the run's inputs: no output may be one of them.
+    pub fn reading(mut self, inputs: &[&Path]) -> Outputs {
+        self.inputs
+            .extend(inputs.iter().map(|p| (identity(p), p.to_path_buf())));
+        self
+    }
+
+    /// Refuses an output that is an input or already staged.
+    fn claim(&self, path: &Path) -> Result<()> {
+        let id = identity(path);
+        if let Some((_, p)) = self.inputs.iter().find(|(i, _)| *i == id) {
+            bail!(
+                "{}: is an input of this run ({}); rayproof never writes over its inputs",
+                path.display(),
+                p.display()
+            );
+        }
+        if self.staged.iter().any(|s| identity(&s.path) == id) {
+            bail!("{}: named as two outputs of this run", path.display());
+        }
+        Ok(())
     }
 
     /// Stages `path`: runs `write` on its temporary sibling.
@@ -143,15 +342,20 @@ impl Outputs {
         write: impl FnOnce(&Path) -> Result<()>,
     ) -> Result<()> {
         check_target(path)?;
-        remove_stale(path, "tmp");
-        let tmp = tmp_for(path);
+        self.claim(path)?;
+        remove_stale(path);
+        let tmp = tmp_for(path, "tmp");
         live(|v| v.push(tmp.clone()));
         if let Err(e) = write(&tmp) {
-            let _ = std::fs::remove_file(&tmp);
+            remove_temporary(&tmp);
             live(|v| v.retain(|p| p != &tmp));
             return Err(e.context(format!("cannot write {}", path.display())));
         }
-        self.staged.push((tmp, path.to_path_buf()));
+        self.staged.push(Staged {
+            tmp,
+            path: path.to_path_buf(),
+            dir: false,
+        });
         Ok(())
     }
 
@@ -160,22 +364,88 @@ impl Outputs {
         self.write_with(path, |tmp| Ok(std::fs::write(tmp, bytes)?))
     }
 
-    /// Renames every staged file into place.
-    pub fn commit(mut self) -> Result<()> {
-        for (tmp, path) in std::mem::take(&mut self.staged) {
-            let r = std::fs::rename(&tmp, &path);
+    /// Stages a directory output: `fill` writes its files into a temporary sibling directory
+    /// (marked with [`MARKER`]), which replaces `path` on commit. An existing `path` must be a
+    /// directory rayproof made.
+    pub fn dir_with(&mut self, path: &Path, fill: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
+        check_dir_target(path)?;
+        self.claim(path)?;
+        remove_stale(path);
+        let tmp = tmp_for(path, "dir");
+        live(|v| v.push(tmp.clone()));
+        let made = std::fs::create_dir(&tmp)
+            .and_then(|_| std::fs::write(tmp.join(MARKER), b"made by rayproof\n"))
+            .with_context(|| format!("cannot create {}", tmp.display()))
+            .and_then(|_| fill(&tmp));
+        if let Err(e) = made {
+            remove_temporary(&tmp);
             live(|v| v.retain(|p| p != &tmp));
-            r.with_context(|| format!("cannot write {}", path.display()))?;
+            return Err(e.context(format!("cannot write {}", path.display())));
+        }
+        self.staged.push(Staged {
+            tmp,
+            path: path.to_path_buf(),
+            dir: true,
+        });
+        Ok(())
+    }
+
+    /// Renames every staged output into place, all of them or (interrupted before it starts)
+    /// none. A signal that arrives during the commit waits for it to finish.
+    pub fn commit(mut self) -> Result<()> {
+        let _commit = COMMIT.lock().unwrap_or_else(|e| e.into_inner());
+        if interrupted() {
+            bail!("interrupted");
+        }
+        // Last checks, then the renames
+        for s in &self.staged {
+            if s.dir {
+                check_dir_target(&s.path)?;
+            } else {
+                check_target(&s.path)?;
+            }
+        }
+        for s in std::mem::take(&mut self.staged) {
+            let r = if s.dir && s.path.exists() {
+                // The old version out and the new in, in one step; then the old one goes
+                exchange(&s.tmp, &s.path).map(|_| remove_temporary(&s.tmp))
+            } else {
+                std::fs::rename(&s.tmp, &s.path)
+            };
+            live(|v| v.retain(|p| p != &s.tmp));
+            r.with_context(|| format!("cannot write {}", s.path.display()))?;
         }
         Ok(())
     }
 }
 
+/// Exchanges two paths atomically (`renameat2(RENAME_EXCHANGE)`).
+fn exchange(a: &Path, b: &Path) -> std::io::Result<()> {
+    use std::os::unix::ffi::OsStrExt;
+    let ca = std::ffi::CString::new(a.as_os_str().as_bytes())?;
+    let cb = std::ffi::CString::new(b.as_os_str().as_bytes())?;
+    // SAFETY: renameat2 with two NUL-terminated paths relative to the working directory
+    let r = unsafe {
+        libc::renameat2(
+            libc::AT_FDCWD,
+            ca.as_ptr(),
+            libc::AT_FDCWD,
+            cb.as_ptr(),
+            libc::RENAME_EXCHANGE,
+        )
+    };
+    if r == 0 {
+        Ok(())
+    } else {
+        Err(std::io::Error::last_os_error())
+    }
+}
+
 impl Drop for Outputs {
     fn drop(&mut self) {
-        for (tmp, _) in &self.staged {
-            let _ = std::fs::remove_file(tmp);
-            live(|v| v.retain(|p| p != tmp));
+        for s in &self.staged {
+            remove_temporary(&s.tmp);
+            live(|v| v.retain(|p| p != &s.tmp));
         }
     }
 }
@@ -193,45 +463,20 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_with(path, |tmp| Ok(std::fs::write(tmp, bytes)?))
 }
 
-/// Fails with one line if the directory of any given output path does not exist, or the path
-/// is not a regular file that may be replaced (checked before a long run, so the run is not
-/// wasted).
-pub fn check_output_dirs(paths: &[&Option<PathBuf>]) -> Result<()> {
-    for p in paths.iter().copied().flatten() {
-        let dir = p
-            .parent()
-            .filter(|d| !d.as_os_str().is_empty())
-            .unwrap_or(Path::new("."));
-        if !dir.is_dir() {
-            bail!(
-                "{}: directory {} does not exist",
-                p.display(),
-                dir.display()
-            );
-        }
-        check_target(p)?;
-        // Can a temporary sibling be created there? (a read-only directory, /proc, …)
-        let tmp = tmp_for(p);
-        std::fs::File::create(&tmp)
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
-        let _ = std::fs::remove_file(&tmp);
-    }
-    Ok(())
-}
-
 /// A scratch directory under the system's temp directory (`rayproof-TAG-PID-NANOS`), removed
-/// with everything in it when dropped.
+/// with everything in it when dropped, and on SIGINT or SIGTERM.
 pub struct ScratchDir(pub PathBuf);
 
 impl ScratchDir {
-    /// Creates `rayproof-TAG-PID-NANOS` under the system's temp directory.
+    /// Creates `rayproof-TAG-PID-NONCE` under the system's temp directory.
     pub fn new(tag: &str) -> Result<ScratchDir> {
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.subsec_nanos())
-            .unwrap_or(0);
-        let p = std::env::temp_dir().join(format!("rayproof-{tag}-{}-{nanos}", std::process::id()));
+        let p = std::env::temp_dir().join(format!(
+            "rayproof-{tag}-{}-{:016x}",
+            std::process::id(),
+            nonce()
+        ));
         std::fs::create_dir_all(&p).with_context(|| format!("cannot create {}", p.display()))?;
+        live(|v| v.push(p.clone()));
         Ok(ScratchDir(p))
     }
 }
@@ -239,6 +484,7 @@ impl ScratchDir {
 impl Drop for ScratchDir {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
+        live(|v| v.retain(|p| p != &self.0));
     }
 }
 
@@ -258,7 +504,40 @@ mod tests {
         });
         assert!(r.is_err());
         assert_eq!(std::fs::read(&path).unwrap(), b"old");
-        assert!(!tmp_for(&path).exists());
+        let left: Vec<_> = std::fs::read_dir(&dir).unwrap().flatten().collect();
+        assert_eq!(left.len(), 1, "a temporary was left");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn only_exact_temporaries_of_dead_runs_are_cleaned() {
+        let dir = std::env::temp_dir().join(format!("rayproof-stale-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let out = dir.join("keep.exr");
+        let dead = 999_999_999u32;
+        let stale_file = dir.join(format!(".keep.exr.rayproof-{dead}-0123456789abcdef.tmp"));
+        std::fs::write(&stale_file, b"x").unwrap();
+        let stale_dir = dir.join(format!(".keep.exr.rayproof-{dead}-0123456789abcdef.dir"));
+        std::fs::create_dir_all(&stale_dir).unwrap();
+        std::fs::write(stale_dir.join(MARKER), b"").unwrap();
+        // A user's directory of the old pattern and of the new one without the marker
+        let users = [
+            dir.join(format!(".keep.exr.tmp{dead}")),
+            dir.join(format!(".keep.exr.rayproof-{dead}-0123456789abcdef.tmp.d")),
+            dir.join(format!(".keep.exr.rayproof-{dead}-0123456789abcdef.dir2")),
+        ];
+        let user_dir = dir.join(format!(".keep.exr.rayproof-{dead}-fedcba9876543210.dir"));
+        std::fs::create_dir_all(user_dir.join("thesis")).unwrap();
+        for u in &users {
+            std::fs::create_dir_all(u.join("precious")).unwrap();
+        }
+        remove_stale(&out);
+        assert!(!stale_file.exists() && !stale_dir.exists());
+        assert!(user_dir.join("thesis").exists());
+        for u in &users {
+            assert!(u.join("precious").exists(), "{}", u.display());
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -401,7 +401,7 @@ fn a_failed_multi_file_write_replaces_nothing_and_leaves_no_temporary() {
     }
     assert_eq!(std::fs::read(&good).unwrap(), before.0);
     // What a killed run left beside an output is removed by the next write of it
-    let stale = d.join(".good.exr.tmp4000000000");
+    let stale = d.join(".good.exr.rayproof-4000000000-0123456789abcdef.tmp");
     std::fs::write(&stale, b"half").unwrap();
     let (code, _, err) = rayproof(&[
         "render",
@@ -468,7 +468,7 @@ fn a_terminated_report_leaves_no_staging_directory() {
         .unwrap();
     // Wait until its staging directory exists, then terminate it
     let t0 = std::time::Instant::now();
-    while !names(&d).iter().any(|n| n.starts_with(".rep.partial-")) {
+    while !names(&d).iter().any(|n| n.starts_with(".rep.rayproof-")) {
         assert!(t0.elapsed().as_secs() < 30, "no staging directory appeared");
         std::thread::sleep(std::time::Duration::from_millis(20));
     }

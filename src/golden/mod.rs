@@ -443,13 +443,20 @@ fn judge(
     nonfinite: Option<(usize, usize)>,
 ) -> (Status, String) {
     let mut why = vec![];
+    let allowed = nonfinite.is_none();
     // Never a pass, not even as an expected failure: a known failure is about differences
     let nonfinite = nonfinite.filter(|(nan, inf)| nan + inf > 0).map(|(nan, inf)| {
         format!(
             "the test image has {nan} NaN and {inf} Inf pixel(s): never a pass (allow_nonfinite = true in the test allows them)"
         )
     });
-    let verdict = z.map(|z| z.verdict).unwrap_or(c.verdict);
+    // A test that allows NaN/Inf has them judged as failing pixels under its percentages (the
+    // comparison's own verdict fails any NaN/Inf mismatch)
+    let verdict = z.map(|z| z.verdict).unwrap_or(if allowed {
+        images::verdict(c.n_fail, c.n_warn, c.max_error, c.pixels, &rule.idiff)
+    } else {
+        c.verdict
+    });
     if verdict == Verdict::Failure {
         why.push(match z {
             Some(z) => format!(

@@ -164,39 +164,16 @@ pub fn run(o: &ReportOptions) -> Result<()> {
         let path = o.reference.join("scenes").join(format!("{name}.toml"));
         crate::render::scene::load(&path)?;
     }
-    // Build beside the target, rename into place at the end
-    // A directory swap: the one rename outside crate::output, whose writers handle files
-    crate::output::remove_stale(&o.out, "partial-");
-    crate::output::remove_stale(&o.out, "old-");
-    let tmp = sibling(&o.out, "partial")?;
-    std::fs::create_dir_all(tmp.join("img"))
-        .with_context(|| format!("cannot create {}", tmp.display()))?;
-    let result = crate::output::tracked(&tmp, || build(o, &tmp));
-    if let Err(e) = result {
-        let _ = std::fs::remove_dir_all(&tmp);
-        return Err(e);
-    }
-    let old = sibling(&o.out, "old")?;
-    if o.out.exists() {
-        std::fs::rename(&o.out, &old)
-            .with_context(|| format!("cannot replace {}", o.out.display()))?;
-    }
-    std::fs::rename(&tmp, &o.out).with_context(|| format!("cannot write {}", o.out.display()))?;
-    let _ = std::fs::remove_dir_all(&old);
-    Ok(())
-}
-
-/// `DIR` → `DIR/../.NAME.KIND-PID`.
-fn sibling(out: &Path, kind: &str) -> Result<PathBuf> {
-    let name = out
-        .file_name()
-        .context("report directory has no name")?
-        .to_string_lossy();
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    Ok(parent.join(format!(".{name}.{kind}-{}", std::process::id())))
+    // Built in a staged directory that replaces the previous report whole at the end; a
+    // directory rayproof did not make is refused before anything runs
+    crate::output::check_outputs(&[], &[&o.out], &[&o.reference])?;
+    let mut out = crate::output::Outputs::new().reading(&[&o.reference]);
+    out.dir_with(&o.out, |dir| {
+        std::fs::create_dir_all(dir.join("img"))
+            .with_context(|| format!("cannot create {}", dir.display()))?;
+        build(o, dir)
+    })?;
+    out.commit()
 }
 
 /// Progress: one line per step on stderr, on a terminal or not (the audit's bar only on one).
