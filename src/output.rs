@@ -195,6 +195,12 @@ fn identity(path: &Path) -> Identity {
     Identity::Path(dir.join(path.file_name().unwrap_or_default()))
 }
 
+/// Whether two paths name the same file (by device and inode when both exist, else by the
+/// canonical path of their directories and their names).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    identity(a) == identity(b)
+}
+
 /// Refuses an output path that exists and is not a regular file: a directory, a symbolic link,
 /// a FIFO, a device or a socket is never replaced (nor written through).
 fn check_target(path: &Path) -> Result<()> {
@@ -388,6 +394,17 @@ impl Outputs {
             dir: true,
         });
         Ok(())
+    }
+
+    /// Stages a directory output to be filled by the caller: the temporary sibling directory
+    /// (marked with [`MARKER`]) that replaces `path` on commit.
+    pub fn dir(&mut self, path: &Path) -> Result<PathBuf> {
+        let mut made = None;
+        self.dir_with(path, |tmp| {
+            made = Some(tmp.to_path_buf());
+            Ok(())
+        })?;
+        made.context("no staging directory")
     }
 
     /// Renames every staged output into place, all of them or (interrupted before it starts)

@@ -9,10 +9,10 @@ use rayproof::audit::shard::{self, Shard, UserTable};
 use rayproof::audit::tolerance::{Known, Status, Table};
 use rayproof::audit::{table, Report, ShapeReport, TOOL};
 use rayproof::numerics::Precision;
-use rayproof::output::{check_output_dirs, write_atomic};
+use rayproof::output::{check_outputs, Outputs};
 use rayproof::shapes::robustness::{self, Robustness};
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Args, Debug)]
@@ -247,7 +247,8 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     )?;
     let user_table = read_user_table(&a.out.tolerances)?;
     let table = table_of(&user_table, &plan.known())?;
-    check_output_dirs(&[&a.out.json, &a.out.markdown, &a.shard_out])?;
+    let inputs: Vec<PathBuf> = a.out.tolerances.iter().cloned().collect();
+    let mut outputs = a.out.outputs(&[&a.shard_out], &inputs)?;
     let shard_label = format!("{}/{}", a.shard.0, a.shard.1);
     // A shard is judged by its merge, not here
     let judge = a.shard_out.is_none() && a.shard == (0, 1);
@@ -286,10 +287,11 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
             shapes: reports,
             robustness: None,
         };
-        write_files(&report, &a.out.json, &a.out.markdown)?;
+        write_files(&mut outputs, &report, &a.out)?;
         // The shard carries the rules it was run with: its merge judges with them
         let file = Shard::new(TOOL, a.seed, plan.every_shape, a.shard, user_table, &runs);
-        write_atomic(p, file.to_json().as_bytes())?;
+        outputs.write(p, file.to_json().as_bytes())?;
+        outputs.commit()?;
         say!(
             "shard {}/{} written to {}; the tolerance table is checked by `rayproof merge`",
             a.shard.0,
@@ -316,8 +318,8 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
             robustness,
         },
         judge,
-        &a.out.json,
-        &a.out.markdown,
+        outputs,
+        &a.out,
     )
 }
 
@@ -332,7 +334,8 @@ fn print_robustness(r: Robustness, verbose: bool) -> Robustness {
 }
 
 pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
-    check_output_dirs(&[&m.out.json, &m.out.markdown])?;
+    let inputs: Vec<PathBuf> = m.shards.iter().chain(&m.out.tolerances).cloned().collect();
+    let outputs = m.out.outputs(&[], &inputs)?;
     // Read and check each shard on its own (exit 2 on a bad file)
     let mut shards = vec![];
     for p in &m.shards {
@@ -410,31 +413,52 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
             robustness,
         },
         true,
-        &m.out.json,
-        &m.out.markdown,
+        outputs,
+        &m.out,
     )
 }
 
-/// Writes `--json` and `--markdown`.
-fn write_files(report: &Report, json: &Option<PathBuf>, markdown: &Option<PathBuf>) -> Result<()> {
-    if let Some(p) = json {
-        write_atomic(p, (serde_json::to_string_pretty(report)? + "\n").as_bytes())?;
+impl AuditOutput {
+    /// The run's outputs: `--json`, `--markdown` and `extra`, checked before the run (none an
+    /// input, none twice, each writable), to be committed together.
+    pub(super) fn outputs(
+        &self,
+        extra: &[&Option<PathBuf>],
+        inputs: &[PathBuf],
+    ) -> Result<Outputs> {
+        let files: Vec<&Path> = [&self.json, &self.markdown]
+            .into_iter()
+            .chain(extra.iter().copied())
+            .flatten()
+            .map(|p| p.as_path())
+            .collect();
+        let inputs: Vec<&Path> = inputs.iter().map(|p| p.as_path()).collect();
+        check_outputs(&files, &[], &inputs)?;
+        Ok(Outputs::new().reading(&inputs))
     }
-    if let Some(p) = markdown {
-        write_atomic(p, table::markdown(report).as_bytes())?;
+}
+
+/// Stages `--json` and `--markdown`.
+fn write_files(outputs: &mut Outputs, report: &Report, out: &AuditOutput) -> Result<()> {
+    if let Some(p) = &out.json {
+        outputs.write(p, (serde_json::to_string_pretty(report)? + "\n").as_bytes())?;
+    }
+    if let Some(p) = &out.markdown {
+        outputs.write(p, table::markdown(report).as_bytes())?;
     }
     Ok(())
 }
 
-/// Prints the verdict, writes the files and returns the exit code (the same for `audit` and
-/// `merge`).
+/// Prints the verdict, writes the files (together) and returns the exit code (the same for
+/// `audit`, `merge` and `score`).
 pub(super) fn finish(
     report: Report,
     judged: bool,
-    json: &Option<PathBuf>,
-    markdown: &Option<PathBuf>,
+    mut outputs: Outputs,
+    out: &AuditOutput,
 ) -> Result<u8> {
-    write_files(&report, json, markdown)?;
+    write_files(&mut outputs, &report, out)?;
+    outputs.commit()?;
     if !judged {
         return Ok(0);
     }

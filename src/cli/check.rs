@@ -11,9 +11,9 @@ use super::*;
 use anyhow::Result;
 use clap::Args;
 use rayproof::numerics::Precision;
-use rayproof::output::{check_output_dirs, write_atomic};
+use rayproof::output::{check_outputs, Outputs};
 use rayproof::shapes::sphere::methods::Method;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Args, Debug)]
@@ -55,8 +55,22 @@ pub struct CheckArgs {
 
 pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     use rayproof::golden as check;
-    check_output_dirs(&[&a.json, &a.junit, &a.markdown])?;
     let suite = check::Suite::load(&a.suite)?;
+    // Every output checked before the run, none over an input (the suite, a scene, a reference)
+    let inputs = suite.inputs();
+    let inputs: Vec<&Path> = inputs.iter().map(|p| p.as_path()).collect();
+    let files: Vec<&Path> = [&a.json, &a.junit, &a.markdown]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    let dirs: Vec<&Path> = a.report.iter().map(|p| p.as_path()).collect();
+    check_outputs(&files, &dirs, &inputs)?;
+    let mut outputs = Outputs::new().reading(&inputs);
+    let report_dir = match &a.report {
+        Some(d) => Some(outputs.dir(d)?),
+        None => None,
+    };
     // Extra configurations: each method × each precision
     let precisions = if a.precision.is_empty() {
         Precision::ALL.to_vec()
@@ -74,7 +88,7 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
         })
         .collect();
     let opts = check::Options {
-        report: a.report.clone(),
+        report: report_dir.clone(),
         update: a.update,
         configs,
         tests: a.test.clone(),
@@ -82,7 +96,7 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     };
     // Run, then the summary: failures first
     let start = Instant::now();
-    let out = check::run(&suite, &opts)?;
+    let out = check::run(&suite, &opts, &mut outputs)?;
     let rows = &out.rows;
     say_raw!("{}", check::table(rows));
     say!(
@@ -96,23 +110,26 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     if out.update_withheld {
         say!("--update wrote nothing: a test was refused (fix it first)");
     }
+    // The reports, staged with the goldens: all committed together
+    if let Some(dir) = &report_dir {
+        let html = check::html(rows, &suite.name);
+        std::fs::write(dir.join("index.html"), html.as_bytes())?;
+    }
+    if let Some(p) = &a.json {
+        outputs.write(p, (serde_json::to_string_pretty(rows)? + "\n").as_bytes())?;
+    }
+    if let Some(p) = &a.junit {
+        outputs.write(p, check::junit(rows, &suite.name).as_bytes())?;
+    }
+    if let Some(p) = &a.markdown {
+        outputs.write(p, check::markdown(rows).as_bytes())?;
+    }
+    outputs.commit()?;
     for g in &out.blessed {
         say!("updated {}", g.display());
     }
-    // The reports
     if let Some(dir) = &a.report {
-        let html = check::html(rows, &suite.name);
-        write_atomic(&dir.join("index.html"), html.as_bytes())?;
         say!("report: {}", dir.join("index.html").display());
-    }
-    if let Some(p) = &a.json {
-        write_atomic(p, (serde_json::to_string_pretty(rows)? + "\n").as_bytes())?;
-    }
-    if let Some(p) = &a.junit {
-        write_atomic(p, check::junit(rows, &suite.name).as_bytes())?;
-    }
-    if let Some(p) = &a.markdown {
-        write_atomic(p, check::markdown(rows).as_bytes())?;
     }
     Ok(out.exit_code())
 }

@@ -3,7 +3,7 @@
 use super::*;
 use anyhow::Result;
 use clap::Args;
-use rayproof::output::{check_output_dirs, write_atomic};
+use rayproof::output::{check_outputs, write_atomic};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -27,8 +27,11 @@ pub struct ImplicitCheckArgs {
 /// `implicit-check`: both renders, the table, exit 1 if the certified mode differs in coverage.
 pub(super) fn run_implicit_check(a: ImplicitCheckArgs) -> Result<u8> {
     use rayproof::implicit::{check, subdiv::Mode};
-    check_output_dirs(&[&a.json])?;
     let sc = rayproof::render::scene::load(&a.scene)?;
+    let inputs = sc.files();
+    let inputs: Vec<&std::path::Path> = inputs.iter().map(|p| p.as_path()).collect();
+    let files: Vec<&std::path::Path> = a.json.iter().map(|p| p.as_path()).collect();
+    check_outputs(&files, &[], &inputs)?;
     let r = check::run(
         &sc,
         &check::Options {

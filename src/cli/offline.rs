@@ -75,7 +75,12 @@ pub(super) fn run_cases(a: CasesArgs) -> Result<u8> {
 }
 
 pub(super) fn run_score(a: ScoreArgs) -> Result<u8> {
-    check_output_dirs(&[&a.out.json, &a.out.markdown])?;
+    let inputs: Vec<PathBuf> = [&a.cases, &a.answers]
+        .into_iter()
+        .chain(&a.out.tolerances)
+        .cloned()
+        .collect();
+    let outputs = a.out.outputs(&[], &inputs)?;
     // The two files, read and matched line by line
     let read = |p: &PathBuf| {
         std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))
@@ -108,7 +113,7 @@ pub(super) fn run_score(a: ScoreArgs) -> Result<u8> {
             robustness: None,
         },
         true,
-        &a.out.json,
-        &a.out.markdown,
+        outputs,
+        &a.out,
     )
 }

@@ -4,10 +4,9 @@ use super::*;
 use anyhow::{Context, Result};
 use clap::Args;
 use rayproof::numerics::Precision;
-use rayproof::output::check_output_dirs;
 use rayproof::shapes::sphere::methods::Method;
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -75,8 +74,19 @@ pub struct DownsampleArgs {
 pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
     use rayproof::render::{self, output, scene};
     let sc = scene::load(&a.scene)?;
-    // Refuse before rendering if an output cannot be written
-    check_output_dirs(&[&a.output, &a.png])?;
+    // Refuse before rendering if an output cannot be written, is named twice or is an input
+    let side = a
+        .output
+        .as_ref()
+        .map(|o| PathBuf::from(format!("{}.json", o.display())));
+    let inputs = sc.files();
+    let inputs: Vec<&Path> = inputs.iter().map(|p| p.as_path()).collect();
+    let files: Vec<&Path> = [&a.output, &side, &a.png]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    rayproof::output::check_outputs(&files, &[], &inputs)?;
     // The size and grid asked for, within the documented limits
     let fr =
         rayproof::render::export::Frame::of(&sc, a.width, a.spp).map_err(anyhow::Error::msg)?;
@@ -118,7 +128,7 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
     let lights = sc.file.lights.len() + sc.file.directional.len();
     say!("{}", render::budget_line(&r, lights));
     // The EXR, its sidecar and the PNG: all written, or none replaced
-    let mut files = rayproof::output::Outputs::new();
+    let mut files = rayproof::output::Outputs::new().reading(&inputs);
     if let Some(out) = &a.output {
         let layers = output::Layers {
             depth: a.layers.iter().any(|l| l == "depth"),
@@ -127,9 +137,9 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
         };
         files.write_with(out, |tmp| output::write_exr(&r, tmp, layers))?;
         let stats = output::stats_json(&r, &a.scene.display().to_string(), lights);
-        let side = PathBuf::from(format!("{}.json", out.display()));
+        let side = side.as_ref().expect("with -o");
         files.write(
-            &side,
+            side,
             (serde_json::to_string_pretty(&stats)? + "\n").as_bytes(),
         )?;
     }
@@ -158,7 +168,7 @@ pub(super) fn run_export(e: ExportArgs) -> Result<u8> {
 }
 
 pub(super) fn run_downsample(d: DownsampleArgs) -> Result<u8> {
-    check_output_dirs(&[&Some(d.output.clone())])?;
+    rayproof::output::check_outputs(&[&d.output], &[], &[&d.input])?;
     let big = rayproof::images::read_image(&d.input)?;
     let small = rayproof::render::export::downsample(&big, d.factor as usize)
         .with_context(|| d.input.display().to_string())?;

@@ -247,14 +247,14 @@ pub use suite::{Source, Suite, Test};
 
 use crate::images::{self, Comparison, Image, Verdict, ZParams};
 use crate::render::{self, scene};
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use references::{bless, verified_reference, Blessing};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 /// What `check` was asked to do.
 pub struct Options {
-    /// Write the HTML report to this directory.
+    /// Write the report's images to this directory (the staging directory of `--report`).
     pub report: Option<PathBuf>,
     /// `--update`: write the goldens that fail or are missing (only if no test is refused).
     pub update: bool,
@@ -768,8 +768,9 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
     Ok((rows, golden_failed.then_some((made, frame))))
 }
 
-/// Runs a suite; `--update` writes goldens only after every test ran and none was refused.
-pub fn run(suite: &Suite, o: &Options) -> Result<Outcome> {
+/// Runs a suite; `--update` stages goldens into `outputs` (committed with the run's other
+/// outputs) only after every test ran and none was refused.
+pub fn run(suite: &Suite, o: &Options, outputs: &mut crate::output::Outputs) -> Result<Outcome> {
     // Select the tests; every name asked for must exist
     for n in &o.tests {
         if !suite.tests.iter().any(|t| &t.name == n) {
@@ -807,9 +808,6 @@ pub fn run(suite: &Suite, o: &Options) -> Result<Outcome> {
         .filter(|t| !t.references.is_empty())
         .collect();
     tests.extend(extra);
-    if let Some(dir) = &o.report {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    }
     // Run every test
     let scratch = crate::output::ScratchDir::new("check")?;
     let mut rows = vec![];
@@ -824,6 +822,7 @@ pub fn run(suite: &Suite, o: &Options) -> Result<Outcome> {
     // Bless: only when nothing was refused, only failing or missing goldens
     let refused = rows.iter().any(|r| r.status == Status::Refused);
     let mut blessed = vec![];
+    let mut records = references::Records::default();
     if o.update && !refused {
         for (t, golden, (m, frame)) in to_bless {
             // Never bless an image with NaN or Inf
@@ -850,7 +849,7 @@ pub fn run(suite: &Suite, o: &Options) -> Result<Outcome> {
                 scene: t.scene.as_deref(),
                 scene_sha: t.scene.as_ref().and_then(|s| sha256_file(s).ok()),
             };
-            bless(&golden, &m.file, &b)?;
+            bless(&mut records, &golden, &m.file, &b)?;
             for r in rows
                 .iter_mut()
                 .filter(|r| r.test == t.name && r.reference == "golden" && r.config == t.config())
@@ -861,6 +860,8 @@ pub fn run(suite: &Suite, o: &Options) -> Result<Outcome> {
             blessed.push(golden);
         }
     }
+    // The goldens and their manifests, staged with the run's other outputs
+    records.stage(outputs)?;
     // Failures first (refusals first of all), then warnings, then by test
     rows.sort_by_key(|r| {
         (

@@ -127,9 +127,42 @@ fn manifest(dir: &Path) -> Result<Option<serde_json::Value>> {
     }
     let text =
         std::fs::read_to_string(&p).with_context(|| format!("cannot read {}", p.display()))?;
-    let v =
+    let v: serde_json::Value =
         serde_json::from_str(&text).with_context(|| format!("{}: malformed JSON", p.display()))?;
+    // An object whose "files" is an object of objects: anything else is not a manifest
+    let files = v.get("files").unwrap_or(&serde_json::Value::Null);
+    if !v.is_object()
+        || !(files.is_object() || files.is_null())
+        || files
+            .as_object()
+            .is_some_and(|f| f.values().any(|e| !e.is_object()))
+    {
+        bail!(
+            "{}: not a manifest (an object whose \"files\" maps file names to entries)",
+            p.display()
+        );
+    }
     Ok(Some(v))
+}
+
+/// A whole number of a manifest entry that must fit a `u32` (a width, a grid); an error names
+/// the file and the key.
+fn entry_u32(entry: &serde_json::Value, key: &str, path: &Path) -> Result<Option<u32>> {
+    match entry.get(key) {
+        None | Some(serde_json::Value::Null) => Ok(None),
+        Some(v) => v
+            .as_u64()
+            .and_then(|x| u32::try_from(x).ok())
+            .filter(|&x| x > 0)
+            .map(Some)
+            .with_context(|| {
+                format!(
+                    "{}: the manifest's {key} = {v} is not a whole number from 1 to {}",
+                    path.display(),
+                    u32::MAX
+                )
+            }),
+    }
 }
 
 fn dir_and_name(path: &Path) -> (PathBuf, String) {
@@ -184,8 +217,8 @@ pub fn verified_reference(path: &Path, scene_sha: Option<&str>) -> Result<(Image
             )
             .trim()
             .to_string(),
-            width: entry["width"].as_u64().map(|w| w as u32),
-            grid: entry["grid"].as_u64().map(|g| g as u32),
+            width: entry_u32(entry, "width", path)?,
+            grid: entry_u32(entry, "grid", path)?,
         };
     }
     let img = images::read_image(path).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -202,9 +235,9 @@ pub struct Blessing<'a> {
     pub scene_sha: Option<String>,
 }
 
-/// Writes a golden (a copy of `image`'s bytes) and its entry in the manifest beside it (only
+/// Stages a golden (a copy of `image`'s bytes) and its entry in the manifest beside it (only
 /// `--update` calls this, after every test of the run was validated).
-pub fn bless(golden: &Path, image: &Path, b: &Blessing) -> Result<()> {
+pub fn bless(records: &mut Records, golden: &Path, image: &Path, b: &Blessing) -> Result<()> {
     let bytes = std::fs::read(image).with_context(|| format!("cannot read {}", image.display()))?;
     let mut entry = serde_json::json!({
         "renderer": b.renderer,
@@ -221,30 +254,73 @@ pub fn bless(golden: &Path, image: &Path, b: &Blessing) -> Result<()> {
     if let Some(s) = &b.scene_sha {
         entry["scene_sha256"] = s.clone().into();
     }
-    record(golden, &bytes, entry, b.scene)
+    records.add(golden, bytes, entry, b.scene);
+    Ok(())
 }
 
-/// Writes an image file atomically and its entry in the `manifest.json` beside it: `entry`
-/// plus the date and the file's SHA-256 (the one writer of manifests in the crate).
-pub fn record(
-    path: &Path,
-    bytes: &[u8],
-    mut entry: serde_json::Value,
-    scene: Option<&Path>,
-) -> Result<()> {
-    // Write the image, then its manifest entry (with the new hash)
-    let (dir, file) = dir_and_name(path);
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    crate::output::write_atomic(path, bytes)?;
-    let mut m = manifest(&dir)?.unwrap_or(serde_json::json!({ "files": {} }));
-    if let (Some(s), None) = (scene, m.get("scene")) {
-        m["scene"] = serde_json::json!(s.display().to_string());
+/// Image files and the manifest entries that describe them, staged together into one run's
+/// outputs (the one writer of manifests in the crate): every manifest is read and validated,
+/// and every image and manifest staged, before anything is written.
+#[derive(Default)]
+pub struct Records {
+    files: Vec<(PathBuf, Vec<u8>, serde_json::Value, Option<PathBuf>)>,
+}
+
+impl Records {
+    /// Adds an image file and its entry (`entry` plus, when staged, the date and the bytes'
+    /// SHA-256; the scene names the manifest's scene when it has none).
+    pub fn add(
+        &mut self,
+        path: &Path,
+        bytes: Vec<u8>,
+        entry: serde_json::Value,
+        scene: Option<&Path>,
+    ) {
+        self.files.push((
+            path.to_path_buf(),
+            bytes,
+            entry,
+            scene.map(Path::to_path_buf),
+        ));
     }
-    entry["date"] = utc_now().into();
-    entry["sha256"] = sha256_file(path)?.into();
-    m["files"][file] = entry;
-    let text = serde_json::to_string_pretty(&m)? + "\n";
-    crate::output::write_atomic(&dir.join("manifest.json"), text.as_bytes())
+
+    /// Stages every image and, once per directory, its updated manifest.
+    pub fn stage(self, out: &mut crate::output::Outputs) -> Result<()> {
+        let mut manifests: Vec<(PathBuf, serde_json::Value)> = vec![];
+        for (path, bytes, mut entry, scene) in self.files {
+            let (dir, file) = dir_and_name(&path);
+            std::fs::create_dir_all(&dir)
+                .with_context(|| format!("cannot create {}", dir.display()))?;
+            let k = match manifests.iter().position(|(d, _)| *d == dir) {
+                Some(k) => k,
+                None => {
+                    let m = manifest(&dir)?.unwrap_or(serde_json::json!({ "files": {} }));
+                    manifests.push((dir.clone(), m));
+                    manifests.len() - 1
+                }
+            };
+            let m = &mut manifests[k].1;
+            if let (Some(s), None) = (&scene, m.get("scene")) {
+                m["scene"] = serde_json::json!(s.display().to_string());
+            }
+            entry["date"] = utc_now().into();
+            entry["sha256"] = Sha256::digest(&bytes)
+                .iter()
+                .map(|b| format!("{b:02x}"))
+                .collect::<String>()
+                .into();
+            if m.get("files").is_none_or(|f| f.is_null()) {
+                m["files"] = serde_json::json!({});
+            }
+            m["files"][file] = entry;
+            out.write(&path, &bytes)?;
+        }
+        for (dir, m) in manifests {
+            let text = serde_json::to_string_pretty(&m)? + "\n";
+            out.write(&dir.join("manifest.json"), text.as_bytes())?;
+        }
+        Ok(())
+    }
 }
 
 /// The current UTC time as `YYYY-MM-DDTHH:MM:SSZ` (civil-from-days, no time crate).

@@ -24,7 +24,7 @@
 //! package. `scripts/render-povray` and `scripts/render-mitsuba` (which also set up a Mitsuba venv
 //! and libLLVM 19) run it for rayproof's own scenes.
 
-use super::references::{record, sha256_file};
+use super::references::{sha256_file, Records};
 use crate::render::{export, scene};
 use anyhow::{bail, Context, Result};
 use std::path::{Path, PathBuf};
@@ -152,6 +152,7 @@ pub fn make(req: &Request) -> Result<Vec<PathBuf>> {
     let scene_sha = sha256_file(&req.scene)?;
     let tmp = crate::output::ScratchDir::new("reference")?;
     let mut written = vec![];
+    let mut records = Records::default();
     for (r, version) in req.with.iter().zip(versions) {
         // Export, render, bring to the grid
         let start = Instant::now();
@@ -234,8 +235,12 @@ pub fn make(req: &Request) -> Result<Vec<PathBuf>> {
             "seconds": (start.elapsed().as_secs_f64() * 100.0).round() / 100.0,
             "scene_sha256": scene_sha,
         });
-        record(&path, &bytes, entry, Some(&req.scene))?;
+        records.add(&path, bytes, entry, Some(&req.scene));
         written.push(path);
     }
+    // Every reference and the manifest together, never over the scene
+    let mut out = crate::output::Outputs::new().reading(&[&req.scene]);
+    records.stage(&mut out)?;
+    out.commit()?;
     Ok(written)
 }

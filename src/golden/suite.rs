@@ -356,6 +356,28 @@ impl Suite {
         if tests.is_empty() {
             bail!("{}: no [[test]]", path.display());
         }
+        // A golden is never a file another part of the suite reads: --update would write over it
+        let suite = Suite {
+            path: path.to_path_buf(),
+            dir: dir.clone(),
+            name: String::new(),
+            timeout: Duration::ZERO,
+            tests: tests.clone(),
+        };
+        let read = suite.inputs();
+        for t in &tests {
+            if let Some((g, _)) = &t.golden {
+                if let Some(r) = read.iter().find(|r| crate::output::same_file(g, r)) {
+                    bail!(
+                        "{}: test '{}': its golden {} is a file the suite reads ({}): --update would write over it",
+                        path.display(),
+                        t.name,
+                        g.display(),
+                        r.display()
+                    );
+                }
+            }
+        }
         Ok(Suite {
             path: path.to_path_buf(),
             dir,
@@ -363,6 +385,23 @@ impl Suite {
             timeout: Duration::from_secs_f64(timeout),
             tests,
         })
+    }
+}
+
+impl Suite {
+    /// Every file the suite reads: the suite file, scenes, test images and references, so that
+    /// no output of a run replaces one. (A manifest beside references may also describe goldens:
+    /// `--update` rewrites only the goldens' entries in it.)
+    pub fn inputs(&self) -> Vec<PathBuf> {
+        let mut v = vec![self.path.clone()];
+        for t in &self.tests {
+            v.extend(t.scene.clone());
+            if let Source::Image(p) = &t.source {
+                v.push(p.clone());
+            }
+            v.extend(t.references.iter().map(|r| r.path.clone()));
+        }
+        v
     }
 }
 

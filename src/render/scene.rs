@@ -561,6 +561,26 @@ pub struct Scene {
     pub path: PathBuf,
 }
 
+impl Scene {
+    /// Every file the scene was read from: the scene file, its meshes and point clouds (no
+    /// output of a run may replace one).
+    pub fn files(&self) -> Vec<PathBuf> {
+        let dir = self.path.parent().unwrap_or(Path::new("."));
+        let mut v = vec![self.path.clone()];
+        for s in &self.file.shapes {
+            match s {
+                Shape::Mesh { file, .. } => v.push(dir.join(file)),
+                Shape::Mpu { points, mesh, .. } => {
+                    v.push(dir.join(points));
+                    v.extend(mesh.iter().map(|m| dir.join(m)));
+                }
+                _ => {}
+            }
+        }
+        v
+    }
+}
+
 fn line_of(text: &str, offset: usize) -> usize {
     text[..offset.min(text.len())].matches('\n').count() + 1
 }
