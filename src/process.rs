@@ -167,12 +167,6 @@ pub struct Finished {
     pub stderr: String,
 }
 
-/// How a run went wrong before an exit status could tell.
-enum Stop {
-    Deadline,
-    StdoutCap(usize),
-}
-
 /// Standard error kept as its first and last [`STDERR_KEEP`] bytes.
 #[derive(Default)]
 struct Tail {
@@ -192,7 +186,7 @@ impl Tail {
             self.dropped += 1;
         }
     }
-    fn text(self) -> String {
+    fn text(&self) -> String {
         let mut s = String::from_utf8_lossy(&self.head).into_owned();
         if self.dropped > 0 {
             s += &format!(
@@ -200,7 +194,286 @@ impl Tail {
                 self.dropped
             );
         }
-        s + &String::from_utf8_lossy(&self.tail.into_iter().collect::<Vec<u8>>())
+        s + &String::from_utf8_lossy(&self.tail.iter().copied().collect::<Vec<u8>>())
+    }
+}
+
+/// A running outside process under the module's rules, spoken to through its pipes: what
+/// `--exec` children, plugin workers and renderer commands run in. Every exchange has a
+/// deadline that holds whatever the process does with its pipes; dropping the session kills
+/// the process's group and every orphan it left.
+pub struct Session {
+    what: String,
+    child: std::process::Child,
+    pgid: i32,
+    stdin: Option<std::process::ChildStdin>,
+    stdout: Option<std::process::ChildStdout>,
+    stderr: Option<std::process::ChildStderr>,
+    /// Output read but not yet taken.
+    buf: Vec<u8>,
+    errs: Tail,
+    status: Option<ExitStatus>,
+    stdout_cap: usize,
+}
+
+/// How an exchange ended before its answer was complete.
+pub enum Broken {
+    /// The deadline passed (the process group is killed).
+    Deadline,
+    /// Standard output passed its cap (killed).
+    StdoutCap(usize),
+    /// Standard output ended (the process closed it, or exited) before the answer was whole.
+    Closed,
+}
+
+impl Session {
+    /// Starts `program ARGS` (in `dir` when given) in its own process group, its three standard
+    /// streams piped. `what` names it in error lines.
+    pub fn spawn(
+        what: &str,
+        program: &Path,
+        args: &[&str],
+        dir: Option<&Path>,
+        env: &[(&str, &str)],
+        stdout_cap: usize,
+    ) -> Result<Session, String> {
+        become_subreaper();
+        let mut cmd = Command::new(program);
+        cmd.args(args)
+            .process_group(0)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        for (k, v) in env {
+            cmd.env(k, v);
+        }
+        if let Some(d) = dir {
+            cmd.current_dir(d);
+        }
+        let mut child = cmd
+            .spawn()
+            .map_err(|e| format!("{what}: cannot start: {e}"))?;
+        let pgid = child.id() as i32;
+        groups(|g| g.push(pgid));
+        let (stdin, stdout, stderr) = (child.stdin.take(), child.stdout.take(), child.stderr.take());
+        for fd in [
+            stdin.as_ref().map(|s| s.as_raw_fd()),
+            stdout.as_ref().map(|s| s.as_raw_fd()),
+            stderr.as_ref().map(|s| s.as_raw_fd()),
+        ]
+        .into_iter()
+        .flatten()
+        {
+            // SAFETY: fcntl on a pipe we own
+            unsafe {
+                let flags = libc::fcntl(fd, libc::F_GETFL);
+                libc::fcntl(fd, libc::F_SETFL, flags | libc::O_NONBLOCK);
+            }
+        }
+        Ok(Session {
+            what: what.to_string(),
+            child,
+            pgid,
+            stdin,
+            stdout,
+            stderr,
+            buf: vec![],
+            errs: Tail::default(),
+            status: None,
+            stdout_cap,
+        })
+    }
+
+    /// Starts `sh -c command` as [`Session::spawn`] does.
+    pub fn sh(
+        what: &str,
+        command: &str,
+        dir: Option<&Path>,
+        env: &[(&str, &str)],
+        stdout_cap: usize,
+    ) -> Result<Session, String> {
+        Session::spawn(what, Path::new("sh"), &["-c", command], dir, env, stdout_cap)
+    }
+
+    /// The name given at the start.
+    pub fn what(&self) -> &str {
+        &self.what
+    }
+
+    /// Closes the process's standard input (it sees the end of its input).
+    pub fn close_input(&mut self) {
+        self.stdin = None;
+    }
+
+    /// Writes `input` (then closes standard input if `close`), reading the process's output
+    /// meanwhile, until `complete` says how many bytes of the output make the answer (it is
+    /// given everything read so far, and returns `Some(n)` once the answer is whole; with `None`
+    /// for `complete`, the answer is all the output, up to its end). Every wait ends at
+    /// `deadline`. The answer's bytes are taken from the output; the rest stays for the next
+    /// exchange.
+    pub fn exchange(
+        &mut self,
+        input: &[u8],
+        close: bool,
+        complete: Option<&dyn Fn(&[u8]) -> Option<usize>>,
+        deadline: Instant,
+    ) -> Result<Vec<u8>, Broken> {
+        let mut written = 0;
+        let mut chunk = vec![0u8; 1 << 16];
+        let mut exited_at: Option<Instant> = None;
+        loop {
+            if written == input.len() && close {
+                self.stdin = None;
+            }
+            // The answer may already be whole
+            if let Some(f) = complete {
+                if written == input.len() {
+                    if let Some(n) = f(&self.buf) {
+                        return Ok(self.buf.drain(..n).collect());
+                    }
+                }
+            }
+            if self.stdout.is_none() && self.stderr.is_none() && (self.status.is_some() || complete.is_some()) {
+                if complete.is_some() {
+                    return Err(Broken::Closed);
+                }
+                return Ok(std::mem::take(&mut self.buf));
+            }
+            // The process ended: its group and what it left go now; pipes still open after a
+            // moment are held by a process we could not see, and are given up
+            if self.status.is_none() && has_exited(self.pgid) {
+                self.end_group();
+                self.status = self.child.try_wait().ok().flatten();
+                exited_at = Some(Instant::now());
+            }
+            if exited_at.is_some_and(|t| t.elapsed() > Duration::from_millis(500)) {
+                self.stdout = None;
+                self.stderr = None;
+                continue;
+            }
+            let now = Instant::now();
+            if now >= deadline {
+                self.kill();
+                return Err(Broken::Deadline);
+            }
+            // Wait for any stream, at most until the deadline (and briefly, to see an exit)
+            let mut fds = vec![];
+            let pending_input = written < input.len();
+            for (fd, ev) in [
+                (
+                    self.stdin.as_ref().filter(|_| pending_input).map(|s| s.as_raw_fd()),
+                    libc::POLLOUT,
+                ),
+                (self.stdout.as_ref().map(|s| s.as_raw_fd()), libc::POLLIN),
+                (self.stderr.as_ref().map(|s| s.as_raw_fd()), libc::POLLIN),
+            ] {
+                if let Some(fd) = fd {
+                    fds.push(libc::pollfd {
+                        fd,
+                        events: ev,
+                        revents: 0,
+                    });
+                }
+            }
+            let wait = (deadline - now).min(Duration::from_millis(20));
+            // SAFETY: poll(2) on a valid array of pollfd
+            unsafe {
+                libc::poll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, wait.as_millis() as i32);
+            }
+            if pending_input {
+                if let Some(s) = self.stdin.as_mut() {
+                    match s.write(&input[written..]) {
+                        Ok(n) => written += n,
+                        Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                        // The process closed its input: it chose to stop reading
+                        Err(_) => {
+                            self.stdin = None;
+                            written = input.len();
+                        }
+                    }
+                } else {
+                    written = input.len();
+                }
+            }
+            if let Some(o) = self.stdout.as_mut() {
+                match o.read(&mut chunk) {
+                    Ok(0) => self.stdout = None,
+                    Ok(n) => {
+                        self.buf.extend_from_slice(&chunk[..n]);
+                        if self.buf.len() > self.stdout_cap {
+                            self.kill();
+                            return Err(Broken::StdoutCap(self.stdout_cap));
+                        }
+                    }
+                    Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
+                    Err(_) => self.stdout = None,
+                }
+            }
+            if let Some(e) = self.stderr.as_mut() {
+                match e.read(&mut chunk) {
+                    Ok(0) => self.stderr = None,
+                    Ok(n) => self.errs.push(&chunk[..n]),
+                    Err(x) if x.kind() == std::io::ErrorKind::WouldBlock => {}
+                    Err(_) => self.stderr = None,
+                }
+            }
+        }
+    }
+
+    /// The process's exit status once it has ended (waiting up to `grace` for it).
+    pub fn wait(&mut self, grace: Duration) -> Option<ExitStatus> {
+        let until = Instant::now() + grace;
+        while self.status.is_none() {
+            if has_exited(self.pgid) {
+                self.end_group();
+                self.status = self.child.try_wait().ok().flatten();
+            } else if Instant::now() >= until {
+                break;
+            } else {
+                std::thread::sleep(Duration::from_millis(2));
+            }
+        }
+        self.status
+    }
+
+    /// What it wrote to standard error so far (its first and last 64 KiB).
+    pub fn stderr(&self) -> String {
+        self.errs.text()
+    }
+
+    /// Kills the group and its orphans, now.
+    pub fn kill(&mut self) {
+        if self.status.is_none() {
+            // SAFETY: kill(2) on the group its unreaped leader holds
+            unsafe {
+                libc::kill(-self.pgid, libc::SIGKILL);
+            }
+            settle(&[self.pgid]);
+            self.status = self.child.wait().ok();
+        }
+        kill_orphans();
+        self.stdin = None;
+        self.stdout = None;
+        self.stderr = None;
+    }
+
+    /// The leader has exited (unreaped): its group and its orphans go.
+    fn end_group(&mut self) {
+        // SAFETY: kill(2) on the group its unreaped leader still holds
+        unsafe {
+            libc::kill(-self.pgid, libc::SIGKILL);
+        }
+        settle(&[self.pgid]);
+        kill_orphans();
+    }
+}
+
+impl Drop for Session {
+    fn drop(&mut self) {
+        self.kill();
+        groups(|g| g.retain(|&p| p != self.pgid));
+        // Killed by the signal handler: not the command's failure; the handler ends the run
+        crate::output::wait_if_interrupted();
     }
 }
 
@@ -215,156 +488,24 @@ pub fn run(
     timeout: Duration,
     stdout_cap: usize,
 ) -> Result<Finished, String> {
-    become_subreaper();
-    let mut cmd = Command::new("sh");
-    cmd.arg("-c")
-        .arg(command)
-        .process_group(0)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped());
-    if let Some(d) = dir {
-        cmd.current_dir(d);
-    }
     let deadline = Instant::now() + timeout;
-    let mut child = cmd
-        .spawn()
-        .map_err(|e| format!("{what}: cannot start: {e}"))?;
-    let pgid = child.id() as i32;
-    groups(|g| g.push(pgid));
-    let mut stdin = child.stdin.take();
-    let mut out = child.stdout.take();
-    let mut err = child.stderr.take();
-    for fd in [
-        stdin.as_ref().map(|s| s.as_raw_fd()),
-        out.as_ref().map(|s| s.as_raw_fd()),
-        err.as_ref().map(|s| s.as_raw_fd()),
-    ]
-    .into_iter()
-    .flatten()
-    {
-        // SAFETY: fcntl on a pipe we own
-        unsafe {
-            let flags = libc::fcntl(fd, libc::F_GETFL);
-            libc::fcntl(fd, libc::F_SETFL, flags | libc::O_NONBLOCK);
-        }
-    }
-    let (mut stdout, mut stderr) = (Vec::new(), Tail::default());
-    let mut written = 0;
-    let mut status: Option<ExitStatus> = None;
-    let mut stop = None;
-    let mut buf = vec![0u8; 1 << 16];
-    let mut exited_at: Option<Instant> = None;
-    loop {
-        if stdin.is_some() && written == input.len() {
-            stdin = None; // closed: the command sees the end of its input
-        }
-        if status.is_none() && has_exited(pgid) {
-            // The command ended: its group and whatever it left behind go now, while its
-            // unreaped leader still holds the group's id (so no other group can have taken it)
-            // SAFETY: kill(2) on the group it led
-            unsafe {
-                libc::kill(-pgid, libc::SIGKILL);
-            }
-            settle(&[pgid]);
-            kill_orphans();
-            status = child.try_wait().ok().flatten();
-            exited_at = Some(Instant::now());
-        }
-        if status.is_some() && out.is_none() && err.is_none() {
-            break;
-        }
-        // Pipes still open after the command and its tree are gone: held by a process we
-        // could not see; give them a moment, then stop reading
-        if exited_at.is_some_and(|t| t.elapsed() > Duration::from_millis(500)) {
-            break;
-        }
-        let now = Instant::now();
-        if now >= deadline {
-            stop = Some(Stop::Deadline);
-            break;
-        }
-        // Wait for any stream, at most until the deadline (and briefly, to see the exit)
-        let mut fds = vec![];
-        for (fd, ev) in [
-            (stdin.as_ref().map(|s| s.as_raw_fd()), libc::POLLOUT),
-            (out.as_ref().map(|s| s.as_raw_fd()), libc::POLLIN),
-            (err.as_ref().map(|s| s.as_raw_fd()), libc::POLLIN),
-        ] {
-            if let Some(fd) = fd {
-                fds.push(libc::pollfd {
-                    fd,
-                    events: ev,
-                    revents: 0,
-                });
-            }
-        }
-        let wait = (deadline - now).min(Duration::from_millis(20));
-        // SAFETY: poll(2) on a valid array of pollfd
-        unsafe {
-            libc::poll(
-                fds.as_mut_ptr(),
-                fds.len() as libc::nfds_t,
-                wait.as_millis() as i32,
-            );
-        }
-        if let Some(s) = stdin.as_mut() {
-            match s.write(&input[written..]) {
-                Ok(n) => written += n,
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
-                Err(_) => stdin = None, // the command closed its input: it chose to stop reading
-            }
-        }
-        if let Some(o) = out.as_mut() {
-            match o.read(&mut buf) {
-                Ok(0) => out = None,
-                Ok(n) => {
-                    stdout.extend_from_slice(&buf[..n]);
-                    if stdout.len() > stdout_cap {
-                        stop = Some(Stop::StdoutCap(stdout_cap));
-                        break;
-                    }
-                }
-                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {}
-                Err(_) => out = None,
-            }
-        }
-        if let Some(e) = err.as_mut() {
-            match e.read(&mut buf) {
-                Ok(0) => err = None,
-                Ok(n) => stderr.push(&buf[..n]),
-                Err(x) if x.kind() == std::io::ErrorKind::WouldBlock => {}
-                Err(_) => err = None,
-            }
-        }
-    }
-    // Whatever happened, nothing of it outlives the run (a group whose leader was reaped was
-    // killed before)
-    if status.is_none() {
-        // SAFETY: kill(2) on the group its unreaped leader holds
-        unsafe {
-            libc::kill(-pgid, libc::SIGKILL);
-        }
-        settle(&[pgid]);
-    }
-    let status = status.or_else(|| child.wait().ok());
-    kill_orphans();
-    groups(|g| g.retain(|&p| p != pgid));
-    // Killed by the signal handler: not the command's failure; the handler ends the run
-    crate::output::wait_if_interrupted();
-    match stop {
-        Some(Stop::Deadline) => Err(format!(
+    let mut s = Session::sh(what, command, dir, &[], stdout_cap)?;
+    let out = s.exchange(input, true, None, deadline);
+    let status = s.wait(Duration::from_millis(100));
+    match out {
+        Err(Broken::Deadline) => Err(format!(
             "{what}: did not finish within {} s (killed)",
             timeout.as_secs_f64()
         )),
-        Some(Stop::StdoutCap(cap)) => Err(format!(
+        Err(Broken::StdoutCap(cap)) => Err(format!(
             "{what}: wrote more than {} MiB to standard output (killed; the cap is {cap} bytes)",
             cap >> 20
         )),
-        None => Ok(Finished {
+        Err(Broken::Closed) => unreachable!("a whole-output exchange ends with the output"),
+        Ok(stdout) => Ok(Finished {
             status: status.unwrap_or_else(|| ExitStatus::from_raw(-1)),
             stdout,
-            stderr: stderr.text(),
+            stderr: s.stderr(),
         }),
     }
 }
