@@ -255,7 +255,8 @@ impl Session {
             .map_err(|e| format!("{what}: cannot start: {e}"))?;
         let pgid = child.id() as i32;
         groups(|g| g.push(pgid));
-        let (stdin, stdout, stderr) = (child.stdin.take(), child.stdout.take(), child.stderr.take());
+        let (stdin, stdout, stderr) =
+            (child.stdin.take(), child.stdout.take(), child.stderr.take());
         for fd in [
             stdin.as_ref().map(|s| s.as_raw_fd()),
             stdout.as_ref().map(|s| s.as_raw_fd()),
@@ -292,7 +293,14 @@ impl Session {
         env: &[(&str, &str)],
         stdout_cap: usize,
     ) -> Result<Session, String> {
-        Session::spawn(what, Path::new("sh"), &["-c", command], dir, env, stdout_cap)
+        Session::spawn(
+            what,
+            Path::new("sh"),
+            &["-c", command],
+            dir,
+            env,
+            stdout_cap,
+        )
     }
 
     /// The name given at the start.
@@ -333,7 +341,10 @@ impl Session {
                     }
                 }
             }
-            if self.stdout.is_none() && self.stderr.is_none() && (self.status.is_some() || complete.is_some()) {
+            if self.stdout.is_none()
+                && self.stderr.is_none()
+                && (self.status.is_some() || complete.is_some())
+            {
                 if complete.is_some() {
                     return Err(Broken::Closed);
                 }
@@ -361,7 +372,10 @@ impl Session {
             let pending_input = written < input.len();
             for (fd, ev) in [
                 (
-                    self.stdin.as_ref().filter(|_| pending_input).map(|s| s.as_raw_fd()),
+                    self.stdin
+                        .as_ref()
+                        .filter(|_| pending_input)
+                        .map(|s| s.as_raw_fd()),
                     libc::POLLOUT,
                 ),
                 (self.stdout.as_ref().map(|s| s.as_raw_fd()), libc::POLLIN),
@@ -378,7 +392,11 @@ impl Session {
             let wait = (deadline - now).min(Duration::from_millis(20));
             // SAFETY: poll(2) on a valid array of pollfd
             unsafe {
-                libc::poll(fds.as_mut_ptr(), fds.len() as libc::nfds_t, wait.as_millis() as i32);
+                libc::poll(
+                    fds.as_mut_ptr(),
+                    fds.len() as libc::nfds_t,
+                    wait.as_millis() as i32,
+                );
             }
             if pending_input {
                 if let Some(s) = self.stdin.as_mut() {

@@ -251,7 +251,7 @@ fn bad_libraries_and_routines_get_one_line_and_an_exit_code() {
         ("/no/such/lib.so:f_f32".to_string(), 2, "cannot load"),
         (format!("{lib}:absent_f32"), 2, "no symbol 'absent_f32'"),
         (format!("{lib}:sphere_textbook"), 2, "say the precision"),
-        (plugin("crashes_f32"), 4, "crashed answering"),
+        (plugin("crashes_f32"), 4, "crashed (signal 11, SIGSEGV"),
         (plugin("fails_f32"), 4, "returned 7"),
         (plugin("forgets_counts_f32"), 4, "left count[0] unwritten"),
         (plugin("nan_values_f32"), 4, "is NaN (a wrong signature?"),
@@ -267,6 +267,124 @@ fn bad_libraries_and_routines_get_one_line_and_an_exit_code() {
         assert!(err.contains(what), "{spec}: '{what}' not in {err}");
         assert!(!json.exists(), "{spec}: a report was written");
     }
+}
+
+#[test]
+fn a_routine_that_takes_its_process_down_never_takes_rayproof() {
+    // In the issue these ended rayproof itself: an abort (134), a stack overflow (139, the
+    // handler had no alternate stack), exit(0) made rayproof exit 0 with no report, a hang ran
+    // forever. Now each is one line, exit 4, no report, within the deadline.
+    let sel = [
+        "audit",
+        "--shape",
+        "sphere",
+        "--class",
+        "random",
+        "--cases",
+        "50",
+        "--timeout",
+        "3",
+    ];
+    for (symbol, what) in [
+        ("aborts_f32", "crashed (signal 6, SIGABRT"),
+        ("overflows_stack_f32", "stack overflow"),
+        (
+            "calls_exit_f32",
+            "ended (exit status 0: a routine that calls exit()?)",
+        ),
+        ("hangs_f32", "did not answer within 3 s (killed)"),
+        ("writes_past_out_f32", "crashed (signal"),
+    ] {
+        let json =
+            std::env::temp_dir().join(format!("rayproof-plugin-down-{}.json", std::process::id()));
+        let mut args = sel.to_vec();
+        let spec = plugin(symbol);
+        args.extend(["--plugin", &spec, "--json", json.to_str().unwrap()]);
+        let t0 = std::time::Instant::now();
+        let o = rayproof(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(4), "{symbol}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{symbol}: {err}");
+        assert!(err.contains(what), "{symbol}: '{what}' not in {err}");
+        assert!(
+            err.contains("answering batch 1 (50 f32 cases)"),
+            "{symbol}: {err}"
+        );
+        assert!(!json.exists(), "{symbol}: a report was written");
+        // A hang costs the deadline once, then the search for the case is bounded too
+        assert!(t0.elapsed().as_secs() < 30, "{symbol}: {:?}", t0.elapsed());
+    }
+}
+
+#[test]
+fn a_crash_names_the_case_that_causes_it() {
+    // One case of a batch makes the routine crash: the batch is halved on fresh workers until
+    // that case is found, and its replay line is the message
+    let spec = plugin("crashes_on_one_case_f32");
+    let o = rayproof(&[
+        "probe",
+        "sphere",
+        "--precision",
+        "f32",
+        "--plugin",
+        &spec,
+        "--",
+        "0.25",
+        "0",
+        "0",
+        "1",
+        "0",
+        "0",
+        "5",
+        "0",
+        "0",
+        "1",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(4), "{err}");
+    assert!(
+        err.contains("the case: rayproof probe sphere --precision f32 --plugin"),
+        "{err}"
+    );
+    assert!(err.contains("-- 0x1p-2 0x0p+0"), "{err}");
+    // In an audit, among thousands of cases that pass
+    let dir = std::env::temp_dir().join(format!("rayproof-plugin-one-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let cases = dir.join("c.txt");
+    let o = rayproof(&[
+        "cases",
+        "--shape",
+        "sphere",
+        "--class",
+        "random",
+        "--precision",
+        "f32",
+        "--cases",
+        "3000",
+        "-o",
+        cases.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(0));
+    // The same routine is fine on every generated case (none has ox = 0.25 exactly)...
+    let o = rayproof(&[
+        "audit",
+        "--shape",
+        "sphere",
+        "--class",
+        "random",
+        "--precision",
+        "f32",
+        "--cases",
+        "3000",
+        "--plugin",
+        &spec,
+    ]);
+    assert!(
+        matches!(o.status.code(), Some(0 | 1)),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }
 
 #[test]

@@ -27,7 +27,7 @@
 //!
 //! Its worst cases print replay lines that bring the child along
 //! (`rayproof probe sphere --precision f64 --exec '…' --name py -- …`). `--method` adds built-in
-//! methods to the same rows, `--tolerances` judges yours. The timeout is `--exec-timeout` seconds
+//! methods to the same rows, `--tolerances` judges yours. The timeout is `--timeout` seconds
 //! per batch (default 60); the child's whole process group is then killed, and a failing child
 //! leaves no report written.
 //!

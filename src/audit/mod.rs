@@ -34,7 +34,7 @@
 //! rayproof audit [--shape S,..] [--method M,..] [--class C,..] [--precision f32,f64] [--cases N]
 //!                [--seed S] [--shard K/N [--shard-out FILE]] [--tolerances FILE]
 //!                [--json FILE] [--markdown FILE] [--verbose [--worst N]]
-//!                [--exec CMD | --plugin PATH:SYMBOL [--name N] [--exec-timeout S]]
+//!                [--exec CMD | --plugin PATH:SYMBOL [--name N] [--timeout S]]
 //! rayproof merge SHARD.json... [--tolerances FILE] [--json FILE] [--markdown FILE] [--verbose]
 //! ```
 //!

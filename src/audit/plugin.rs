@@ -17,8 +17,14 @@
 //! contract ([`super::contract`]) as an `--exec` answer line would be: a count the shape cannot
 //! have (2 for the sphere, 3 for the quadratic) is a malformed answer, counted in its row.
 //!
-//! A routine that crashes the process (a segmentation fault) is caught by a signal handler
-//! installed around the call: one line naming the library and symbol, exit 4, no report.
+//! **The routine runs in a worker process** (`rayproof __plugin-worker`, one per symbol, started
+//! once and kept for the run): a crash (a segmentation fault, an abort, a stack overflow), a call
+//! to `exit()` or a hang takes the worker down, never rayproof. Each batch has a deadline
+//! (`--timeout`, seconds per batch, default 60); a worker that dies or misses it is killed with
+//! its process group, the batch is split in halves on fresh workers until the one case that
+//! kills the routine is found (when it is the case that does, and time allows), and the audit
+//! stops with one line naming the library, symbol, batch and case (exit 4, no report). The
+//! worker also times the routine's own calls, which `rayproof report` uses.
 //!
 //! # Use
 //!
@@ -56,19 +62,23 @@
 //!
 //! # Failures
 //!
-//! A library or symbol that cannot be loaded is exit 2; a routine that crashes (a segmentation
-//! fault is caught around the call), returns non-zero, leaves a count unwritten or writes no value
-//! at all (a wrong signature) stops the audit with one line and exit 4, and no report is written.
+//! A library or symbol that cannot be loaded is exit 2; a routine that crashes, calls `exit()`,
+//! hangs past `--timeout`, returns non-zero, leaves a count unwritten or writes no value at all (a
+//! wrong signature) stops the audit with one line and exit 4, and no report is written.
 //! Worst cases replay with `rayproof probe … --plugin PATH:SYMBOL:f32 --name N -- …`, and shards
 //! of a plugin audit merge as any other. `rayproof report --plugin …:f32 --plugin …:f64` (or
 //! `--exec`) puts your ray–sphere routine beside the built-in methods in its accuracy-vs-cost
 //! section, with its own ns per test measured on the same batch (for a plugin, one call per batch;
 //! for `--exec`, including the child's start).
 
-use super::shape::{Answer, Method};
+use super::shape::{probe_line_with, Answer, Method};
 use crate::numerics::Precision;
+use crate::process::{Broken, Session};
 use std::ffi::CString;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 /// A batch routine in f32.
 type F32Fn = unsafe extern "C" fn(usize, *const f32, *mut u32, *mut f32) -> i32;
@@ -78,25 +88,8 @@ type F64Fn = unsafe extern "C" fn(usize, *const f64, *mut u32, *mut f64) -> i32;
 /// The count rayproof writes before the call: a routine must overwrite it.
 const UNSET: u32 = u32::MAX;
 
-/// One loaded symbol.
-enum Routine {
-    F32(F32Fn),
-    F64(F64Fn),
-}
-
-/// A routine of a shared library, one symbol per precision.
-pub struct Plugin {
-    name: String,
-    /// `PATH:SYMBOL` per precision, for messages and replay lines.
-    specs: Vec<(Precision, String)>,
-    routines: Vec<(Precision, Routine)>,
-    inputs: usize,
-    outputs: usize,
-    /// The count is the number of values written (the polynomials).
-    counted: bool,
-    /// Keeps the libraries loaded while their symbols are used.
-    _libs: Vec<libloading::Library>,
-}
+/// What a worker writes first when its symbol is loaded.
+const READY: &[u8] = b"rayproof plugin worker ready\n";
 
 /// `PATH:SYMBOL[:f32|f64]`, the precision taken from a `_f32`/`_f64` suffix of the symbol when
 /// not given.
@@ -119,66 +112,177 @@ pub fn parse_spec(spec: &str) -> Result<(String, String, Precision), String> {
     Ok((path.to_string(), symbol.to_string(), prec))
 }
 
+/// A path without a slash would be searched for by the loader: make it explicit.
+fn library_path(path: &str) -> String {
+    if path.contains('/') {
+        path.to_string()
+    } else {
+        format!("./{path}")
+    }
+}
+
+// ---- the worker: the routine's own process ----
+
+/// Serves one symbol: loads it, says [`READY`], then answers batches on stdin/stdout until the
+/// end of its input (what `rayproof __plugin-worker` runs). A batch is `n` (u64 LE) and `n·inputs`
+/// values; the answer is the status (i32 LE), the routine's nanoseconds (u64 LE), `n` counts
+/// (u32 LE) and `n·outputs` values, in the precision's width. The error is one line.
+pub fn serve(
+    path: &str,
+    symbol: &str,
+    prec: Precision,
+    inputs: usize,
+    outputs: usize,
+) -> Result<(), String> {
+    // SAFETY: loading runs the library's initialisers; the user asked for this library
+    let lib = unsafe { libloading::Library::new(library_path(path)) }
+        .map_err(|e| format!("--plugin {path}: cannot load: {e}"))?;
+    let cname =
+        CString::new(symbol).map_err(|_| format!("--plugin {path}:{symbol}: bad symbol"))?;
+    let (mut stdin, mut stdout) = (std::io::stdin().lock(), std::io::stdout().lock());
+    let io = |e: std::io::Error| format!("plugin worker: {e}");
+    macro_rules! serve_as {
+        ($T:ty, $F:ty) => {{
+            // SAFETY: the symbol is used with the documented signature of its precision; a
+            // routine with another signature is caught by the count sentinel or crashes this
+            // worker, which the parent reports
+            let f: $F = unsafe { lib.get::<$F>(cname.as_bytes_with_nul()).map(|f| *f) }
+                .map_err(|e| format!("--plugin {path}: no symbol '{symbol}': {e}"))?;
+            stdout
+                .write_all(READY)
+                .and_then(|_| stdout.flush())
+                .map_err(io)?;
+            const W: usize = std::mem::size_of::<$T>();
+            loop {
+                let mut n = [0u8; 8];
+                if let Err(e) = stdin.read_exact(&mut n) {
+                    return if e.kind() == std::io::ErrorKind::UnexpectedEof {
+                        Ok(())
+                    } else {
+                        Err(io(e))
+                    };
+                }
+                let n = u64::from_le_bytes(n) as usize;
+                let mut raw = vec![0u8; n * inputs * W];
+                stdin.read_exact(&mut raw).map_err(io)?;
+                let input: Vec<$T> = raw
+                    .chunks_exact(W)
+                    .map(|b| <$T>::from_le_bytes(b.try_into().expect("width")))
+                    .collect();
+                let mut count = vec![UNSET; n];
+                let mut out = vec![<$T>::NAN; n * outputs];
+                let t0 = Instant::now();
+                // SAFETY: the buffers have the documented sizes for n cases
+                let status = unsafe { f(n, input.as_ptr(), count.as_mut_ptr(), out.as_mut_ptr()) };
+                let nanos = t0.elapsed().as_nanos() as u64;
+                let mut answer = Vec::with_capacity(12 + n * 4 + out.len() * W);
+                answer.extend(status.to_le_bytes());
+                answer.extend(nanos.to_le_bytes());
+                count.iter().for_each(|c| answer.extend(c.to_le_bytes()));
+                out.iter().for_each(|v| answer.extend(v.to_le_bytes()));
+                stdout
+                    .write_all(&answer)
+                    .and_then(|_| stdout.flush())
+                    .map_err(io)?;
+            }
+        }};
+    }
+    match prec {
+        Precision::F32 => serve_as!(f32, F32Fn),
+        Precision::F64 => serve_as!(f64, F64Fn),
+    }
+}
+
+// ---- the parent's side ----
+
+/// One symbol and its worker.
+struct Symbol {
+    prec: Precision,
+    /// `PATH:SYMBOL`, for messages and replay lines.
+    spec: String,
+    path: String,
+    symbol: String,
+    /// The running worker (replaced after a failure, for the search of the failing case).
+    worker: Mutex<Option<Session>>,
+    /// Batches answered so far (the failing batch's number in messages).
+    batches: std::sync::atomic::AtomicU64,
+    /// Nanoseconds the routine spent in its own calls, over every batch.
+    nanos: std::sync::atomic::AtomicU64,
+}
+
+/// A routine of a shared library, one symbol per precision, each run in a worker process.
+pub struct Plugin {
+    name: String,
+    symbols: Vec<Symbol>,
+    inputs: usize,
+    outputs: usize,
+    /// The count is the number of values written (the polynomials).
+    counted: bool,
+    shape: String,
+    worker: PathBuf,
+    timeout: Duration,
+}
+
+/// How a batch went wrong.
+enum Failure {
+    /// The routine ran and said so, or answered what cannot be an answer: not the case's fault.
+    Reported(String),
+    /// The worker died or hung (how, and what it said on stderr): the batch is searched for the
+    /// case that does it.
+    Died(String, String),
+}
+
 impl Plugin {
-    /// Loads one symbol per spec for a shape with `inputs` inputs and `outputs` values; the
-    /// method's name defaults to the first symbol without its precision suffix.
+    /// Loads one symbol per spec for a shape, each in its own worker process started from
+    /// `worker` (a `rayproof` binary), with a deadline of `timeout` per batch; the method's name
+    /// defaults to the first symbol without its precision suffix.
     pub fn load(
         specs: &[String],
         name: Option<&str>,
         shape: &super::shape::ShapeInfo,
+        worker: &Path,
+        timeout: Duration,
     ) -> Result<Plugin, String> {
         let mut p = Plugin {
             name: String::new(),
-            specs: vec![],
-            routines: vec![],
+            symbols: vec![],
             inputs: shape.args.len(),
             outputs: shape.values.len(),
             counted: shape.count_is_values,
-            _libs: vec![],
+            shape: shape.name.to_string(),
+            worker: worker.to_path_buf(),
+            timeout,
         };
         for spec in specs {
             let (path, symbol, prec) = parse_spec(spec)?;
-            if p.routines.iter().any(|(q, _)| *q == prec) {
+            if p.symbols.iter().any(|s| s.prec == prec) {
                 return Err(format!("--plugin: two {} symbols", prec.name()));
             }
-            // A path without a slash would be searched for by the loader: make it explicit
-            let file = if path.contains('/') {
-                path.clone()
-            } else {
-                format!("./{path}")
+            let s = Symbol {
+                prec,
+                spec: format!("{path}:{symbol}"),
+                path,
+                symbol,
+                worker: Mutex::new(None),
+                batches: Default::default(),
+                nanos: Default::default(),
             };
-            // SAFETY: loading runs the library's initialisers; the user asked for this library
-            let lib = unsafe { libloading::Library::new(&file) }
-                .map_err(|e| format!("--plugin {path}: cannot load: {e}"))?;
-            let cname =
-                CString::new(symbol.clone()).map_err(|_| format!("--plugin {spec}: bad symbol"))?;
-            // SAFETY: the symbol is used with the documented signature of its precision; a
-            // routine with another signature is caught by the count sentinel or crashes, which
-            // the signal handler reports
-            let routine = unsafe {
-                match prec {
-                    Precision::F32 => lib
-                        .get::<F32Fn>(cname.as_bytes_with_nul())
-                        .map(|f| Routine::F32(*f)),
-                    Precision::F64 => lib
-                        .get::<F64Fn>(cname.as_bytes_with_nul())
-                        .map(|f| Routine::F64(*f)),
-                }
-            }
-            .map_err(|e| format!("--plugin {path}: no symbol '{symbol}': {e}"))?;
-            p.routines.push((prec, routine));
-            p.specs.push((prec, format!("{path}:{symbol}")));
-            p._libs.push(lib);
+            // Load it now: a library or symbol that cannot be loaded is a usage error
+            let w = p.start(&s).map_err(|e| match e {
+                Failure::Reported(e) | Failure::Died(e, _) => e,
+            })?;
+            *s.worker.lock().unwrap_or_else(|e| e.into_inner()) = Some(w);
             if p.name.is_empty() {
                 p.name = name.map(str::to_string).unwrap_or_else(|| {
-                    symbol
+                    s.symbol
                         .trim_end_matches("_f32")
                         .trim_end_matches("_f64")
                         .to_string()
                 });
             }
+            p.symbols.push(s);
         }
-        if p.routines.is_empty() {
+        if p.symbols.is_empty() {
             return Err("--plugin: no symbol given".into());
         }
         Ok(p)
@@ -186,73 +290,159 @@ impl Plugin {
 
     /// The precisions it has a symbol for.
     pub fn precisions(&self) -> Vec<Precision> {
-        self.routines.iter().map(|(p, _)| *p).collect()
+        self.symbols.iter().map(|s| s.prec).collect()
     }
 
-    fn spec(&self, prec: Precision) -> &str {
-        self.specs
+    /// Nanoseconds the routine of a precision spent in its own calls so far.
+    pub fn routine_nanos(&self, prec: Precision) -> u64 {
+        self.symbols
             .iter()
-            .find(|(p, _)| *p == prec)
-            .map(|(_, s)| s.as_str())
-            .unwrap_or("")
+            .find(|s| s.prec == prec)
+            .map_or(0, |s| s.nanos.load(std::sync::atomic::Ordering::Relaxed))
+    }
+
+    /// A fresh worker for a symbol, past its handshake.
+    fn start(&self, s: &Symbol) -> Result<Session, Failure> {
+        let what = format!("plugin {}", s.spec);
+        let ins = self.inputs.to_string();
+        let outs = self.outputs.to_string();
+        let mut w = Session::spawn(
+            &what,
+            &self.worker,
+            &[
+                "__plugin-worker",
+                &s.path,
+                &s.symbol,
+                s.prec.name(),
+                &ins,
+                &outs,
+            ],
+            None,
+            &[],
+            1 << 30,
+        )
+        .map_err(Failure::Reported)?;
+        let ready = |b: &[u8]| (b.len() >= READY.len()).then_some(READY.len());
+        match w.exchange(&[], false, Some(&ready), Instant::now() + self.timeout) {
+            Ok(b) if b == READY => Ok(w),
+            _ => {
+                w.wait(Duration::from_millis(200));
+                let why = crate::process::explain(&w.stderr());
+                let why = why.strip_prefix("error: ").unwrap_or(&why).to_string();
+                Err(Failure::Reported(if why.is_empty() {
+                    format!("{what}: the worker did not start")
+                } else {
+                    why
+                }))
+            }
+        }
+    }
+
+    /// One batch through a symbol's worker: the status, the routine's nanoseconds, the counts
+    /// and the values (as f64).
+    fn call(
+        &self,
+        s: &Symbol,
+        inputs: &[Vec<f64>],
+    ) -> Result<(i32, u64, Vec<u32>, Vec<f64>), Failure> {
+        let n = inputs.len();
+        let w = if s.prec == Precision::F32 { 4 } else { 8 };
+        let mut req = Vec::with_capacity(8 + n * self.inputs * w);
+        req.extend((n as u64).to_le_bytes());
+        for &x in inputs.iter().flatten() {
+            match s.prec {
+                Precision::F32 => req.extend((x as f32).to_le_bytes()),
+                Precision::F64 => req.extend(x.to_le_bytes()),
+            }
+        }
+        let size = 12 + n * 4 + n * self.outputs * w;
+        let mut slot = s.worker.lock().unwrap_or_else(|e| e.into_inner());
+        if slot.is_none() {
+            *slot = Some(self.start(s)?);
+        }
+        let worker = slot.as_mut().expect("started");
+        let whole = |b: &[u8]| (b.len() >= size).then_some(size);
+        let got = worker.exchange(&req, false, Some(&whole), Instant::now() + self.timeout);
+        let bytes = match got {
+            Ok(b) => b,
+            Err(e) => {
+                let status = worker.wait(Duration::from_millis(200));
+                let how = match (e, status) {
+                    (Broken::Deadline, _) => format!(
+                        "did not answer within {} s (killed)",
+                        self.timeout.as_secs_f64()
+                    ),
+                    (_, Some(st)) => match st.code() {
+                        Some(c) => format!("ended (exit status {c}: a routine that calls exit()?)"),
+                        None => format!(
+                            "crashed ({})",
+                            signal_name(
+                                std::os::unix::process::ExitStatusExt::signal(&st).unwrap_or(0)
+                            )
+                        ),
+                    },
+                    (Broken::StdoutCap(_), None) => "wrote more than it may".into(),
+                    (Broken::Closed, None) => "closed its output".into(),
+                };
+                let why = crate::process::explain(&worker.stderr());
+                *slot = None;
+                return Err(Failure::Died(how, why));
+            }
+        };
+        let status = i32::from_le_bytes(bytes[0..4].try_into().expect("4 bytes"));
+        let nanos = u64::from_le_bytes(bytes[4..12].try_into().expect("8 bytes"));
+        let counts = bytes[12..12 + n * 4]
+            .chunks_exact(4)
+            .map(|b| u32::from_le_bytes(b.try_into().expect("4 bytes")))
+            .collect();
+        let values = bytes[12 + n * 4..]
+            .chunks_exact(w)
+            .map(|b| match s.prec {
+                Precision::F32 => f32::from_le_bytes(b.try_into().expect("4 bytes")) as f64,
+                Precision::F64 => f64::from_le_bytes(b.try_into().expect("8 bytes")),
+            })
+            .collect();
+        Ok((status, nanos, counts, values))
+    }
+
+    /// The case of `inputs` that makes the worker die, by halving on fresh workers (at most
+    /// 16 halvings, within `budget`); `None` when no single case does it.
+    fn culprit(&self, s: &Symbol, inputs: &[Vec<f64>], budget: Instant) -> Option<usize> {
+        let (mut lo, mut hi) = (0, inputs.len());
+        for _ in 0..16 {
+            if hi - lo <= 1 || Instant::now() >= budget {
+                break;
+            }
+            let mid = lo + (hi - lo) / 2;
+            match self.call(s, &inputs[lo..mid]) {
+                Err(Failure::Died(..)) => hi = mid,
+                _ => lo = mid,
+            }
+        }
+        (hi - lo == 1 && matches!(self.call(s, &inputs[lo..hi]), Err(Failure::Died(..))))
+            .then_some(lo)
     }
 }
 
-/// What the crash handler prints: set before each call (the calls are not concurrent).
-static CALLING: Mutex<Option<CString>> = Mutex::new(None);
-/// The message as a raw pointer for the signal handler (which must not lock).
-static MESSAGE: std::sync::atomic::AtomicPtr<libc::c_char> =
-    std::sync::atomic::AtomicPtr::new(std::ptr::null_mut());
-
-/// On a crash inside a plugin: write the message and leave with exit code 4. Only
-/// async-signal-safe calls (`write`, `_exit`).
-extern "C" fn crashed(_sig: libc::c_int) {
-    let msg = MESSAGE.load(std::sync::atomic::Ordering::SeqCst);
-    if !msg.is_null() {
-        // SAFETY: the message is a NUL-terminated string kept alive in CALLING
-        unsafe {
-            let len = libc::strlen(msg);
-            libc::write(2, msg as *const libc::c_void, len);
+/// A signal's name, for messages.
+fn signal_name(sig: i32) -> String {
+    let name = match sig {
+        libc::SIGSEGV => "SIGSEGV, a segmentation fault",
+        libc::SIGBUS => "SIGBUS",
+        libc::SIGFPE => "SIGFPE",
+        libc::SIGILL => "SIGILL",
+        libc::SIGABRT => "SIGABRT, an abort",
+        libc::SIGKILL => "SIGKILL",
+        _ => "",
+    };
+    format!(
+        "signal {sig}{}",
+        if name.is_empty() {
+            String::new()
+        } else {
+            format!(", {name}")
         }
-    }
-    // SAFETY: leaving at once, without unwinding or running destructors, is what a crash needs
-    unsafe { libc::_exit(4) }
-}
-
-/// Runs `call` with crash handlers for the signals a bad routine raises, which print `what`.
-fn guarded<T>(what: &str, call: impl FnOnce() -> T) -> T {
-    let text = CString::new(format!("error: {what}\n")).unwrap_or_default();
-    let mut slot = CALLING.lock().unwrap_or_else(|e| e.into_inner());
-    MESSAGE.store(text.as_ptr() as *mut _, std::sync::atomic::Ordering::SeqCst);
-    *slot = Some(text);
-    let signals = [
-        libc::SIGSEGV,
-        libc::SIGBUS,
-        libc::SIGFPE,
-        libc::SIGILL,
-        libc::SIGABRT,
-    ];
-    // SAFETY: plain sigaction calls; the old handlers are restored after the call
-    let old: Vec<libc::sigaction> = signals
-        .iter()
-        .map(|&sig| unsafe {
-            let mut new: libc::sigaction = std::mem::zeroed();
-            new.sa_sigaction = crashed as extern "C" fn(libc::c_int) as usize;
-            let mut old: libc::sigaction = std::mem::zeroed();
-            libc::sigaction(sig, &new, &mut old);
-            old
-        })
-        .collect();
-    let r = call();
-    for (&sig, old) in signals.iter().zip(&old) {
-        // SAFETY: restoring what was there
-        unsafe {
-            libc::sigaction(sig, old, std::ptr::null_mut());
-        }
-    }
-    MESSAGE.store(std::ptr::null_mut(), std::sync::atomic::Ordering::SeqCst);
-    *slot = None;
-    r
+    )
 }
 
 impl Method for Plugin {
@@ -261,14 +451,14 @@ impl Method for Plugin {
     }
     fn replay(&self) -> Option<String> {
         let specs: Vec<String> = self
-            .specs
+            .symbols
             .iter()
-            .map(|(p, s)| format!("--plugin {s}:{}", p.name()))
+            .map(|s| format!("--plugin {}:{}", s.spec, s.prec.name()))
             .collect();
         Some(format!("{} --name {}", specs.join(" "), self.name))
     }
     fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String> {
-        let Some((_, routine)) = self.routines.iter().find(|(p, _)| *p == prec) else {
+        let Some(s) = self.symbols.iter().find(|s| s.prec == prec) else {
             return Err(format!(
                 "--plugin: {} has no {} symbol",
                 self.name,
@@ -279,39 +469,50 @@ impl Method for Plugin {
         if n == 0 {
             return Ok(vec![]);
         }
-        let spec = self.spec(prec);
-        let what = format!("plugin {spec} crashed answering {n} {} cases", prec.name());
-        let mut count = vec![UNSET; n];
-        // Arrays in, arrays out, one call per batch
-        let (status, values): (i32, Vec<f64>) = match routine {
-            Routine::F32(f) => {
-                let input: Vec<f32> = inputs.iter().flatten().map(|&x| x as f32).collect();
-                let mut out = vec![f32::NAN; n * self.outputs];
-                debug_assert_eq!(input.len(), n * self.inputs);
-                // SAFETY: the buffers have the documented sizes for n cases
-                let s = guarded(&what, || unsafe {
-                    f(n, input.as_ptr(), count.as_mut_ptr(), out.as_mut_ptr())
-                });
-                (s, out.into_iter().map(f64::from).collect())
-            }
-            Routine::F64(f) => {
-                let input: Vec<f64> = inputs.iter().flatten().copied().collect();
-                let mut out = vec![f64::NAN; n * self.outputs];
-                // SAFETY: as above
-                let s = guarded(&what, || unsafe {
-                    f(n, input.as_ptr(), count.as_mut_ptr(), out.as_mut_ptr())
-                });
-                (s, out)
+        let spec = &s.spec;
+        let batch = s.batches.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        let at =
+            |i: usize| probe_line_with(&self.shape, prec, self.replay().as_deref(), &inputs[i]);
+        let (status, nanos, count, values) = match self.call(s, inputs) {
+            Ok(r) => r,
+            Err(Failure::Reported(e)) => return Err(e),
+            Err(Failure::Died(how, said)) => {
+                // Which case? Halve the batch on fresh workers while time allows
+                let case = self
+                    .culprit(
+                        s,
+                        inputs,
+                        Instant::now() + self.timeout.max(Duration::from_secs(5)),
+                    )
+                    .map(|i| format!("; the case: {}", at(i)))
+                    .unwrap_or_else(|| {
+                        format!(
+                            "; no single case does it alone (the batch's first: {})",
+                            at(0)
+                        )
+                    });
+                let said = if said.is_empty() {
+                    String::new()
+                } else {
+                    format!("; it said: {said}")
+                };
+                return Err(format!(
+                    "plugin {spec} {how} answering batch {batch} ({n} {} cases){case}{said}",
+                    prec.name()
+                ));
             }
         };
+        s.nanos
+            .fetch_add(nanos, std::sync::atomic::Ordering::Relaxed);
         if status != 0 {
             return Err(format!(
-                "plugin {spec} returned {status} (a failure) for a batch of {n} cases"
+                "plugin {spec} returned {status} (a failure) for batch {batch} of {n} cases"
             ));
         }
         // Every count written (else the protocol is broken: a wrong signature). The answer is
         // what the routine wrote: a count the shape cannot have is the contract's to judge
         // (malformed), as it is for every other way in
+        let counted = self.counted;
         let answers = count
             .iter()
             .enumerate()
@@ -323,7 +524,7 @@ impl Method for Plugin {
                 }
                 // The values it wrote: the first `count` (at most OUT) for the polynomials, all
                 // OUT for a hit of any other shape
-                let k = match (c, self.counted) {
+                let k = match (c, counted) {
                     (0, _) => 0,
                     (c, true) => (c as usize).min(self.outputs),
                     _ => self.outputs,

@@ -68,8 +68,9 @@ pub struct OutsideArgs {
     /// plugin's symbol without its precision suffix).
     #[arg(long)]
     pub name: Option<String>,
-    /// Seconds a batch of cases may take before the --exec child is killed.
-    #[arg(long, default_value_t = 60.0, value_parser = parse_seconds)]
+    /// Seconds a batch of cases may take before the --exec child or the --plugin worker is
+    /// killed (the audit then stops, exit 4).
+    #[arg(long = "timeout", alias = "exec-timeout", default_value_t = 60.0, value_parser = parse_seconds)]
     pub exec_timeout: f64,
 }
 
@@ -94,9 +95,15 @@ impl OutsideArgs {
         if self.plugin.is_empty() {
             return Ok(None);
         }
-        let p =
-            rayproof::audit::plugin::Plugin::load(&self.plugin, self.name.as_deref(), shape.info())
-                .map_err(|e| anyhow!(e))?;
+        let worker = std::env::current_exe().context("cannot find rayproof's own executable")?;
+        let p = rayproof::audit::plugin::Plugin::load(
+            &self.plugin,
+            self.name.as_deref(),
+            shape.info(),
+            &worker,
+            std::time::Duration::from_secs_f64(self.exec_timeout),
+        )
+        .map_err(|e| anyhow!(e))?;
         let precisions = p.precisions();
         Ok(Some((Box::new(p), Some(precisions))))
     }

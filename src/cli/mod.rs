@@ -110,6 +110,15 @@ pub enum Command {
     /// Render an implicit scene per pixel and by image-space subdivision (seed 004), shadows off
     /// and on, and compare every pixel (exit 1 if the certified mode loses or adds one).
     ImplicitCheck(ImplicitCheckArgs),
+    /// (Internal) the worker process that runs a `--plugin` routine.
+    #[command(name = "__plugin-worker", hide = true)]
+    PluginWorker {
+        path: String,
+        symbol: String,
+        precision: String,
+        inputs: usize,
+        outputs: usize,
+    },
 }
 
 /// Parses the command line; `probe --help` lists the routines.
@@ -187,5 +196,17 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Reference(r) => reference::run_reference(r),
         Command::Report(r) => report::run_report(r),
         Command::ImplicitCheck(a) => implicit::run_implicit_check(a),
+        Command::PluginWorker {
+            path,
+            symbol,
+            precision,
+            inputs,
+            outputs,
+        } => {
+            let prec = args::parse_precision(&precision).map_err(anyhow::Error::msg)?;
+            rayproof::audit::plugin::serve(&path, &symbol, prec, inputs, outputs)
+                .map_err(anyhow::Error::msg)?;
+            Ok(0)
+        }
     }
 }

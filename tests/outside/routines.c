@@ -115,3 +115,44 @@ int nan_values_f32(size_t n, const float in[][10], uint32_t count[], float out[]
     for (size_t i = 0; i < n; i++) count[i] = 1;
     return 0;
 }
+
+/* Routines that take their process down in every way a C routine can (tests/plugin.rs): they
+ * run in rayproof's worker process, so rayproof reports them instead of dying with them. */
+#include <stdlib.h>
+#include <unistd.h>
+int aborts_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    (void)in; (void)count; (void)out;
+    if (n > 0) abort();
+    return 0;
+}
+static int deep(int k) { volatile char pad[256]; pad[0] = (char)k; return deep(k + 1) + pad[0]; }
+int overflows_stack_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    (void)in; (void)count; (void)out;
+    return n > 0 ? deep(0) : 0;
+}
+int calls_exit_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    (void)in; (void)count; (void)out;
+    if (n > 0) exit(0);
+    return 0;
+}
+int hangs_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    (void)in; (void)count; (void)out;
+    for (;;) if (n > 0) sleep(1);
+    return 0;
+}
+/* Writes far past out[]: the heap's checks abort the process (or it crashes). */
+int writes_past_out_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    (void)in;
+    for (size_t i = 0; i < n; i++) count[i] = 0;
+    for (size_t i = 0; i < n * 4096 + (1u << 20); i++) out[0][i] = 1.0f;
+    return 0;
+}
+/* Right everywhere (a miss) but crashes on one case: the one whose ox is exactly 0.25. */
+int crashes_on_one_case_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    (void)out;
+    for (size_t i = 0; i < n; i++) {
+        if (in[i][0] == 0.25f) { volatile int *null = 0; return *null; }
+        count[i] = 0;
+    }
+    return 0;
+}
