@@ -44,14 +44,17 @@ use std::collections::HashMap;
 /// The tag and version on the first line of a cases file.
 pub const CASES_HEADER: &str = "# rayproof cases 1";
 
-/// The cases of a plan's single shape, as the cases file.
-pub fn write_cases(plan: &Plan) -> String {
+/// Writes the cases of a plan's single shape as the cases file, line by line (memory does not
+/// grow with the case count); returns how many cases it wrote.
+pub fn write_cases(plan: &Plan, out: &mut dyn std::io::Write) -> std::io::Result<u64> {
     let p = &plan.shapes[0];
     let info = p.shape.info();
-    let mut out = format!(
-        "{CASES_HEADER} shape={} seed={} cases={}\n",
+    writeln!(
+        out,
+        "{CASES_HEADER} shape={} seed={} cases={}",
         info.name, plan.seed, p.cases
-    );
+    )?;
+    let mut n = 0;
     for &prec in &plan.precisions {
         for &class in &p.classes {
             for index in 0..p.cases {
@@ -59,16 +62,18 @@ pub fn write_cases(plan: &Plan) -> String {
                     continue;
                 };
                 let vals: Vec<String> = input.iter().map(|&x| hex_text(x)).collect();
-                out += &format!(
-                    "{} {} {index} {}\n",
+                writeln!(
+                    out,
+                    "{} {} {index} {}",
                     prec.name(),
                     info.classes[class],
                     vals.join(" ")
-                );
+                )?;
+                n += 1;
             }
         }
     }
-    out
+    Ok(n)
 }
 
 /// A cases file, read back.

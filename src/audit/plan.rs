@@ -76,17 +76,20 @@ fn select(names: &[String], all: &[&str], what: &str, shape: &str) -> Result<Vec
     if names.is_empty() {
         return Ok((0..all.len()).collect());
     }
-    names
-        .iter()
-        .map(|n| {
-            all.iter().position(|a| a == n).ok_or_else(|| {
-                format!(
-                    "--{what}: unknown {what} '{n}' of {shape} (known: {})",
-                    all.join(", ")
-                )
-            })
-        })
-        .collect()
+    // A name given twice is one selection (`--class a,a` audits `a` once)
+    let mut picked = vec![];
+    for n in names {
+        let k = all.iter().position(|a| a == n).ok_or_else(|| {
+            format!(
+                "--{what}: unknown {what} '{n}' of {shape} (known: {})",
+                all.join(", ")
+            )
+        })?;
+        if !picked.contains(&k) {
+            picked.push(k);
+        }
+    }
+    Ok(picked)
 }
 
 impl Plan {
@@ -142,7 +145,13 @@ impl Plan {
             precisions: if o.precisions.is_empty() {
                 Precision::ALL.to_vec()
             } else {
-                o.precisions.clone()
+                let mut once = vec![];
+                for &x in &o.precisions {
+                    if !once.contains(&x) {
+                        once.push(x);
+                    }
+                }
+                once
             },
             seed: o.seed,
             shard: o.shard,

@@ -9,7 +9,7 @@ use rayproof::audit::offline::{read_answers, read_cases, score_plan, write_cases
 use rayproof::audit::plan::{Options, Plan};
 use rayproof::audit::{Report, TOOL};
 use rayproof::numerics::Precision;
-use rayproof::output::{check_output_dirs, write_atomic};
+use rayproof::output::{check_output_dirs, write_atomic_with};
 use std::path::PathBuf;
 
 #[derive(Args, Debug)]
@@ -63,14 +63,14 @@ pub(super) fn run_cases(a: CasesArgs) -> Result<u8> {
         ..Options::default()
     })
     .map_err(|e| anyhow!(e))?;
-    let text = write_cases(&plan);
-    write_atomic(&a.output, text.as_bytes())?;
-    say!(
-        "{} cases of {} written to {}",
-        text.lines().count() - 1,
-        a.shape,
-        a.output.display()
-    );
+    // Streamed to the file: memory does not grow with --cases
+    let mut n = 0;
+    write_atomic_with(&a.output, |tmp| {
+        let mut w = std::io::BufWriter::new(std::fs::File::create(tmp)?);
+        n = write_cases(&plan, &mut w)?;
+        Ok(std::io::Write::flush(&mut w)?)
+    })?;
+    say!("{n} cases of {} written to {}", a.shape, a.output.display());
     Ok(0)
 }
 
