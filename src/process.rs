@@ -326,6 +326,28 @@ impl Session {
         complete: Option<&dyn Fn(&[u8]) -> Option<usize>>,
         deadline: Instant,
     ) -> Result<Vec<u8>, Broken> {
+        self.exchange_or_wait(input, close, complete, deadline, true)
+    }
+
+    /// Reads the process's output until `complete` says the answer is whole, or until `until`
+    /// passes, which (unlike an exchange's deadline) leaves the process running: `None` then.
+    pub fn wait_for(
+        &mut self,
+        complete: &dyn Fn(&[u8]) -> Option<usize>,
+        until: Instant,
+    ) -> Option<Vec<u8>> {
+        self.exchange_or_wait(b"", false, Some(complete), until, false)
+            .ok()
+    }
+
+    fn exchange_or_wait(
+        &mut self,
+        input: &[u8],
+        close: bool,
+        complete: Option<&dyn Fn(&[u8]) -> Option<usize>>,
+        deadline: Instant,
+        kill_at_deadline: bool,
+    ) -> Result<Vec<u8>, Broken> {
         let mut written = 0;
         let mut chunk = vec![0u8; 1 << 16];
         let mut exited_at: Option<Instant> = None;
@@ -364,7 +386,9 @@ impl Session {
             }
             let now = Instant::now();
             if now >= deadline {
-                self.kill();
+                if kill_at_deadline {
+                    self.kill();
+                }
                 return Err(Broken::Deadline);
             }
             // Wait for any stream, at most until the deadline (and briefly, to see an exit)

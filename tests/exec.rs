@@ -114,7 +114,7 @@ fn a_failing_child_stops_the_audit_with_one_line_and_exit_4() {
         ("sleep 30", "did not finish within 2 s"),
         (
             "while read l; do echo '1 zz'; done",
-            "answer 1 ('1 zz'): 'zz' is not a number (case: rayproof probe sphere",
+            "answer 1 is not an answer ('1 zz': 'zz' is not a number; the case: rayproof probe sphere",
         ),
         (
             "head -n 2 | while read l; do echo 0; done",
@@ -162,4 +162,152 @@ fn a_failing_child_stops_the_audit_with_one_line_and_exit_4() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--name rtg7"));
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// How many times a child was started (it appends a line to `starts` each time).
+fn starts(dir: &Path) -> usize {
+    std::fs::read_to_string(dir.join("starts"))
+        .map(|s| s.lines().count())
+        .unwrap_or(0)
+}
+
+#[test]
+fn one_child_answers_the_whole_run() {
+    // 2 classes × 2 precisions × 5,000 cases: 8 batches of at most 4,096, one child
+    let dir = scratch("persistent");
+    let cmd = format!("echo $$ >> starts; exec {}", script());
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "audit",
+            "--shape",
+            "sphere",
+            "--class",
+            "tangent,random",
+            "--cases",
+            "5000",
+            "--exec",
+            &cmd,
+            "--name",
+            "py",
+        ];
+        args.extend(extra);
+        Command::new(env!("CARGO_BIN_EXE_rayproof"))
+            .current_dir(&dir)
+            .args(&args)
+            .output()
+            .unwrap()
+    };
+    let o = run(&[]);
+    assert!(
+        matches!(o.status.code(), Some(0 | 1)),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(starts(&dir), 1, "the child was started more than once");
+    // --exec-per-batch: one per batch, as before
+    std::fs::remove_file(dir.join("starts")).unwrap();
+    let o = run(&["--exec-per-batch"]);
+    assert!(
+        matches!(o.status.code(), Some(0 | 1)),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(starts(&dir), 8);
+    // A child that writes only at exit (awk to a pipe) is found out by its first batch and
+    // run once per batch; with --exec-keep it is held to flushing, and the message says so
+    let lazy = "echo $$ >> starts; exec awk '{print 0}'";
+    std::fs::remove_file(dir.join("starts")).unwrap();
+    let o = rayproof(&[
+        "audit",
+        "--shape",
+        "rcp",
+        "--class",
+        "huge",
+        "--cases",
+        "5000",
+        "--precision",
+        "f32",
+        "--exec",
+        lazy,
+        "--timeout",
+        "20",
+    ]);
+    let _ = o;
+    let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(&dir)
+        .args([
+            "audit",
+            "--shape",
+            "rcp",
+            "--class",
+            "huge",
+            "--cases",
+            "5000",
+            "--precision",
+            "f32",
+            "--exec",
+            lazy,
+            "--timeout",
+            "20",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        matches!(o.status.code(), Some(0 | 1)),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert_eq!(starts(&dir), 2);
+    let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(&dir)
+        .args([
+            "audit",
+            "--shape",
+            "rcp",
+            "--class",
+            "huge",
+            "--cases",
+            "50",
+            "--precision",
+            "f32",
+            "--exec",
+            lazy,
+            "--timeout",
+            "2",
+            "--exec-keep",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(4), "{err}");
+    assert!(
+        err.contains("does the child flush its output after each line?"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_stray_line_or_an_extra_answer_is_quoted() {
+    // A log line on stdout (as Mitsuba writes its warnings): the line quoted, with the case it
+    // was taken as the answer to, and the child's stderr
+    let py =
+        |body: &str| format!("python3 -c 'import sys\nfor i, l in enumerate(sys.stdin):\n{body}'");
+    for (cmd, want) in [
+        (
+            py("    print(\"2026-11-26 WARN [Scene] a log line\") if i == 3 else None\n    print(0)\n    print(\"working\", file=sys.stderr)"),
+            "answer 4 is not an answer ('2026-11-26 WARN [Scene] a log line'",
+        ),
+        (py("    print(0)\n    print(0) if i == 49 else None"), "answered more lines than cases (the first extra: '0')"),
+        (py("    sys.exit(3) if i == 7 else print(0)"), "after 7 of 50 answers (the first unanswered: rayproof probe"),
+    ] {
+        let o = rayproof(&[
+            "audit", "--shape", "sphere", "--class", "random", "--precision", "f32", "--cases",
+            "50", "--exec", &cmd, "--timeout", "10",
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(4), "{cmd}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+        assert!(err.contains(want), "'{want}' not in {err}");
+    }
 }

@@ -1,20 +1,32 @@
 //! Auditing a routine in any language through a subprocess (`rayproof audit --exec CMD`).
 //!
-//! For every batch of cases rayproof starts `sh -c CMD`, writes the batch to its standard
-//! input and closes it, and reads one answer line per case from its standard output until it
-//! exits. Because the child sees the end of its input, it needs no flushing protocol: a plain
-//! `for line in sys.stdin: print(…)` works.
+//! **One child for the run.** rayproof starts `sh -c CMD` once (in its own process group, with
+//! `PYTHONUNBUFFERED=1` in its environment), writes the cases to its standard input a batch at a
+//! time, and reads one answer line per case from its standard output; at the end it closes the
+//! child's input and waits for it to exit. A plain `for line in sys.stdin: print(…)` works in
+//! Python; a child in another language must flush its output after each answer line (C:
+//! `setvbuf(stdout, NULL, _IOLBF, 0)` or `fflush(stdout)`; awk: `fflush()`; sed: `-u`). A child
+//! that cannot flush can be run once per batch instead (`--exec-per-batch`: its input is closed at
+//! the end of each batch, so it sees the end of its input and flushes on exit).
 //!
 //! **A case line** (child's input): the precision, then the shape's inputs in order as C99 hex
 //! floats (`inf`, `-inf`, `nan` for the invalid class), exact in the precision:
-//! `f32 0x1p+0 -0x1.8p-3 0x0p+0 …`.
+//! `f32 0x1p+0 -0x1.8p-3 0x0p+0 …`. (A `rayproof cases` file has two more fields, the class and
+//! the index, and a `#` header: `rayproof cases --exec-format` writes the exec lines instead.)
 //!
 //! **An answer line** (child's output), one per case in order: the count, then the values, in
-//! decimal or hex (`1 0x1.4p+2`, `2 -1.5 3`, `0`; an f32 answer is rounded once to f32).
+//! decimal or hex (`1 0x1.4p+2`, `2 -1.5 3`, `0`; an f32 answer is rounded once to f32). What an
+//! answer may be is the answer contract ([`super::contract`], `rayproof header`): an answer
+//! outside it is a wrong answer counted in its row; a line that is not an answer at all (a log
+//! line on stdout: redirect the child's logging to stderr) stops the audit.
 //!
-//! A child that exits with a failure, is killed by a signal, answers a malformed line or the
-//! wrong number of lines, or does not finish a batch within the timeout stops the audit with
-//! one line naming the command and the case ([`super::run::MethodFailed`], exit 4).
+//! **Invalid input** (the `invalid` class: NaN or infinite inputs, degenerate shapes) arrives
+//! like any case, and the right answer is `0`. Directions are not normalised.
+//!
+//! A child that exits, is killed by a signal, answers a line that is not an answer, answers more
+//! lines than cases, or does not answer a batch within the timeout stops the audit with one line
+//! naming the command, the offending line (quoted) or the first unanswered case (its replay
+//! line), and the last lines of the child's stderr ([`super::run::MethodFailed`], exit 4).
 //!
 //! # Example
 //!
@@ -30,16 +42,13 @@
 //! methods to the same rows, `--tolerances` judges yours. The timeout is `--timeout` seconds
 //! per batch (default 60); the child's whole process group is then killed, and a failing child
 //! leaves no report written.
-//!
-//! Measured by `scripts/bench-outside` (2026-11-23 16:03 UTC, 2-core AMD EPYC; median of 5 runs)
-//! with a trivial child (`--exec "awk '{print 0}'"`, 240,000 `rcp` cases, whose oracle is cheap):
-//! 388,000 cases/s end to end; the sphere's audit through the same child is bound by its oracle,
-//! 99,000 cases/s.
 
 use super::contract::parse_line;
 use super::shape::{hex_text, probe_line_with, Answer, Method};
 use crate::numerics::Precision;
-use std::time::Duration;
+use crate::process::{Broken, Session};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
 
 /// Standard output an `--exec` child may write per batch: 16 MiB.
 pub const STDOUT_CAP: usize = 16 << 20;
@@ -54,6 +63,213 @@ pub struct Exec {
     pub shape: String,
     /// How long one batch may take.
     pub timeout: Duration,
+    /// One child for the run, one per batch, or (by default) decided by the first batch.
+    pub mode: Mode,
+    /// The running child and whether it is kept for the run (once decided).
+    state: Mutex<(Option<Session>, Option<bool>)>,
+}
+
+/// How many children an `--exec` run starts.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// One for the run if it answers all of its first batch within [`FIRST_LINE`], its input
+    /// still open (it flushes its lines); otherwise its input is closed at the end of that batch
+    /// (a child that writes only at exit, as `sed` or `awk` to a pipe do) and every batch gets
+    /// its own.
+    Auto,
+    /// One child for the run (`--exec-keep`): it must flush each answer line.
+    Keep,
+    /// One child per batch (`--exec-per-batch`), its input closed at the batch's end.
+    PerBatch,
+}
+
+/// How long the first batch waits for all its answers, its input still open, before the child
+/// is taken for one that writes only at exit ([`Mode::Auto`]; at most half the batch's timeout).
+pub const FIRST_LINE: Duration = Duration::from_secs(3);
+
+impl Exec {
+    /// A routine run by `command` for `shape`.
+    pub fn new(name: &str, command: &str, shape: &str, timeout: Duration, mode: Mode) -> Exec {
+        Exec {
+            name: name.to_string(),
+            command: command.to_string(),
+            shape: shape.to_string(),
+            timeout,
+            mode,
+            state: Mutex::new((None, None)),
+        }
+    }
+
+    /// Whether the run keeps one child (`None`: not decided yet).
+    pub fn keeps_one_child(&self) -> Option<bool> {
+        match self.mode {
+            Mode::Keep => Some(true),
+            Mode::PerBatch => Some(false),
+            Mode::Auto => self.state.lock().unwrap_or_else(|e| e.into_inner()).1,
+        }
+    }
+
+    /// The command as messages name it: on one line (a newline in it shown as `\n`).
+    fn what(&self) -> String {
+        format!("exec '{}'", self.command.replace('\n', "\\n"))
+    }
+
+    /// The last lines of the child's stderr that explain it, as a suffix.
+    fn said(s: &Session) -> String {
+        let why = crate::process::explain(&s.stderr());
+        if why.is_empty() {
+            String::new()
+        } else {
+            format!("; its stderr: {why}")
+        }
+    }
+
+    fn replay_line(&self, prec: Precision, x: &[f64]) -> String {
+        probe_line_with(&self.shape, prec, self.replay().as_deref(), x)
+    }
+
+    /// The answers of a child kept for the run: `batch` written (or already written), one answer
+    /// line read per case as they come (blank lines skipped).
+    fn stream(
+        &self,
+        child: &mut Session,
+        batch: &[u8],
+        prec: Precision,
+        inputs: &[Vec<f64>],
+        deadline: Instant,
+    ) -> Result<Vec<Answer>, String> {
+        let what = self.what();
+        let n = inputs.len();
+        let mut answers = Vec::with_capacity(n);
+        let mut input = batch;
+        while answers.len() < n {
+            let need = n - answers.len();
+            let got = child.exchange(input, false, Some(&|b: &[u8]| lines_end(b, need)), deadline);
+            input = b"";
+            let bytes = match got {
+                Ok(b) => b,
+                Err(e) => {
+                    let at = self.replay_line(prec, &inputs[answers.len()]);
+                    let how = match e {
+                        Broken::Deadline => format!(
+                            "did not answer within {} s (killed){}",
+                            self.timeout.as_secs_f64(),
+                            if answers.is_empty() {
+                                "; no answer line arrived: does the child flush its output after each line? (or give --exec-per-batch)"
+                            } else {
+                                ""
+                            }
+                        ),
+                        Broken::StdoutCap(cap) => format!("wrote more than {cap} bytes (killed)"),
+                        Broken::Closed => match child.wait(Duration::from_millis(200)) {
+                            Some(st) if !st.success() => format!("failed ({st})"),
+                            _ => "ended".to_string(),
+                        },
+                    };
+                    return Err(format!(
+                        "{what} {how} after {} of {n} answers (the first unanswered: {at}){}",
+                        answers.len(),
+                        Self::said(child)
+                    ));
+                }
+            };
+            for l in String::from_utf8_lossy(&bytes)
+                .lines()
+                .filter(|l| !l.trim().is_empty())
+            {
+                let i = answers.len();
+                let a = parse_line(l, prec).map_err(|e| {
+                    let l: String = l.trim().chars().take(200).collect();
+                    format!(
+                        "{what}: answer {} is not an answer ('{l}': {e}; the case: {}){}",
+                        i + 1,
+                        self.replay_line(prec, &inputs[i]),
+                        Self::said(child)
+                    )
+                })?;
+                answers.push(a);
+            }
+        }
+        Ok(answers)
+    }
+
+    /// The answers of a child for one batch: `batch` written (or already written) and the input
+    /// closed, all its output read to its end; exactly one answer line per case.
+    fn whole_batch(
+        &self,
+        child: &mut Session,
+        batch: &[u8],
+        prec: Precision,
+        inputs: &[Vec<f64>],
+        deadline: Instant,
+    ) -> Result<Vec<Answer>, String> {
+        let what = self.what();
+        let out = child.exchange(batch, true, None, deadline);
+        let status = child.wait(Duration::from_millis(200));
+        let said = Self::said(child);
+        let out = match out {
+            Ok(b) => b,
+            Err(Broken::Deadline) => {
+                return Err(format!(
+                    "{what} did not finish within {} s (killed){said}",
+                    self.timeout.as_secs_f64()
+                ))
+            }
+            Err(_) => {
+                return Err(format!(
+                    "{what} wrote more than {STDOUT_CAP} bytes (killed)"
+                ))
+            }
+        };
+        let text = String::from_utf8_lossy(&out);
+        let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+        if !status.is_some_and(|s| s.success()) {
+            let st = status.map_or("killed".to_string(), |s| s.to_string());
+            let at = inputs
+                .get(lines.len())
+                .map(|x| {
+                    format!(
+                        " after {} of {} answers (the first unanswered: {})",
+                        lines.len(),
+                        inputs.len(),
+                        self.replay_line(prec, x)
+                    )
+                })
+                .unwrap_or_default();
+            return Err(format!("{what} failed ({st}){at}{said}"));
+        }
+        if lines.len() > inputs.len() {
+            let x: String = lines[inputs.len()].trim().chars().take(200).collect();
+            return Err(format!(
+                "{what} answered {} lines to {} cases (the first extra: '{x}'){said}",
+                lines.len(),
+                inputs.len()
+            ));
+        }
+        if lines.len() < inputs.len() {
+            return Err(format!(
+                "{what} answered {} lines to {} cases (the first unanswered: {}){said}",
+                lines.len(),
+                inputs.len(),
+                self.replay_line(prec, &inputs[lines.len()])
+            ));
+        }
+        lines
+            .iter()
+            .zip(inputs)
+            .enumerate()
+            .map(|(i, (l, x))| {
+                parse_line(l, prec).map_err(|e| {
+                    let l: String = l.trim().chars().take(200).collect();
+                    format!(
+                        "{what}: answer {} is not an answer ('{l}': {e}; the case: {}){said}",
+                        i + 1,
+                        self.replay_line(prec, x)
+                    )
+                })
+            })
+            .collect()
+    }
 }
 
 /// One case as the child reads it.
@@ -62,13 +278,36 @@ pub fn case_line(prec: Precision, input: &[f64]) -> String {
     format!("{} {}\n", prec.name(), vals.join(" "))
 }
 
-impl Exec {
-    /// Runs the child on one batch: its standard output, or why it failed. The output is capped
-    /// at [`STDOUT_CAP`] (a batch's answers are a few hundred kilobytes).
-    fn run_batch(&self, input: String) -> Result<String, String> {
-        let what = format!("exec '{}'", self.command);
-        crate::process::run_capped(&what, &self.command, None, input, self.timeout, STDOUT_CAP)
+/// Whether `b` holds `n` non-blank lines (the answers of `n` cases): the byte length they end at.
+fn answered(b: &[u8], n: usize) -> Option<usize> {
+    let mut seen = 0;
+    let mut blank = true;
+    for (i, &c) in b.iter().enumerate() {
+        if c == b'\n' {
+            if !blank {
+                seen += 1;
+                if seen == n {
+                    return Some(i + 1);
+                }
+            }
+            blank = true;
+        } else if !c.is_ascii_whitespace() {
+            blank = false;
+        }
     }
+    None
+}
+
+/// The byte length of the first `n` lines of `b` (with their newlines), once they are all there.
+fn lines_end(b: &[u8], n: usize) -> Option<usize> {
+    if n == 0 {
+        return Some(0);
+    }
+    b.iter()
+        .enumerate()
+        .filter(|(_, &c)| c == b'\n')
+        .nth(n - 1)
+        .map(|(i, _)| i + 1)
 }
 
 impl Method for Exec {
@@ -79,42 +318,96 @@ impl Method for Exec {
         &self.command
     }
     fn replay(&self) -> Option<String> {
-        Some(format!("--exec '{}' --name {}", self.command, self.name))
+        // A replay line is one line: a command with newlines is shown with `\n`
+        Some(format!(
+            "--exec '{}' --name {}",
+            self.command.replace('\n', "\\n"),
+            self.name
+        ))
     }
     fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String> {
         if inputs.is_empty() {
             return Ok(vec![]);
         }
+        let what = self.what();
         let batch: String = inputs.iter().map(|x| case_line(prec, x)).collect();
-        let out = self.run_batch(batch)?;
-        let what = format!("exec '{}'", self.command);
-        let lines: Vec<&str> = out.lines().filter(|l| !l.trim().is_empty()).collect();
-        if lines.len() != inputs.len() {
-            let at = inputs
-                .get(lines.len())
-                .or(inputs.last())
-                .expect("not empty");
-            return Err(format!(
-                "{what} answered {} lines to {} cases (the first unanswered: {})",
-                lines.len(),
-                inputs.len(),
-                probe_line_with(&self.shape, prec, self.replay().as_deref(), at)
-            ));
+        let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        let keep = match self.mode {
+            Mode::Keep => Some(true),
+            Mode::PerBatch => Some(false),
+            Mode::Auto => state.1,
+        };
+        if state.0.is_none() || keep == Some(false) {
+            state.0 = Some(Session::sh(
+                &what,
+                &self.command,
+                None,
+                &[("PYTHONUNBUFFERED", "1")],
+                STDOUT_CAP,
+            )?);
         }
-        lines
-            .iter()
-            .zip(inputs)
-            .enumerate()
-            .map(|(i, (l, x))| {
-                parse_line(l, prec).map_err(|e| {
-                    format!(
-                        "{what}: answer {} ('{}'): {e} (case: {})",
-                        i + 1,
-                        l.trim(),
-                        probe_line_with(&self.shape, prec, self.replay().as_deref(), x)
-                    )
-                })
-            })
-            .collect()
+        let child = state.0.as_mut().expect("started");
+        let deadline = Instant::now() + self.timeout;
+        let result = match keep {
+            Some(false) => self.whole_batch(child, batch.as_bytes(), prec, inputs, deadline),
+            Some(true) => self.stream(child, batch.as_bytes(), prec, inputs, deadline),
+            None => {
+                // The first batch decides: a child that answers all of it while its input is
+                // still open flushes its lines, and is kept for the run
+                let n = inputs.len();
+                let first = child.exchange(batch.as_bytes(), false, Some(&|_| Some(0)), deadline);
+                let whole = first.ok().and_then(|_| {
+                    let window = FIRST_LINE.min(self.timeout / 2);
+                    child.wait_for(&|b| answered(b, n).map(|_| 0), Instant::now() + window)
+                });
+                let keeps = whole.is_some();
+                state.1 = Some(keeps);
+                let child = state.0.as_mut().expect("started");
+                if keeps {
+                    self.stream(child, b"", prec, inputs, deadline)
+                } else {
+                    self.whole_batch(child, b"", prec, inputs, deadline)
+                }
+            }
+        };
+        if result.is_err() || state.1 == Some(false) || keep == Some(false) {
+            state.0 = None;
+        }
+        result
+    }
+    fn finish(&self) -> Result<(), String> {
+        // One child for the run: its input closes, it must end with nothing more to say
+        let mut state = self.state.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(mut child) = state.0.take() else {
+            return Ok(());
+        };
+        let what = self.what();
+        let rest = child.exchange(b"", true, None, Instant::now() + self.timeout);
+        let status = child.wait(Duration::from_millis(200));
+        let said = Self::said(&child);
+        match rest {
+            Ok(b) => {
+                if let Some(x) = String::from_utf8_lossy(&b)
+                    .lines()
+                    .find(|l| !l.trim().is_empty())
+                {
+                    let x: String = x.trim().chars().take(200).collect();
+                    return Err(format!(
+                        "{what} answered more lines than cases (the first extra: '{x}'){said}"
+                    ));
+                }
+            }
+            Err(_) => {
+                return Err(format!(
+                    "{what} did not end within {} s of the end of its input (killed){said}",
+                    self.timeout.as_secs_f64()
+                ))
+            }
+        }
+        match status {
+            Some(s) if s.success() => Ok(()),
+            Some(s) => Err(format!("{what} failed at the end of its input ({s}){said}")),
+            None => Err(format!("{what} did not end after its input (killed){said}")),
+        }
     }
 }

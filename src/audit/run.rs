@@ -297,6 +297,9 @@ pub fn run(sel: &Selection, progress: bool) -> Result<Tallies, MethodFailed> {
             out.push(group(sel, prec, class, &bar).map_err(MethodFailed)?);
         }
     }
+    for m in &sel.methods {
+        m.finish().map_err(MethodFailed)?;
+    }
     bar.finish_and_clear();
     Ok(Tallies {
         shape: sel.shape,
@@ -326,5 +329,8 @@ pub fn judge_all(
         .into_iter()
         .map(|mut a| sample(shape, &truth, input, a.remove(0), prec))
         .collect();
+    for m in methods {
+        m.finish()?;
+    }
     Ok((truth, samples))
 }

@@ -224,6 +224,11 @@ pub trait Method: Sync {
     /// One answer per input, in order. An error (a crashed or hung child, a malformed
     /// answer) stops the audit with that one line.
     fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String>;
+    /// Called once the run has no more cases: a method that keeps an outside process for the
+    /// run ends it here and checks how it ended (an error stops the audit as in `answer`).
+    fn finish(&self) -> Result<(), String> {
+        Ok(())
+    }
 }
 
 /// A method that answers one case at a time and cannot fail (a shape's own, a Rust function):

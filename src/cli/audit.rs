@@ -68,6 +68,15 @@ pub struct OutsideArgs {
     /// plugin's symbol without its precision suffix).
     #[arg(long)]
     pub name: Option<String>,
+    /// Run the --exec command once per batch of cases, its input closed at the batch's end (for
+    /// a child that writes only when its input ends). Default: one child for the run when its
+    /// first answer line arrives within 2 s of its first batch, else one per batch.
+    #[arg(long, requires = "exec", conflicts_with = "exec_keep")]
+    pub exec_per_batch: bool,
+    /// Keep one --exec child for the whole run, whatever its first batch shows (it must flush
+    /// each answer line).
+    #[arg(long, requires = "exec")]
+    pub exec_keep: bool,
     /// Seconds a batch of cases may take before the --exec child or the --plugin worker is
     /// killed (the audit then stops, exit 4).
     #[arg(long = "timeout", alias = "exec-timeout", default_value_t = 60.0, value_parser = parse_seconds)]
@@ -83,13 +92,28 @@ type Outside = (
 impl OutsideArgs {
     /// The outside method, if one is given, for a shape; with a plugin, its precisions.
     pub fn method(&self, shape: &dyn rayproof::audit::Shape) -> Result<Option<Outside>> {
+        self.method_with(shape, false)
+    }
+
+    /// [`OutsideArgs::method`] for a run of one batch (`probe`): an `--exec` child then gets
+    /// the batch and the end of its input at once (unless `--exec-keep`).
+    pub fn method_with(
+        &self,
+        shape: &dyn rayproof::audit::Shape,
+        one_batch: bool,
+    ) -> Result<Option<Outside>> {
         if let Some(cmd) = &self.exec {
-            let m = rayproof::audit::exec::Exec {
-                name: self.name.clone().unwrap_or_else(|| "exec".into()),
-                command: cmd.clone(),
-                shape: shape.name().to_string(),
-                timeout: std::time::Duration::from_secs_f64(self.exec_timeout),
-            };
+            let m = rayproof::audit::exec::Exec::new(
+                self.name.as_deref().unwrap_or("exec"),
+                cmd,
+                shape.name(),
+                std::time::Duration::from_secs_f64(self.exec_timeout),
+                match (self.exec_keep, self.exec_per_batch || one_batch) {
+                    (true, _) => rayproof::audit::exec::Mode::Keep,
+                    (_, true) => rayproof::audit::exec::Mode::PerBatch,
+                    _ => rayproof::audit::exec::Mode::Auto,
+                },
+            );
             return Ok(Some((Box::new(m), None)));
         }
         if self.plugin.is_empty() {

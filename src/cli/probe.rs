@@ -79,7 +79,7 @@ pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
     // The oracle and every built-in method on the case
     let input = parse_values(shape, p.precision, &p.values).map_err(|e| anyhow!("{e}"))?;
     let builtins = Builtin::all(shape);
-    let outside = p.outside.method(shape)?.map(|(m, _)| m);
+    let outside = p.outside.method_with(shape, true)?.map(|(m, _)| m);
     let methods: Vec<&dyn Method> = builtins
         .iter()
         .map(|m| m as &dyn Method)
