@@ -216,6 +216,10 @@ pub struct Session {
     stdout_cap: usize,
 }
 
+/// Says, from the output read so far, how many of its bytes make a whole answer (`None`: not
+/// yet).
+pub type Complete<'a> = &'a dyn Fn(&[u8]) -> Option<usize>;
+
 /// How an exchange ended before its answer was complete.
 pub enum Broken {
     /// The deadline passed (the process group is killed).
@@ -323,7 +327,7 @@ impl Session {
         &mut self,
         input: &[u8],
         close: bool,
-        complete: Option<&dyn Fn(&[u8]) -> Option<usize>>,
+        complete: Option<Complete>,
         deadline: Instant,
     ) -> Result<Vec<u8>, Broken> {
         self.exchange_or_wait(input, close, complete, deadline, true)
@@ -344,7 +348,7 @@ impl Session {
         &mut self,
         input: &[u8],
         close: bool,
-        complete: Option<&dyn Fn(&[u8]) -> Option<usize>>,
+        complete: Option<Complete>,
         deadline: Instant,
         kill_at_deadline: bool,
     ) -> Result<Vec<u8>, Broken> {

@@ -28,8 +28,12 @@ impl Rng {
     }
 }
 
+/// What an output holds: a file's bytes (under the empty name), or every file of a directory by
+/// relative name.
+type Contents = Vec<(String, Vec<u8>)>;
+
 /// The bytes of an output: a file's, or every file of a directory (by relative name).
-fn contents(p: &Path) -> Option<Vec<(String, Vec<u8>)>> {
+fn contents(p: &Path) -> Option<Contents> {
     let m = std::fs::symlink_metadata(p).ok()?;
     if m.is_file() {
         return Some(vec![(String::new(), std::fs::read(p).ok()?)]);
@@ -318,7 +322,7 @@ fn interrupted_runs_leave_all_old_or_all_new_outputs_and_nothing_behind() {
 }
 
 /// Puts the old outputs back exactly (files and directories).
-fn restore(case: &Case, old: &[Option<Vec<(String, Vec<u8>)>>]) {
+fn restore(case: &Case, old: &[Option<Contents>]) {
     for (p, c) in case.outputs.iter().zip(old) {
         let c = c.as_ref().unwrap();
         if c.len() == 1 && c[0].0.is_empty() {
