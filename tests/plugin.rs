@@ -118,8 +118,11 @@ fn a_textbook_c_sphere_shows_its_failures_and_a_careful_one_passes() {
         let (code, rows) = audit(&args);
         assert_eq!(code, Some(want), "{symbol}");
         if want == 0 {
+            // (the built-in methods are in the same table, each judged by its own rule)
+            let mine: Vec<&Value> = rows.iter().filter(|r| r["method"] == name).collect();
+            assert!(!mine.is_empty() && mine.len() < rows.len(), "{symbol}");
             assert!(
-                rows.iter()
+                mine.iter()
                     .all(|r| wrong(r) == 0 && r["ulps"]["max"] == 0.0),
                 "{symbol}"
             );
@@ -419,4 +422,88 @@ fn the_header_declares_every_shape_in_both_precisions() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn several_outside_routines_sit_beside_the_built_ins_in_one_table() {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/outside/sphere_textbook.py");
+    let exec = format!("python3 {}", script.display());
+    let (textbook, careful) = (plugin("sphere_textbook_f32"), plugin("sphere_careful_f32"));
+    let base = [
+        "--shape",
+        "sphere",
+        "--precision",
+        "f32",
+        "--class",
+        "far_small",
+        "--cases",
+        "300",
+    ];
+    let mut args = base.to_vec();
+    args.extend([
+        "--plugin",
+        &textbook,
+        "--plugin",
+        &careful,
+        "--exec",
+        &exec,
+        "--name",
+        "c_textbook",
+        "--name",
+        "c_careful",
+        "--name",
+        "py",
+    ]);
+    let (code, rows) = audit(&args);
+    assert!(matches!(code, Some(0 | 1)));
+    let names: Vec<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
+    for m in [
+        "algebraic",
+        "rtg7",
+        "certified",
+        "c_textbook",
+        "c_careful",
+        "py",
+    ] {
+        assert!(names.contains(&m), "{m} not in {names:?}");
+    }
+    // The C textbook routine is the built-in algebraic in f32; the Python one is in f64, so
+    // it differs from both on far_small
+    let row = |m: &str| rows.iter().find(|r| r["method"] == m).unwrap();
+    assert_eq!(
+        row("c_textbook")["false_miss"],
+        row("algebraic")["false_miss"]
+    );
+    // --method narrows to the routines it names, outside ones included
+    let mut args = base.to_vec();
+    args.extend([
+        "--plugin",
+        &textbook,
+        "--plugin",
+        &careful,
+        "--name",
+        "c_textbook",
+        "--name",
+        "c_careful",
+        "--method",
+        "rtg7,c_careful",
+    ]);
+    let (_, rows) = audit(&args);
+    let names: Vec<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
+    assert_eq!(names, ["rtg7", "c_careful"]);
+    // Names must be unique, and a --method that names nothing is an error
+    let o = rayproof(&[
+        "audit", "--shape", "sphere", "--plugin", &textbook, "--exec", "cat", "--name", "rtg7",
+    ]);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let o = rayproof(&[
+        "audit", "--shape", "sphere", "--plugin", &textbook, "--method", "nobody",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("unknown method 'nobody'"));
 }

@@ -52,84 +52,130 @@ pub struct AuditArgs {
     pub out: AuditOutput,
 }
 
-/// A method from outside the crate, for `audit` and `probe`.
+/// Routines from outside the crate, for `audit`, `probe` and `report`.
 #[derive(Args, Debug, Clone)]
 pub struct OutsideArgs {
     /// Audit a routine of a shared library through its C ABI, in batches: PATH:SYMBOL, with
-    /// :f32 or :f64 unless the symbol ends so (repeat for the other precision). `rayproof
-    /// header` prints the C signatures.
+    /// :f32 or :f64 unless the symbol ends so. Repeat it: symbols of one library that differ
+    /// only in their _f32/_f64 suffix are one routine in two precisions; others are routines
+    /// of their own, side by side. `rayproof header` prints the C signatures.
     #[arg(long, value_name = "PATH:SYMBOL")]
     pub plugin: Vec<String>,
     /// Audit a routine run by this command (`sh -c CMD`): cases as lines on its stdin, one
-    /// answer line per case on its stdout (README: "Audit your own code").
-    #[arg(long, value_name = "CMD", conflicts_with = "plugin")]
-    pub exec: Option<String>,
-    /// The outside method's name in reports and tolerance rules (default: `exec`, or the
-    /// plugin's symbol without its precision suffix).
+    /// answer line per case on its stdout (`rayproof help exec`). Repeatable.
+    #[arg(long, value_name = "CMD")]
+    pub exec: Vec<String>,
+    /// The outside routines' names in reports and tolerance rules, in order: the plugins' (in
+    /// the order of their first --plugin), then the --exec commands' (default: the symbol
+    /// without its precision suffix; `exec`, `exec2`, …).
     #[arg(long)]
-    pub name: Option<String>,
-    /// Run the --exec command once per batch of cases, its input closed at the batch's end (for
-    /// a child that writes only when its input ends). Default: one child for the run when its
-    /// first answer line arrives within 2 s of its first batch, else one per batch.
+    pub name: Vec<String>,
+    /// Run each --exec command once per batch of cases, its input closed at the batch's end
+    /// (for a child that writes only when its input ends). Default: one child for the run when
+    /// it answers its whole first batch with its input open, else one per batch.
     #[arg(long, requires = "exec", conflicts_with = "exec_keep")]
     pub exec_per_batch: bool,
-    /// Keep one --exec child for the whole run, whatever its first batch shows (it must flush
-    /// each answer line).
+    /// Keep one child per --exec command for the whole run, whatever its first batch shows (it
+    /// must flush each answer line).
     #[arg(long, requires = "exec")]
     pub exec_keep: bool,
-    /// Seconds a batch of cases may take before the --exec child or the --plugin worker is
+    /// Seconds a batch of cases may take before an --exec child or a --plugin worker is
     /// killed (the audit then stops, exit 4).
     #[arg(long = "timeout", alias = "exec-timeout", default_value_t = 60.0, value_parser = parse_seconds)]
     pub exec_timeout: f64,
 }
 
-/// An outside method, and for a plugin the precisions it has symbols for.
+/// An outside routine, and for a plugin the precisions it has symbols for.
 type Outside = (
     Box<dyn rayproof::audit::Method + Send>,
     Option<Vec<Precision>>,
 );
 
 impl OutsideArgs {
-    /// The outside method, if one is given, for a shape; with a plugin, its precisions.
-    pub fn method(&self, shape: &dyn rayproof::audit::Shape) -> Result<Option<Outside>> {
-        self.method_with(shape, false)
+    /// Whether any outside routine is given.
+    pub fn any(&self) -> bool {
+        !self.plugin.is_empty() || !self.exec.is_empty()
     }
 
-    /// [`OutsideArgs::method`] for a run of one batch (`probe`): an `--exec` child then gets
+    /// The outside routines, for a shape, in order: plugins, then commands.
+    pub fn methods(&self, shape: &dyn rayproof::audit::Shape) -> Result<Vec<Outside>> {
+        self.methods_with(shape, false)
+    }
+
+    /// [`OutsideArgs::methods`] for a run of one batch (`probe`): an `--exec` child then gets
     /// the batch and the end of its input at once (unless `--exec-keep`).
-    pub fn method_with(
+    pub fn methods_with(
         &self,
         shape: &dyn rayproof::audit::Shape,
         one_batch: bool,
-    ) -> Result<Option<Outside>> {
-        if let Some(cmd) = &self.exec {
+    ) -> Result<Vec<Outside>> {
+        use rayproof::audit::plugin::{parse_spec, Plugin};
+        let timeout = std::time::Duration::from_secs_f64(self.exec_timeout);
+        // Plugin specs grouped into routines: one library's symbols that differ in precision
+        let mut groups: Vec<((String, String), Vec<String>)> = vec![];
+        for spec in &self.plugin {
+            let (path, symbol, _) = parse_spec(spec).map_err(|e| anyhow!(e))?;
+            let stem = symbol
+                .trim_end_matches("_f32")
+                .trim_end_matches("_f64")
+                .to_string();
+            match groups
+                .iter_mut()
+                .find(|(k, _)| *k == (path.clone(), stem.clone()))
+            {
+                Some((_, v)) => v.push(spec.clone()),
+                None => groups.push(((path, stem), vec![spec.clone()])),
+            }
+        }
+        let routines = groups.len() + self.exec.len();
+        if self.name.len() > routines {
+            bail!(
+                "--name given {} times for {routines} outside routine(s)",
+                self.name.len()
+            );
+        }
+        let mut names = self.name.iter().map(String::as_str);
+        let mut out: Vec<Outside> = vec![];
+        if !groups.is_empty() {
+            let worker =
+                std::env::current_exe().context("cannot find rayproof's own executable")?;
+            for (_, specs) in &groups {
+                let p = Plugin::load(&specs[..], names.next(), shape.info(), &worker, timeout)
+                    .map_err(|e| anyhow!(e))?;
+                let has = p.precisions();
+                out.push((Box::new(p), Some(has)));
+            }
+        }
+        for (i, cmd) in self.exec.iter().enumerate() {
+            let default = if i == 0 {
+                "exec".to_string()
+            } else {
+                format!("exec{}", i + 1)
+            };
+            let name = names.next().map(str::to_string).unwrap_or(default);
             let m = rayproof::audit::exec::Exec::new(
-                self.name.as_deref().unwrap_or("exec"),
+                &name,
                 cmd,
                 shape.name(),
-                std::time::Duration::from_secs_f64(self.exec_timeout),
+                timeout,
                 match (self.exec_keep, self.exec_per_batch || one_batch) {
                     (true, _) => rayproof::audit::exec::Mode::Keep,
                     (_, true) => rayproof::audit::exec::Mode::PerBatch,
                     _ => rayproof::audit::exec::Mode::Auto,
                 },
             );
-            return Ok(Some((Box::new(m), None)));
+            out.push((Box::new(m), None));
         }
-        if self.plugin.is_empty() {
-            return Ok(None);
+        // Names are unique among them
+        for (i, (m, _)) in out.iter().enumerate() {
+            if out[..i].iter().any(|(x, _)| x.name() == m.name()) {
+                bail!(
+                    "two outside routines are named {}: give --name for each",
+                    m.name()
+                );
+            }
         }
-        let worker = std::env::current_exe().context("cannot find rayproof's own executable")?;
-        let p = rayproof::audit::plugin::Plugin::load(
-            &self.plugin,
-            self.name.as_deref(),
-            shape.info(),
-            &worker,
-            std::time::Duration::from_secs_f64(self.exec_timeout),
-        )
-        .map_err(|e| anyhow!(e))?;
-        let precisions = p.precisions();
-        Ok(Some((Box::new(p), Some(precisions))))
+        Ok(out)
     }
 }
 
@@ -140,47 +186,80 @@ fn parse_seconds(s: &str) -> Result<f64, String> {
     }
 }
 
-/// Puts the outside method, if any, into a single-shape plan: alone, or beside the built-in
-/// methods named with --method. A plugin is audited in the precisions it has symbols for
-/// (unless --precision asks for some).
-pub(super) fn add_outside(
-    plan: &mut Plan,
-    o: &OutsideArgs,
-    named: bool,
-    precisions_given: bool,
-) -> Result<()> {
-    if o.exec.is_none() && o.plugin.is_empty() {
+/// Puts the outside routines, if any, into a single-shape plan beside the shape's built-in
+/// methods (all of them, or those --method names). Plugins are audited in the precisions every
+/// one has symbols for (unless --precision asks for some, which each must have).
+pub(super) fn add_outside(plan: &mut Plan, o: &OutsideArgs, precisions_given: bool) -> Result<()> {
+    if !o.any() {
         return Ok(());
     }
     if plan.shapes.len() != 1 {
-        bail!("--exec and --plugin audit one shape's routine: give a single --shape");
+        bail!("--exec and --plugin audit one shape's routines: give a single --shape");
     }
-    let Some((m, has)) = o.method(plan.shapes[0].shape)? else {
-        return Ok(());
-    };
-    if let Some(has) = has {
+    let outside = o.methods(plan.shapes[0].shape)?;
+    for (m, has) in &outside {
+        let Some(has) = has else { continue };
         if !precisions_given {
-            plan.precisions = has;
+            plan.precisions.retain(|p| has.contains(p));
+            if plan.precisions.is_empty() {
+                bail!("the --plugin routines have no precision in common (give --precision)");
+            }
         } else if let Some(p) = plan.precisions.iter().find(|p| !has.contains(p)) {
             bail!(
-                "--plugin has no {} symbol (give --precision, or a :{} symbol)",
+                "--plugin {} has no {} symbol (give --precision, or a :{} symbol)",
+                m.name(),
                 p.name(),
                 p.name()
             );
         }
     }
     let p = &mut plan.shapes[0];
-    if !named {
-        p.methods.clear();
+    for (m, _) in outside {
+        if p.methods.iter().any(|x| x.name() == m.name()) {
+            bail!(
+                "--name {}: a built-in method of {} has that name",
+                m.name(),
+                p.shape.name()
+            );
+        }
+        p.methods.push(m);
     }
-    if p.methods.iter().any(|x| x.name() == m.name()) {
-        bail!(
-            "--name {}: a built-in method of {} has that name",
-            m.name(),
-            p.shape.name()
-        );
+    Ok(())
+}
+
+/// Keeps, of a single-shape plan with outside routines, the built-in methods `builtin` names and
+/// the outside routines `outside` names; an outside name that is no routine is an error.
+fn narrow_to(plan: &mut Plan, builtin: &[String], outside: &[String]) -> Result<()> {
+    let p = &mut plan.shapes[0];
+    let info = p.shape.info();
+    for n in outside {
+        if !p.methods.iter().any(|m| m.name() == n) {
+            let known: Vec<&str> = info
+                .methods
+                .iter()
+                .map(|m| m.name)
+                .chain(
+                    p.methods
+                        .iter()
+                        .map(|m| m.name())
+                        .filter(|m| !info.methods.iter().any(|b| b.name == *m)),
+                )
+                .collect();
+            bail!(
+                "--method: unknown method '{n}' of {} (known: {})",
+                info.name,
+                known.join(", ")
+            );
+        }
     }
-    p.methods.push(m);
+    p.methods.retain(|m| {
+        let builtin_method = info.methods.iter().any(|b| b.name == m.name());
+        if builtin_method {
+            builtin.iter().any(|n| n == m.name())
+        } else {
+            outside.iter().any(|n| n == m.name())
+        }
+    });
     Ok(())
 }
 
@@ -259,10 +338,23 @@ pub(super) fn print_legend(seed: u64, shard: &str, out: &AuditOutput) {
 }
 
 pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
+    // --method names built-in methods, and may name outside routines (then only those named)
+    let (builtin, outside_named): (Vec<String>, Vec<String>) = match a.shape.as_slice() {
+        [one] if a.outside.any() => {
+            let builtins: Vec<&str> = rayproof::shapes::shape_by_name(one)
+                .map(|s| s.info().methods.iter().map(|m| m.name).collect())
+                .unwrap_or_default();
+            a.method
+                .iter()
+                .cloned()
+                .partition(|m| builtins.contains(&m.as_str()))
+        }
+        _ => (a.method.clone(), vec![]),
+    };
     // Resolve every name and the tolerance table before the long run
     let mut plan = Plan::new(&Options {
         shapes: a.shape.clone(),
-        methods: a.method.clone(),
+        methods: builtin.clone(),
         classes: a.class.clone(),
         precisions: a.precision.clone(),
         cases: a.cases,
@@ -270,12 +362,10 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         shard: a.shard,
     })
     .map_err(|e| anyhow!(e))?;
-    add_outside(
-        &mut plan,
-        &a.outside,
-        !a.method.is_empty(),
-        !a.precision.is_empty(),
-    )?;
+    add_outside(&mut plan, &a.outside, !a.precision.is_empty())?;
+    if !outside_named.is_empty() {
+        narrow_to(&mut plan, &builtin, &outside_named)?;
+    }
     let user_table = read_user_table(&a.out.tolerances)?;
     let table = table_of(&user_table, &plan.known())?;
     let inputs: Vec<PathBuf> = a.out.tolerances.iter().cloned().collect();

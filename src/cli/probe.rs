@@ -79,11 +79,11 @@ pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
     // The oracle and every built-in method on the case
     let input = parse_values(shape, p.precision, &p.values).map_err(|e| anyhow!("{e}"))?;
     let builtins = Builtin::all(shape);
-    let outside = p.outside.method_with(shape, true)?.map(|(m, _)| m);
+    let outside = p.outside.methods_with(shape, true)?;
     let methods: Vec<&dyn Method> = builtins
         .iter()
         .map(|m| m as &dyn Method)
-        .chain(outside.as_deref().map(|m| m as &dyn Method))
+        .chain(outside.iter().map(|(m, _)| m.as_ref() as &dyn Method))
         .collect();
     if p.json {
         let v = probe_json(shape, &methods, p.precision, &input).map_err(failed)?;

@@ -31,7 +31,11 @@ pub struct ReportArgs {
 pub(super) fn run_report(r: ReportArgs) -> Result<u8> {
     // An outside routine answers both precisions
     let sphere = rayproof::shapes::shape_by_name("sphere").expect("registered");
-    let outside = match r.outside.method(sphere)? {
+    let mut routines = r.outside.methods(sphere)?;
+    if routines.len() > 1 {
+        anyhow::bail!("report puts one outside ray–sphere routine beside the built-in methods: give one --plugin routine or one --exec");
+    }
+    let outside = match routines.pop() {
         Some((_, Some(has))) if has.len() < 2 => {
             anyhow::bail!("report --plugin needs an f32 and an f64 symbol (give --plugin twice)")
         }
