@@ -507,3 +507,50 @@ fn several_outside_routines_sit_beside_the_built_ins_in_one_table() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("unknown method 'nobody'"));
 }
+
+#[test]
+fn an_outside_triangle_routine_gets_the_watertightness_rows() {
+    // The C Möller–Trumbore through the plugin (asked about the triangles around where each ray
+    // leaves the mesh) leaks exactly where the built-in Möller–Trumbore does (asked about every
+    // triangle): the same escapes and grazing misses, mesh by mesh and kind by kind
+    let dir = std::env::temp_dir().join(format!("rayproof-plugin-wt-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("a.json");
+    let o = rayproof(&[
+        "audit",
+        "--shape",
+        "triangle",
+        "--cases",
+        "200",
+        "--plugin",
+        &plugin("triangle_mt_f32"),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        matches!(o.status.code(), Some(0 | 1)),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let rows = v["robustness"]["watertight"].as_array().unwrap();
+    let of = |m: &str| -> Vec<(String, String, u64, u64, u64)> {
+        rows.iter()
+            .filter(|r| r["method"] == m && r["precision"] == "f32")
+            .map(|r| {
+                (
+                    r["mesh"].as_str().unwrap().to_string(),
+                    r["kind"].as_str().unwrap().to_string(),
+                    r["rays"].as_u64().unwrap(),
+                    r["escaped"].as_u64().unwrap(),
+                    r["grazing"].as_u64().unwrap(),
+                )
+            })
+            .collect()
+    };
+    let (c, builtin) = (of("triangle_mt"), of("moller_trumbore"));
+    assert_eq!(c.len(), 7);
+    assert_eq!(c, builtin);
+    assert!(c.iter().map(|r| r.3).sum::<u64>() > 100, "{c:?}");
+    std::fs::remove_dir_all(&dir).ok();
+}

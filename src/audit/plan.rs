@@ -180,7 +180,7 @@ impl Plan {
 
     /// The reintersection and watertightness tests of the shapes audited completely (every
     /// built-in method and class; `None`: none has them).
-    pub fn robustness(&self) -> Option<robustness::Robustness> {
+    pub fn robustness(&self) -> Result<Option<robustness::Robustness>, super::run::MethodFailed> {
         let names: Vec<&str> = self
             .shapes
             .iter()
@@ -189,7 +189,30 @@ impl Plan {
             })
             .map(|p| p.shape.name())
             .collect();
-        robustness::run(self.seed, &names, &self.precisions)
+        let mut r = robustness::run(self.seed, &names, &self.precisions);
+        // Triangle routines from outside the crate get the watertightness rows too
+        for p in self.shapes.iter().filter(|p| p.shape.name() == "triangle") {
+            let info = p.shape.info();
+            let outside: Vec<&dyn Method> = p
+                .methods
+                .iter()
+                .filter(|m| !info.methods.iter().any(|b| b.name == m.name()))
+                .map(|m| m.as_ref())
+                .collect();
+            if outside.is_empty() {
+                continue;
+            }
+            let rows = robustness::outside_watertight(self.seed, &self.precisions, &outside)
+                .map_err(super::run::MethodFailed)?;
+            r.get_or_insert_with(|| robustness::Robustness {
+                seed: self.seed,
+                reintersection: vec![],
+                watertight: vec![],
+            })
+            .watertight
+            .extend(rows);
+        }
+        Ok(r)
     }
 
     /// The names a tolerance table may use: every registered shape with its methods and

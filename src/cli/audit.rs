@@ -422,7 +422,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         return Ok(0);
     }
     let start = Instant::now();
-    let robustness = plan.robustness().map(|r| {
+    let robustness = plan.robustness()?.map(|r| {
         eprintln!(
             "robustness: reintersection and watertightness in {:.1} s on {} threads",
             start.elapsed().as_secs_f64(),

@@ -48,7 +48,26 @@ pub fn complete<'a>(
     classes: usize,
 ) -> bool {
     let info = shape.info();
-    methods.eq(info.methods.iter().map(|m| m.name)) && classes == info.classes.len()
+    // Outside routines beside the built-in methods do not narrow the audit
+    let builtin = |m: &&str| info.methods.iter().any(|b| b.name == *m);
+    methods
+        .filter(builtin)
+        .eq(info.methods.iter().map(|m| m.name))
+        && classes == info.classes.len()
+}
+
+/// The watertightness rows of triangle routines from outside the crate, in each precision
+/// (the same meshes, rays and folds as the built-in methods').
+pub fn outside_watertight(
+    seed: u64,
+    precisions: &[Precision],
+    methods: &[&dyn crate::audit::Method],
+) -> Result<Vec<WatertightRow>, String> {
+    let mut rows = vec![];
+    for &p in precisions {
+        rows.extend(watertight::run_outside(seed, WATERTIGHT_RAYS, p, methods)?);
+    }
+    Ok(rows)
 }
 
 /// Runs the tests that belong to the audited `shapes` in the given precisions: reintersection
@@ -134,7 +153,7 @@ pub fn check(r: &Robustness) -> Vec<String> {
     for row in r
         .watertight
         .iter()
-        .filter(|x| robust_tri.contains(&x.method) && x.escaped > 0)
+        .filter(|x| robust_tri.contains(&x.method.as_str()) && x.escaped > 0)
     {
         out.push(format!(
             "watertight {} {} {} {}: {} of {} rays escaped (goal 0); replay: {}",
@@ -158,7 +177,7 @@ pub fn check(r: &Robustness) -> Vec<String> {
     if !r.watertight.is_empty()
         && r.watertight
             .iter()
-            .filter(|x| !robust_tri.contains(&x.method))
+            .filter(|x| builtin(&x.method) && !robust_tri.contains(&x.method.as_str()))
             .all(|x| x.escaped == 0)
     {
         out.push(
@@ -168,6 +187,33 @@ pub fn check(r: &Robustness) -> Vec<String> {
         );
     }
     out
+}
+
+/// `; outside: NAME E escapes, …` for the routines from outside the crate (empty without).
+fn outside_summary(w: &[WatertightRow]) -> String {
+    let mut names: Vec<&str> = vec![];
+    for x in w.iter().filter(|x| !builtin(&x.method)) {
+        if !names.contains(&x.method.as_str()) {
+            names.push(&x.method);
+        }
+    }
+    if names.is_empty() {
+        return String::new();
+    }
+    let each: Vec<String> = names
+        .iter()
+        .map(|n| {
+            let rows = w.iter().filter(|x| x.method == *n);
+            let (e, g) = rows.fold((0, 0), |(e, g), x| (e + x.escaped, g + x.grazing));
+            format!("{n} {e} escapes ({g} grazing)")
+        })
+        .collect();
+    format!("; outside: {}", each.join(", "))
+}
+
+/// Whether a watertightness row is a built-in method's (not a routine's from outside the crate).
+fn builtin(method: &str) -> bool {
+    triangle::METHODS.iter().any(|m| m.name == method)
 }
 
 /// Two summary lines (a section that did not run is left out).
@@ -194,11 +240,15 @@ pub fn summary(r: &Robustness) -> String {
     }
     let w = &r.watertight;
     if !w.is_empty() {
-        let robust = |x: &&WatertightRow| x.method.starts_with("watertight");
+        let robust = |x: &&WatertightRow| builtin(&x.method) && x.method.starts_with("watertight");
         let escaped: u64 = w.iter().filter(robust).map(|x| x.escaped).sum();
         let grazing: u64 = w.iter().filter(robust).map(|x| x.grazing).sum();
         let well_posed: u64 = w.iter().filter(robust).map(|x| x.grazing_well_posed).sum();
-        let leaks: u64 = w.iter().filter(|x| !robust(x)).map(|x| x.escaped).sum();
+        let leaks: u64 = w
+            .iter()
+            .filter(|x| builtin(&x.method) && !robust(x))
+            .map(|x| x.escaped)
+            .sum();
         let rays: u64 = w
             .iter()
             .filter(|x| x.method == "watertight")
@@ -208,7 +258,8 @@ pub fn summary(r: &Robustness) -> String {
             "watertightness   {rays} rays per method (closed meshes near and far, folds): watertight \
              methods {escaped} escapes (goal 0), {grazing} grazing silhouette misses ({well_posed} \
              well-posed: single-triangle false misses, not leaks); chapter and Möller–Trumbore \
-             {leaks} escapes\n"
+             {leaks} escapes{}\n",
+            outside_summary(w)
         );
     }
     s
@@ -321,7 +372,7 @@ fn watertight_table(r: &Robustness, md: bool) -> String {
     }
     // The replay line of each robust method's first escaped or grazing ray
     let robust = |m: &str| m.starts_with("watertight");
-    for x in r.watertight.iter().filter(|x| robust(x.method)) {
+    for x in r.watertight.iter().filter(|x| robust(&x.method)) {
         if let Some(line) = &x.replay {
             let what = if x.escaped > 0 { "escape" } else { "grazing" };
             s += &format!(

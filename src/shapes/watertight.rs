@@ -45,8 +45,8 @@ use serde::Serialize;
 /// One method × precision × mesh × ray kind.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct WatertightRow {
-    /// The triangle method.
-    pub method: &'static str,
+    /// The triangle method (a built-in, or a routine from outside the crate).
+    pub method: String,
     /// `"f32"` or `"f64"`.
     pub precision: &'static str,
     /// `near` or `far` closed mesh, or `fold`.
@@ -175,6 +175,163 @@ fn replay_line(prec: Precision, tris: &[[V; 3]], o: V, d: V) -> Option<String> {
     Some(probe_line("triangle", prec, &flat(o, d, first.1)))
 }
 
+/// The rays from inside one closed mesh, each drawn from its own seed.
+fn closed_rays(
+    seed: u64,
+    rays: u64,
+    prec: Precision,
+    name: &str,
+    kind: &str,
+    mesh: &Mesh,
+    centre: V,
+) -> Vec<(V, V)> {
+    (0..rays)
+        .map(|i| {
+            let mut rng = case_rng(seed, "watertight", &format!("{name} {kind}"), prec, i);
+            let o = rpv(prec, add(centre, mul(ball(&mut rng), 0.5)));
+            let aim = match kind {
+                "random" => add(o, unit(&mut rng)),
+                _ => {
+                    let f = mesh.faces[rng.random_range(0..mesh.faces.len())];
+                    let (a, b) = (mesh.vertices[f[0]], mesh.vertices[f[1]]);
+                    let u = if kind == "vertex" {
+                        0.0
+                    } else {
+                        rng.random::<f64>()
+                    };
+                    add(a, mul(sub(b, a), u))
+                }
+            };
+            (o, rpv(prec, sub(aim, o)))
+        })
+        .collect()
+}
+
+/// The rows of routines from outside the crate (any [`crate::audit::Method`] of the triangle
+/// shape, called per ray and triangle in batches): the same meshes, rays, oracle checks and
+/// folds as [`run`]. A ray from inside a closed mesh is put to the triangles around where it
+/// leaves the mesh (the 1-ring of every triangle the wide `f64` watertight method hits), not to
+/// all 1,280: a leak is a miss there, and the calls stay few enough for a library that builds a
+/// scene per call.
+pub fn run_outside(
+    seed: u64,
+    rays: u64,
+    prec: Precision,
+    methods: &[&dyn crate::audit::Method],
+) -> Result<Vec<WatertightRow>, String> {
+    let mut rows = vec![];
+    let wide = METHODS
+        .iter()
+        .position(|m| m.name == "watertight_wide")
+        .expect("a built-in method");
+    for (name, centre) in MESHES {
+        let mesh = icosphere(3, centre, 1.0, prec);
+        let tris: Vec<[V; 3]> = mesh
+            .faces
+            .iter()
+            .map(|f| f.map(|i| mesh.vertices[i]))
+            .collect();
+        // Each vertex's faces, for the 1-rings
+        let mut around = vec![vec![]; mesh.vertices.len()];
+        for (k, f) in mesh.faces.iter().enumerate() {
+            for &v in f {
+                around[v].push(k);
+            }
+        }
+        for kind in KINDS {
+            let cases = closed_rays(seed, rays, prec, name, kind, &mesh, centre);
+            // The candidate triangles of each ray
+            let candidates: Vec<Vec<usize>> = cases
+                .par_iter()
+                .map(|&(o, d)| {
+                    let f = method::<f64>(wide);
+                    let mut c: Vec<usize> = tris
+                        .iter()
+                        .enumerate()
+                        .filter(|(_, p)| f(o, d, **p).is_some())
+                        .flat_map(|(k, _)| {
+                            mesh.faces[k]
+                                .iter()
+                                .flat_map(|&v| around[v].iter().copied())
+                        })
+                        .collect();
+                    c.sort_unstable();
+                    c.dedup();
+                    c
+                })
+                .collect();
+            let inputs: Vec<Vec<f64>> = cases
+                .iter()
+                .zip(&candidates)
+                .flat_map(|(&(o, d), c)| {
+                    let tris = &tris;
+                    c.iter().map(move |&k| flat(o, d, tris[k]))
+                })
+                .collect();
+            for m in methods {
+                let hits = any_hits(*m, prec, &inputs, candidates.iter().map(Vec::len))?;
+                let escaped: Vec<usize> = (0..cases.len()).filter(|&k| !hits[k]).collect();
+                let sample: Vec<usize> = escaped.iter().copied().take(64).collect();
+                let violations = sample
+                    .par_iter()
+                    .filter(|&&k| !exact_mesh_ok(&mesh, cases[k].0, cases[k].1))
+                    .count();
+                let mut r = row(0, prec, name, kind, rays);
+                r.method = m.name().to_string();
+                r.escaped = escaped.len() as u64;
+                r.rate = r.escaped as f64 / rays.max(1) as f64;
+                r.oracle_checked = sample.len() as u64;
+                r.oracle_violations = violations as u64;
+                r.replay = escaped
+                    .first()
+                    .and_then(|&k| replay_line(prec, &tris, cases[k].0, cases[k].1));
+                rows.push(r);
+            }
+        }
+    }
+    // The folds: both triangles of each
+    let folds = fold_cases(seed, rays, prec);
+    let inputs: Vec<Vec<f64>> = folds
+        .iter()
+        .flat_map(|(tris, o, d, _)| tris.iter().map(move |p| flat(*o, *d, *p)))
+        .collect();
+    for m in methods {
+        let hits = any_hits(*m, prec, &inputs, folds.iter().map(|_| 2))?;
+        let missed: Vec<&Fold> = folds
+            .iter()
+            .zip(&hits)
+            .filter(|(_, h)| !**h)
+            .map(|(f, _)| f)
+            .collect();
+        let mut r = fold_row(&missed, prec, folds.len());
+        r.method = m.name().to_string();
+        rows.push(r);
+    }
+    Ok(rows)
+}
+
+/// Whether each ray hits any of its triangles, by an outside method: `inputs` holds each ray's
+/// cases in turn, `counts` how many each ray has. Asked in batches of 4,096 cases.
+fn any_hits(
+    m: &dyn crate::audit::Method,
+    prec: Precision,
+    inputs: &[Vec<f64>],
+    counts: impl Iterator<Item = usize>,
+) -> Result<Vec<bool>, String> {
+    let mut answers = Vec::with_capacity(inputs.len());
+    for chunk in inputs.chunks(4096) {
+        answers.extend(m.answer(prec, chunk)?.into_iter().map(|a| a.count > 0));
+    }
+    m.finish()?;
+    let mut out = vec![];
+    let mut at = 0;
+    for n in counts {
+        out.push(answers[at..at + n].iter().any(|&h| h));
+        at += n;
+    }
+    Ok(out)
+}
+
 /// Whether method `m` reports any hit of the ray on the triangles.
 fn any_hit<F: Real>(m: usize, tris: &[[V; 3]], o: V, d: V) -> bool {
     let f = method::<F>(m);
@@ -215,7 +372,7 @@ fn row(
     rays: u64,
 ) -> WatertightRow {
     WatertightRow {
-        method: METHODS[m].name,
+        method: METHODS[m].name.to_string(),
         precision: prec.name(),
         mesh,
         kind,
@@ -247,26 +404,7 @@ fn closed(
     let mut rows = vec![];
     for kind in KINDS {
         // The rays: origin within half the radius of the centre, each drawn from its own seed
-        let cases: Vec<(V, V)> = (0..rays)
-            .map(|i| {
-                let mut rng = case_rng(seed, "watertight", &format!("{name} {kind}"), prec, i);
-                let o = rpv(prec, add(centre, mul(ball(&mut rng), 0.5)));
-                let aim = match kind {
-                    "random" => add(o, unit(&mut rng)),
-                    _ => {
-                        let f = mesh.faces[rng.random_range(0..mesh.faces.len())];
-                        let (a, b) = (mesh.vertices[f[0]], mesh.vertices[f[1]]);
-                        let u = if kind == "vertex" {
-                            0.0
-                        } else {
-                            rng.random::<f64>()
-                        };
-                        add(a, mul(sub(b, a), u))
-                    }
-                };
-                (o, rpv(prec, sub(aim, o)))
-            })
-            .collect();
+        let cases = closed_rays(seed, rays, prec, name, kind, &mesh, centre);
         for m in 0..METHODS.len() {
             let escaped: Vec<usize> = (0..cases.len())
                 .into_par_iter()
@@ -337,10 +475,13 @@ fn ill_posed(prec: Precision, tris: &[[V; 3]; 2], o: V, d: V) -> bool {
         })
 }
 
-/// Rays from outside aimed at the shared edges of folds.
-fn folds(seed: u64, rays: u64, prec: Precision) -> Vec<WatertightRow> {
-    // (the fold, the ray, whether the edge is a silhouette from o), for rays the oracle says hit
-    let cases: Vec<([[V; 3]; 2], V, V, bool)> = (0..rays)
+/// A fold, a ray the oracle says hits it, and whether the shared edge is a silhouette from the
+/// ray's origin.
+type Fold = ([[V; 3]; 2], V, V, bool);
+
+/// The fold rays the oracle says hit.
+fn fold_cases(seed: u64, rays: u64, prec: Precision) -> Vec<Fold> {
+    (0..rays)
         .into_par_iter()
         .filter_map(|i| {
             let mut rng = case_rng(seed, "watertight", "fold shared_edge", prec, i);
@@ -353,30 +494,43 @@ fn folds(seed: u64, rays: u64, prec: Precision) -> Vec<WatertightRow> {
             let silhouette = side(o, b, c, a) * side(o, b, c, tris[1][2]) >= 0;
             Some((tris, o, d, silhouette))
         })
-        .collect();
+        .collect()
+}
+
+/// The fold row of a method from the fold rays it missed (leaks where the edge is no
+/// silhouette, grazing misses where it is).
+fn fold_row(missed: &[&Fold], prec: Precision, rays: usize) -> WatertightRow {
+    let leaks: Vec<_> = missed.iter().filter(|x| !x.3).collect();
+    let mut r = row(0, prec, "fold", "shared_edge", rays as u64);
+    r.escaped = leaks.len() as u64;
+    r.rate = r.escaped as f64 / r.rays.max(1) as f64;
+    r.grazing = (missed.len() - leaks.len()) as u64;
+    r.grazing_well_posed = missed
+        .iter()
+        .filter(|x| x.3 && !ill_posed(prec, &x.0, x.1, x.2))
+        .count() as u64;
+    r.replay = leaks
+        .first()
+        .map(|x| ***x)
+        .or(missed.first().map(|x| **x))
+        .and_then(|(tris, o, d, _)| replay_line(prec, &tris, o, d));
+    r
+}
+
+/// Rays from outside aimed at the shared edges of folds.
+fn folds(seed: u64, rays: u64, prec: Precision) -> Vec<WatertightRow> {
+    let cases = fold_cases(seed, rays, prec);
     (0..METHODS.len())
         .map(|m| {
-            let missed: Vec<&([[V; 3]; 2], V, V, bool)> = cases
+            let missed: Vec<&Fold> = cases
                 .par_iter()
                 .filter(|(tris, o, d, _)| match prec {
                     Precision::F32 => !any_hit::<f32>(m, tris, *o, *d),
                     Precision::F64 => !any_hit::<f64>(m, tris, *o, *d),
                 })
                 .collect();
-            let leaks: Vec<_> = missed.iter().filter(|x| !x.3).collect();
-            let mut r = row(m, prec, "fold", "shared_edge", cases.len() as u64);
-            r.escaped = leaks.len() as u64;
-            r.rate = r.escaped as f64 / r.rays.max(1) as f64;
-            r.grazing = (missed.len() - leaks.len()) as u64;
-            r.grazing_well_posed = missed
-                .iter()
-                .filter(|x| x.3 && !ill_posed(prec, &x.0, x.1, x.2))
-                .count() as u64;
-            r.replay = leaks
-                .first()
-                .map(|x| **x)
-                .or(missed.first().copied())
-                .and_then(|(tris, o, d, _)| replay_line(prec, tris, *o, *d));
+            let mut r = fold_row(&missed, prec, cases.len());
+            r.method = METHODS[m].name.to_string();
             r
         })
         .collect()
