@@ -189,8 +189,15 @@ impl Plan {
             })
             .map(|p| p.shape.name())
             .collect();
-        let mut r = robustness::run(self.seed, &names, &self.precisions);
-        // Triangle routines from outside the crate get the watertightness rows too
+        let r = robustness::run(self.seed, &names, &self.precisions);
+        Ok(robustness::with_outside(r, self.seed, self.outside_watertight()?))
+    }
+
+    /// The watertightness rows of the triangle routines from outside the crate (none: empty).
+    pub fn outside_watertight(
+        &self,
+    ) -> Result<Vec<robustness::WatertightRow>, super::run::MethodFailed> {
+        let mut rows = vec![];
         for p in self.shapes.iter().filter(|p| p.shape.name() == "triangle") {
             let info = p.shape.info();
             let outside: Vec<&dyn Method> = p
@@ -199,20 +206,14 @@ impl Plan {
                 .filter(|m| !info.methods.iter().any(|b| b.name == m.name()))
                 .map(|m| m.as_ref())
                 .collect();
-            if outside.is_empty() {
-                continue;
+            if !outside.is_empty() {
+                rows.extend(
+                    robustness::outside_watertight(self.seed, &self.precisions, &outside)
+                        .map_err(super::run::MethodFailed)?,
+                );
             }
-            let rows = robustness::outside_watertight(self.seed, &self.precisions, &outside)
-                .map_err(super::run::MethodFailed)?;
-            r.get_or_insert_with(|| robustness::Robustness {
-                seed: self.seed,
-                reintersection: vec![],
-                watertight: vec![],
-            })
-            .watertight
-            .extend(rows);
         }
-        Ok(r)
+        Ok(rows)
     }
 
     /// The names a tolerance table may use: every registered shape with its methods and

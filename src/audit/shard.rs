@@ -28,7 +28,9 @@
 //! is a merge given a `--tolerances` file that is not the one the shards carry.
 //! The merge takes the files in any order, and runs the reintersection and watertightness tests
 //! itself for the shapes whose built-in methods and classes the audit covers (they are not
-//! sharded; about 12 s for every shape). It refuses, with one line on stderr, a set that is not
+//! sharded; about 12 s for every shape). The watertightness rows of triangle routines from
+//! outside the crate are run whole by shard 0 and carried in its file, since the merge machine
+//! need not have the routine. It refuses, with one line on stderr, a set that is not
 //! exactly one audit's shards 0/N … N−1/N: a shard missing or given twice, or shards that differ
 //! in rayproof version, seed, shapes, `--cases`, methods, precisions, classes (order included) or N
 //! give exit 3. A file that is unreadable, truncated, corrupt or not a shard gives exit 2; each
@@ -38,8 +40,8 @@
 //! # The shard file
 //!
 //! A shard file (format [`SHARD_FORMAT`], version [`SHARD_FORMAT_VERSION`]) is one line of JSON
-//! with `"format": "rayproof-audit-shard"`, `"format_version": 3`, `tool`,
-//! `seed`, `every_shape`, `"shard": {"k", "n"}`, `tolerances` and `shapes`: per shape its selection
+//! with `"format": "rayproof-audit-shard"`, `"format_version": 4`, `tool`,
+//! `seed`, `every_shape`, `"shard": {"k", "n"}`, `tolerances`, `shapes` and `outside_watertight`: per shape its selection
 //! (`cases_per_class`, `methods` with their `robust` flag, `precisions`, `classes`) and `groups`,
 //! one per precision × class in selection order, each with one tally per method (counts, the value
 //! errors as a `{value: count}` histogram, err/cond and residuals as histograms of values rounded
@@ -57,13 +59,14 @@
 use super::run::{Group, MethodTag, Tallies};
 use super::shape::Shape;
 use super::tally::Tally;
+use crate::shapes::robustness::WatertightRow;
 use crate::numerics::Precision;
 use serde::{Deserialize, Serialize};
 
 /// The tag in the `format` field of a shard file.
 pub const SHARD_FORMAT: &str = "rayproof-audit-shard";
 /// The version in the `format_version` field; a reader refuses any other.
-pub const SHARD_FORMAT_VERSION: u32 = 3;
+pub const SHARD_FORMAT_VERSION: u32 = 4;
 
 /// The user's tolerance rules a shard was run with (`--tolerances FILE`), carried whole so that
 /// the merge judges with exactly them: the file's name as given (rule origins name it), its
@@ -153,6 +156,9 @@ pub struct Shard {
     pub tolerances: Option<UserTable>,
     /// One entry per shape, in audit order.
     pub shapes: Vec<ShapeShard>,
+    /// The watertightness rows of triangle routines from outside the crate: run whole by shard
+    /// 0 (the built-in methods' are run by the merge; an outside routine may be gone by then).
+    pub outside_watertight: Vec<WatertightRow>,
 }
 
 /// Just the tag of a file, to tell "not a shard" from "a corrupt shard".
@@ -171,6 +177,7 @@ impl Shard {
         (k, n): (u64, u64),
         tolerances: Option<UserTable>,
         parts: &[Tallies],
+        outside_watertight: Vec<WatertightRow>,
     ) -> Shard {
         let shapes = parts
             .iter()
@@ -214,6 +221,7 @@ impl Shard {
             shard: ShardId { k, n },
             tolerances,
             shapes,
+            outside_watertight,
         }
     }
 
@@ -270,6 +278,21 @@ impl Shard {
         }
         if file.shapes.is_empty() {
             return corrupt("no shape".into());
+        }
+        if k != 0 && !file.outside_watertight.is_empty() {
+            return corrupt(format!(
+                "shard {k}/{n} carries watertightness rows (only shard 0 runs them)"
+            ));
+        }
+        if let Some(w) = file.outside_watertight.iter().find(|w| {
+            w.escaped > w.rays
+                || w.grazing_well_posed > w.grazing
+                || w.rate != w.escaped as f64 / w.rays.max(1) as f64
+        }) {
+            return corrupt(format!(
+                "watertightness row {} {} {} {}: counts a run cannot make",
+                w.method, w.precision, w.mesh, w.kind
+            ));
         }
         if let Some(t) = &file.tolerances {
             if UserTable::new(&t.file, &t.text).sha256 != t.sha256 {
@@ -445,7 +468,11 @@ pub fn merge(
     // Merge the tallies group by group
     let (seed, every_shape) = (shards[0].1.seed, shards[0].1.every_shape);
     let tolerances = shards[0].1.tolerances.clone();
-    let mut parts = shards.into_iter().map(|(_, s)| s.shapes);
+    let mut outside_watertight = vec![];
+    let mut parts = shards.into_iter().map(|(_, mut s)| {
+        outside_watertight.append(&mut s.outside_watertight);
+        s.shapes
+    });
     let mut shapes: Vec<Tallies> = vec![];
     for s in parts.next().expect("one shard") {
         let shape = shape_by_name(&s.shape).expect("checked when read");
@@ -486,6 +513,7 @@ pub fn merge(
         every_shape,
         tolerances,
         shapes,
+        outside_watertight,
     })
 }
 
@@ -499,6 +527,8 @@ pub struct Merged {
     pub tolerances: Option<UserTable>,
     /// Each shape's merged tallies.
     pub shapes: Vec<Tallies>,
+    /// The watertightness rows of outside triangle routines (from shard 0).
+    pub outside_watertight: Vec<WatertightRow>,
 }
 
 #[cfg(test)]

@@ -410,7 +410,21 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         };
         write_files(&mut outputs, &report, &a.out)?;
         // The shard carries the rules it was run with: its merge judges with them
-        let file = Shard::new(TOOL, a.seed, plan.every_shape, a.shard, user_table, &runs);
+        // Outside routines' watertightness is not sharded: shard 0 runs it whole
+        let outside = if a.shard.0 == 0 {
+            plan.outside_watertight()?
+        } else {
+            vec![]
+        };
+        let file = Shard::new(
+            TOOL,
+            a.seed,
+            plan.every_shape,
+            a.shard,
+            user_table,
+            &runs,
+            outside,
+        );
         outputs.write(p, file.to_json().as_bytes())?;
         outputs.commit()?;
         say!(
@@ -523,8 +537,12 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
         })
         .map(|t| t.shape.name())
         .collect();
-    let robustness = robustness::run(merged.seed, &names, &precisions)
-        .map(|r| print_robustness(r, m.out.verbose));
+    let robustness = robustness::with_outside(
+        robustness::run(merged.seed, &names, &precisions),
+        merged.seed,
+        merged.outside_watertight,
+    )
+    .map(|r| print_robustness(r, m.out.verbose));
     finish(
         Report {
             tool: TOOL,

@@ -7,7 +7,8 @@
 use super::offset::{ReintersectRow, Rule};
 use super::reintersect;
 use super::triangle;
-use super::watertight::{self, WatertightRow};
+pub use super::watertight::WatertightRow;
+use super::watertight;
 use crate::numerics::Precision;
 use serde::Serialize;
 
@@ -68,6 +69,20 @@ pub fn outside_watertight(
         rows.extend(watertight::run_outside(seed, WATERTIGHT_RAYS, p, methods)?);
     }
     Ok(rows)
+}
+
+/// The built-in tests `r` with the watertightness rows of outside routines after them.
+pub fn with_outside(r: Option<Robustness>, seed: u64, rows: Vec<WatertightRow>) -> Option<Robustness> {
+    if rows.is_empty() {
+        return r;
+    }
+    let mut r = r.unwrap_or(Robustness {
+        seed,
+        reintersection: vec![],
+        watertight: vec![],
+    });
+    r.watertight.extend(rows);
+    Some(r)
 }
 
 /// Runs the tests that belong to the audited `shapes` in the given precisions: reintersection

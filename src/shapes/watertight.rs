@@ -40,19 +40,20 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use rug::Rational;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// One method × precision × mesh × ray kind.
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
 pub struct WatertightRow {
     /// The triangle method (a built-in, or a routine from outside the crate).
     pub method: String,
     /// `"f32"` or `"f64"`.
-    pub precision: &'static str,
+    pub precision: String,
     /// `near` or `far` closed mesh, or `fold`.
-    pub mesh: &'static str,
+    pub mesh: String,
     /// `random`, `edge`, `vertex` (closed meshes) or `shared_edge` (folds).
-    pub kind: &'static str,
+    pub kind: String,
     /// Rays cast.
     pub rays: u64,
     /// Rays the oracle sends across the mesh for which no triangle reported a hit.
@@ -373,9 +374,9 @@ fn row(
 ) -> WatertightRow {
     WatertightRow {
         method: METHODS[m].name.to_string(),
-        precision: prec.name(),
-        mesh,
-        kind,
+        precision: prec.name().into(),
+        mesh: mesh.into(),
+        kind: kind.into(),
         rays,
         escaped: 0,
         rate: 0.0,
