@@ -44,7 +44,8 @@
 //!   and its parity with idiff;
 //! - [`implicit`]: implicit surfaces and Wu & Pan's image-space subdivision, reproduced;
 //! - [`report`]: `rayproof report`, what accuracy costs;
-//! - [`output`]: how every output file is written.
+//! - [`output`]: how every output file is written; [`input`]: how input files are read within
+//!   their size caps.
 //!
 //! # Exit codes of the `rayproof` command
 //!
@@ -58,7 +59,8 @@
 //! | 130 | interrupted by SIGINT or SIGTERM: the temporaries of outputs being written are removed, no output is replaced |
 //!
 //! `implicit-check` uses them too: 0 when the certified mode matches per-pixel tracing pixel for
-//! pixel, 1 when it loses or adds a pixel, 2 for bad input. `check` uses 0 when every comparison
+//! pixel, 1 when it loses or adds a pixel, 2 for bad input. `downsample` exits 4 when its input
+//! image is unreadable or too large, as `diff` does. `check` uses 0 when every comparison
 //! passes (warnings, known failures and skipped optional references included), 1 when one fails,
 //! 2 for a suite file that does not validate, and 3 when a test is refused (see [`golden`]).
 //! `diff` follows idiff instead:
@@ -115,6 +117,7 @@ pub mod audit;
 pub mod golden;
 pub mod images;
 pub mod implicit;
+pub mod input;
 pub mod numerics;
 pub mod output;
 pub mod process;
