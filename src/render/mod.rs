@@ -58,8 +58,9 @@
 //! E·cosθ, the ambient radiance A adds albedo·A; diffuse is albedo/π; glass reflects F and
 //! transmits 1−F (exact unpolarised Fresnel, no η² factor), total internal reflection reflects
 //! everything; `max_depth` counts ray segments, as POV-Ray's `max_trace_level` does, and a ray
-//! past it is black. Glass shadows are `opaque` (Mitsuba) or `transmissive` (POV-Ray: shadow rays
-//! pass straight through glass).
+//! past it is black; a pixel brighter than f32's range is stored as f32's largest value. Glass
+//! shadows are `opaque` (Mitsuba) or `transmissive` (POV-Ray: shadow rays pass straight through
+//! glass).
 //!
 //! **Ray-origin offset.** A secondary ray (shadow, reflection, refraction) starts at the hit
 //! point moved along the geometric normal, to the side the ray leaves on, by `offset`:
@@ -749,7 +750,7 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                     }
                 }
                 let k = 1.0 / (grid * grid) as f64;
-                beauty[x] = (sum * k).as_vec3().to_array();
+                beauty[x] = pixel(sum * k);
                 if let Some(((depth, normal), rays)) = &mut extra {
                     if hits > 0 {
                         depth[x] = (dsum / hits as f64) as f32;
@@ -768,6 +769,16 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     out.4 = counts;
     bar.finish_and_clear();
     out
+}
+
+/// A pixel's radiance in f32; a value above f32's range (a surface next to a point light) is
+/// stored as f32's largest value, not as Inf (NaN stays NaN: it is a bug, counted in the
+/// sidecar's `nonfinite_pixels`).
+#[inline]
+fn pixel(l: DVec3) -> [f32; 3] {
+    l.as_vec3()
+        .to_array()
+        .map(|c| if c == f32::INFINITY { f32::MAX } else { c })
 }
 
 /// Radiance along a ray at segment `depth`; also the first hit's distance and normal.
@@ -814,7 +825,8 @@ fn shade<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                 let dist2 = to.length_squared();
                 let wl = to / dist2.sqrt();
                 let cos = nf.dot(wl);
-                if cos <= 0.0 {
+                // (NaN when the light is exactly at the hit point: it lights nothing there)
+                if cos.is_nan() || cos <= 0.0 {
                     continue;
                 }
                 if SH {
@@ -920,9 +932,14 @@ pub fn shade_primary(
                             material,
                             object: usize::MAX,
                         };
-                        shade::<f64, SH, RF, RR>(ctx, lens.pos, d, &hit, 1, &mut counts)
-                            .as_vec3()
-                            .to_array()
+                        pixel(shade::<f64, SH, RF, RR>(
+                            ctx,
+                            lens.pos,
+                            d,
+                            &hit,
+                            1,
+                            &mut counts,
+                        ))
                     })
                     .collect();
                 (row, counts)
