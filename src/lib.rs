@@ -44,7 +44,8 @@
 //!   and its parity with idiff;
 //! - [`implicit`]: implicit surfaces and Wu & Pan's image-space subdivision, reproduced;
 //! - [`report`]: `rayproof report`, what accuracy costs;
-//! - [`output`]: how every output file is written.
+//! - [`output`]: how every output file is written; [`input`]: how input files are read within
+//!   their size caps.
 //!
 //! # Exit codes of the `rayproof` command
 //!
@@ -58,7 +59,8 @@
 //! | 130 | interrupted by SIGINT or SIGTERM: the temporaries of outputs being written are removed, no output is replaced |
 //!
 //! `implicit-check` uses them too: 0 when the certified mode matches per-pixel tracing pixel for
-//! pixel, 1 when it loses or adds a pixel, 2 for bad input. `check` uses 0 when every comparison
+//! pixel, 1 when it loses or adds a pixel, 2 for bad input. `downsample` exits 4 when its input
+//! image is unreadable or too large, as `diff` does. `check` uses 0 when every comparison
 //! passes (warnings, known failures and skipped optional references included), 1 when one fails,
 //! 2 for a suite file that does not validate, and 3 when a test is refused (see [`golden`]).
 //! `diff` follows idiff instead:
@@ -75,26 +77,39 @@
 //!
 //! # Limits
 //!
-//! Checked up front, before anything is allocated, with one line naming what is too large (exit 2
-//! for scenes and arguments, 4 for image files):
+//! Checked up front, before anything is allocated, with one line naming the input and the limit
+//! it breaks (exit 2 for scenes, arguments, suite files and tolerance tables, 4 for image files);
+//! nothing is cut silently but the path tree's budget, which the render reports:
 //!
 //! | what | limit |
 //! |---|---|
-//! | image side (camera `width`/`height`, `--width`, a height made by an aspect ratio) | 16,384 pixels |
-//! | pixels of one image, rendered or read (an EXR's declared data window too) | 2^26 (8192²) |
-//! | sub-pixel grid n (`camera.grid`, `--spp` = n², `--grid`) | 64 |
-//! | `render.max_depth` (ray segments per path) | 256 (POV-Ray's `max_trace_level` stops at 256) |
-//! | a glass's `ior` | `[0.01, 100]` (beyond about 1e154 its square overflows and pixels turned NaN: found by `tests/fuzz.rs`) |
+//! | image side (camera `width`/`height`, `--width`, a height made by an aspect ratio, a suite test's `width`, a manifest's `width`) | 16,384 pixels |
+//! | pixels of one image, rendered or read (an EXR's declared data window, a PNG's header) | 2^26 (8192²) |
+//! | samples of one image file read (pixels × channels as its header declares them, every EXR part together; a PNG as RGB or RGBA) | 2^28 (8192² × 4): a 198 KB EXR declaring 8192² × 64 channels aborted, a 16384² PNG of 261 KB took 4.2 GB |
+//! | an image file | a regular file of at most 1088 MiB (an uncompressed float32 EXR of 2^28 samples and its tables) |
 //! | an EXR's offset table | must fit in the file (a truncated or corrupt header is refused) |
+//! | sub-pixel grid n (`camera.grid`, `--spp` = n², `--grid`, a suite test's `grid`, a manifest's `grid`) | 64 |
+//! | `render.max_depth` (ray segments per path) | 256 (POV-Ray's `max_trace_level` stops at 256) |
+//! | ray segments of one camera sample's path tree (primary, reflection and refraction rays) | 4096 = 2^12: never reached at `max_depth` ≤ 12 (every reference scene has ≤ 10); beyond, the rays past it are black, counted in the sidecar's `rays.budget_cut` ([`render::MAX_TREE_SEGMENTS`]). 40 glass and mirror spheres took 33 s at depth 48 without it, 0.08 s at depth 256 with it |
+//! | the magnitude of any number in a scene file, and of an MPU point's coordinates | 1e150: squared distances stay finite (five MPU points at ±1e153 fit in 0.05 s; at ±1e154 their squared distances overflow and the fit had not ended after 10 s) |
+//! | light `intensity`, directional `irradiance`, `render.ambient` (per channel) | `[0, 1e30]` (at 1e300, 132–143 of 16×16 pixels were Inf) |
+//! | a glass's `ior` | `[0.01, 100]` (beyond about 1e154 its square overflows and pixels turned NaN: found by `tests/fuzz.rs`) |
+//! | an OBJ mesh or an MPU point file | a regular file of at most 64 MiB; an OBJ gives at most 2^22 triangles; its `mtllib` is not read (materials come from the scene) |
+//! | a scene file, suite file, tolerance table or manifest | 16 MiB (read up to that from a pipe) |
+//! | a tolerance table's `[measured]` count `[k, n]` | n ≤ 10^6: statrs' beta quantile never returned at n ≥ about 7.9·10^6 (k near 0 or n); below 10^6 it takes microseconds |
+//! | a tolerance rule's `max_err_over_cond` | a finite number ≥ 0 (NaN passed every row) |
+//! | a suite's `timeout` | `(0, 604800]` seconds (one week; 1e20 made the duration panic) |
 //! | `audit --cases` | none: cases are streamed, memory does not grow with it (16 MB peak measured at 10^8 per class) |
 //!
 //! Scene values are validated once, at load, with the file, line and field in the error: every
-//! position, direction and size finite (NaN and ±inf are rejected everywhere), radii and sizes > 0,
-//! normals and `up` non-zero, `look_at` ≠ `position`, light intensities finite ≥ 0, albedo and
-//! reflectance in `[0, 1]`, OBJ vertices finite. A rendered image has no NaN or Inf pixel; its
-//! sidecar counts them (`nonfinite_pixels`). Numbers on the command line follow one rule in decimal
-//! and hex: a literal too large for the precision or a non-zero one that would round to 0 is an
-//! error (`inf`, `nan`, zeros and subnormals are values).
+//! position, direction and size finite (NaN and ±inf are rejected everywhere) and within ±1e150,
+//! radii and sizes > 0, normals, directions and `up` non-zero and normalisable (the camera's
+//! frame must come out finite), `look_at` ≠ `position`, light intensities finite in
+//! `[0, 1e30]`, albedo and reflectance in `[0, 1]`, OBJ vertices finite. A rendered image has
+//! no NaN or Inf pixel (a pixel above f32's range, next to a point light, is stored as f32's
+//! largest value); its sidecar counts them (`nonfinite_pixels`). Numbers on the command line
+//! follow one rule in decimal and hex: a literal too large for the precision or a non-zero one
+//! that would round to 0 is an error (`inf`, `nan`, zeros and subnormals are values).
 //!
 //! # The repository around the crate
 //!
@@ -115,6 +130,7 @@ pub mod audit;
 pub mod golden;
 pub mod images;
 pub mod implicit;
+pub mod input;
 pub mod numerics;
 pub mod output;
 pub mod process;

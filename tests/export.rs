@@ -1079,7 +1079,7 @@ fn downsample_factor_must_divide_the_size() {
 #[test]
 fn downsample_rejects_corrupt_input() {
     let dir = TempDir::new("downsample_rejects_corrupt_input");
-    // A valid EXR cut in half, and a file that is no EXR at all
+    // A valid EXR cut in half, and a file that is no EXR at all: one line, exit 4
     let (w, h, px) = test_pixels();
     let good = dir.join("good.exr");
     write_rgb(&good, w, h, &px).expect("write EXR");
@@ -1097,7 +1097,12 @@ fn downsample_rejects_corrupt_input() {
             "-o",
             output.to_str().unwrap(),
         ]);
-        assert_one_line_error(&o, &[bad]);
+        // An unreadable image exits 4, as in `diff` (the Limits table's code for image files)
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(4), "stderr: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "not one line: {err}");
+        assert!(err.contains(bad) && !err.contains("panicked"), "{err}");
+        assert!(o.stdout.is_empty());
         assert_eq!(
             dir.listing(),
             set(&["cut.exr", "text.exr"]),

@@ -60,6 +60,13 @@ use std::collections::BTreeMap;
 /// The false-alarm probability of each statistical bound.
 pub const ALPHA: f64 = 1e-6;
 
+/// The most cases a `[measured]` count `[k, n]` may have: 10^6. Its Clopper–Pearson bounds are
+/// beta quantiles (statrs' `inverse_cdf`), which never return for n ≥ about 7.9·10^6 when k is
+/// near 0 or n (measured: every k ≤ 5 and ≥ n − 3 at n = 7.9·10^6, 8.9·10^6 and 10^7 ran past a
+/// timeout); at n ≤ 10^6 each took under 10 µs (1600 (k, n) pairs sampled, k = 0…149,
+/// n − 149…n and 100 at random). The built-in table's counts are at most 20,000.
+pub const MAX_MEASURED_CASES: u64 = 1_000_000;
+
 /// The reviewed table.
 pub const BUILT_IN: &str = include_str!("tolerances.toml");
 
@@ -226,6 +233,11 @@ fn parse_table(text: &str, file: &str) -> Result<(Vec<Rule>, Measurements), Stri
         if k > n || n == 0 {
             return Err(format!("{origin}: [{k}, {n}] is not k of n > 0 cases"));
         }
+        if n > MAX_MEASURED_CASES {
+            return Err(format!(
+                "{origin}: [{k}, {n}]: a measurement may count at most {MAX_MEASURED_CASES} cases (its statistical bounds cannot be computed beyond)"
+            ));
+        }
         let p = parse_precision(prec, &origin)?;
         measured.push(((shape.into(), method.into(), p, class.into()), (k, n)));
     }
@@ -267,6 +279,14 @@ fn parse_table(text: &str, file: &str) -> Result<(Vec<Rule>, Measurements), Stri
             };
             if r.why.trim().is_empty() {
                 return bad("say why (where its numbers came from)".into());
+            }
+            if let Some(m) = r
+                .max_err_over_cond
+                .filter(|m| !(m.is_finite() && *m >= 0.0))
+            {
+                return bad(format!(
+                    "max_err_over_cond = {m}: a bound must be a finite number ≥ 0"
+                ));
             }
             Ok(Rule {
                 origin,

@@ -298,8 +298,12 @@ pub struct MergeArgs {
 fn read_user_table(user: &Option<PathBuf>) -> Result<Option<UserTable>> {
     user.as_ref()
         .map(|p| {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("cannot read {}", p.display()))?;
+            let text = rayproof::input::read_text(
+                p,
+                rayproof::input::MAX_TEXT_BYTES,
+                rayproof::input::Kind::Stream,
+            )
+            .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", p.display()))?;
             Ok(UserTable::new(&p.display().to_string(), &text))
         })
         .transpose()

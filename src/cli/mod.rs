@@ -10,7 +10,8 @@
 //! - 3: `merge`: the shard files are sound but are not one audit's shards 0/N … N−1/N
 //!   (a shard missing or given twice; a different seed, case count, selection, N or version);
 //!   `check`: a test was refused; `reference`: a renderer is missing or failed
-//! - 4: `audit` or `probe` with `--exec` or `--plugin`: the outside routine failed
+//! - 4: `audit` or `probe` with `--exec` or `--plugin`: the outside routine failed;
+//!   `downsample`: its input image is unreadable (as `diff`'s code 4)
 //!
 //! `diff` follows idiff's codes instead (see `cli/diff.rs`).
 
@@ -174,6 +175,9 @@ pub fn error_exit_code(e: &anyhow::Error) -> u8 {
         .is_some()
     {
         4
+    } else if let Some(image) = e.downcast_ref::<rayproof::images::ImageError>() {
+        // `downsample`'s unreadable input, as `diff`'s
+        image.exit_code()
     } else {
         2
     }

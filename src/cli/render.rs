@@ -125,6 +125,13 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
             c.tests.march_steps
         );
     }
+    if c.budget_cut > 0 {
+        say!(
+            "tree budget: {} reflection/refraction rays not traced (black): a camera sample's path tree has at most {} segments",
+            c.budget_cut,
+            render::MAX_TREE_SEGMENTS
+        );
+    }
     let lights = sc.file.lights.len() + sc.file.directional.len();
     say!("{}", render::budget_line(&r, lights));
     // The EXR, its sidecar and the PNG: all written, or none replaced

@@ -4,6 +4,7 @@
 //! golden and its manifest entry for `--update`.
 
 use crate::images::{self, Image, Thresholds};
+use crate::render::scene::{MAX_GRID, MAX_SIDE};
 use crate::shapes::sphere::methods::Method;
 use anyhow::{bail, Context, Result};
 use serde::Serialize;
@@ -126,7 +127,8 @@ fn manifest(dir: &Path) -> Result<Option<serde_json::Value>> {
         return Ok(None);
     }
     let text =
-        std::fs::read_to_string(&p).with_context(|| format!("cannot read {}", p.display()))?;
+        crate::input::read_text(&p, crate::input::MAX_TEXT_BYTES, crate::input::Kind::Stream)
+            .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", p.display()))?;
     let v: serde_json::Value =
         serde_json::from_str(&text).with_context(|| format!("{}: malformed JSON", p.display()))?;
     // An object whose "files" is an object of objects: anything else is not a manifest
@@ -145,21 +147,19 @@ fn manifest(dir: &Path) -> Result<Option<serde_json::Value>> {
     Ok(Some(v))
 }
 
-/// A whole number of a manifest entry that must fit a `u32` (a width, a grid); an error names
-/// the file and the key.
-fn entry_u32(entry: &serde_json::Value, key: &str, path: &Path) -> Result<Option<u32>> {
+/// A whole number of a manifest entry from 1 to `max` (a width: the largest image side; a
+/// grid: the largest sub-pixel grid); an error names the file, the key and the limit.
+fn entry_u32(entry: &serde_json::Value, key: &str, max: u32, path: &Path) -> Result<Option<u32>> {
     match entry.get(key) {
         None | Some(serde_json::Value::Null) => Ok(None),
         Some(v) => v
             .as_u64()
-            .and_then(|x| u32::try_from(x).ok())
-            .filter(|&x| x > 0)
-            .map(Some)
+            .filter(|&x| (1..=max as u64).contains(&x))
+            .map(|x| Some(x as u32))
             .with_context(|| {
                 format!(
-                    "{}: the manifest's {key} = {v} is not a whole number from 1 to {}",
-                    path.display(),
-                    u32::MAX
+                    "{}: the manifest's {key} = {v} is not a whole number from 1 to {max}",
+                    path.display()
                 )
             }),
     }
@@ -217,8 +217,8 @@ pub fn verified_reference(path: &Path, scene_sha: Option<&str>) -> Result<(Image
             )
             .trim()
             .to_string(),
-            width: entry_u32(entry, "width", path)?,
-            grid: entry_u32(entry, "grid", path)?,
+            width: entry_u32(entry, "width", MAX_SIDE, path)?,
+            grid: entry_u32(entry, "grid", MAX_GRID, path)?,
         };
     }
     let img = images::read_image(path).map_err(|e| anyhow::anyhow!("{e}"))?;

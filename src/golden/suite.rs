@@ -41,7 +41,8 @@
 use super::references::Rule;
 use crate::golden::Config;
 use crate::numerics::Precision;
-use anyhow::{bail, Context, Result};
+use crate::render::scene::{MAX_GRID, MAX_SIDE};
+use anyhow::{bail, Result};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -191,6 +192,10 @@ pub struct Suite {
     pub tests: Vec<Test>,
 }
 
+/// The longest `[suite] timeout`: one week, in seconds (a render command that may run longer is
+/// not a test; 1e20 s made `Duration::from_secs_f64` panic).
+pub const MAX_TIMEOUT: f64 = 7.0 * 24.0 * 3600.0;
+
 /// The placeholders a command may use.
 pub const PLACEHOLDERS: [&str; 7] = ["scene", "out", "variance", "width", "grid", "spp", "name"];
 
@@ -229,8 +234,12 @@ pub fn fill(template: &str, values: &[(&str, String)]) -> String {
 impl Suite {
     /// Reads and validates a suite file.
     pub fn load(path: &Path) -> Result<Suite> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read suite file {}", path.display()))?;
+        let text = crate::input::read_text(
+            path,
+            crate::input::MAX_TEXT_BYTES,
+            crate::input::Kind::Stream,
+        )
+        .map_err(|e| anyhow::anyhow!("cannot read suite file {}: {e}", path.display()))?;
         let spec: FileSpec = toml::from_str(&text)
             .map_err(|e| anyhow::anyhow!("{}: {}", path.display(), e.message().trim()))?;
         let dir = path
@@ -240,9 +249,9 @@ impl Suite {
             .to_path_buf();
         let at = |p: &str| dir.join(p);
         let timeout = spec.suite.timeout.unwrap_or(600.0);
-        if !(timeout > 0.0 && timeout.is_finite()) {
+        if !(timeout > 0.0 && timeout <= MAX_TIMEOUT) {
             bail!(
-                "{}: suite.timeout must be a positive number of seconds",
+                "{}: suite.timeout = {timeout}: must be a positive number of seconds, at most {MAX_TIMEOUT} (one week)",
                 path.display()
             );
         }
@@ -296,6 +305,16 @@ impl Suite {
             }
             if t.grid == Some(0) || t.width == Some(0) {
                 bail!(ctx("width and grid must be at least 1".into()));
+            }
+            if let Some(g) = t.grid.filter(|&g| g > MAX_GRID) {
+                bail!(ctx(format!(
+                    "grid = {g}: the sub-pixel grid n may be at most {MAX_GRID}"
+                )));
+            }
+            if let Some(w) = t.width.filter(|&w| w > MAX_SIDE) {
+                bail!(ctx(format!(
+                    "width = {w}: an image side may be at most {MAX_SIDE}"
+                )));
             }
             // Rules: suite defaults, then the test's, then the reference's own
             let rule = |layers: &[&toml::Table]| {

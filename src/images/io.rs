@@ -102,8 +102,10 @@ pub fn read_image(path: &Path) -> Result<Image, ImageError> {
         path: path.to_path_buf(),
         reason: one_line(reason),
     };
-    // Read the file and decode it by its magic bytes; a decoder's panic becomes an error
-    let bytes = std::fs::read(path).map_err(|e| fail(&e.to_string()))?;
+    // Read the file (a regular file, within the cap) and decode it by its magic bytes; a
+    // decoder's panic becomes an error
+    let bytes = crate::input::read_capped(path, MAX_IMAGE_BYTES, crate::input::Kind::Regular)
+        .map_err(|e| fail(&e))?;
     let decoded = if bytes.is_empty() {
         Err("empty file".to_string())
     } else if bytes.starts_with(&EXR_MAGIC) {
@@ -149,17 +151,48 @@ fn quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
 
 /// The most pixels rayproof reads from one image (8192²; also the largest image it renders).
 pub const MAX_PIXELS: u64 = 1 << 26;
+/// The most samples (pixels × channels, as the header declares them) rayproof reads from one
+/// image file of any format: 2^28 = 8192² × 4 (RGBA). A decoder holds every channel of the
+/// file, so the channel count is bounded too: an EXR of 8192² × 64 channels declared in 198 KB
+/// aborted after allocating, and a valid 4 MB EXR of 16 channels took 5.8 GB.
+pub const MAX_SAMPLES: u64 = 1 << 28;
+/// The largest image file: 1088 MiB, an uncompressed float32 EXR of [`MAX_SAMPLES`] samples
+/// (1 GiB) with room for its header and offset tables. The file is read whole before decoding.
+pub const MAX_IMAGE_BYTES: u64 = 4 * MAX_SAMPLES + (64 << 20);
+
+/// Checks an image's declared size against [`MAX_PIXELS`] and [`MAX_SAMPLES`]: one line if it
+/// is too large.
+fn check_declared(w: u64, h: u64, channels: u64) -> Result<(), String> {
+    if w * h > MAX_PIXELS {
+        return Err(format!(
+            "it declares {w}×{h} pixels; at most {MAX_PIXELS} (8192²) are read"
+        ));
+    }
+    if w * h * channels > MAX_SAMPLES {
+        return Err(format!(
+            "it declares {w}×{h} pixels × {channels} channels = {} samples; at most {MAX_SAMPLES} (8192² × 4) are read",
+            w * h * channels
+        ));
+    }
+    Ok(())
+}
 
 fn decode_exr(bytes: &[u8]) -> Result<Image, String> {
     use exr::prelude::*;
-    // The declared sizes, against the limit and the file's own length, before any allocation
+    // The declared sizes, against the limits and the file's own length, before any allocation:
+    // every part's pixels, and its channels (the decoder holds them all)
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
         .map_err(|e| e.to_string())?;
+    let mut samples = 0u64;
     for h in &meta.headers {
         let (w, ht) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
-        if w * ht > MAX_PIXELS {
+        let channels = h.channels.list.len() as u64;
+        check_declared(w, ht, channels).map_err(|e| format!("its data window: {e}"))?;
+        samples += w * ht * channels;
+        if samples > MAX_SAMPLES {
             return Err(format!(
-                "its data window declares {w}×{ht} pixels; at most {MAX_PIXELS} (8192²) are read"
+                "its {} parts declare more than {MAX_SAMPLES} samples (8192² × 4) together; at most that many are read",
+                meta.headers.len()
             ));
         }
         if h.chunk_count as u64 * 8 > bytes.len() as u64 {
@@ -212,7 +245,15 @@ fn decode_exr(bytes: &[u8]) -> Result<Image, String> {
 }
 
 fn decode_png(bytes: &[u8]) -> Result<Image, String> {
-    use image::{ColorType, DynamicImage};
+    use image::{ColorType, DynamicImage, ImageDecoder};
+    // The declared size against the limits, from the header alone (channels as decoded: RGB or
+    // RGBA)
+    let header = image::codecs::png::PngDecoder::new(std::io::Cursor::new(bytes))
+        .map_err(|e| e.to_string())?;
+    let (w, h) = header.dimensions();
+    let channels = 3 + u64::from(header.color_type().has_alpha());
+    check_declared(w as u64, h as u64, channels)?;
+    drop(header);
     // Decode, noting alpha and 16-bit samples
     let img = image::load_from_memory_with_format(bytes, image::ImageFormat::Png)
         .map_err(|e| e.to_string())?;

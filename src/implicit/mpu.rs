@@ -141,6 +141,7 @@
 
 use super::lipschitz::{CellBound, LocalBounds};
 use crate::numerics::interval::Interval;
+use crate::render::scene::MAX_MAGNITUDE;
 use anyhow::{anyhow, bail, Context, Result};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -859,7 +860,8 @@ impl Mpu {
     /// in parallel and stored in order.
     ///
     /// # Panics
-    /// If `points` is empty, the slices' lengths differ, a coordinate is not finite, a normal
+    /// If `points` is empty, the slices' lengths differ, a coordinate is not finite or beyond
+    /// ±[`MAX_MAGNITUDE`] (the fit's squared distances would overflow and its searches never end), a normal
     /// is zero or not finite, or an option is out of range (`alpha`, `lambda` and `max_error`
     /// must be positive, `max_depth ≤ 30`).
     pub fn fit(points: &[DVec3], normals: &[DVec3], opts: &MpuOptions) -> Mpu {
@@ -876,6 +878,12 @@ impl Mpu {
         assert!(
             points.iter().all(|p| p.is_finite()),
             "Mpu::fit: non-finite point"
+        );
+        assert!(
+            points
+                .iter()
+                .all(|p| p.abs().max_element() <= MAX_MAGNITUDE),
+            "Mpu::fit: a point beyond ±{MAX_MAGNITUDE:e}"
         );
         let nrm: Vec<DVec3> = normals
             .iter()
@@ -1131,10 +1139,16 @@ impl Mpu {
     /// Reads a `.pts` file: one point per line, `x y z nx ny nz` separated by white space;
     /// blank lines and lines starting with `#` are skipped. Normals are normalised. Errors
     /// (with the 1-based line number) on a wrong count of numbers, a number that does not
-    /// parse, a non-finite value, a zero normal, or a file without points.
+    /// parse, a non-finite value, a coordinate beyond ±[`MAX_MAGNITUDE`], a zero normal, or a
+    /// file without points. The file must be a regular file of at most
+    /// [`crate::input::MAX_MESH_BYTES`].
     pub fn load_points(path: &Path) -> Result<(Vec<DVec3>, Vec<DVec3>)> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("reading points from {}", path.display()))?;
+        let text = crate::input::read_text(
+            path,
+            crate::input::MAX_MESH_BYTES,
+            crate::input::Kind::Regular,
+        )
+        .map_err(|e| anyhow!("reading points from {}: {e}", path.display()))?;
         Self::parse_points(&text).with_context(|| format!("in {}", path.display()))
     }
 
@@ -1156,6 +1170,11 @@ impl Mpu {
                         .map_err(|_| anyhow!("line {ln}: cannot parse {tok:?} as a number"))?;
                     if !v[count].is_finite() {
                         bail!("line {ln}: {tok:?} is not finite");
+                    }
+                    if count < 3 && v[count].abs() > MAX_MAGNITUDE {
+                        bail!(
+                            "line {ln}: the coordinate {tok} is beyond ±{MAX_MAGNITUDE:e}, the largest a point may have (the fit's squared distances must stay finite)"
+                        );
                     }
                 }
                 count += 1;

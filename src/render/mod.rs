@@ -58,8 +58,11 @@
 //! E·cosθ, the ambient radiance A adds albedo·A; diffuse is albedo/π; glass reflects F and
 //! transmits 1−F (exact unpolarised Fresnel, no η² factor), total internal reflection reflects
 //! everything; `max_depth` counts ray segments, as POV-Ray's `max_trace_level` does, and a ray
-//! past it is black. Glass shadows are `opaque` (Mitsuba) or `transmissive` (POV-Ray: shadow rays
-//! pass straight through glass).
+//! past it is black; one camera sample's tree of reflection and refraction rays has at most
+//! [`MAX_TREE_SEGMENTS`] segments (glass doubles it at every hit), and a ray past that budget is
+//! black too, counted in the sidecar's `rays.budget_cut`; a pixel brighter than f32's range is
+//! stored as f32's largest value. Glass shadows are `opaque` (Mitsuba) or `transmissive`
+//! (POV-Ray: shadow rays pass straight through glass).
 //!
 //! **Ray-origin offset.** A secondary ray (shadow, reflection, refraction) starts at the hit
 //! point moved along the geometric normal, to the side the ray leaves on, by `offset`:
@@ -267,9 +270,15 @@ pub struct RayCounts {
     pub reflection_miss: u64,
     /// Refraction rays that hit nothing.
     pub refraction_miss: u64,
+    /// Reflection and refraction rays not traced because their camera sample's path tree
+    /// already had [`MAX_TREE_SEGMENTS`] segments (0 for every scene of `max_depth` ≤ 12).
+    pub budget_cut: u64,
     /// Intersection tests and BVH visits of all these rays.
     #[serde(flatten)]
     pub tests: TestCounts,
+    /// Segments the current camera sample's path tree may still spawn.
+    #[serde(skip)]
+    left: u32,
 }
 
 impl std::ops::AddAssign for RayCounts {
@@ -282,6 +291,7 @@ impl std::ops::AddAssign for RayCounts {
         self.shadow_miss += o.shadow_miss;
         self.reflection_miss += o.reflection_miss;
         self.refraction_miss += o.refraction_miss;
+        self.budget_cut += o.budget_cut;
         self.tests += o.tests;
     }
 }
@@ -292,6 +302,18 @@ impl RayCounts {
         self.primary + self.shadow + self.reflection + self.refraction
     }
 }
+
+/// The most ray segments one camera sample's path tree may have (the primary ray and every
+/// reflection and refraction ray spawned under it; shadow rays are not counted). A glass surface
+/// splits a ray in two, so a tree can double at every segment: 40 glass and mirror spheres took
+/// 0.45 s at `max_depth` 32, 33 s at 48 and would take years at 256 (16×16 pixels, measured).
+/// With 4096 = 2^12 a tree of depth ≤ 12 is never cut (it has at most 2^12 − 1 segments), so
+/// no scene of `max_depth` ≤ 12 changes (every reference scene has ≤ 10); beyond it, the rays
+/// a sample would spawn past its budget are not traced and count as black, like a ray past
+/// `max_depth`, in the order the renderer walks the tree (depth first, reflection before
+/// refraction), which is the same every run. They are counted in the sidecar's
+/// `rays.budget_cut`, and `render` prints how many.
+pub const MAX_TREE_SEGMENTS: u32 = 4096;
 
 /// The rendered image and what it cost.
 pub struct Render {
@@ -738,6 +760,7 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                         // Sub-pixel cell centre
                         let d = lens.dir_from(across[x * g + i], down[y * g + j]);
                         counts.primary += 1;
+                        counts.left = MAX_TREE_SEGMENTS - 1;
                         let (l, first) = radiance::<F, SH, RF, RR>(ctx, pos, d, 1, &mut counts);
                         counts.primary_miss += first.is_none() as u64;
                         sum += l;
@@ -749,7 +772,7 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                     }
                 }
                 let k = 1.0 / (grid * grid) as f64;
-                beauty[x] = (sum * k).as_vec3().to_array();
+                beauty[x] = pixel(sum * k);
                 if let Some(((depth, normal), rays)) = &mut extra {
                     if hits > 0 {
                         depth[x] = (dsum / hits as f64) as f32;
@@ -768,6 +791,16 @@ fn run<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     out.4 = counts;
     bar.finish_and_clear();
     out
+}
+
+/// A pixel's radiance in f32; a value above f32's range (a surface next to a point light) is
+/// stored as f32's largest value, not as Inf (NaN stays NaN: it is a bug, counted in the
+/// sidecar's `nonfinite_pixels`).
+#[inline]
+fn pixel(l: DVec3) -> [f32; 3] {
+    l.as_vec3()
+        .to_array()
+        .map(|c| if c == f32::INFINITY { f32::MAX } else { c })
 }
 
 /// Radiance along a ray at segment `depth`; also the first hit's distance and normal.
@@ -814,7 +847,8 @@ fn shade<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                 let dist2 = to.length_squared();
                 let wl = to / dist2.sqrt();
                 let cos = nf.dot(wl);
-                if cos <= 0.0 {
+                // (NaN when the light is exactly at the hit point: it lights nothing there)
+                if cos.is_nan() || cos <= 0.0 {
                     continue;
                 }
                 if SH {
@@ -845,7 +879,6 @@ fn shade<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
         }
         Material::Mirror { reflectance } => {
             if RF && depth < ctx.max_depth {
-                counts.reflection += 1;
                 let r = d - 2.0 * d.dot(nf) * nf;
                 DVec3::from_array(reflectance)
                     * secondary::<F, SH, RF, RR>(ctx, p + nf * eps, r, depth, false, counts)
@@ -861,13 +894,10 @@ fn shade<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
                 let r = d + 2.0 * cos_i * nf;
                 if sin2_t >= 1.0 || !RR {
                     // Total internal reflection
-                    counts.reflection += 1;
                     secondary::<F, SH, RF, RR>(ctx, p + nf * eps, r, depth, false, counts)
                 } else {
                     let cos_t = (1.0 - sin2_t).sqrt();
                     let f = fresnel(eta, cos_i, cos_t);
-                    counts.reflection += 1;
-                    counts.refraction += 1;
                     let t_dir = eta * d + (eta * cos_i - cos_t) * nf;
                     let lr = secondary::<F, SH, RF, RR>(ctx, p + nf * eps, r, depth, false, counts);
                     let lt =
@@ -920,9 +950,15 @@ pub fn shade_primary(
                             material,
                             object: usize::MAX,
                         };
-                        shade::<f64, SH, RF, RR>(ctx, lens.pos, d, &hit, 1, &mut counts)
-                            .as_vec3()
-                            .to_array()
+                        counts.left = MAX_TREE_SEGMENTS - 1;
+                        pixel(shade::<f64, SH, RF, RR>(
+                            ctx,
+                            lens.pos,
+                            d,
+                            &hit,
+                            1,
+                            &mut counts,
+                        ))
                     })
                     .collect();
                 (row, counts)
@@ -945,7 +981,9 @@ pub fn shade_primary(
     }
 }
 
-/// A reflected or refracted ray from segment `depth`: its radiance, its miss counted by kind.
+/// A reflected or refracted ray from segment `depth`: its radiance, the ray and its miss
+/// counted by kind. Black and not traced when its camera sample's tree has no segment left
+/// ([`MAX_TREE_SEGMENTS`]).
 fn secondary<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     ctx: &Ctx,
     o: DVec3,
@@ -954,6 +992,16 @@ fn secondary<F: PickPrecision, const SH: bool, const RF: bool, const RR: bool>(
     refracted: bool,
     counts: &mut RayCounts,
 ) -> DVec3 {
+    if counts.left == 0 {
+        counts.budget_cut += 1;
+        return DVec3::ZERO;
+    }
+    counts.left -= 1;
+    if refracted {
+        counts.refraction += 1;
+    } else {
+        counts.reflection += 1;
+    }
     let (l, first) = radiance::<F, SH, RF, RR>(ctx, o, d, depth + 1, counts);
     if first.is_none() {
         if refracted {

@@ -56,6 +56,22 @@ pub const MIN_IOR: f64 = 0.01;
 pub const MAX_IOR: f64 = 100.0;
 /// The most ray segments per path (`render.max_depth`; POV-Ray's `max_trace_level` stops at 256).
 pub const MAX_DEPTH: u32 = 256;
+/// The largest magnitude of any number in a scene file, and of an MPU point's coordinates:
+/// squared distances between such points stay below f64's range (3·(2·1e150)² ≈ 1.2e301). Five
+/// MPU points at ±1e153 fit in 0.05 s; at ±1e154 the squared distances overflow to ∞ and the
+/// fit's search for the nearest points had not ended after 10 s (it cannot: no distance is below
+/// ∞).
+pub const MAX_MAGNITUDE: f64 = 1e150;
+/// The largest light intensity (W/sr), directional irradiance and ambient radiance, per channel:
+/// 1e30 (the Sun's intensity is about 3e25 W/sr). A diffuse pixel's radiance is then far below
+/// f32's largest value (3.4e38) unless a point light is closer than 5e-5 to the surface it lights
+/// (a pixel above f32's range is stored as its largest value, see [`crate::render`]). At 1e300,
+/// 132–143 of a 16×16 image's pixels were Inf.
+pub const MAX_RADIANCE: f64 = 1e30;
+/// The most triangles one OBJ file may give (2^22; the bunny has 3,851). Together with the file
+/// size cap ([`crate::input::MAX_MESH_BYTES`]) it bounds a mesh's memory: a face line of n
+/// repeated indices is n − 2 triangles of 72 bytes each.
+pub const MAX_TRIANGLES: usize = 1 << 22;
 
 /// Checks an image's size and sampling grid against the documented limits: one line naming
 /// what is too large.
@@ -479,17 +495,64 @@ impl Shape {
     }
 }
 
-/// A finite vector that is not zero.
+/// A finite vector that is not zero and that has a direction (its normalisation is finite: a
+/// vector as short as 1e-200 is not zero, but its squared length underflows to 0).
 fn nonzero3(name: &'static str, v: &[f64; 3]) -> Option<(&'static str, String)> {
-    (!(v.iter().all(|x| x.is_finite()) && v.iter().any(|x| *x != 0.0)))
-        .then(|| (name, format!("must be finite and not zero, got {v:?}")))
+    glam::DVec3::from_array(*v)
+        .try_normalize()
+        .is_none()
+        .then(|| {
+            (
+                name,
+                format!("must be finite, not zero and normalisable, got {v:?}"),
+            )
+        })
 }
 
-/// A colour: three finite numbers ≥ 0 (and ≤ 1 for an albedo or a reflectance).
-fn colour_problem(v: &[f64; 3], at_most_one: bool) -> Option<String> {
-    let ok = |x: &f64| x.is_finite() && *x >= 0.0 && (!at_most_one || *x <= 1.0);
-    let range = if at_most_one { "[0, 1]" } else { "[0, ∞)" };
-    (!v.iter().all(ok)).then(|| format!("must be three finite numbers in {range}, got {v:?}"))
+/// A colour: three finite numbers in `[0, max]` (1 for an albedo or a reflectance,
+/// [`MAX_RADIANCE`] for a light or the ambient).
+fn colour_problem(v: &[f64; 3], max: f64) -> Option<String> {
+    let ok = |x: &f64| x.is_finite() && *x >= 0.0 && *x <= max;
+    let top = if max == 1.0 {
+        "1".to_string()
+    } else {
+        format!("{max:e}")
+    };
+    (!v.iter().all(ok)).then(|| format!("must be three finite numbers in [0, {top}], got {v:?}"))
+}
+
+/// The first number of a scene's text (already known to parse) whose magnitude is finite but
+/// beyond [`MAX_MAGNITUDE`]: its dotted path (`shapes[2].center[0]`), its line and its value.
+/// (NaN and ±inf are left to the field checks, which name them.)
+fn too_large(text: &str) -> Option<(String, usize, f64)> {
+    use toml::de::{DeTable, DeValue};
+    fn walk(path: String, v: &toml::Spanned<DeValue>, text: &str) -> Option<(String, usize, f64)> {
+        match v.get_ref() {
+            DeValue::Float(f) => {
+                let x: f64 = f.as_str().replace('_', "").parse().ok()?;
+                (x.is_finite() && x.abs() > MAX_MAGNITUDE)
+                    .then(|| (path, line_of(text, v.span().start), x))
+            }
+            DeValue::Array(a) => a
+                .iter()
+                .enumerate()
+                .find_map(|(i, e)| walk(format!("{path}[{i}]"), e, text)),
+            DeValue::Table(t) => t.iter().find_map(|(k, e)| {
+                let key = if path.is_empty() {
+                    k.get_ref().to_string()
+                } else {
+                    format!("{path}.{}", k.get_ref())
+                };
+                walk(key, e, text)
+            }),
+            // Integers are i64: far below the limit
+            _ => None,
+        }
+    }
+    let doc = DeTable::parse(text).ok()?;
+    doc.get_ref()
+        .iter()
+        .find_map(|(k, e)| walk(k.get_ref().to_string(), e, text))
 }
 
 /// The field of an implicit scene shape (`None` for other shapes). MPU points are read
@@ -593,7 +656,12 @@ pub fn load(path: &Path) -> Result<Scene, SceneError> {
         line,
         message,
     };
-    let text = std::fs::read_to_string(path).map_err(|e| err(0, format!("cannot read: {e}")))?;
+    let text = crate::input::read_text(
+        path,
+        crate::input::MAX_TEXT_BYTES,
+        crate::input::Kind::Stream,
+    )
+    .map_err(|e| err(0, format!("cannot read: {e}")))?;
     parse(&text, path)
 }
 
@@ -703,17 +771,26 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
                 format!("lights[{i}].position must be finite, got {:?}", l.position),
             ));
         }
-        if let Some(m) = colour_problem(&l.intensity, false) {
-            return Err(err(0, format!("lights[{i}].intensity {m}")));
+        if let Some(m) = colour_problem(&l.intensity, MAX_RADIANCE) {
+            let header = text
+                .lines()
+                .enumerate()
+                .filter(|(_, l)| l.trim_start().starts_with("[[lights]]"))
+                .nth(i)
+                .map_or(0, |(k, _)| k + 1);
+            return Err(err(
+                field_line(text, header, "intensity"),
+                format!("lights[{i}].intensity {m}"),
+            ));
         }
     }
     for (name, m) in &file.materials {
         let problem = match m {
             Material::Diffuse { albedo } => {
-                colour_problem(albedo, true).map(|e| format!("albedo {e}"))
+                colour_problem(albedo, 1.0).map(|e| format!("albedo {e}"))
             }
             Material::Mirror { reflectance } => {
-                colour_problem(reflectance, true).map(|e| format!("reflectance {e}"))
+                colour_problem(reflectance, 1.0).map(|e| format!("reflectance {e}"))
             }
             Material::Glass { ior } => (!(MIN_IOR..=MAX_IOR).contains(ior))
                 .then(|| format!("ior must be in [{MIN_IOR}, {MAX_IOR}], got {ior:?}")),
@@ -727,29 +804,46 @@ pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
         }
     }
     offset_value(&file.render.offset).map_err(|e| err(0, format!("render.offset: {e}")))?;
-    if !file
-        .render
-        .ambient
-        .iter()
-        .all(|a| a.is_finite() && *a >= 0.0)
-    {
+    if let Some(m) = colour_problem(&file.render.ambient, MAX_RADIANCE) {
         return Err(err(
             field_line(text, 0, "ambient"),
-            format!(
-                "render.ambient must be finite and ≥ 0, got {:?}",
-                file.render.ambient
-            ),
+            format!("render.ambient {m}"),
         ));
     }
     for (i, l) in file.directional.iter().enumerate() {
         let d = l.direction;
-        let direction_ok = d.iter().all(|x| x.is_finite()) && d.iter().any(|x| *x != 0.0);
-        if !direction_ok || !l.irradiance.iter().all(|x| x.is_finite() && *x >= 0.0) {
+        if nonzero3("direction", &d).is_some()
+            || colour_problem(&l.irradiance, MAX_RADIANCE).is_some()
+        {
             return Err(err(
                 0,
-                format!("directional[{i}]: needs a finite non-zero direction and finite irradiance ≥ 0, got {d:?}, {:?}", l.irradiance),
+                format!("directional[{i}]: needs a finite non-zero direction and three finite irradiances in [0, {MAX_RADIANCE:e}], got {d:?}, {:?}", l.irradiance),
             ));
         }
+    }
+    // Every number within the magnitude limit (NaN and ±inf were refused above or are refused
+    // by the shapes' checks below, with their field)
+    if let Some((path, line, x)) = too_large(text) {
+        return Err(err(
+            line,
+            format!("{path} = {x:e}: a scene's numbers may be at most {MAX_MAGNITUDE:e} in magnitude (squared distances must stay finite)"),
+        ));
+    }
+    // The camera's frame, as the renderer and the exporters compute it, is finite
+    let frame = {
+        let pos = glam::DVec3::from_array(cam.position);
+        let fwd = (glam::DVec3::from_array(cam.look_at) - pos).normalize();
+        let right = fwd.cross(glam::DVec3::from_array(cam.up)).normalize();
+        [fwd, right, right.cross(fwd)]
+    };
+    if !frame.iter().all(|v| v.is_finite()) {
+        return Err(err(
+            field_line(text, 0, "up"),
+            format!(
+                "camera: position {:?}, look_at {:?} and up {:?} give no finite view direction and frame (a vector too short to normalise)",
+                cam.position, cam.look_at, cam.up
+            ),
+        ));
     }
     // Lines of the [[shapes]] headers (spans are lost inside tagged tables)
     let shape_lines: Vec<usize> = text
@@ -808,15 +902,32 @@ pub fn offset_value(v: &toml::Value) -> Result<Option<f64>, String> {
     }
 }
 
-/// Triangles of an OBJ file (polygons are triangulated by tobj).
+/// Triangles of an OBJ file (polygons are triangulated by tobj). The file must be a regular file
+/// of at most [`crate::input::MAX_MESH_BYTES`] giving at most [`MAX_TRIANGLES`] triangles; its
+/// material library (`mtllib`) is never read: materials come from the scene.
 fn load_obj(path: &Path) -> Result<Vec<[[f64; 3]; 3]>, String> {
     let opts = tobj::LoadOptions {
         triangulate: true,
         single_index: true,
         ..Default::default()
     };
-    let (models, _) =
-        tobj::load_obj(path, &opts).map_err(|e| format!("cannot load {}: {e}", path.display()))?;
+    let bytes = crate::input::read_capped(
+        path,
+        crate::input::MAX_MESH_BYTES,
+        crate::input::Kind::Regular,
+    )
+    .map_err(|e| format!("cannot load {}: {e}", path.display()))?;
+    let (models, _) = tobj::load_obj_buf(&mut std::io::Cursor::new(bytes), &opts, |_| {
+        Err(tobj::LoadError::OpenFileFailed)
+    })
+    .map_err(|e| format!("cannot load {}: {e}", path.display()))?;
+    let count: usize = models.iter().map(|m| m.mesh.indices.len() / 3).sum();
+    if count > MAX_TRIANGLES {
+        return Err(format!(
+            "{}: {count} triangles; a mesh may have at most {MAX_TRIANGLES}",
+            path.display()
+        ));
+    }
     let mut tris = vec![];
     for m in models {
         let p = &m.mesh.positions;
