@@ -422,7 +422,8 @@ impl Outputs {
                 check_target(&s.path)?;
             }
         }
-        for s in std::mem::take(&mut self.staged) {
+        let mut staged = std::mem::take(&mut self.staged).into_iter();
+        while let Some(s) = staged.next() {
             let r = if s.dir && s.path.exists() {
                 // The old version out and the new in, in one step; then the old one goes
                 exchange(&s.tmp, &s.path).map(|_| remove_temporary(&s.tmp))
@@ -430,7 +431,15 @@ impl Outputs {
                 std::fs::rename(&s.tmp, &s.path)
             };
             live(|v| v.retain(|p| p != &s.tmp));
-            r.with_context(|| format!("cannot write {}", s.path.display()))?;
+            if let Err(e) = r {
+                // No temporary is left: this one's and the rest's (a failed rename left them)
+                for t in std::iter::once(&s).chain(staged.as_slice()) {
+                    remove_temporary(&t.tmp);
+                    live(|v| v.retain(|p| p != &t.tmp));
+                }
+                return Err(anyhow::Error::new(e)
+                    .context(format!("cannot write {}", s.path.display())));
+            }
         }
         Ok(())
     }
