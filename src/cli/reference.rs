@@ -38,8 +38,9 @@ pub struct ReferenceArgs {
 }
 
 pub(super) fn run_reference(a: ReferenceArgs) -> Result<u8> {
-    if !(a.timeout > 0.0 && a.timeout.is_finite()) {
-        anyhow::bail!("--timeout must be a positive number of seconds");
+    // At most a year, as a suite's timeout (1e20 did not fit a Duration: a panic)
+    if !(a.timeout > 0.0 && a.timeout <= 31_536_000.0) {
+        anyhow::bail!("--timeout must be a positive number of seconds, at most 31536000 (a year)");
     }
     let req = Request {
         scene: a.scene,
