@@ -30,8 +30,14 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => ExitCode::from(code),
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", escape_line_breaks(&format!("{e:#}")));
             ExitCode::from(error_exit_code(&e))
         }
     }
+}
+
+/// An error is one line: a line break inside it (from a name or value read from a file, a
+/// path) is shown escaped, `\n` or `\r` (found by `tests/fuzz_surfaces.rs`).
+fn escape_line_breaks(s: &str) -> String {
+    s.replace('\r', "\\r").replace('\n', "\\n")
 }

@@ -115,17 +115,29 @@ fn nonce() -> u64 {
     h.finish()
 }
 
-/// The temporary sibling of `path`: `.NAME.rayproof-PID-NONCE.KIND` in the same directory.
+/// The temporary sibling of `path`: `.NAME.rayproof-PID-NONCE.KIND` in the same directory,
+/// named through the directory as `path` writes it (`with_file_name` drops `./` components, so a
+/// probe could pass where the output's own path is too long: found by `tests/fuzz_surfaces.rs`).
 fn tmp_for(path: &Path, kind: &str) -> PathBuf {
+    use std::os::unix::ffi::OsStrExt;
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    path.with_file_name(format!(
+    let tmp = format!(
         ".{name}.rayproof-{}-{:016x}.{kind}",
         std::process::id(),
         nonce()
-    ))
+    );
+    let bytes = path.as_os_str().as_bytes();
+    let end = bytes.len() - bytes.iter().rev().take_while(|&&b| b == b'/').count();
+    let cut = bytes[..end].iter().rposition(|&b| b == b'/').map_or(0, |i| i + 1);
+    if path.file_name().map(|n| n.as_bytes()) != Some(&bytes[cut..end]) {
+        return path.with_file_name(tmp);
+    }
+    let mut t = bytes[..cut].to_vec();
+    t.extend_from_slice(tmp.as_bytes());
+    PathBuf::from(std::ffi::OsStr::from_bytes(&t))
 }
 
 /// The process id in a temporary's name `.NAME.rayproof-PID-NONCE.KIND`, if `file` is exactly
@@ -206,6 +218,14 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
 fn check_target(path: &Path) -> Result<()> {
     if path.file_name().is_none() {
         bail!("{}: output path has no file name", path.display());
+    }
+    // `FILE/` or `FILE/.` names a directory: no file can be renamed there
+    let text = path.as_os_str().as_encoded_bytes();
+    if text.ends_with(b"/") || text.ends_with(b"/.") {
+        bail!(
+            "{}: output path ends with '/' (a directory); give a file name",
+            path.display()
+        );
     }
     match std::fs::symlink_metadata(path) {
         Ok(m) if !m.file_type().is_file() => {
@@ -422,7 +442,8 @@ impl Outputs {
                 check_target(&s.path)?;
             }
         }
-        for s in std::mem::take(&mut self.staged) {
+        let mut staged = std::mem::take(&mut self.staged).into_iter();
+        while let Some(s) = staged.next() {
             let r = if s.dir && s.path.exists() {
                 // The old version out and the new in, in one step; then the old one goes
                 exchange(&s.tmp, &s.path).map(|_| remove_temporary(&s.tmp))
@@ -430,7 +451,15 @@ impl Outputs {
                 std::fs::rename(&s.tmp, &s.path)
             };
             live(|v| v.retain(|p| p != &s.tmp));
-            r.with_context(|| format!("cannot write {}", s.path.display()))?;
+            if let Err(e) = r {
+                // No temporary is left: this one's and the rest's (a failed rename left them)
+                for t in std::iter::once(&s).chain(staged.as_slice()) {
+                    remove_temporary(&t.tmp);
+                    live(|v| v.retain(|p| p != &t.tmp));
+                }
+                return Err(anyhow::Error::new(e)
+                    .context(format!("cannot write {}", s.path.display())));
+            }
         }
         Ok(())
     }

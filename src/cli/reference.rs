@@ -38,8 +38,10 @@ pub struct ReferenceArgs {
 }
 
 pub(super) fn run_reference(a: ReferenceArgs) -> Result<u8> {
-    if !(a.timeout > 0.0 && a.timeout.is_finite()) {
-        anyhow::bail!("--timeout must be a positive number of seconds");
+    // At most a week, as a suite's timeout (1e20 did not fit a Duration: a panic)
+    let most = rayproof::golden::suite::MAX_TIMEOUT;
+    if !(a.timeout > 0.0 && a.timeout <= most) {
+        anyhow::bail!("--timeout must be a positive number of seconds, at most {most} (one week)");
     }
     let req = Request {
         scene: a.scene,
