@@ -205,16 +205,16 @@ fn audit_with(d: &Path, table: &str) -> Run {
 #[test]
 fn a_measurement_too_large_for_its_bounds_is_refused_not_computed_forever() {
     let d = scratch("bounds-measured");
-    // [1, 10^9]: statrs' beta quantile never returned
+    // [1, 10^9]: statrs' beta quantile never returned; the bisection's CDF is not accurate there
     let r = audit_with(
         &d,
         &format!("{MEASURED_RULE}\n[measured]\n\"sphere rtg7 f32 far_small\" = [1, 1000000000]\n"),
     );
-    r.refused(2, &["t.toml", "[1, 1000000000]", "at most 1000000 cases"]);
+    r.refused(2, &["t.toml", "[1, 1000000000]", "at most 10000000 cases"]);
     // At the limit it is judged in time
     let r = audit_with(
         &d,
-        &format!("{MEASURED_RULE}\n[measured]\n\"sphere rtg7 f32 far_small\" = [1, 1000000]\n"),
+        &format!("{MEASURED_RULE}\n[measured]\n\"sphere rtg7 f32 far_small\" = [1, 10000000]\n"),
     );
     assert!(
         !r.timed_out && matches!(r.code, Some(0 | 1)),

@@ -237,9 +237,9 @@ fn watertightness_finds_cracks_and_the_watertight_methods_have_none() {
             assert_eq!(r.replay.is_some(), r.escaped + r.grazing > 0, "{r:?}");
         }
         // Teeth: the chapter's method leaks through the far mesh, Möller–Trumbore at edges
-        let esc = |m: &str, mesh, k| {
+        let esc = |m: &str, mesh: &str, k: &str| {
             rows.iter()
-                .find(|r| (r.method.as_str(), r.mesh, r.kind) == (m, mesh, k))
+                .find(|r| (r.method.as_str(), r.mesh.as_str(), r.kind.as_str()) == (m, mesh, k))
                 .unwrap()
                 .escaped
         };
