@@ -35,6 +35,8 @@ pub const MARKER: &str = ".rayproof-output";
 static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 /// Held while a commit renames its outputs: the signal handler waits for it.
 static COMMIT: Mutex<()> = Mutex::new(());
+/// Temporaries being created and written now (see [`staging`]).
+static IN_FLIGHT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
 /// Set by the signal handler before it does anything else.
 static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
@@ -48,7 +50,12 @@ fn live(f: impl FnOnce(&mut Vec<PathBuf>)) {
 fn remove_temporary(p: &Path) {
     match std::fs::symlink_metadata(p) {
         Ok(m) if m.is_dir() => {
-            let _ = std::fs::remove_dir_all(p);
+            // A writer may still add a file while it goes: try again
+            for _ in 0..5 {
+                if std::fs::remove_dir_all(p).is_ok() || !p.exists() {
+                    break;
+                }
+            }
         }
         Ok(_) => {
             let _ = std::fs::remove_file(p);
@@ -81,6 +88,12 @@ pub fn clean_up_on_signals() {
         crate::process::kill_all();
         // A commit in progress finishes whole
         let _commit = COMMIT.lock().unwrap_or_else(|e| e.into_inner());
+        // Temporaries being written are finished first (a stuck writer is given up on)
+        let start = std::time::Instant::now();
+        while IN_FLIGHT.load(std::sync::atomic::Ordering::SeqCst) > 0 && start.elapsed() < WRITE_GRACE
+        {
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
         live(|v| {
             for p in v.drain(..) {
                 remove_temporary(&p);
@@ -91,14 +104,28 @@ pub fn clean_up_on_signals() {
     });
 }
 
-/// Runs `f` with `path` (a temporary file or directory) registered for removal on SIGINT or
-/// SIGTERM.
-pub fn tracked<T>(path: &Path, f: impl FnOnce() -> T) -> T {
+/// Runs `f`, which creates and writes the temporary `path`, registered for removal on SIGINT or
+/// SIGTERM. The handler waits (up to [`WRITE_GRACE`]) for every `f` under way before it removes
+/// the temporaries: a writer between the handler's removal and its exit would otherwise create
+/// its file again and leave it behind (seen once in about 60 interrupted renders). Started after
+/// the signal, `f` does not run.
+fn staging<T>(path: &Path, f: impl FnOnce() -> T) -> T {
+    use std::sync::atomic::Ordering::SeqCst;
+    IN_FLIGHT.fetch_add(1, SeqCst);
+    if interrupted() {
+        IN_FLIGHT.fetch_sub(1, SeqCst);
+        wait_if_interrupted();
+    }
     live(|v| v.push(path.to_path_buf()));
     let r = f();
-    live(|v| v.retain(|p| p != path));
+    IN_FLIGHT.fetch_sub(1, SeqCst);
+    // Interrupted meanwhile: the handler removes what `f` made and ends the run
+    wait_if_interrupted();
     r
 }
+
+/// How long the signal handler waits for temporaries being written (see [`staging`]).
+const WRITE_GRACE: std::time::Duration = std::time::Duration::from_secs(10);
 
 /// A fresh nonce for a temporary's name.
 fn nonce() -> u64 {
@@ -371,8 +398,7 @@ impl Outputs {
         self.claim(path)?;
         remove_stale(path);
         let tmp = tmp_for(path, "tmp");
-        live(|v| v.push(tmp.clone()));
-        if let Err(e) = write(&tmp) {
+        if let Err(e) = staging(&tmp, || write(&tmp)) {
             remove_temporary(&tmp);
             live(|v| v.retain(|p| p != &tmp));
             return Err(e.context(format!("cannot write {}", path.display())));
@@ -398,11 +424,14 @@ impl Outputs {
         self.claim(path)?;
         remove_stale(path);
         let tmp = tmp_for(path, "dir");
-        live(|v| v.push(tmp.clone()));
-        let made = std::fs::create_dir(&tmp)
-            .and_then(|_| std::fs::write(tmp.join(MARKER), b"made by rayproof\n"))
-            .with_context(|| format!("cannot create {}", tmp.display()))
-            .and_then(|_| fill(&tmp));
+        // Made under `staging`; filled after, by path (once the handler removed it, writes in it
+        // fail: nothing in `fill` may create it again, so no create_dir_all of it)
+        let made = staging(&tmp, || {
+            std::fs::create_dir(&tmp)
+                .and_then(|_| std::fs::write(tmp.join(MARKER), b"made by rayproof\n"))
+                .with_context(|| format!("cannot create {}", tmp.display()))
+        })
+        .and_then(|_| fill(&tmp));
         if let Err(e) = made {
             remove_temporary(&tmp);
             live(|v| v.retain(|p| p != &tmp));

@@ -169,7 +169,7 @@ pub fn run(o: &ReportOptions) -> Result<()> {
     crate::output::check_outputs(&[], &[&o.out], &[&o.reference])?;
     let mut out = crate::output::Outputs::new().reading(&[&o.reference]);
     out.dir_with(&o.out, |dir| {
-        std::fs::create_dir_all(dir.join("img"))
+        std::fs::create_dir(dir.join("img"))
             .with_context(|| format!("cannot create {}", dir.display()))?;
         build(o, dir)
     })?;
