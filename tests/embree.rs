@@ -1,0 +1,185 @@
+//! Embree 3 (Debian `libembree-dev`), live: the example shim `examples/embree/embree_shim.c`
+//! built here against the real library, as a user would build it, and audited through
+//! `--plugin`. The assertions are what Embree documents, not what rayproof happens to print:
+//!
+//! - robust mode (`RTC_SCENE_FLAG_ROBUST`) is watertight: no ray escapes a closed mesh, near or
+//!   far, and none leaks through a fold; the default mode is not (it leaks at edges and vertices);
+//! - robust mode's Plücker test accepts hits within about an ulp of an edge, so it gives false
+//!   hits near edges and vertices (and no false misses there);
+//! - huge and tiny triangles fail by range (primitives beyond about 1.8e18, a determinant that
+//!   over- or underflows in f32), not by rounding: the same intersector on the case rescaled by
+//!   exact powers of two (`tri_prescaled_f32`) gets every one of them right;
+//! - the sphere answers t = 0 for some rays that start on its surface: a hit at t ≤ 0 is an
+//!   `out_of_range` answer, counted as such, never "ok".
+//!
+//! Without Embree's headers or library the test fails (CI installs `libembree-dev`).
+
+mod common;
+
+use common::{rayproof, s, scratch, stderr};
+use serde_json::Value;
+use std::path::PathBuf;
+use std::process::Command;
+use std::sync::OnceLock;
+
+/// The shim, built once with the user's build line.
+fn shim() -> &'static PathBuf {
+    static LIB: OnceLock<PathBuf> = OnceLock::new();
+    LIB.get_or_init(|| {
+        let dir = scratch("embree");
+        let lib = dir.join("libembree_shim.so");
+        let src = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/embree/embree_shim.c");
+        let o = Command::new("cc")
+            .args(["-O2", "-Wall", "-Werror", "-shared", "-fPIC"])
+            .arg(&src)
+            .arg("-o")
+            .arg(&lib)
+            .arg("-lembree3")
+            .output()
+            .expect("a C compiler (cc)");
+        assert!(
+            o.status.success(),
+            "the Embree shim does not build (is libembree-dev installed?): {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        lib
+    })
+}
+
+fn symbol(name: &str) -> String {
+    format!("{}:{name}", shim().display())
+}
+
+/// Runs an audit with `--json` and returns its exit code, stdout and JSON.
+fn audit(tag: &str, args: &[&str]) -> (Option<i32>, String, Value) {
+    let dir = scratch(tag);
+    let json = dir.join("audit.json");
+    let mut all = vec!["audit", "--precision", "f32", "--seed", "1"];
+    all.extend(args);
+    all.extend(["--json", s(&json)]);
+    let o = rayproof(&all);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", stderr(&o));
+    let v: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        v,
+    )
+}
+
+fn row<'a>(v: &'a Value, method: &str, class: &str) -> &'a Value {
+    v["shapes"][0]["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["method"] == method && r["class"] == class)
+        .unwrap_or_else(|| panic!("no row {method} {class}"))
+}
+
+fn n(r: &Value, field: &str) -> u64 {
+    r[field].as_u64().unwrap_or_else(|| panic!("{field} in {r}"))
+}
+
+fn wrong(r: &Value) -> u64 {
+    ["false_hit", "false_miss", "wrong_root", "nonfinite_t", "out_of_range", "malformed"]
+        .iter()
+        .map(|f| n(r, f))
+        .sum()
+}
+
+#[test]
+fn embree_triangles_are_watertight_in_robust_mode_and_fail_huge_and_tiny_by_range() {
+    let (tri, robust, prescaled) = (
+        symbol("tri_f32"),
+        symbol("tri_robust_f32"),
+        symbol("tri_prescaled_f32"),
+    );
+    let (code, table, v) = audit(
+        "embree-tri",
+        &[
+            "--shape", "triangle", "--cases", "2000", "--plugin", &tri, "--plugin", &robust,
+            "--plugin", &prescaled,
+        ],
+    );
+    assert_eq!(code, Some(0), "{table}");
+    // Both Embree modes beside the built-in methods, in one table
+    let methods: Vec<&str> = v["shapes"][0]["rows"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r["method"].as_str().unwrap())
+        .collect();
+    for m in ["chapter", "moller_trumbore", "watertight", "tri", "tri_robust", "tri_prescaled"] {
+        assert!(methods.contains(&m), "{m} missing from {methods:?}");
+    }
+    // Watertightness: rows for every outside routine; robust mode never escapes
+    let wt = v["robustness"]["watertight"].as_array().unwrap();
+    let escapes = |m: &str, kinds: &[&str]| -> u64 {
+        let rows: Vec<&Value> = wt
+            .iter()
+            .filter(|w| w["method"] == m && kinds.contains(&w["kind"].as_str().unwrap()))
+            .collect();
+        assert!(!rows.is_empty(), "no watertightness rows for {m}");
+        rows.iter().map(|w| n(w, "escaped")).sum()
+    };
+    let all = ["random", "edge", "vertex", "shared_edge"];
+    assert_eq!(escapes("tri_robust", &all), 0);
+    assert_eq!(escapes("tri_prescaled", &all), 0);
+    // The default mode leaks at edges and vertices of closed meshes and through folds
+    let leaks = escapes("tri", &["edge", "vertex"]);
+    let folds = escapes("tri", &["shared_edge"]);
+    assert!(leaks > 0 && folds > 0, "default mode: {leaks} mesh, {folds} fold escapes");
+    assert!(
+        table.contains("tri_robust 0 escapes") && !table.contains("tri 0 escapes"),
+        "{table}"
+    );
+    // Robust mode's documented near-edge acceptance: false hits at edges and vertices, never a
+    // false miss there
+    for class in ["edge", "vertex"] {
+        let r = row(&v, "tri_robust", class);
+        assert!(n(r, "false_hit") > 0, "{r}");
+        assert_eq!(n(r, "false_miss"), 0, "{r}");
+    }
+    // Huge and tiny triangles: wrong by range, right once rescaled by powers of two
+    for class in ["huge", "tiny"] {
+        let r = row(&v, "tri_robust", class);
+        assert!(n(r, "false_miss") > 50, "{class}: {r}");
+        let p = row(&v, "tri_prescaled", class);
+        assert_eq!(n(p, "well_posed"), 2000, "{class}: {p}");
+        assert_eq!(wrong(p), 0, "{class}: {p}");
+    }
+    // Generic triangles: both modes right, within a few dozen ulps
+    for m in ["tri", "tri_robust"] {
+        let r = row(&v, m, "generic");
+        assert_eq!(wrong(r), 0, "{r}");
+        assert!(r["ulps"]["max"].as_f64().unwrap() < 1000.0, "{r}");
+    }
+}
+
+#[test]
+fn embree_spheres_answer_t_zero_on_the_surface_and_it_is_never_ok() {
+    let sphere = symbol("sphere_f32");
+    let (_, _, v) = audit(
+        "embree-sphere",
+        &["--shape", "sphere", "--cases", "2000", "--plugin", &sphere, "--method", "sphere"],
+    );
+    let on = row(&v, "sphere", "on_surface");
+    // t = 0 from the surface: out of the contract's t > 0, counted (ill-posed or not)
+    assert!(
+        n(on, "out_of_range") + n(on, "ill_posed_out_of_range") > 100,
+        "{on}"
+    );
+    // Where Embree is inside its range it is right
+    for class in ["random", "inside", "behind", "far_small", "grazing"] {
+        let r = row(&v, "sphere", class);
+        assert_eq!(wrong(r), 0, "{class}: {r}");
+    }
+    // A replayable example for the t ≤ 0 answers
+    let examples = on["examples"].as_array().unwrap();
+    assert!(
+        examples
+            .iter()
+            .any(|e| e["kind"] == "out_of_range" || e["kind"] == "ill_posed_out_of_range"),
+        "{on}"
+    );
+}
