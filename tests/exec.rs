@@ -311,3 +311,61 @@ fn a_stray_line_or_an_extra_answer_is_quoted() {
         assert!(err.contains(want), "'{want}' not in {err}");
     }
 }
+
+/// One program serves both ways in: `cases --exec-format` writes exactly what an `--exec` child
+/// reads, the child's output is a `score --answers` file, and the scored rows are the audit's.
+#[test]
+fn the_exec_format_cases_file_feeds_the_same_child_and_scores_as_the_audit() {
+    let dir = scratch("exec-format");
+    let p = |n: &str| dir.join(n).to_str().unwrap().to_string();
+    let sel = ["--shape", "sphere", "--precision", "f64", "--cases", "300"];
+    // The audit through the child
+    let mut args = vec!["audit"];
+    args.extend(sel);
+    let audit_json = p("audit.json");
+    let cmd = script();
+    args.extend(["--exec", &cmd, "--name", "py", "--method", "py"]);
+    args.extend(["--worst", "0", "--json", &audit_json]);
+    let o = rayproof(&args);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{o:?}");
+    // The same cases as a file in both formats
+    for (file, exec) in [("cases.txt", false), ("lines.txt", true)] {
+        let mut a = vec!["cases"];
+        a.extend(sel);
+        let out = p(file);
+        a.extend(["-o", &out]);
+        if exec {
+            a.push("--exec-format");
+        }
+        let o = rayproof(&a);
+        assert_eq!(o.status.code(), Some(0), "{o:?}");
+    }
+    let lines = std::fs::read_to_string(p("lines.txt")).unwrap();
+    let first = lines.lines().next().unwrap();
+    assert!(first.starts_with("f64 0x") || first.starts_with("f64 -0x"), "{first}");
+    let cases = std::fs::read_to_string(p("cases.txt")).unwrap();
+    assert_eq!(cases.lines().count(), lines.lines().count() + 1, "one header line");
+    // The child answers the exec-format file as it is
+    let answers = Command::new("sh")
+        .args(["-c", &format!("{cmd} < {} > {}", p("lines.txt"), p("answers.txt"))])
+        .status()
+        .unwrap();
+    assert!(answers.success());
+    let score_json = p("score.json");
+    let o = rayproof(&[
+        "score", "--cases", &p("cases.txt"), "--answers", &p("answers.txt"), "--method", "py",
+        "--worst", "0", "--json", &score_json,
+    ]);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{o:?}");
+    let rows = |f: &str| -> Vec<Value> {
+        let v: Value = serde_json::from_slice(&std::fs::read(f).unwrap()).unwrap();
+        let mut r = v["shapes"][0]["rows"].as_array().unwrap().clone();
+        for x in &mut r {
+            x.as_object_mut().unwrap().remove("examples");
+        }
+        r
+    };
+    let (a, s) = (rows(&audit_json), rows(&score_json));
+    assert!(!a.is_empty());
+    assert_eq!(a, s);
+}

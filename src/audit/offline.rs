@@ -45,15 +45,23 @@ use std::collections::HashMap;
 pub const CASES_HEADER: &str = "# rayproof cases 1";
 
 /// Writes the cases of a plan's single shape as the cases file, line by line (memory does not
-/// grow with the case count); returns how many cases it wrote.
-pub fn write_cases(plan: &Plan, out: &mut dyn std::io::Write) -> std::io::Result<u64> {
+/// grow with the case count); returns how many cases it wrote. `exec_format`: the lines an
+/// `--exec` child reads instead (precision and inputs, no header, no class or index), in the
+/// same order, so one program can answer both.
+pub fn write_cases(
+    plan: &Plan,
+    exec_format: bool,
+    out: &mut dyn std::io::Write,
+) -> std::io::Result<u64> {
     let p = &plan.shapes[0];
     let info = p.shape.info();
-    writeln!(
-        out,
-        "{CASES_HEADER} shape={} seed={} cases={}",
-        info.name, plan.seed, p.cases
-    )?;
+    if !exec_format {
+        writeln!(
+            out,
+            "{CASES_HEADER} shape={} seed={} cases={}",
+            info.name, plan.seed, p.cases
+        )?;
+    }
     let mut n = 0;
     for &prec in &plan.precisions {
         for &class in &p.classes {
@@ -61,6 +69,11 @@ pub fn write_cases(plan: &Plan, out: &mut dyn std::io::Write) -> std::io::Result
                 let Some(input) = generate(p.shape, plan.seed, class, prec, index) else {
                     continue;
                 };
+                n += 1;
+                if exec_format {
+                    out.write_all(super::exec::case_line(prec, &input).as_bytes())?;
+                    continue;
+                }
                 let vals: Vec<String> = input.iter().map(|&x| hex_text(x)).collect();
                 writeln!(
                     out,
@@ -69,7 +82,6 @@ pub fn write_cases(plan: &Plan, out: &mut dyn std::io::Write) -> std::io::Result
                     info.classes[class],
                     vals.join(" ")
                 )?;
-                n += 1;
             }
         }
     }

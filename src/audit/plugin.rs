@@ -449,6 +449,9 @@ impl Method for Plugin {
     fn name(&self) -> &str {
         &self.name
     }
+    fn own_nanos(&self, prec: Precision) -> Option<u64> {
+        Some(self.routine_nanos(prec))
+    }
     fn replay(&self) -> Option<String> {
         let specs: Vec<String> = self
             .symbols

@@ -229,6 +229,12 @@ pub trait Method: Sync {
     fn finish(&self) -> Result<(), String> {
         Ok(())
     }
+    /// Nanoseconds the routine itself spent in its calls of precision `prec` so far, timed where
+    /// it runs (a plugin's worker times each call of the symbol); `None`: only the whole
+    /// `answer` can be timed.
+    fn own_nanos(&self, _prec: Precision) -> Option<u64> {
+        None
+    }
 }
 
 /// A method that answers one case at a time and cannot fail (a shape's own, a Rust function):

@@ -32,6 +32,10 @@ pub struct CasesArgs {
     /// The cases file to write.
     #[arg(short = 'o', long = "output")]
     pub output: PathBuf,
+    /// Write the lines an --exec child reads instead (`f32 0x1p+0 …`: precision and inputs, no
+    /// header, class or index), in the same order: answers to them are a `score --answers` file.
+    #[arg(long)]
+    pub exec_format: bool,
 }
 
 #[derive(Args, Debug)]
@@ -67,7 +71,7 @@ pub(super) fn run_cases(a: CasesArgs) -> Result<u8> {
     let mut n = 0;
     write_atomic_with(&a.output, |tmp| {
         let mut w = std::io::BufWriter::new(std::fs::File::create(tmp)?);
-        n = write_cases(&plan, &mut w)?;
+        n = write_cases(&plan, a.exec_format, &mut w)?;
         Ok(std::io::Write::flush(&mut w)?)
     })?;
     say!("{n} cases of {} written to {}", a.shape, a.output.display());

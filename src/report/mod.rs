@@ -19,9 +19,11 @@
 //! 6. the cost of Newton refinement for 1/x and 1/√x over every f32 of a range, against MPFR
 //!    (Lengyel's ray-tracing chapter, §1.5).
 //!
-//! `--plugin PATH:SYMBOL` (once per precision) or `--exec CMD` puts your own ray–sphere routine
-//! beside the built-in methods in section 1, with its own ns per test measured on the same batch
-//! (see [`crate::audit::plugin`]).
+//! `--plugin PATH:SYMBOL` (one precision is enough; the audit and the timing then run in the
+//! precisions it has) or `--exec CMD` puts your own ray–sphere routine beside the built-in
+//! methods in section 1, with its own ns per test measured on the same batch: for a plugin, the
+//! time its worker spends in the routine's calls, with the harness's overhead printed apart
+//! (see [`crate::audit::plugin`]); a subprocess is timed whole, pipe included.
 //!
 //! The directory is built beside the target and renamed into place, so a failed run never
 //! leaves a half-written report.
@@ -77,8 +79,10 @@ pub struct ReportOptions {
     /// Progress lines on stderr.
     pub progress: bool,
     /// A ray–sphere routine from outside the crate (a plugin, a subprocess) to put beside the
-    /// built-in methods in the accuracy-vs-cost section, in both precisions.
+    /// built-in methods in the accuracy-vs-cost section.
     pub outside: Option<std::sync::Arc<dyn crate::audit::Method + Send>>,
+    /// The precisions the outside routine answers (the audit and the timing run in these).
+    pub outside_precisions: Vec<Precision>,
 }
 
 /// The classes of the timing batch: the bench's mix.
@@ -93,8 +97,11 @@ pub struct CostRow {
     pub precision: Precision,
     /// Offered as robust.
     pub robust: bool,
-    /// In-run cost per test on the timing batch, in ns.
+    /// In-run cost per test on the timing batch, in ns (an outside plugin: its routine's own
+    /// calls, timed in its worker).
     pub ns: Timing,
+    /// An outside plugin's harness overhead per test (batch to the worker and back), in ns.
+    pub harness_ns: Option<Timing>,
     /// Wrong verdicts / well-posed valid cases, over every class.
     pub wrong_rate: f64,
     /// Wrong verdicts on well-posed cases, over every class.
@@ -196,19 +203,33 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     let mut plan = plan;
     if let Some(m) = &o.outside {
         plan.shapes[0].methods.push(Box::new(Shared(m.clone())));
+        // The audit runs in the precisions the routine answers
+        plan.precisions.retain(|p| o.outside_precisions.contains(p));
+        if plan.precisions.is_empty() {
+            anyhow::bail!("report: the outside routine answers no precision");
+        }
     }
     let tallies = plan.run_shape(0, o.progress)?;
     let report = tallies.report(None);
     say("timing every method × precision");
     let runs = if o.quick { 3 } else { 9 };
     let min_ns = if o.quick { 2e6 } else { 2e7 };
-    let mut t32 = time_methods::<f32>(o.seed, runs, min_ns);
-    let mut t64 = time_methods::<f64>(o.seed, runs, min_ns);
+    let mut t32: Vec<(Timing, Option<Timing>)> = time_methods::<f32>(o.seed, runs, min_ns)
+        .into_iter()
+        .map(|t| (t, None))
+        .collect();
+    let mut t64: Vec<(Timing, Option<Timing>)> = time_methods::<f64>(o.seed, runs, min_ns)
+        .into_iter()
+        .map(|t| (t, None))
+        .collect();
     if let Some(m) = &o.outside {
-        t32.push(time_outside::<f32>(m.as_ref(), o.seed, runs, min_ns)?);
-        t64.push(time_outside::<f64>(m.as_ref(), o.seed, runs, min_ns)?);
+        for (p, t) in [(Precision::F32, &mut t32), (Precision::F64, &mut t64)] {
+            if plan.precisions.contains(&p) {
+                t.push(time_outside(m.as_ref(), p, o.seed, runs, min_ns)?);
+            }
+        }
     }
-    let cost = cost_rows(&report, &tallies, &t32, &t64);
+    let cost = cost_rows(&report, &tallies, &plan.precisions, &t32, &t64);
     // 2. Batched kernel, checked bit-identical before timing
     say("timing the batched kernel");
     let mut bopts = crate::shapes::sphere::batch::BatchOpts::report();
@@ -310,45 +331,73 @@ impl crate::audit::Method for Shared {
     ) -> std::result::Result<Vec<crate::audit::Answer>, String> {
         self.0.answer(prec, inputs)
     }
+    fn own_nanos(&self, prec: Precision) -> Option<u64> {
+        self.0.own_nanos(prec)
+    }
 }
 
-/// ns per test of an outside method on the same mix: one batch per measurement, so a shared
-/// library's figure is its routine's cost (a subprocess's includes starting it).
-fn time_outside<F: PickPrecision>(
+/// ns per test of an outside method on the same mix, one batch per call: the routine's own
+/// calls where it can be timed where it runs (a plugin's worker times each call of its symbol),
+/// and beside it the harness's overhead (handing the batch to the worker and back, checking the
+/// answers) per test; a subprocess is timed whole (its figure includes the pipe).
+fn time_outside(
     m: &dyn crate::audit::Method,
+    prec: Precision,
     seed: u64,
     runs: usize,
     min_ns: f64,
-) -> Result<Timing> {
-    let prec = if F::MANT_BITS == 24 {
-        Precision::F32
-    } else {
-        Precision::F64
+) -> Result<(Timing, Option<Timing>)> {
+    let inputs: Vec<Vec<f64>> = match prec {
+        Precision::F32 => mix_inputs::<f32>(seed),
+        Precision::F64 => mix_inputs::<f64>(seed),
     };
-    let inputs: Vec<Vec<f64>> = MIX
-        .iter()
-        .flat_map(|&c| (0..512).filter_map(move |i| generate::<F>(seed, c, i)))
-        .map(|c| c.scalars().iter().map(|x| x.to_f64()).collect())
-        .collect();
     // A failure shows before timing
     m.answer(prec, &inputs)
         .map_err(crate::audit::run::MethodFailed)?;
-    Ok(measure(inputs.len(), runs, min_ns, || {
-        m.answer(prec, std::hint::black_box(&inputs))
-            .map(|a| a.iter().filter(|x| x.count > 0).count())
-            .unwrap_or(0)
-    }))
+    let units = inputs.len() as f64;
+    let (mut own, mut overhead) = (vec![], vec![]);
+    for _ in 0..runs.max(1) {
+        let (mut reps, mut elapsed) = (0u64, 0f64);
+        let before = m.own_nanos(prec);
+        let clock = std::time::Instant::now();
+        while elapsed < min_ns || reps == 0 {
+            m.answer(prec, std::hint::black_box(&inputs))
+                .map_err(crate::audit::run::MethodFailed)?;
+            reps += 1;
+            elapsed = clock.elapsed().as_nanos() as f64;
+        }
+        let per = |ns: f64| ns / (reps as f64 * units);
+        match (before, m.own_nanos(prec)) {
+            (Some(a), Some(b)) => {
+                let routine = b.saturating_sub(a) as f64;
+                own.push(per(routine));
+                overhead.push(per((elapsed - routine).max(0.0)));
+            }
+            _ => own.push(per(elapsed)),
+        }
+    }
+    let overhead = (!overhead.is_empty()).then(|| Timing::of(overhead));
+    Ok((Timing::of(own), overhead))
+}
+
+/// The timing batch's inputs (the bench's mix) as `f64` scalars.
+fn mix_inputs<F: PickPrecision>(seed: u64) -> Vec<Vec<f64>> {
+    MIX.iter()
+        .flat_map(|&c| (0..512).filter_map(move |i| generate::<F>(seed, c, i)))
+        .map(|c| c.scalars().iter().map(|x| x.to_f64()).collect())
+        .collect()
 }
 
 /// Pools the audit over classes per method × precision and sets it beside the timing.
 fn cost_rows(
     report: &ShapeReport,
     tallies: &Tallies,
-    t32: &[Timing],
-    t64: &[Timing],
+    precisions: &[Precision],
+    t32: &[(Timing, Option<Timing>)],
+    t64: &[(Timing, Option<Timing>)],
 ) -> Vec<CostRow> {
     let mut out = vec![];
-    for p in Precision::ALL {
+    for &p in precisions {
         for (k, m) in tallies.methods.iter().enumerate() {
             let rows: Vec<_> = report
                 .rows
@@ -372,9 +421,14 @@ fn cost_rows(
                 precision: p,
                 robust: m.robust,
                 ns: if p == Precision::F32 {
-                    t32[k].clone()
+                    t32[k].0.clone()
                 } else {
-                    t64[k].clone()
+                    t64[k].0.clone()
+                },
+                harness_ns: if p == Precision::F32 {
+                    t32[k].1.clone()
+                } else {
+                    t64[k].1.clone()
                 },
                 wrong_rate: wrong as f64 / well_posed.max(1) as f64,
                 wrong,
@@ -522,6 +576,19 @@ impl Markdown<'_> {
                 r.p99_bits
             )?;
         }
+        for r in cost {
+            if let Some(h) = &r.harness_ns {
+                writeln!(
+                    self.s,
+                    "\n`{}` {}: ns/test is the routine's own calls, timed in its worker process; \
+                     the harness (batch to the worker and back, answers checked) adds {} per test, \
+                     not counted.",
+                    r.method,
+                    r.precision.name(),
+                    h.label()
+                )?;
+            }
+        }
         self.s += "\n";
         // The Pareto plots: cost against three error measures
         let pts = |y: &dyn Fn(&CostRow) -> f64| -> Vec<plot::Point> {
@@ -584,7 +651,12 @@ impl Markdown<'_> {
             write!(self.s, "<th>{}</th>", c.name())?;
         }
         self.s += "</tr>\n";
-        for p in Precision::ALL {
+        // The precisions audited (an outside routine of one precision narrows the audit)
+        let audited: Vec<Precision> = Precision::ALL
+            .into_iter()
+            .filter(|&p| report.rows.iter().any(|r| r.precision == p))
+            .collect();
+        for &p in &audited {
             for m in &tallies.methods {
                 write!(self.s, "<tr><td>{}</td><td>{}</td>", m.name, p.name())?;
                 for c in Class::ALL {
@@ -613,7 +685,7 @@ impl Markdown<'_> {
             "### Bits of error per class\n\nFor each method and precision: the share of right-verdict \
               hits per ⌈log2(1 + ulps)⌉, one line per class (0 = correctly rounded).\n\n";
         for m in &tallies.methods {
-            for p in Precision::ALL {
+            for &p in &audited {
                 let series: Vec<(String, Vec<f64>)> = Class::ALL
                     .iter()
                     .map(|&c| {
