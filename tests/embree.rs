@@ -94,14 +94,31 @@ fn embree_triangles_are_watertight_in_robust_mode_and_fail_huge_and_tiny_by_rang
         symbol("tri_robust_f32"),
         symbol("tri_prescaled_f32"),
     );
+    let rules = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/embree/tolerances.toml");
     let (code, table, v) = audit(
         "embree-tri",
         &[
             "--shape", "triangle", "--cases", "2000", "--plugin", &tri, "--plugin", &robust,
-            "--plugin", &prescaled,
+            "--plugin", &prescaled, "--tolerances", s(&rules),
         ],
     );
     assert_eq!(code, Some(0), "{table}");
+    // The example tolerance file judges the rows it names, and they hold
+    for (m, class) in [
+        ("tri_robust", "generic"),
+        ("tri_robust", "edge"),
+        ("tri_prescaled", "vertex"),
+        ("tri_prescaled", "huge"),
+        ("tri_prescaled", "tiny"),
+        ("tri_robust", "invalid"),
+    ] {
+        let verdict = &row(&v, m, class)["verdict"];
+        assert_eq!(verdict["status"], "pass", "{m} {class}: {verdict}");
+        assert!(
+            verdict["rule"].as_str().unwrap().contains("tolerances.toml rule"),
+            "{verdict}"
+        );
+    }
     // Both Embree modes beside the built-in methods, in one table
     let methods: Vec<&str> = v["shapes"][0]["rows"]
         .as_array()

@@ -50,6 +50,48 @@ use crate::process::{Broken, Session};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
+/// The line protocol of an `--exec` child, for `rayproof header --exec` (each shape's fields and
+/// contract follow it there).
+pub fn protocol(shapes: &[&'static dyn super::shape::Shape]) -> String {
+    let mut out = String::from(
+        "# The --exec line protocol: rayproof audit --exec CMD (one child, `sh -c CMD`, for the run)
+#
+# Input (the child's stdin), one case per line: the precision, then the shape's inputs in
+# order as C99 hex floats, exact in that precision (inf, -inf, nan in the invalid class):
+#   f32 0x1p+0 -0x1.8p-3 0x0p+0 ...
+# `rayproof cases --exec-format -o FILE` writes the same lines to a file.
+#
+# Output (the child's stdout), one answer line per case, in order: the count, then that many
+# values in decimal or hex (`1 0x1.4p+2`, `2 -1.5 3`, `0`); an f32 value is rounded once to f32.
+# Flush after each line (Python does: rayproof sets PYTHONUNBUFFERED=1; C: setvbuf(stdout,
+# NULL, _IOLBF, 0); awk: fflush(); sed -u). Logging goes to stderr: a line on stdout that is not
+# an answer stops the audit (exit 4) with that line quoted and the child's last stderr lines.
+#
+# Batches of up to 4096 cases are written to the same child; a child that answers only when its
+# input ends is found out by its first batch and run once per batch (or say so: --exec-per-batch;
+# --exec-keep holds it to flushing). At the end its input closes and it must exit 0 with nothing
+# more to say. A child that dies, hangs past --timeout seconds per batch, or answers too many
+# lines stops the audit with one line naming the case (exit 4) and no report is written.
+#
+# Invalid input (NaN or Inf inputs, a degenerate shape) is answered `0`. Directions are not
+# normalised. What an answer may be is the shape's contract below (the same for --plugin,
+# score files and the Rust API): an answer outside it is a wrong answer counted in its row.
+",
+    );
+    for s in shapes {
+        let info = s.info();
+        out += &format!(
+            "\n# {}: {}\n#   in:  PRECISION {}\n#   out: COUNT {}\n#   contract: {}\n",
+            info.name,
+            info.about,
+            info.args.join(" "),
+            info.values.join(" "),
+            super::contract::describe(info)
+        );
+    }
+    out
+}
+
 /// Standard output an `--exec` child may write per batch: 16 MiB.
 pub const STDOUT_CAP: usize = 16 << 20;
 

@@ -62,7 +62,7 @@ pub struct OutsideArgs {
     #[arg(long, value_name = "PATH:SYMBOL")]
     pub plugin: Vec<String>,
     /// Audit a routine run by this command (`sh -c CMD`): cases as lines on its stdin, one
-    /// answer line per case on its stdout (`rayproof help exec`). Repeatable.
+    /// answer line per case on its stdout (`rayproof header --exec`). Repeatable.
     #[arg(long, value_name = "CMD")]
     pub exec: Vec<String>,
     /// The outside routines' names in reports and tolerance rules, in order: the plugins' (in

@@ -3,10 +3,20 @@
 use super::*;
 use anyhow::Result;
 
-pub(super) fn run_header() -> Result<u8> {
-    say_raw!(
-        "{}",
-        rayproof::audit::plugin::header(&rayproof::shapes::registry())
-    );
+pub(super) fn run_header(a: HeaderArgs) -> Result<u8> {
+    let shapes = rayproof::shapes::registry();
+    if a.exec {
+        say_raw!("{}", rayproof::audit::exec::protocol(&shapes));
+    } else {
+        say_raw!("{}", rayproof::audit::plugin::header(&shapes));
+    }
     Ok(0)
+}
+
+#[derive(clap::Args, Debug)]
+pub struct HeaderArgs {
+    /// Print the --exec line protocol (input and answer lines, each shape's fields and answer
+    /// contract) instead of the C header.
+    #[arg(long)]
+    pub exec: bool,
 }

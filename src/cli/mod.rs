@@ -87,8 +87,8 @@ pub enum Command {
     /// Judge a file of answers to `cases` with the oracle, as the audit would.
     Score(ScoreArgs),
     /// Print the C header of routines audited with `audit --plugin` (one signature per shape
-    /// and precision).
-    Header,
+    /// and precision); with --exec, the line protocol of `audit --exec` children.
+    Header(header::HeaderArgs),
     /// Run the oracle and every method on one ray and one shape.
     #[command(subcommand)]
     Probe(ProbeCommand),
@@ -190,7 +190,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Merge(m) => audit::run_merge(m),
         Command::Cases(c) => offline::run_cases(c),
         Command::Score(s) => offline::run_score(s),
-        Command::Header => header::run_header(),
+        Command::Header(a) => header::run_header(a),
         Command::Probe(p) => probe::run_probe(p),
         Command::Render(r) => render::run_render(r),
         Command::Export(e) => render::run_export(e),
