@@ -369,3 +369,20 @@ fn the_exec_format_cases_file_feeds_the_same_child_and_scores_as_the_audit() {
     assert!(!a.is_empty());
     assert_eq!(a, s);
 }
+
+/// Run once per batch, a child that answers one line too many is refused with the line quoted
+/// (the reader must not take the first answers and drop the rest).
+#[test]
+fn a_per_batch_child_with_one_answer_too_many_is_refused() {
+    let o = rayproof(&[
+        "audit", "--shape", "sphere", "--class", "random", "--precision", "f32", "--cases", "50",
+        "--exec", "awk '{print 0} END {print \"1 0x1p+0\"}'", "--exec-per-batch", "--timeout", "10",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(4), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("answered 51 lines to 50 cases (the first extra: '1 0x1p+0')"),
+        "{err}"
+    );
+}

@@ -418,3 +418,61 @@ impl Tally {
         }
     }
 }
+
+#[cfg(test)]
+mod merge_tests {
+    use super::Tally;
+    use serde_json::Value;
+
+    /// Every counter of a tally (top level and nested objects of counts), by path.
+    fn counters(v: &Value, path: String, out: &mut Vec<(String, u64)>) {
+        if let Value::Object(m) = v {
+            for (k, x) in m {
+                let p = format!("{path}.{k}");
+                match x {
+                    Value::Number(n) if n.is_u64() => out.push((p, n.as_u64().unwrap())),
+                    Value::Object(_) if k == "invalid" => counters(x, p, out),
+                    _ => {}
+                }
+            }
+        }
+    }
+
+    /// Merging sums every counter, whatever its name: a tally whose every counter is non-zero
+    /// (each a different value) merged into itself has each doubled. A counter the merge forgets
+    /// (the enclosure violations, say: no audited case has one, so the shard tests cannot see
+    /// it) fails here.
+    #[test]
+    fn merge_sums_every_counter() {
+        let mut v = serde_json::to_value(Tally::default()).unwrap();
+        let mut next = 1u64;
+        fn fill(v: &mut Value, next: &mut u64) {
+            if let Value::Object(m) = v {
+                for (k, x) in m.iter_mut() {
+                    match x {
+                        Value::Number(n) if n.is_u64() => {
+                            *x = Value::from(*next);
+                            *next += 1;
+                        }
+                        Value::Object(_) if k == "invalid" => fill(x, next),
+                        _ => {}
+                    }
+                }
+            }
+        }
+        fill(&mut v, &mut next);
+        let mut before = vec![];
+        counters(&v, String::new(), &mut before);
+        assert!(before.len() >= 18, "{before:?}");
+        assert!(before.iter().any(|(k, _)| k == ".enclosure_violations"));
+        let t: Tally = serde_json::from_value(v).unwrap();
+        let mut merged = t.clone();
+        merged.merge(&t);
+        let mut after = vec![];
+        counters(&serde_json::to_value(&merged).unwrap(), String::new(), &mut after);
+        for ((k, a), (k2, b)) in before.iter().zip(&after) {
+            assert_eq!(k, k2);
+            assert_eq!(*b, 2 * a, "{k}: {a} merged with itself gives {b}");
+        }
+    }
+}
