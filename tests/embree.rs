@@ -77,14 +77,23 @@ fn row<'a>(v: &'a Value, method: &str, class: &str) -> &'a Value {
 }
 
 fn n(r: &Value, field: &str) -> u64 {
-    r[field].as_u64().unwrap_or_else(|| panic!("{field} in {r}"))
+    r[field]
+        .as_u64()
+        .unwrap_or_else(|| panic!("{field} in {r}"))
 }
 
 fn wrong(r: &Value) -> u64 {
-    ["false_hit", "false_miss", "wrong_root", "nonfinite_t", "out_of_range", "malformed"]
-        .iter()
-        .map(|f| n(r, f))
-        .sum()
+    [
+        "false_hit",
+        "false_miss",
+        "wrong_root",
+        "nonfinite_t",
+        "out_of_range",
+        "malformed",
+    ]
+    .iter()
+    .map(|f| n(r, f))
+    .sum()
 }
 
 #[test]
@@ -98,8 +107,18 @@ fn embree_triangles_are_watertight_in_robust_mode_and_fail_huge_and_tiny_by_rang
     let (code, table, v) = audit(
         "embree-tri",
         &[
-            "--shape", "triangle", "--cases", "2000", "--plugin", &tri, "--plugin", &robust,
-            "--plugin", &prescaled, "--tolerances", s(&rules),
+            "--shape",
+            "triangle",
+            "--cases",
+            "2000",
+            "--plugin",
+            &tri,
+            "--plugin",
+            &robust,
+            "--plugin",
+            &prescaled,
+            "--tolerances",
+            s(&rules),
         ],
     );
     assert_eq!(code, Some(0), "{table}");
@@ -115,7 +134,10 @@ fn embree_triangles_are_watertight_in_robust_mode_and_fail_huge_and_tiny_by_rang
         let verdict = &row(&v, m, class)["verdict"];
         assert_eq!(verdict["status"], "pass", "{m} {class}: {verdict}");
         assert!(
-            verdict["rule"].as_str().unwrap().contains("tolerances.toml rule"),
+            verdict["rule"]
+                .as_str()
+                .unwrap()
+                .contains("tolerances.toml rule"),
             "{verdict}"
         );
     }
@@ -126,7 +148,14 @@ fn embree_triangles_are_watertight_in_robust_mode_and_fail_huge_and_tiny_by_rang
         .iter()
         .map(|r| r["method"].as_str().unwrap())
         .collect();
-    for m in ["chapter", "moller_trumbore", "watertight", "tri", "tri_robust", "tri_prescaled"] {
+    for m in [
+        "chapter",
+        "moller_trumbore",
+        "watertight",
+        "tri",
+        "tri_robust",
+        "tri_prescaled",
+    ] {
         assert!(methods.contains(&m), "{m} missing from {methods:?}");
     }
     // Watertightness: rows for every outside routine; robust mode never escapes
@@ -145,7 +174,10 @@ fn embree_triangles_are_watertight_in_robust_mode_and_fail_huge_and_tiny_by_rang
     // The default mode leaks at edges and vertices of closed meshes and through folds
     let leaks = escapes("tri", &["edge", "vertex"]);
     let folds = escapes("tri", &["shared_edge"]);
-    assert!(leaks > 0 && folds > 0, "default mode: {leaks} mesh, {folds} fold escapes");
+    assert!(
+        leaks > 0 && folds > 0,
+        "default mode: {leaks} mesh, {folds} fold escapes"
+    );
     assert!(
         table.contains("tri_robust 0 escapes") && !table.contains("tri 0 escapes"),
         "{table}"
@@ -178,7 +210,9 @@ fn embree_spheres_answer_t_zero_on_the_surface_and_it_is_never_ok() {
     let sphere = symbol("sphere_f32");
     let (_, _, v) = audit(
         "embree-sphere",
-        &["--shape", "sphere", "--cases", "2000", "--plugin", &sphere, "--method", "sphere"],
+        &[
+            "--shape", "sphere", "--cases", "2000", "--plugin", &sphere, "--method", "sphere",
+        ],
     );
     let on = row(&v, "sphere", "on_surface");
     // t = 0 from the surface: out of the contract's t > 0, counted (ill-posed or not)

@@ -342,19 +342,38 @@ fn the_exec_format_cases_file_feeds_the_same_child_and_scores_as_the_audit() {
     }
     let lines = std::fs::read_to_string(p("lines.txt")).unwrap();
     let first = lines.lines().next().unwrap();
-    assert!(first.starts_with("f64 0x") || first.starts_with("f64 -0x"), "{first}");
+    assert!(
+        first.starts_with("f64 0x") || first.starts_with("f64 -0x"),
+        "{first}"
+    );
     let cases = std::fs::read_to_string(p("cases.txt")).unwrap();
-    assert_eq!(cases.lines().count(), lines.lines().count() + 1, "one header line");
+    assert_eq!(
+        cases.lines().count(),
+        lines.lines().count() + 1,
+        "one header line"
+    );
     // The child answers the exec-format file as it is
     let answers = Command::new("sh")
-        .args(["-c", &format!("{cmd} < {} > {}", p("lines.txt"), p("answers.txt"))])
+        .args([
+            "-c",
+            &format!("{cmd} < {} > {}", p("lines.txt"), p("answers.txt")),
+        ])
         .status()
         .unwrap();
     assert!(answers.success());
     let score_json = p("score.json");
     let o = rayproof(&[
-        "score", "--cases", &p("cases.txt"), "--answers", &p("answers.txt"), "--method", "py",
-        "--worst", "0", "--json", &score_json,
+        "score",
+        "--cases",
+        &p("cases.txt"),
+        "--answers",
+        &p("answers.txt"),
+        "--method",
+        "py",
+        "--worst",
+        "0",
+        "--json",
+        &score_json,
     ]);
     assert!(o.status.code().is_some_and(|c| c <= 1), "{o:?}");
     let rows = |f: &str| -> Vec<Value> {
@@ -375,8 +394,20 @@ fn the_exec_format_cases_file_feeds_the_same_child_and_scores_as_the_audit() {
 #[test]
 fn a_per_batch_child_with_one_answer_too_many_is_refused() {
     let o = rayproof(&[
-        "audit", "--shape", "sphere", "--class", "random", "--precision", "f32", "--cases", "50",
-        "--exec", "awk '{print 0} END {print \"1 0x1p+0\"}'", "--exec-per-batch", "--timeout", "10",
+        "audit",
+        "--shape",
+        "sphere",
+        "--class",
+        "random",
+        "--precision",
+        "f32",
+        "--cases",
+        "50",
+        "--exec",
+        "awk '{print 0} END {print \"1 0x1p+0\"}'",
+        "--exec-per-batch",
+        "--timeout",
+        "10",
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(4), "{err}");

@@ -469,7 +469,11 @@ mod merge_tests {
         let mut merged = t.clone();
         merged.merge(&t);
         let mut after = vec![];
-        counters(&serde_json::to_value(&merged).unwrap(), String::new(), &mut after);
+        counters(
+            &serde_json::to_value(&merged).unwrap(),
+            String::new(),
+            &mut after,
+        );
         for ((k, a), (k2, b)) in before.iter().zip(&after) {
             assert_eq!(k, k2);
             assert_eq!(*b, 2 * a, "{k}: {a} merged with itself gives {b}");
