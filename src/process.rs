@@ -534,11 +534,28 @@ pub fn run(
     timeout: Duration,
     stdout_cap: usize,
 ) -> Result<Finished, String> {
+    run_and_stderr(what, command, dir, input, timeout, stdout_cap).0
+}
+
+/// [`run`], also returning the command's standard error as far as it got: also when it could
+/// not finish (deadline, output cap), where [`run`] gives only the reason.
+pub fn run_and_stderr(
+    what: &str,
+    command: &str,
+    dir: Option<&Path>,
+    input: &[u8],
+    timeout: Duration,
+    stdout_cap: usize,
+) -> (Result<Finished, String>, String) {
     let deadline = Instant::now() + timeout;
-    let mut s = Session::sh(what, command, dir, &[], stdout_cap)?;
+    let mut s = match Session::sh(what, command, dir, &[], stdout_cap) {
+        Ok(s) => s,
+        Err(e) => return (Err(e), String::new()),
+    };
     let out = s.exchange(input, true, None, deadline);
     let status = s.wait(Duration::from_millis(100));
-    match out {
+    let stderr = s.stderr();
+    let finished = match out {
         Err(Broken::Deadline) => Err(format!(
             "{what}: did not finish within {} s (killed)",
             timeout.as_secs_f64()
@@ -551,9 +568,10 @@ pub fn run(
         Ok(stdout) => Ok(Finished {
             status: status.unwrap_or_else(|| ExitStatus::from_raw(-1)),
             stdout,
-            stderr: s.stderr(),
+            stderr: stderr.clone(),
         }),
-    }
+    };
+    (finished, stderr)
 }
 
 /// The lines of a failed command's standard error that explain it, as one line: those that say
@@ -607,7 +625,28 @@ pub fn run_capped(
     timeout: Duration,
     stdout_cap: usize,
 ) -> Result<String, String> {
-    let f = run(what, command, dir, input.as_bytes(), timeout, stdout_cap)?;
+    output_of(
+        what,
+        run(what, command, dir, input.as_bytes(), timeout, stdout_cap)?,
+    )
+}
+
+/// [`run_with_timeout`], also returning the command's standard error as far as it got (also
+/// when it failed, could not start or was killed): a renderer's log.
+pub fn run_with_timeout_and_stderr(
+    what: &str,
+    command: &str,
+    dir: Option<&Path>,
+    input: String,
+    timeout: Duration,
+) -> (Result<String, String>, String) {
+    let (f, stderr) = run_and_stderr(what, command, dir, input.as_bytes(), timeout, STDOUT_CAP);
+    (f.and_then(|f| output_of(what, f)), stderr)
+}
+
+/// A finished command's standard output, or why it failed (its exit status and the lines of
+/// its standard error that explain it).
+fn output_of(what: &str, f: Finished) -> Result<String, String> {
     if !f.status.success() {
         let why = explain(&f.stderr);
         let status = match f.status.signal() {

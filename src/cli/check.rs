@@ -100,12 +100,11 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     let rows = &out.rows;
     say_raw!("{}", check::table(rows));
     say!(
-        "{}: {} comparisons in {:.1} s: {} failing, {} refused",
+        "{}: {} comparisons in {:.1} s: {}",
         suite.name,
         rows.len(),
         start.elapsed().as_secs_f64(),
-        out.failed() - out.refused(),
-        out.refused()
+        check::counts(rows)
     );
     if out.update_withheld {
         say!("--update wrote nothing: a test was refused (fix it first)");

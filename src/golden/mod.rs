@@ -43,9 +43,11 @@
 //!   mismatched sampling grids, NaN/Inf pixels in either image.
 //! - **Outputs**: the terminal table (failures first, refusals first of all), `--report DIR` (the
 //!   HTML page, in the style of Blender's render report: failures first; tone-mapped new and
-//!   reference images that swap on hover, and an HDR-ꟻLIP heat map; the metrics beside them),
-//!   `--json`, `--markdown`, `--junit` (JUnit XML: failures as `<failure>`, refusals as `<error>`,
-//!   skipped optional references as `<skipped>`).
+//!   reference images that swap on hover, the failing pixels, the |difference| normalised to
+//!   its maximum (a 1e-6 change shows) with the maximum ringed, and an HDR-ꟻLIP heat map; the
+//!   metrics beside them; [`html()`]), `--json`, `--markdown`, `--junit` (JUnit XML valid against
+//!   `junit-10.xsd`: failures, XPASS and NEW as `<failure>`, refusals as `<error>`, XFAIL and
+//!   skipped optional references as `<skipped>`, times that add up; the table in [`junit()`]).
 //! - **Exit codes** of `check`: 0 every comparison passes (warnings, XFAIL and SKIPPED included);
 //!   1 a comparison fails (FAILURE, XPASS, a missing golden); 2 the suite file does not validate
 //!   or bad usage (one line, nothing runs); 3 a test was refused: its renderer command failed,
@@ -242,7 +244,7 @@ pub mod suite;
 pub use html::html;
 pub use junit::junit;
 pub use references::{sha256_file, utc_now, Config, Provenance, Rule};
-pub use rows::{markdown, table, Row, Status};
+pub use rows::{counts, log_tail, markdown, table, ReportImages, Row, Status, LOG_TAIL_LINES};
 pub use suite::{Source, Suite, Test};
 
 use crate::images::{self, Comparison, Image, Verdict, ZParams};
@@ -309,7 +311,6 @@ struct Made {
     file: PathBuf,
     image: Image,
     variance: Option<Image>,
-    seconds: f64,
     /// How it was made, for a golden's manifest entry.
     command: String,
     renderer: String,
@@ -322,9 +323,15 @@ struct Frame {
     grid: Option<u32>,
 }
 
-/// Makes the test image: reads it, runs the renderer command, or renders the scene.
-fn make(suite: &Suite, t: &Test, frame: Frame, scratch: &Path) -> Result<Made, String> {
-    let start = Instant::now();
+/// Makes the test image: reads it, runs the renderer command, or renders the scene; `log`
+/// gets the tail of a renderer command's standard error (also when it fails).
+fn make(
+    suite: &Suite,
+    t: &Test,
+    frame: Frame,
+    scratch: &Path,
+    log: &mut Option<String>,
+) -> Result<Made, String> {
     let out = scratch.join(format!("{}.exr", t.name));
     let var = scratch.join(format!("{}.variance.exr", t.name));
     let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
@@ -396,13 +403,15 @@ fn make(suite: &Suite, t: &Test, frame: Frame, scratch: &Path) -> Result<Made, S
                 }
             }
             let command = suite::fill(template, &values);
-            crate::process::run_with_timeout(
+            let (ran, stderr) = crate::process::run_with_timeout_and_stderr(
                 "renderer",
                 &command,
                 Some(&suite.dir),
                 String::new(),
                 suite.timeout,
-            )?;
+            );
+            *log = rows::log_tail(&stderr);
+            ran?;
             if !out.exists() {
                 return Err(format!(
                     "renderer exited 0 but wrote no image ('{command}')"
@@ -427,7 +436,6 @@ fn make(suite: &Suite, t: &Test, frame: Frame, scratch: &Path) -> Result<Made, S
         file,
         image,
         variance,
-        seconds: start.elapsed().as_secs_f64(),
         command,
         renderer,
     })
@@ -578,6 +586,9 @@ fn row(t: &Test, reference: &str, status: Status, note: String) -> Row {
             .or(t.golden.as_ref().map(|g| g.1.clone()))
             .unwrap_or_else(|| Rule::from_layers(&[]).expect("defaults parse")),
         render_seconds: 0.0,
+        seconds: 0.0,
+        replay: String::new(),
+        log_tail: None,
         images: None,
     }
 }
@@ -587,7 +598,22 @@ type TestRun = (Vec<Row>, Option<(Made, Frame)>);
 
 /// One test: its references checked, its image made, every comparison judged. Also returns
 /// the image (for `--update`) when the golden comparison failed or the golden is missing.
+/// Times it as [`Row::seconds`] says: each row its own comparison, the first row that is not
+/// a skipped optional reference (else the first) also the rest of the test's wall time
+/// (references, render), so the render is counted once.
 fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<TestRun> {
+    let start = Instant::now();
+    let (mut rows, made) = judge_test(suite, t, o, scratch)?;
+    let compared: f64 = rows.iter().map(|r| r.seconds).sum();
+    let first = rows.iter().position(|r| r.status != Status::Skipped);
+    if let Some(r) = first.or((!rows.is_empty()).then_some(0)) {
+        rows[r].seconds += (start.elapsed().as_secs_f64() - compared).max(0.0);
+    }
+    Ok((rows, made))
+}
+
+/// [`run_test`] without the test's own time: rows carry their comparison's time only.
+fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<TestRun> {
     let mut rows = vec![];
     // The scene's hash, for stale references
     let scene_sha = match &t.scene {
@@ -689,16 +715,23 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
             *slot = said.first().map(|s| s.1);
         }
     }
-    // Make the test image once
-    let made = match make(suite, t, frame, scratch) {
+    // Make the test image once; every row of the test gets its time and log
+    let mut log = None;
+    let rendering = Instant::now();
+    let made = make(suite, t, frame, scratch, &mut log);
+    let render_seconds = rendering.elapsed().as_secs_f64();
+    for r in rows.iter_mut() {
+        (r.render_seconds, r.log_tail) = (render_seconds, log.clone());
+    }
+    let made = match made {
         Ok(m) => m,
         Err(e) => {
             let why = format!("test image: {e}");
-            rows.extend(
-                loaded
-                    .iter()
-                    .map(|(n, ..)| row(t, n, Status::Refused, why.clone())),
-            );
+            rows.extend(loaded.iter().map(|(n, ..)| Row {
+                render_seconds,
+                log_tail: log.clone(),
+                ..row(t, n, Status::Refused, why.clone())
+            }));
             if golden_missing {
                 for r in rows.iter_mut().filter(|r| r.reference == "golden") {
                     (r.status, r.note) = (Status::Refused, why.clone());
@@ -714,9 +747,14 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
     };
     let mut golden_failed = golden_missing;
     for (name, rule, reference, prov) in &loaded {
+        let comparing = Instant::now();
         let mut r = row(t, name, Status::Refused, String::new());
-        (r.rule, r.renderer, r.render_seconds) =
-            ((*rule).clone(), prov.renderer.clone(), made.seconds);
+        (r.rule, r.renderer, r.render_seconds, r.log_tail) = (
+            (*rule).clone(),
+            prov.renderer.clone(),
+            render_seconds,
+            log.clone(),
+        );
         r.warnings = warnings(reference, prov, &made, frame_grid);
         match images::compare(reference, &made.image, &rule.idiff) {
             Err(e) => {
@@ -736,6 +774,7 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
                             Err(e) => {
                                 (r.status, r.note) =
                                     (Status::Refused, format!("the variance image: {e}"));
+                                r.seconds = comparing.elapsed().as_secs_f64();
                                 rows.push(r);
                                 continue;
                             }
@@ -754,7 +793,7 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
                 let nonfinite = (!t.allow_nonfinite).then(|| nan_inf_pixels(&made.image));
                 (r.status, r.note) = judge(&c, z.as_ref(), rule, nonfinite);
                 if let (Some(dir), Some(map)) = (&o.report, map) {
-                    r.images = Some(write_images(dir, &r, reference, &made.image, &map)?);
+                    r.images = Some(write_images(dir, &r, reference, &made.image, &map, rule)?);
                 }
                 r.comparison = Some(c);
                 r.ztest = z;
@@ -763,9 +802,38 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
         if *name == "golden" && matches!(r.status, Status::Failure | Status::New) {
             golden_failed = true;
         }
+        r.seconds = comparing.elapsed().as_secs_f64();
         rows.push(r);
     }
     Ok((rows, golden_failed.then_some((made, frame))))
+}
+
+/// The command that runs one test again: `rayproof check --suite SUITE --test NAME`, with the
+/// method and precision of an extra configuration (`extra`); paths and names quoted for `sh`
+/// when they need it.
+fn replay_command(suite: &Suite, t: &Test, extra: bool) -> String {
+    let q = |s: &str| {
+        let plain = !s.is_empty()
+            && s.chars()
+                .all(|c| c.is_ascii_alphanumeric() || "-_./,:+=@%".contains(c));
+        if plain {
+            s.to_string()
+        } else {
+            format!("'{}'", s.replace('\'', r"'\''"))
+        }
+    };
+    let mut c = format!(
+        "rayproof check --suite {} --test {}",
+        q(&suite.path.display().to_string()),
+        q(&t.name)
+    );
+    if let (true, Source::Rayproof(cfg)) = (extra, &t.source) {
+        c += &format!(
+            " --method {} --precision {}",
+            cfg.method.name, cfg.precision
+        );
+    }
+    c
 }
 
 /// Runs a suite; `--update` stages goldens into `outputs` (committed with the run's other
@@ -807,13 +875,18 @@ pub fn run(suite: &Suite, o: &Options, outputs: &mut crate::output::Outputs) -> 
         })
         .filter(|t| !t.references.is_empty())
         .collect();
+    let own = tests.len();
     tests.extend(extra);
     // Run every test
     let scratch = crate::output::ScratchDir::new("check")?;
     let mut rows = vec![];
     let mut to_bless = vec![];
-    for t in &tests {
-        let (r, made) = run_test(suite, t, o, &scratch.0)?;
+    for (i, t) in tests.iter().enumerate() {
+        let (mut r, made) = run_test(suite, t, o, &scratch.0)?;
+        let replay = replay_command(suite, t, i >= own);
+        for row in &mut r {
+            row.replay = replay.clone();
+        }
         rows.extend(r);
         if let (Some(m), Some((golden, _))) = (made, &t.golden) {
             to_bless.push((t, golden.clone(), m));
@@ -878,23 +951,36 @@ pub fn run(suite: &Suite, o: &Options, outputs: &mut crate::output::Outputs) -> 
     })
 }
 
-/// Tone-mapped PNGs of the new render, the reference and the ꟻLIP heat map.
+/// The report's PNGs of one comparison: the new render and the reference tone-mapped, the
+/// failing-pixel mask, the normalised |difference| map and the ꟻLIP heat map.
 fn write_images(
     dir: &Path,
     row: &Row,
     reference: &Image,
     img: &Image,
-    map: &[f32],
-) -> Result<[String; 3]> {
+    flip: &[f32],
+    rule: &Rule,
+) -> Result<ReportImages> {
     let config = row.config.replace(' ', "-");
-    let names = [
-        format!("{}-new-{config}.png", row.test),
-        format!("{}-{}.png", row.test, row.reference),
-        format!("{}-{}-{config}-flip.png", row.test, row.reference),
-    ];
+    let pair = format!("{}-{}-{config}", row.test, row.reference);
     let (w, h) = (img.width, img.height);
-    images::write_png_rgb8(&dir.join(&names[0]), w, h, &images::tonemap_rgb8(img))?;
-    images::write_png_rgb8(&dir.join(&names[1]), w, h, &images::tonemap_rgb8(reference))?;
-    images::write_png_rgb8(&dir.join(&names[2]), w, h, &images::heatmap_rgb8(map, w, h))?;
-    Ok(names)
+    let new_rgb = images::tonemap_rgb8(img);
+    let mask = images::fail_mask(reference, img, &rule.idiff)?;
+    let diff = images::diff_map(reference, img)?;
+    let out = ReportImages {
+        new: format!("{}-new-{config}.png", row.test),
+        reference: format!("{}-{}.png", row.test, row.reference),
+        mask: format!("{pair}-mask.png"),
+        diff: format!("{pair}-diff.png"),
+        flip: format!("{pair}-flip.png"),
+        diff_scale: diff.scale,
+        mask_pixels: mask.iter().filter(|&&m| m).count() as u64,
+    };
+    let png = |name: &str, rgb: &[u8]| images::write_png_rgb8(&dir.join(name), w, h, rgb);
+    png(&out.new, &new_rgb)?;
+    png(&out.reference, &images::tonemap_rgb8(reference))?;
+    png(&out.mask, &images::mask_rgb8(&mask, &new_rgb))?;
+    png(&out.diff, &images::diff_map_rgb8(&diff, w, h))?;
+    png(&out.flip, &images::heatmap_rgb8(flip, w, h))?;
+    Ok(out)
 }

@@ -79,11 +79,70 @@ pub struct Row {
     pub ztest: Option<ZTest>,
     /// The thresholds applied.
     pub rule: Rule,
-    /// Seconds spent making the test image.
+    /// Seconds spent making the test image (the test's render: the same on each of its rows,
+    /// also when the render failed or was killed at its timeout).
     pub render_seconds: f64,
+    /// This row's share of the run's time, what JUnit reports as the case's time: its own
+    /// comparison (metrics, ꟻLIP, z-test, report images), and for the first row of each test
+    /// that is not a skipped optional reference also everything the test did once (reading and
+    /// hashing references, the render). So a
+    /// test's render is counted once, the rows of a test add up to its wall time, and the rows
+    /// of a run add up to the time spent in its tests.
+    pub seconds: f64,
+    /// The command that runs this comparison again (`rayproof check --suite … --test …`).
+    pub replay: String,
+    /// The last lines of the renderer's standard error (up to [`LOG_TAIL_LINES`] non-empty
+    /// lines), when a renderer command made the test image and wrote any; also when it failed or
+    /// was killed.
+    pub log_tail: Option<String>,
     /// Report images, relative to the report directory.
     #[serde(skip)]
-    pub images: Option<[String; 3]>,
+    pub images: Option<ReportImages>,
+}
+
+/// How many lines of a renderer's standard error a row keeps ([`Row::log_tail`]).
+pub const LOG_TAIL_LINES: usize = 20;
+
+/// The last [`LOG_TAIL_LINES`] non-empty lines of a command's standard error (right-trimmed),
+/// or `None` when it wrote nothing but blank lines.
+pub fn log_tail(stderr: &str) -> Option<String> {
+    let lines: Vec<&str> = stderr
+        .lines()
+        .map(str::trim_end)
+        .filter(|l| !l.trim().is_empty())
+        .collect();
+    let tail = &lines[lines.len().saturating_sub(LOG_TAIL_LINES)..];
+    (!tail.is_empty()).then(|| tail.join("\n"))
+}
+
+/// The report images of one comparison (file names relative to the report directory) and what
+/// the page prints beside them.
+#[derive(Clone, Debug)]
+pub struct ReportImages {
+    /// The test image, tone-mapped.
+    pub new: String,
+    /// The reference, tone-mapped.
+    pub reference: String,
+    /// The failing pixels (those the comparison counts as over `fail`) in red over the test
+    /// image dimmed to grey.
+    pub mask: String,
+    /// The per-pixel largest channel |test − reference|, divided by its maximum `diff_scale`.
+    pub diff: String,
+    /// The ꟻLIP heat map.
+    pub flip: String,
+    /// The difference that shows as the top of the |difference| map's colour scale: the
+    /// largest finite |test − reference| (0 when the images are equal).
+    pub diff_scale: f64,
+    /// Failing pixels in the mask (equal to the comparison's count of pixels over `fail`).
+    pub mask_pixels: u64,
+}
+
+/// The run's counts as the terminal's last line and the HTML header print them:
+/// `2 failing, 1 refused` (failing: FAILURE, XPASS and NEW rows; refused: REFUSED rows).
+pub fn counts(rows: &[Row]) -> String {
+    let refused = rows.iter().filter(|r| r.status == Status::Refused).count();
+    let failing = rows.iter().filter(|r| r.status.is_failure()).count() - refused;
+    format!("{failing} failing, {refused} refused")
 }
 
 /// The text table: one line per row.

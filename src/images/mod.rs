@@ -79,6 +79,7 @@
 
 mod flip;
 mod io;
+mod maps;
 mod metrics;
 mod report;
 mod ztest;
@@ -88,6 +89,7 @@ pub use io::one_line;
 pub use io::{
     read_image, tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError, MAX_PIXELS,
 };
+pub use maps::{diff_map, diff_map_rgb8, fail_mask, mask_rgb8, DiffMap};
 pub use metrics::{
     abs_diff, abs_error_map, compare, compare_as, verdict, Comparison, Semantics, SizeMismatch,
     Thresholds, Verdict,
