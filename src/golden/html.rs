@@ -52,8 +52,13 @@ pub fn html(rows: &[Row], title: &str) -> String {
             .iter()
             .map(|w| format!("<br><small class=\"w\">warning: {}</small>", esc(w)))
             .collect();
+        let log = r
+            .log
+            .as_ref()
+            .map(|l| format!("<br><a href=\"{}\">renderer log</a>", esc(l)))
+            .unwrap_or_default();
         body += &format!(
-            "<tr class=\"{class}\"><td><b>{}</b><br>vs {} ({})<br>{}<br><b>{}</b><br><small>{}</small>{warnings}</td>{imgs}<td class=\"m\">{metrics}</td></tr>\n",
+            "<tr class=\"{class}\"><td><b>{}</b><br>vs {} ({})<br>{}<br><b>{}</b><br><small>{}</small>{warnings}{log}</td>{imgs}<td class=\"m\">{metrics}</td></tr>\n",
             esc(&r.test),
             esc(&r.reference),
             esc(&r.renderer),

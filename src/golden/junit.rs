@@ -52,6 +52,9 @@ pub fn junit(rows: &[Row], suite_name: &str) -> String {
         for w in &r.warnings {
             out += &format!("\nwarning: {w}");
         }
+        if let Some(l) = &r.log {
+            out += &format!("\nrenderer log: {l} (in the report directory)");
+        }
         case.set_system_out(out);
         suite.add_test_case(case);
     }
