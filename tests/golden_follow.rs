@@ -224,17 +224,29 @@ fn the_manifest_records_the_command_as_written_and_each_tests_own_scene_and_inpu
     );
 }
 
-/// An EXR of `parts` one-pixel RGB parts (layers), written with the exr crate.
-fn many_layer_exr(path: &Path, parts: usize) {
+/// An EXR of `parts` one-pixel parts, each with `groups` layers of R, G, B channels (named
+/// `LAYER.R` … when more than one, as Blender's multilayer files), written with the exr crate.
+fn many_layer_exr(path: &Path, parts: usize, groups: usize) {
     use exr::prelude::*;
     let layers: Vec<Layer<AnyChannels<FlatSamples>>> = (0..parts)
         .map(|i| {
-            let ch = |n: &str| AnyChannel::new(n, FlatSamples::F32(vec![0.5]));
+            let ch = |n: String| AnyChannel::new(n.as_str(), FlatSamples::F32(vec![0.5]));
+            let list: Vec<AnyChannel<FlatSamples>> = (0..groups)
+                .flat_map(|g| {
+                    ["R", "G", "B"].map(|c| {
+                        ch(if groups == 1 {
+                            c.to_string()
+                        } else {
+                            format!("L{g}.{c}")
+                        })
+                    })
+                })
+                .collect();
             Layer::new(
                 (1, 1),
                 LayerAttributes::named(format!("layer{i}").as_str()),
                 Encoding::UNCOMPRESSED,
-                AnyChannels::sort(vec![ch("B"), ch("G"), ch("R")].into()),
+                AnyChannels::sort(list.into()),
             )
         })
         .collect();
@@ -251,7 +263,7 @@ fn many_layer_exr(path: &Path, parts: usize) {
 fn bad_renderer_outputs_are_one_line_the_test_refused_nothing_blessed() {
     // What the "renderer" leaves at {out} (a shell command), and what the row must say
     let png = "cp good.png {out}";
-    let cases: [(&str, &str, &str); 7] = [
+    let cases: [(&str, &str, &str); 8] = [
         (
             "directory",
             "mkdir {out}",
@@ -275,9 +287,14 @@ fn bad_renderer_outputs_are_one_line_the_test_refused_nothing_blessed() {
             "is not a file of the test's output format, OpenEXR",
         ),
         (
-            "layers",
-            "cp layers.exr {out}",
-            "it has 10000 parts (layers); at most 64 are read",
+            "parts",
+            "cp parts.exr {out}",
+            "it has 10000 layers (in 10000 part(s)); at most 256",
+        ),
+        (
+            "channel-layers",
+            "cp groups.exr {out}",
+            "it has 10000 layers (in 1 part(s)); at most 256",
         ),
     ];
     let dir = scratch("bad-outputs");
@@ -297,7 +314,8 @@ fn bad_renderer_outputs_are_one_line_the_test_refused_nothing_blessed() {
         &rayproof::images::tonemap_rgb8(&img),
     )
     .unwrap();
-    many_layer_exr(&dir.join("layers.exr"), 10_000);
+    many_layer_exr(&dir.join("parts.exr"), 10_000, 1);
+    many_layer_exr(&dir.join("groups.exr"), 1, 10_000);
     for (tag, command, want) in cases {
         // A blessed golden for t; u has none yet
         let suite = |cmd: &str| {
@@ -324,6 +342,7 @@ fn bad_renderer_outputs_are_one_line_the_test_refused_nothing_blessed() {
         let row = line(&out, "t", "golden");
         assert!(row.contains(want), "{tag}: {row}");
         assert!(row.contains("test image"), "{tag}: {row}");
+        assert!(row.len() < 800, "{tag}: a line of {} bytes", row.len());
         // One line: the row has no continuation, stderr says nothing more
         let next = out.lines().skip_while(|l| *l != row).nth(1).unwrap_or("");
         assert!(!next.starts_with(' '), "{tag}: {out}");
