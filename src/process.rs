@@ -534,12 +534,12 @@ pub fn run(
     timeout: Duration,
     stdout_cap: usize,
 ) -> Result<Finished, String> {
-    run_and_stderr(what, command, dir, input, timeout, stdout_cap).0
+    run_logged(what, command, dir, input, timeout, stdout_cap).0
 }
 
-/// [`run`], also returning the command's standard error as far as it got: also when it could
-/// not finish (deadline, output cap), where [`run`] gives only the reason.
-pub fn run_and_stderr(
+/// [`run`], and the standard error the command wrote (its first and last 64 KiB) however the
+/// run ended: a renderer's log is wanted most when it was killed at its deadline.
+pub fn run_logged(
     what: &str,
     command: &str,
     dir: Option<&Path>,
@@ -555,7 +555,7 @@ pub fn run_and_stderr(
     let out = s.exchange(input, true, None, deadline);
     let status = s.wait(Duration::from_millis(100));
     let stderr = s.stderr();
-    let finished = match out {
+    let r = match out {
         Err(Broken::Deadline) => Err(format!(
             "{what}: did not finish within {} s (killed)",
             timeout.as_secs_f64()
@@ -571,35 +571,88 @@ pub fn run_and_stderr(
             stderr: stderr.clone(),
         }),
     };
-    (finished, stderr)
+    (r, stderr)
 }
 
-/// The lines of a failed command's standard error that explain it, as one line: those that say
-/// error, fatal or cannot, then the last three non-empty lines (a renderer's first line is often
-/// noise, its last ones the reason), without repeats, joined by ` | `.
+/// Lines of a renderer's standard error that say nothing about why it failed, though they say
+/// `cannot`, `error` or `fatal`: POV-Ray 3.7 prints `povray: cannot open the user configuration
+/// file …` on every run without one, and its option listing has `Fatal Stream to
+/// console.........On` (settings with dot leaders).
+fn noise(line: &str) -> bool {
+    let l = line.to_lowercase();
+    // A setting: a label of words, then dot leaders
+    let setting = line.find("....").is_some_and(|i| {
+        i > 0
+            && line[..i]
+                .chars()
+                .all(|c| c.is_ascii_alphabetic() || c == ' ')
+    });
+    l.contains("cannot open the user configuration file") || setting
+}
+
+/// The lines of a failed command's standard error that explain it, as one line: the first four
+/// that say error, fatal or cannot (or can't, failed, traceback, out of memory), and the last
+/// three non-empty lines (a renderer's first line is often noise, its last ones the reason), in
+/// the order written, without repeats or known noise ([`noise`]), joined by ` | `; at most 600
+/// characters, its end kept (where the reason is).
 pub fn explain(stderr: &str) -> String {
     let lines: Vec<&str> = stderr
         .lines()
         .map(str::trim)
-        .filter(|l| !l.is_empty())
+        .filter(|l| !l.is_empty() && !noise(l))
         .collect();
     let says = |l: &str| {
         let l = l.to_lowercase();
-        ["error", "fatal", "cannot", "can't", "failed", "traceback"]
-            .iter()
-            .any(|w| l.contains(w))
+        [
+            "error",
+            "fatal",
+            "cannot",
+            "can't",
+            "failed",
+            "traceback",
+            "out of memory",
+        ]
+        .iter()
+        .any(|w| l.contains(w))
     };
-    let mut picked: Vec<&str> = lines.iter().copied().filter(|l| says(l)).take(3).collect();
-    for l in &lines[lines.len().saturating_sub(3)..] {
-        if !picked.contains(l) {
-            picked.push(l);
+    let says_idx: Vec<usize> = (0..lines.len())
+        .filter(|&i| says(lines[i]))
+        .take(4)
+        .collect();
+    let last = lines.len().saturating_sub(3)..lines.len();
+    let mut picked: Vec<&str> = vec![];
+    for i in 0..lines.len() {
+        if (says_idx.contains(&i) || last.contains(&i)) && !picked.contains(&lines[i]) {
+            picked.push(lines[i]);
         }
     }
-    let mut s = picked.join(" | ");
-    if s.chars().count() > 600 {
-        s = s.chars().take(600).collect::<String>() + " …";
+    let s = picked.join(" | ");
+    let n = s.chars().count();
+    if n > 600 {
+        return "… ".to_string() + &s.chars().skip(n - 600).collect::<String>();
     }
     s
+}
+
+/// Why a finished command failed, one line (`None`: it exited 0): `WHAT failed (exit status:
+/// N): ` and the lines of its standard error that explain it ([`explain`]).
+pub fn failure(what: &str, f: &Finished) -> Option<String> {
+    if f.status.success() {
+        return None;
+    }
+    let why = explain(&f.stderr);
+    let status = match f.status.signal() {
+        Some(s) => format!("signal: {s}"),
+        None => format!("exit status: {}", f.status.code().unwrap_or(-1)),
+    };
+    Some(format!(
+        "{what} failed ({status}){}",
+        if why.is_empty() {
+            String::new()
+        } else {
+            format!(": {why}")
+        }
+    ))
 }
 
 /// Runs `sh -c command` as [`run`] does and returns its standard output as text (invalid UTF-8
@@ -625,42 +678,9 @@ pub fn run_capped(
     timeout: Duration,
     stdout_cap: usize,
 ) -> Result<String, String> {
-    output_of(
-        what,
-        run(what, command, dir, input.as_bytes(), timeout, stdout_cap)?,
-    )
-}
-
-/// [`run_with_timeout`], also returning the command's standard error as far as it got (also
-/// when it failed, could not start or was killed): a renderer's log.
-pub fn run_with_timeout_and_stderr(
-    what: &str,
-    command: &str,
-    dir: Option<&Path>,
-    input: String,
-    timeout: Duration,
-) -> (Result<String, String>, String) {
-    let (f, stderr) = run_and_stderr(what, command, dir, input.as_bytes(), timeout, STDOUT_CAP);
-    (f.and_then(|f| output_of(what, f)), stderr)
-}
-
-/// A finished command's standard output, or why it failed (its exit status and the lines of
-/// its standard error that explain it).
-fn output_of(what: &str, f: Finished) -> Result<String, String> {
-    if !f.status.success() {
-        let why = explain(&f.stderr);
-        let status = match f.status.signal() {
-            Some(s) => format!("signal: {s}"),
-            None => format!("exit status: {}", f.status.code().unwrap_or(-1)),
-        };
-        return Err(format!(
-            "{what} failed ({status}){}",
-            if why.is_empty() {
-                String::new()
-            } else {
-                format!(": {why}")
-            }
-        ));
+    let f = run(what, command, dir, input.as_bytes(), timeout, stdout_cap)?;
+    if let Some(e) = failure(what, &f) {
+        return Err(e);
     }
     Ok(String::from_utf8_lossy(&f.stdout).into_owned())
 }

@@ -129,7 +129,7 @@ fn a_tampered_hash_is_refused() {
 }
 
 #[test]
-fn a_changed_scene_makes_every_reference_stale() {
+fn a_changed_scene_refuses_stale_external_references_and_compares_a_stale_golden() {
     let dir = fixture("stale");
     let s = dir.join("scenes/diffuse.toml");
     let text = std::fs::read_to_string(&s).unwrap();
@@ -140,10 +140,21 @@ fn a_changed_scene_makes_every_reference_stale() {
     .unwrap();
     let (code, out, _) = check(&dir, &[]);
     assert_eq!(code, Some(3), "{out}");
-    for r in ["povray", "mitsuba", "golden"] {
+    // External references cannot be re-made by rayproof: refused
+    for r in ["povray", "mitsuba"] {
         assert_eq!(status(&out, r), "REFUSED", "{out}");
     }
-    assert!(out.contains("another version of the scene"), "{out}");
+    assert!(
+        out.contains("was made from another version of the scene scenes/diffuse.toml: re-render it"),
+        "{out}"
+    );
+    // rayproof's own golden is rendered and compared (the albedo changed: it fails), and
+    // said to be stale
+    assert_eq!(status(&out, "golden"), "FAILURE", "{out}");
+    assert!(
+        out.contains("warning: stale golden: made from another version of the scene scenes/diffuse.toml"),
+        "{out}"
+    );
 }
 
 #[test]

@@ -131,5 +131,11 @@ fn row(r: &Row) -> String {
     for w in &r.warnings {
         name += &format!("<br><small class=\"w\">warning: {}</small>", esc(w));
     }
+    if let Some(s) = &r.stale {
+        name += &format!("<br><small class=\"w\">stale golden: {}</small>", esc(s));
+    }
+    if let Some(l) = &r.log {
+        name += &format!("<br><a href=\"{}\">renderer log</a>", esc(l));
+    }
     format!("<tr class=\"{class}\"><td>{name}</td>{imgs}<td class=\"m\">{metrics}</td></tr>\n")
 }

@@ -214,6 +214,9 @@ fn summary(r: &Row) -> String {
     for w in &r.warnings {
         s += &format!("\nwarning: {w}");
     }
+    if let Some(l) = &r.log {
+        s += &format!("\nrenderer log: {l} (in the report directory)");
+    }
     s
 }
 
@@ -274,6 +277,9 @@ fn details(r: &Row) -> String {
             "renderer log (its last {} non-empty lines at most):\n{log}\n",
             super::rows::LOG_TAIL_LINES
         );
+    }
+    if let Some(l) = &r.log {
+        s += &format!("whole renderer log: {l} (in the report directory)\n");
     }
     s
 }

@@ -234,6 +234,7 @@
 //! | mirror | povray | rtg7 f64 | PASS | 1.28e-6 | 2.79e-6 | 111.1 | 0.000 | 0.000 % | 0.0001 |
 //! | mirror | rayproof | promote f64 | PASS | 0.00e0 | 0.00e0 | inf | 0.000 | 0.000 % | 0.0000 |
 
+pub mod formats;
 mod html;
 mod junit;
 mod references;
@@ -250,7 +251,7 @@ pub use suite::{Source, Suite, Test};
 use crate::images::{self, Comparison, Image, Verdict, ZParams};
 use crate::render::{self, scene};
 use anyhow::{bail, Result};
-use references::{bless, verified_reference, Blessing};
+use references::{bless, verified_reference, Blessing, Sources};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -307,40 +308,94 @@ impl Outcome {
 
 /// The test image, however it was made.
 struct Made {
-    /// The file it was read from (copied by `--update`).
-    file: PathBuf,
     image: Image,
+    /// The bytes it was decoded from (what `--update` blesses: the image compared) and their
+    /// format.
+    bytes: Vec<u8>,
+    format: formats::Format,
     variance: Option<Image>,
-    /// How it was made, for a golden's manifest entry.
+    /// How it was made, for a golden's manifest entry: the command as the suite writes it.
     command: String,
     renderer: String,
 }
 
-/// The width and sampling grid a test image is made with, and where they came from.
+/// The frame a test image is made with, and where it came from.
 #[derive(Clone, Copy, Default)]
 struct Frame {
     width: Option<u32>,
+    height: Option<u32>,
     grid: Option<u32>,
 }
 
-/// Makes the test image: reads it, runs the renderer command, or renders the scene; `log`
-/// gets the tail of a renderer command's standard error (also when it fails).
+/// At most this much of a renderer's standard output goes into its log (the first and last
+/// halves).
+const LOG_STDOUT_KEEP: usize = 128 << 10;
+
+/// The log of one renderer run: the command as run, how it ended, its standard error and
+/// output.
+fn renderer_log(
+    command: &str,
+    dir: &Path,
+    ran: &Result<crate::process::Finished, String>,
+    stderr: &str,
+) -> String {
+    let mut log = format!("$ {command}\n# in {}\n", dir.display());
+    match ran {
+        Ok(f) => log += &format!("# {}\n", f.status),
+        Err(e) => log += &format!("# {e}\n"),
+    }
+    log += "--- standard error ---\n";
+    log += stderr;
+    if !log.ends_with('\n') {
+        log.push('\n');
+    }
+    if let Ok(f) = ran {
+        log += "--- standard output ---\n";
+        let out = &f.stdout;
+        if out.len() > LOG_STDOUT_KEEP {
+            let half = LOG_STDOUT_KEEP / 2;
+            log += &String::from_utf8_lossy(&out[..half]);
+            log += &format!(
+                "\n[… {} bytes of standard output left out …]\n",
+                out.len() - 2 * half
+            );
+            log += &String::from_utf8_lossy(&out[out.len() - half..]);
+        } else {
+            log += &String::from_utf8_lossy(out);
+        }
+    }
+    log
+}
+
+/// Makes the test image: reads it, runs the renderer command, or renders the scene. Also
+/// returns the renderer's whole log and the tail of its standard error (a command's only),
+/// however the run ended.
 fn make(
     suite: &Suite,
     t: &Test,
     frame: Frame,
     scratch: &Path,
+) -> (Result<Made, String>, Option<String>, Option<String>) {
+    let (mut log, mut tail) = (None, None);
+    let made = make_logged(suite, t, frame, scratch, &mut log, &mut tail);
+    (made, log, tail)
+}
+
+fn make_logged(
+    suite: &Suite,
+    t: &Test,
+    frame: Frame,
+    scratch: &Path,
     log: &mut Option<String>,
+    tail: &mut Option<String>,
 ) -> Result<Made, String> {
-    let out = scratch.join(format!("{}.exr", t.name));
+    let out = scratch.join(format!("{}.{}", t.name, t.out_ext));
     let var = scratch.join(format!("{}.variance.exr", t.name));
     let abs = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
     let (file, command, renderer) = match &t.source {
         suite::Source::Image(p) => {
-            if !p.exists() {
-                return Err(format!("no image at {}", p.display()));
-            }
-            (p.clone(), format!("(image {})", p.display()), String::new())
+            // The user's own file: a link to it is followed
+            (abs(p), format!("(image {})", p.display()), String::new())
         }
         suite::Source::Rayproof(cfg) => {
             // Render in process at the frame's size and grid, written as the golden would be
@@ -373,7 +428,7 @@ fn make(
                 fr.grid * fr.grid
             );
             (
-                out,
+                out.clone(),
                 command,
                 format!("rayproof {}", env!("CARGO_PKG_VERSION")),
             )
@@ -383,7 +438,11 @@ fn make(
             let keys = suite::placeholders(template)?;
             let need = |k: &str, v: Option<u32>| -> Result<String, String> {
                 v.map(|x| x.to_string()).ok_or_else(|| {
-                    format!("the command uses {{{k}}} but neither the test nor a reference's manifest gives a {}", if k == "width" { "width" } else { "grid" })
+                    let what = match k {
+                        "width" | "height" => k,
+                        _ => "grid",
+                    };
+                    format!("the command uses {{{k}}} but neither the test nor a reference's manifest gives a {what}")
                 })
             };
             let mut values = vec![
@@ -394,51 +453,118 @@ fn make(
             if let Some(s) = &t.scene {
                 values.push(("scene", abs(s).display().to_string()));
             }
-            for k in keys {
+            for k in &keys {
                 match k.as_str() {
                     "width" => values.push(("width", need("width", frame.width)?)),
+                    "height" => values.push(("height", need("height", frame.height)?)),
                     "grid" => values.push(("grid", need("grid", frame.grid)?)),
                     "spp" => values.push(("spp", need("spp", frame.grid.map(|g| g * g))?)),
                     _ => {}
                 }
             }
-            let command = suite::fill(template, &values);
-            let (ran, stderr) = crate::process::run_with_timeout_and_stderr(
+            let filled = suite::fill(template, &values);
+            // Run it under control, its whole log kept
+            let (ran, stderr) = crate::process::run_logged(
                 "renderer",
-                &command,
+                &filled,
                 Some(&suite.dir),
-                String::new(),
+                b"",
                 suite.timeout,
+                crate::process::STDOUT_CAP,
             );
-            *log = rows::log_tail(&stderr);
-            ran?;
-            if !out.exists() {
+            *log = Some(renderer_log(&filled, &suite.dir, &ran, &stderr));
+            *tail = rows::log_tail(&stderr);
+            let f = ran?;
+            if let Some(e) = crate::process::failure("renderer", &f) {
+                return Err(e);
+            }
+            if std::fs::symlink_metadata(&out).is_err() {
                 return Err(format!(
-                    "renderer exited 0 but wrote no image ('{command}')"
+                    "renderer exited 0 but wrote no image at {}{} ('{filled}')",
+                    out.display(),
+                    elsewhere(scratch, &t.name, &out)
                 ));
             }
-            (out, command, String::new())
+            // The frame it was asked for is the frame it must make
+            let image_check = |img: &Image| -> Result<(), String> {
+                for (k, want, have) in [
+                    ("width", frame.width, img.width),
+                    ("height", frame.height, img.height),
+                ] {
+                    if let Some(w) = want.filter(|_| keys.iter().any(|x| x == k)) {
+                        if w as usize != have {
+                            return Err(format!(
+                                "the renderer wrote a {}×{} image, but its command was given {{{k}}} = {w}",
+                                img.width, img.height
+                            ));
+                        }
+                    }
+                }
+                Ok(())
+            };
+            let ti = formats::read_test_image(&out, t.output)?;
+            image_check(&ti.image)?;
+            return Ok(Made {
+                image: ti.image,
+                bytes: ti.bytes,
+                format: ti.format,
+                variance: variance(suite, t, &var)?,
+                command: t.command.clone().unwrap_or_default(),
+                renderer: String::new(),
+            });
         }
     };
     // Read the image, and its variance if the test gives one
-    let image = images::read_image(&file).map_err(|e| format!("the test image: {e}"))?;
-    let variance = match &t.variance {
-        None => None,
-        Some(v) => {
-            let p = match v.as_str() {
-                "{variance}" => var.clone(),
-                v => suite.dir.join(v.replace("{name}", &t.name)),
-            };
-            Some(images::read_image(&p).map_err(|e| format!("the variance image: {e}"))?)
-        }
-    };
+    let ti = formats::read_test_image(&file, t.output)?;
     Ok(Made {
-        file,
-        image,
-        variance,
+        image: ti.image,
+        bytes: ti.bytes,
+        format: ti.format,
+        variance: variance(suite, t, &var)?,
         command,
         renderer,
     })
+}
+
+/// The test's variance image, if it gives one.
+fn variance(suite: &Suite, t: &Test, var: &Path) -> Result<Option<Image>, String> {
+    match &t.variance {
+        None => Ok(None),
+        Some(v) => {
+            let p = match v.as_str() {
+                "{variance}" => var.to_path_buf(),
+                v => suite.dir.join(v.replace("{name}", &t.name)),
+            };
+            Ok(Some(
+                formats::read_any(&p).map_err(|e| format!("the variance image: {e}"))?,
+            ))
+        }
+    }
+}
+
+/// When a renderer wrote no file at `out`: what it wrote beside it under the test's name, as a
+/// hint (`; it wrote a.png instead: set output = "png"`), or nothing.
+fn elsewhere(scratch: &Path, name: &str, out: &Path) -> String {
+    let mut found: Vec<String> = std::fs::read_dir(scratch)
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|f| f.starts_with(&format!("{name}.")) && !f.contains(".variance."))
+        .filter(|f| Some(f.as_str()) != out.file_name().and_then(|n| n.to_str()))
+        .collect();
+    found.sort();
+    match found.first() {
+        None => String::new(),
+        Some(f) => match Path::new(f)
+            .extension()
+            .and_then(|e| e.to_str())
+            .filter(|e| formats::Format::from_ext(e).is_some())
+        {
+            Some(ext) => format!("; it wrote {f} instead: set output = \"{ext}\" in the suite"),
+            None => format!("; it wrote {f} instead"),
+        },
+    }
 }
 
 /// Judges one comparison under its rule; the z-test's verdict replaces idiff's when given. A
@@ -590,14 +716,47 @@ fn row(t: &Test, reference: &str, status: Status, note: String) -> Row {
         replay: String::new(),
         log_tail: None,
         images: None,
+        stale: None,
+        log: None,
     }
 }
 
+/// What `--update` may bless of a test: its image, the frame and the sources it was made from.
+type ToBless = (Made, Frame, Sources);
+
 /// A test's rows, and its image when `--update` may bless it.
-type TestRun = (Vec<Row>, Option<(Made, Frame)>);
+type TestRun = (Vec<Row>, Option<ToBless>);
+
+/// The test's scene and declared inputs, hashed (one line naming the file that cannot be read).
+fn sources(t: &Test) -> Result<Sources, String> {
+    let hash = |what: &str, p: &Path| sha256_file(p).map_err(|e| format!("the {what}: {e:#}"));
+    let scene = match (&t.scene, &t.scene_name) {
+        (Some(p), Some(n)) => Some((n.clone(), hash("scene", p)?)),
+        _ => None,
+    };
+    let mut inputs = vec![];
+    for (n, p) in &t.inputs {
+        inputs.push((n.clone(), hash(&format!("input {n}"), p)?));
+    }
+    Ok(Sources { scene, inputs })
+}
+
+/// Keeps a test's renderer log in the report (`logs/NAME.log`); its path relative to the report
+/// directory, for the rows.
+fn keep_log(o: &Options, t: &Test, log: Option<String>) -> Result<Option<String>> {
+    let (Some(dir), Some(log)) = (&o.report, log) else {
+        return Ok(None);
+    };
+    let name = format!("logs/{}.log", t.name);
+    std::fs::create_dir_all(dir.join("logs"))?;
+    std::fs::write(dir.join(&name), log.as_bytes())?;
+    Ok(Some(name))
+}
 
 /// One test: its references checked, its image made, every comparison judged. Also returns
-/// the image (for `--update`) when the golden comparison failed or the golden is missing.
+/// the image (for `--update`) when the golden comparison failed, the golden is missing or it is
+/// stale (made from another version of the scene or inputs: always re-blessed).
+///
 /// Times it as [`Row::seconds`] says: each row its own comparison, the first row that is not
 /// a skipped optional reference (else the first) also the rest of the test's wall time
 /// (references, render), so the render is counted once.
@@ -615,26 +774,23 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
 /// [`run_test`] without the test's own time: rows carry their comparison's time only.
 fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<TestRun> {
     let mut rows = vec![];
-    // The scene's hash, for stale references
-    let scene_sha = match &t.scene {
-        Some(s) => match sha256_file(s) {
-            Ok(h) => Some(h),
-            Err(e) => {
-                let why = format!("the scene: {e:#}");
-                let mut all: Vec<Row> = t
-                    .references
-                    .iter()
-                    .map(|r| row(t, &r.name, Status::Refused, why.clone()))
-                    .collect();
-                if t.golden.is_some() {
-                    all.push(row(t, "golden", Status::Refused, why));
-                }
-                return Ok((all, None));
+    // The scene's and inputs' hashes, for stale references
+    let now = match sources(t) {
+        Ok(s) => s,
+        Err(why) => {
+            let mut all: Vec<Row> = t
+                .references
+                .iter()
+                .map(|r| row(t, &r.name, Status::Refused, why.clone()))
+                .collect();
+            if t.golden.is_some() {
+                all.push(row(t, "golden", Status::Refused, why));
             }
-        },
-        None => None,
+            return Ok((all, None));
+        }
     };
-    // Load every reference (the golden last); missing, tampered, stale, corrupt are refused
+    // Load every reference (the golden last); missing, tampered, corrupt and stale external
+    // references are refused; a stale golden is compared and re-blessed
     let mut loaded = vec![];
     let golden = t.golden.as_ref().map(|(p, rule)| ("golden", p, true, rule));
     let refs = t
@@ -642,6 +798,7 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
         .iter()
         .map(|r| (r.name.as_str(), &r.path, r.required, &r.rule));
     let mut golden_missing = false;
+    let mut golden_stale = None;
     for (name, path, required, rule) in refs.chain(golden) {
         if !path.exists() {
             if name == "golden" {
@@ -669,8 +826,23 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
             }
             continue;
         }
-        match verified_reference(path, scene_sha.as_deref()) {
-            Ok((img, prov)) => loaded.push((name, rule, img, prov)),
+        let own = name == "golden";
+        match verified_reference(path, &now, own) {
+            Ok((_, _, Some(what))) if !own => rows.push(row(
+                t,
+                name,
+                Status::Refused,
+                format!(
+                    "{} was made from another version of {what}: re-render it",
+                    path.display()
+                ),
+            )),
+            Ok((img, prov, stale)) => {
+                if own {
+                    golden_stale = stale;
+                }
+                loaded.push((name, rule, img, prov))
+            }
             Err(e) => rows.push(row(t, name, Status::Refused, format!("{e:#}"))),
         }
     }
@@ -689,17 +861,23 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
     // The frame: the test's, else the references' manifests' (which must agree)
     let mut frame = Frame {
         width: t.width,
+        height: t.height,
         grid: t.grid,
     };
-    for (what, get) in [("width", 0), ("grid", 1)] {
+    for what in ["width", "height", "grid"] {
+        let get = |p: &Provenance| match what {
+            "width" => p.width,
+            "height" => p.height,
+            _ => p.grid,
+        };
         let said: Vec<(&str, u32)> = loaded
             .iter()
-            .filter_map(|(n, _, _, p)| [p.width, p.grid][get].map(|v| (*n, v)))
+            .filter_map(|(n, _, _, p)| get(p).map(|v| (*n, v)))
             .collect();
-        let slot = if get == 0 {
-            &mut frame.width
-        } else {
-            &mut frame.grid
+        let slot = match what {
+            "width" => &mut frame.width,
+            "height" => &mut frame.height,
+            _ => &mut frame.grid,
         };
         if slot.is_none() {
             if said.iter().any(|(_, v)| *v != said[0].1) {
@@ -715,13 +893,13 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
             *slot = said.first().map(|s| s.1);
         }
     }
-    // Make the test image once; every row of the test gets its time and log
-    let mut log = None;
+    // Make the test image once; its renderer's log is kept in the report
     let rendering = Instant::now();
-    let made = make(suite, t, frame, scratch, &mut log);
+    let (made, log, tail) = make(suite, t, frame, scratch);
     let render_seconds = rendering.elapsed().as_secs_f64();
+    let log = keep_log(o, t, log)?;
     for r in rows.iter_mut() {
-        (r.render_seconds, r.log_tail) = (render_seconds, log.clone());
+        (r.render_seconds, r.log_tail) = (render_seconds, tail.clone());
     }
     let made = match made {
         Ok(m) => m,
@@ -729,7 +907,7 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
             let why = format!("test image: {e}");
             rows.extend(loaded.iter().map(|(n, ..)| Row {
                 render_seconds,
-                log_tail: log.clone(),
+                log_tail: tail.clone(),
                 ..row(t, n, Status::Refused, why.clone())
             }));
             if golden_missing {
@@ -737,9 +915,31 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                     (r.status, r.note) = (Status::Refused, why.clone());
                 }
             }
+            for r in rows.iter_mut() {
+                r.log = log.clone();
+            }
             return Ok((rows, None));
         }
     };
+    // A golden keeps its real format: one whose name says another is never written
+    let golden_format = t
+        .golden
+        .as_ref()
+        .map(|(g, _)| (g, formats::Format::of_path(g)));
+    if let Some((g, f)) = golden_format.filter(|(_, f)| *f != Some(made.format)) {
+        let why = format!(
+            "the test image is a {} file but the golden {} names {}: name it .{} (a golden keeps its real format)",
+            made.format.name(),
+            g.display(),
+            f.map_or("no format rayproof reads".into(), |f| f.name()),
+            made.format.extensions()[0]
+        );
+        loaded.retain(|(n, ..)| *n != "golden");
+        rows.retain(|r| r.reference != "golden");
+        rows.push(row(t, "golden", Status::Refused, why));
+        golden_missing = false;
+        golden_stale = None;
+    }
     // Compare with each reference and judge
     let frame_grid = match &t.source {
         suite::Source::Rayproof(_) | suite::Source::Command(_) => frame.grid,
@@ -753,9 +953,20 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
             (*rule).clone(),
             prov.renderer.clone(),
             render_seconds,
-            log.clone(),
+            tail.clone(),
         );
         r.warnings = warnings(reference, prov, &made, frame_grid);
+        if *name == "golden" {
+            if let Some(what) = &golden_stale {
+                r.warnings.insert(
+                    0,
+                    format!(
+                        "stale golden: made from another version of {what}; --update re-blesses it"
+                    ),
+                );
+                r.stale = Some(what.clone());
+            }
+        }
         match images::compare(reference, &made.image, &rule.idiff) {
             Err(e) => {
                 (r.status, r.note) = (Status::Failure, format!("{e}"));
@@ -805,7 +1016,11 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
         r.seconds = comparing.elapsed().as_secs_f64();
         rows.push(r);
     }
-    Ok((rows, golden_failed.then_some((made, frame))))
+    for r in rows.iter_mut() {
+        r.log = log.clone();
+    }
+    let bless = golden_failed || golden_stale.is_some();
+    Ok((rows, bless.then_some((made, frame, now))))
 }
 
 /// The command that runs one test again: `rayproof check --suite SUITE --test NAME`, with the
@@ -892,12 +1107,12 @@ pub fn run(suite: &Suite, o: &Options, outputs: &mut crate::output::Outputs) -> 
             to_bless.push((t, golden.clone(), m));
         }
     }
-    // Bless: only when nothing was refused, only failing or missing goldens
+    // Bless: only when nothing was refused; failing, missing and stale goldens
     let refused = rows.iter().any(|r| r.status == Status::Refused);
     let mut blessed = vec![];
     let mut records = references::Records::default();
     if o.update && !refused {
-        for (t, golden, (m, frame)) in to_bless {
+        for (t, golden, (m, frame, sources)) in to_bless {
             // Never bless an image with NaN or Inf
             let bad = nonfinite_pixels(&m.image);
             if bad > 0 {
@@ -918,16 +1133,21 @@ pub fn run(suite: &Suite, o: &Options, outputs: &mut crate::output::Outputs) -> 
                 },
                 command: m.command.clone(),
                 width: frame.width.or(Some(m.image.width as u32)),
+                height: frame.height.or(Some(m.image.height as u32)),
                 grid: frame.grid,
-                scene: t.scene.as_deref(),
-                scene_sha: t.scene.as_ref().and_then(|s| sha256_file(s).ok()),
+                sources,
             };
-            bless(&mut records, &golden, &m.file, &b)?;
+            bless(&mut records, &golden, m.bytes, &b)?;
             for r in rows
                 .iter_mut()
                 .filter(|r| r.test == t.name && r.reference == "golden" && r.config == t.config())
             {
-                r.note = format!("{} → written: {}", r.status.label(), golden.display());
+                let was = match r.stale {
+                    Some(_) if r.status == Status::Pass => "stale".to_string(),
+                    Some(_) => format!("{}, stale", r.status.label()),
+                    None => r.status.label().to_string(),
+                };
+                r.note = format!("{was} → written: {}", golden.display());
                 r.status = Status::Updated;
             }
             blessed.push(golden);

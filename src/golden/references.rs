@@ -3,7 +3,7 @@
 //! and the SHA-256 checks that refuse a tampered or stale one, and [`bless`], which writes a
 //! golden and its manifest entry for `--update`.
 
-use crate::images::{self, Image, Thresholds};
+use crate::images::{Image, Thresholds};
 use crate::render::scene::{MAX_GRID, MAX_SIDE};
 use crate::shapes::sphere::methods::Method;
 use anyhow::{bail, Context, Result};
@@ -116,6 +116,8 @@ pub struct Provenance {
     pub renderer: String,
     /// Image width the manifest records.
     pub width: Option<u32>,
+    /// Image height the manifest records.
+    pub height: Option<u32>,
     /// `n` of the n×n sampling grid the manifest records.
     pub grid: Option<u32>,
 }
@@ -178,12 +180,65 @@ fn dir_and_name(path: &Path) -> (PathBuf, String) {
     (dir, name)
 }
 
+/// What a test's image is made from now: its scene and its declared inputs, each as the suite
+/// writes it with its SHA-256.
+#[derive(Clone, Debug, Default)]
+pub struct Sources {
+    pub scene: Option<(String, String)>,
+    pub inputs: Vec<(String, String)>,
+}
+
+/// Why a manifest entry was made from other sources than the test's now (`None`: the same, as
+/// far as the entry records them): the files whose hash differs, or that the entry does not
+/// know or the test no longer has. `own`: the entry is a golden's, which `--update` writes with
+/// every source (so a source it lacks makes it stale); an external reference's entry is judged
+/// on what it records.
+pub fn staleness(entry: &serde_json::Value, now: &Sources, own: bool) -> Option<String> {
+    let mut changed = vec![];
+    match (
+        entry.get("scene_sha256").and_then(|v| v.as_str()),
+        &now.scene,
+    ) {
+        (Some(want), Some((name, have))) if want != have => {
+            changed.push(format!("the scene {name}"))
+        }
+        (None, Some((name, _))) if own => changed.push(format!("the scene {name} (not recorded)")),
+        (Some(_), None) if own => changed.push("a scene the test no longer has".to_string()),
+        _ => {}
+    }
+    let recorded = entry.get("inputs").and_then(|v| v.as_object());
+    if recorded.is_some() || own {
+        let empty = serde_json::Map::new();
+        let recorded = recorded.unwrap_or(&empty);
+        for (name, have) in &now.inputs {
+            match recorded.get(name).and_then(|v| v.as_str()) {
+                Some(want) if want == have => {}
+                Some(_) => changed.push(format!("the input {name}")),
+                None => changed.push(format!("the input {name} (not recorded)")),
+            }
+        }
+        for name in recorded.keys() {
+            if !now.inputs.iter().any(|(n, _)| n == name) {
+                changed.push(format!("the input {name} (no longer one)"));
+            }
+        }
+    }
+    (!changed.is_empty()).then(|| changed.join(", "))
+}
+
 /// Loads a reference and, when the manifest beside it describes it, proves it is that file
-/// (SHA-256) made from this scene (the scene's SHA-256): a tampered or stale reference is an
-/// error. An image with no manifest is read as it is, with an empty provenance.
-pub fn verified_reference(path: &Path, scene_sha: Option<&str>) -> Result<(Image, Provenance)> {
+/// (SHA-256), and says whether it was made from other versions of the test's scene and inputs
+/// ([`staleness`]; the caller decides: a stale golden is compared and re-blessed, a stale
+/// external reference refused). A tampered reference is an error. An image with no manifest
+/// is read as it is, with an empty provenance. Any format [`super::formats`] reads.
+pub fn verified_reference(
+    path: &Path,
+    now: &Sources,
+    own: bool,
+) -> Result<(Image, Provenance, Option<String>)> {
     let (dir, file) = dir_and_name(path);
     let mut prov = Provenance::default();
+    let mut stale = None;
     if let Some(m) = manifest(&dir)? {
         let entry = m["files"].get(&file).with_context(|| {
             format!(
@@ -201,14 +256,7 @@ pub fn verified_reference(path: &Path, scene_sha: Option<&str>) -> Result<(Image
                 path.display()
             );
         }
-        if let (Some(want), Some(have)) = (entry["scene_sha256"].as_str(), scene_sha) {
-            if want != have {
-                bail!(
-                    "{} was made from another version of the scene file: re-render it",
-                    path.display()
-                );
-            }
-        }
+        stale = staleness(entry, now, own);
         prov = Provenance {
             renderer: format!(
                 "{} {}",
@@ -218,27 +266,30 @@ pub fn verified_reference(path: &Path, scene_sha: Option<&str>) -> Result<(Image
             .trim()
             .to_string(),
             width: entry_u32(entry, "width", MAX_SIDE, path)?,
+            height: entry_u32(entry, "height", MAX_SIDE, path)?,
             grid: entry_u32(entry, "grid", MAX_GRID, path)?,
         };
     }
-    let img = images::read_image(path).map_err(|e| anyhow::anyhow!("{e}"))?;
-    Ok((img, prov))
+    let img = super::formats::read_any(path).map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok((img, prov, stale))
 }
 
 /// How a blessed golden was made, for its manifest entry.
-pub struct Blessing<'a> {
+pub struct Blessing {
     pub renderer: String,
+    /// The command as the suite writes it (placeholders unfilled), never a scratch path.
     pub command: String,
     pub width: Option<u32>,
+    pub height: Option<u32>,
     pub grid: Option<u32>,
-    pub scene: Option<&'a Path>,
-    pub scene_sha: Option<String>,
+    /// The scene and inputs the image was made from, with their hashes.
+    pub sources: Sources,
 }
 
-/// Stages a golden (a copy of `image`'s bytes) and its entry in the manifest beside it (only
-/// `--update` calls this, after every test of the run was validated).
-pub fn bless(records: &mut Records, golden: &Path, image: &Path, b: &Blessing) -> Result<()> {
-    let bytes = std::fs::read(image).with_context(|| format!("cannot read {}", image.display()))?;
+/// Stages a golden (`bytes`: exactly the test image compared) and its entry in the manifest
+/// beside it: the command as written, the frame, and the test's own scene and inputs by hash
+/// (only `--update` calls this, after every test of the run was validated).
+pub fn bless(records: &mut Records, golden: &Path, bytes: Vec<u8>, b: &Blessing) -> Result<()> {
     let mut entry = serde_json::json!({
         "renderer": b.renderer,
         "commands": [b.command],
@@ -247,14 +298,25 @@ pub fn bless(records: &mut Records, golden: &Path, image: &Path, b: &Blessing) -
     if let Some(w) = b.width {
         entry["width"] = w.into();
     }
+    if let Some(h) = b.height {
+        entry["height"] = h.into();
+    }
     if let Some(g) = b.grid {
         entry["grid"] = g.into();
         entry["samples_per_pixel"] = (g * g).into();
     }
-    if let Some(s) = &b.scene_sha {
-        entry["scene_sha256"] = s.clone().into();
+    if let Some((name, sha)) = &b.sources.scene {
+        entry["scene"] = name.clone().into();
+        entry["scene_sha256"] = sha.clone().into();
     }
-    records.add(golden, bytes, entry, b.scene);
+    let inputs: serde_json::Map<String, serde_json::Value> = b
+        .sources
+        .inputs
+        .iter()
+        .map(|(n, h)| (n.clone(), h.clone().into()))
+        .collect();
+    entry["inputs"] = inputs.into();
+    records.add(golden, bytes, entry, None);
     Ok(())
 }
 

@@ -98,6 +98,12 @@ pub struct Row {
     /// Report images, relative to the report directory.
     #[serde(skip)]
     pub images: Option<ReportImages>,
+    /// The golden was made from another version of the test's scene or inputs (which ones):
+    /// it is compared as usual, and `--update` re-blesses it.
+    pub stale: Option<String>,
+    /// The test's whole renderer log (the command, how it ended, its standard error and
+    /// output), relative to the report directory: `logs/TEST.log` (with `--report` only).
+    pub log: Option<String>,
 }
 
 /// How many lines of a renderer's standard error a row keeps ([`Row::log_tail`]).

@@ -38,6 +38,7 @@
 //! thresholds (idiff lets a few through under `failpercent`); a test whose image may hold them on
 //! purpose says `allow_nonfinite = true`.
 
+use super::formats::Format;
 use super::references::Rule;
 use crate::golden::Config;
 use crate::numerics::Precision;
@@ -67,6 +68,7 @@ struct HeadSpec {
     renderer: Option<String>,
     timeout: Option<f64>,
     goldens: Option<String>,
+    output: Option<String>,
 }
 
 #[derive(Deserialize)]
@@ -78,7 +80,10 @@ struct TestSpec {
     command: Option<String>,
     rayproof: Option<BuiltinSpec>,
     width: Option<u32>,
+    height: Option<u32>,
     grid: Option<u32>,
+    output: Option<String>,
+    inputs: Option<Vec<String>>,
     variance: Option<String>,
     variance_spp: Option<u64>,
     allow_nonfinite: Option<bool>,
@@ -145,10 +150,28 @@ pub struct Test {
     /// The scene file, joined to the suite's directory: what rayproof renders, `{scene}` in a
     /// command, and the file whose SHA-256 a reference's manifest must match. `None`: no scene.
     pub scene: Option<PathBuf>,
+    /// The scene as the suite file writes it (what a golden's manifest entry records).
+    pub scene_name: Option<String>,
+    /// Other files the image is made from (`inputs = ["light.inc"]`: include files, textures),
+    /// as written and joined to the suite's directory: hashed in a golden's manifest entry
+    /// with the scene, so that a golden made before one changed is stale.
+    pub inputs: Vec<(String, PathBuf)>,
+    /// The command as the suite file writes it (placeholders unfilled): what a golden's
+    /// manifest entry records.
+    pub command: Option<String>,
     /// How the test image is made: read, rendered by the user's command, or by rayproof.
     pub source: Source,
     /// Width and sampling grid the test asks for (else the references' manifests say).
     pub width: Option<u32>,
+    /// Height the test asks for (`{height}`; else the references' manifests say).
+    pub height: Option<u32>,
+    /// The format the test image must have: the suite's or the test's `output` (a renderer's
+    /// `{out}` ends in its extension), rayproof's own renders are OpenEXR, an `image` is what
+    /// its extension names. `None`: an image whose extension names no format (read by its bytes).
+    pub output: Option<Format>,
+    /// The extension of `{out}` and of the default golden: the `output` as written (`ppm`,
+    /// `jpg`), `exr` by default, an image's own.
+    pub out_ext: String,
     /// `n` of the n×n sampling grid.
     pub grid: Option<u32>,
     /// The test image's variance (a path, or a template with `{variance}`), for the z-test.
@@ -197,7 +220,9 @@ pub struct Suite {
 pub const MAX_TIMEOUT: f64 = 7.0 * 24.0 * 3600.0;
 
 /// The placeholders a command may use.
-pub const PLACEHOLDERS: [&str; 7] = ["scene", "out", "variance", "width", "grid", "spp", "name"];
+pub const PLACEHOLDERS: [&str; 8] = [
+    "scene", "out", "variance", "width", "height", "grid", "spp", "name",
+];
 
 /// The placeholders in a template; an unknown one or an unclosed brace is an error.
 pub fn placeholders(template: &str) -> Result<Vec<String>, String> {
@@ -256,6 +281,20 @@ impl Suite {
             );
         }
         let goldens = spec.suite.goldens.as_deref().map(at);
+        let output_format = |o: &str| {
+            Format::from_ext(o).ok_or_else(|| {
+                format!(
+                    "output = \"{o}\" is not an image format rayproof reads (known: {})",
+                    super::formats::known_extensions()
+                )
+            })
+        };
+        let suite_output = match &spec.suite.output {
+            Some(o) => Some(
+                output_format(o).map_err(|e| anyhow::anyhow!("{}: suite.{e}", path.display()))?,
+            ),
+            None => None,
+        };
         let mut tests: Vec<Test> = vec![];
         for t in spec.test {
             let ctx = |what: String| format!("{}: test '{}': {what}", path.display(), t.name);
@@ -303,8 +342,51 @@ impl Suite {
             if let Some(v) = &t.variance {
                 placeholders(v).map_err(|e| anyhow::anyhow!(ctx(e)))?;
             }
-            if t.grid == Some(0) || t.width == Some(0) {
-                bail!(ctx("width and grid must be at least 1".into()));
+            if t.grid == Some(0) || t.width == Some(0) || t.height == Some(0) {
+                bail!(ctx("width, height and grid must be at least 1".into()));
+            }
+            if let Some(h) = t.height.filter(|&h| h > MAX_SIDE) {
+                bail!(ctx(format!(
+                    "height = {h}: an image side may be at most {MAX_SIDE}"
+                )));
+            }
+            // The test image's format: declared, else rayproof's EXR or the image's extension
+            let declared = match &t.output {
+                Some(o) => Some(output_format(o).map_err(|e| anyhow::anyhow!(ctx(e)))?),
+                None => suite_output,
+            };
+            let output = match &source {
+                Source::Rayproof(_) => {
+                    if declared.is_some_and(|d| d != Format::Exr) {
+                        bail!(ctx("rayproof writes OpenEXR: output must be \"exr\"".into()));
+                    }
+                    if t.height.is_some() {
+                        bail!(ctx(
+                            "rayproof keeps the scene's aspect ratio: give width, not height"
+                                .into()
+                        ));
+                    }
+                    Some(Format::Exr)
+                }
+                Source::Command(_) => Some(declared.unwrap_or(Format::Exr)),
+                Source::Image(p) => declared.or(Format::of_path(p)),
+            };
+            let out_ext = match (&t.output, &spec.suite.output, &source) {
+                (_, _, Source::Rayproof(_)) => "exr".to_string(),
+                (Some(o), _, _) | (None, Some(o), _) => o.to_ascii_lowercase(),
+                (None, None, Source::Image(p)) if output.is_some() => p
+                    .extension()
+                    .map(|e| e.to_string_lossy().to_ascii_lowercase())
+                    .unwrap_or_default(),
+                _ => "exr".to_string(),
+            };
+            // Inputs the image is made from, besides the scene
+            let mut inputs = vec![];
+            for i in t.inputs.iter().flatten() {
+                if i.is_empty() || inputs.iter().any(|(n, _): &(String, PathBuf)| n == i) {
+                    bail!(ctx(format!("input '{i}' is empty or repeated")));
+                }
+                inputs.push((i.clone(), at(i)));
             }
             if let Some(g) = t.grid.filter(|&g| g > MAX_GRID) {
                 bail!(ctx(format!(
@@ -340,11 +422,21 @@ impl Suite {
             let golden_path = match &t.golden {
                 Some(toml::Value::String(p)) => Some(at(p)),
                 Some(toml::Value::Boolean(false)) => None,
-                Some(toml::Value::Boolean(true)) | None => {
-                    goldens.as_ref().map(|g| g.join(format!("{}.exr", t.name)))
-                }
+                Some(toml::Value::Boolean(true)) | None => goldens
+                    .as_ref()
+                    .map(|g| g.join(format!("{}.{out_ext}", t.name))),
                 Some(_) => bail!(ctx("golden must be a path or false".into())),
             };
+            // A golden keeps its real format: its name says the test image's
+            if let (Some(g), Some(f)) = (&golden_path, output) {
+                if Format::of_path(g) != Some(f) {
+                    bail!(ctx(format!(
+                        "the golden {} would hold a {} file: name it .{out_ext} (a golden keeps its real format)",
+                        g.display(),
+                        f.name(),
+                    )));
+                }
+            }
             if golden_path.is_some() && references.iter().any(|r| r.name == "golden") {
                 bail!(ctx(
                     "'golden' is the name of the test's own golden image".into()
@@ -362,8 +454,17 @@ impl Suite {
             tests.push(Test {
                 name: t.name.clone(),
                 scene: t.scene.as_deref().map(at),
+                scene_name: t.scene.clone(),
+                inputs,
+                command: match &source {
+                    Source::Command(c) => Some(c.clone()),
+                    _ => None,
+                },
                 source,
                 width: t.width,
+                height: t.height,
+                output,
+                out_ext,
                 grid: t.grid,
                 variance: t.variance.clone(),
                 variance_spp: t.variance_spp.unwrap_or(1).max(1),
@@ -415,6 +516,7 @@ impl Suite {
         let mut v = vec![self.path.clone()];
         for t in &self.tests {
             v.extend(t.scene.clone());
+            v.extend(t.inputs.iter().map(|(_, p)| p.clone()));
             if let Source::Image(p) = &t.source {
                 v.push(p.clone());
             }

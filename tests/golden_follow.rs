@@ -1,0 +1,456 @@
+//! Goldens that follow the scene, manifests that record what a golden was made from, and the
+//! files a renderer may leave at `{out}` (issue 36, items 1 and 3 and "Bad input"), with the
+//! stand-in renderer `tests/outside/standin_render.py` (the real POV-Ray: tests/povray_suite.rs).
+//!
+//! - A golden made from an older scene or include file is compared as usual, its row says it is
+//!   stale, and `--update` re-blesses it (every stale golden, passing or not).
+//! - The manifest records each test's own scene and inputs by hash and the command as the suite
+//!   writes it, never a scratch path.
+//! - A directory, a symbolic link, an empty or truncated file, a file of another format than
+//!   declared or an EXR of 10,000 parts at `{out}`: one line naming the test and the problem,
+//!   the test refused, nothing blessed.
+
+mod common;
+
+use common::{s, scratch};
+use rayproof::golden::sha256_file;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn standin() -> String {
+    format!("python3 '{}'", s(&common::outside("standin_render.py")))
+}
+
+fn check(dir: &Path, extra: &[&str]) -> (Option<i32>, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(dir)
+        .arg("check")
+        .arg("--suite")
+        .arg(dir.join("suite.toml"))
+        .args(extra)
+        .output()
+        .unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// The row line of test × reference in the text table.
+fn line<'a>(out: &'a str, test: &str, reference: &str) -> &'a str {
+    out.lines()
+        .find(|l| {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            w.len() > 3 && w[0] == test && w[1] == reference
+        })
+        .unwrap_or_else(|| panic!("no {test} × {reference} row in:\n{out}"))
+}
+
+fn status(out: &str, test: &str, reference: &str) -> String {
+    line(out, test, reference)
+        .split_whitespace()
+        .nth(3)
+        .unwrap()
+        .to_string()
+}
+
+/// The warning lines under a test's row.
+fn warnings<'a>(out: &'a str, test: &str, reference: &str) -> Vec<&'a str> {
+    let row = line(out, test, reference);
+    out.lines()
+        .skip_while(|l| *l != row)
+        .skip(1)
+        .take_while(|l| l.trim_start().starts_with("warning:"))
+        .collect()
+}
+
+fn manifest(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("goldens/manifest.json")).unwrap())
+        .unwrap()
+}
+
+/// Two tests of the stand-in, each with its own scene file and a shared include file.
+fn fixture(tag: &str) -> PathBuf {
+    let dir = scratch(&format!("follow-{tag}"));
+    std::fs::write(dir.join("a.scene"), "sphere 1\n").unwrap();
+    std::fs::write(dir.join("b.scene"), "sphere 2\n").unwrap();
+    let suite = format!(
+        r#"[suite]
+name = "follow"
+renderer = "{r} {{out}} --width {{width}} --grid {{grid}}"
+goldens = "goldens"
+timeout = 20
+
+[[test]]
+name = "a"
+scene = "a.scene"
+width = 24
+grid = 2
+
+[[test]]
+name = "b"
+scene = "b.scene"
+width = 24
+grid = 2
+"#,
+        r = standin()
+    );
+    std::fs::write(dir.join("suite.toml"), suite).unwrap();
+    dir
+}
+
+#[test]
+fn a_stale_golden_is_compared_and_update_reblesses_it() {
+    let dir = fixture("stale");
+    let (code, out, err) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let a0 = std::fs::read(dir.join("goldens/a.exr")).unwrap();
+    let b0 = std::fs::read(dir.join("goldens/b.exr")).unwrap();
+    // The scene changes, the image does not: compared (PASS), the row says stale, exit 0
+    std::fs::write(dir.join("a.scene"), "sphere 1 # edited\n").unwrap();
+    let (code, out, err) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert_eq!(status(&out, "a", "golden"), "PASS", "{out}");
+    let w = warnings(&out, "a", "golden");
+    assert!(
+        w.iter()
+            .any(|l| l.contains("stale golden: made from another version of the scene a.scene")),
+        "{out}"
+    );
+    assert!(warnings(&out, "b", "golden").is_empty(), "{out}");
+    // --update --test a re-blesses it though it passes: its manifest entry follows the scene
+    let (code, out, err) = check(&dir, &["--update", "--test", "a"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert_eq!(status(&out, "a", "golden"), "UPDATED", "{out}");
+    assert!(
+        line(&out, "a", "golden").contains("stale → written"),
+        "{out}"
+    );
+    assert_eq!(std::fs::read(dir.join("goldens/a.exr")).unwrap(), a0);
+    assert_eq!(std::fs::read(dir.join("goldens/b.exr")).unwrap(), b0);
+    let m = manifest(&dir);
+    assert_eq!(
+        m["files"]["a.exr"]["scene_sha256"].as_str().unwrap(),
+        sha256_file(&dir.join("a.scene")).unwrap()
+    );
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}");
+    assert!(!out.contains("stale"), "{out}");
+    // The scene changes and so does the image: a stale golden that fails is a failure (exit 1),
+    // not a refusal, and --update re-blesses it
+    std::fs::write(dir.join("b.scene"), "sphere 2 # moved\n").unwrap();
+    let text = std::fs::read_to_string(dir.join("suite.toml")).unwrap();
+    let moved = text.replacen(
+        "name = \"b\"\n",
+        &format!(
+            "name = \"b\"\ncommand = \"{} {{out}} --width {{width}} --grid {{grid}} --perturb 0.3\"\n",
+            standin()
+        ),
+        1,
+    );
+    std::fs::write(dir.join("suite.toml"), moved).unwrap();
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(1), "{out}");
+    assert_eq!(status(&out, "b", "golden"), "FAILURE", "{out}");
+    assert!(warnings(&out, "b", "golden")
+        .iter()
+        .any(|l| l.contains("stale golden")));
+    let (code, out, _) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(0), "{out}");
+    assert!(
+        line(&out, "b", "golden").contains("FAILURE, stale → written"),
+        "{out}"
+    );
+    assert_ne!(std::fs::read(dir.join("goldens/b.exr")).unwrap(), b0);
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}");
+}
+
+#[test]
+fn the_manifest_records_the_command_as_written_and_each_tests_own_scene_and_inputs() {
+    let dir = fixture("manifest");
+    std::fs::write(dir.join("light.inc"), "light 1\n").unwrap();
+    let text = std::fs::read_to_string(dir.join("suite.toml")).unwrap();
+    std::fs::write(
+        dir.join("suite.toml"),
+        text.replace(
+            "scene = \"b.scene\"\n",
+            "scene = \"b.scene\"\ninputs = [\"light.inc\"]\n",
+        ),
+    )
+    .unwrap();
+    let (code, out, err) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let m = manifest(&dir);
+    for (t, scene) in [("a", "a.scene"), ("b", "b.scene")] {
+        let e = &m["files"][format!("{t}.exr")];
+        assert_eq!(
+            e["commands"][0].as_str().unwrap(),
+            format!("{} {{out}} --width {{width}} --grid {{grid}}", standin()),
+            "{e}"
+        );
+        assert_eq!(e["scene"], scene, "{e}");
+        assert_eq!(
+            e["scene_sha256"].as_str().unwrap(),
+            sha256_file(&dir.join(scene)).unwrap()
+        );
+        assert_eq!(
+            (e["width"].as_u64(), e["height"].as_u64()),
+            (Some(24), Some(16))
+        );
+    }
+    assert!(m.get("scene").is_none(), "one scene for the directory: {m}");
+    assert_eq!(
+        m["files"]["b.exr"]["inputs"]["light.inc"].as_str().unwrap(),
+        sha256_file(&dir.join("light.inc")).unwrap()
+    );
+    assert_eq!(m["files"]["a.exr"]["inputs"], serde_json::json!({}));
+    // An include file changes: only the test that declares it is stale
+    std::fs::write(dir.join("light.inc"), "light 2\n").unwrap();
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}");
+    assert!(warnings(&out, "b", "golden")
+        .iter()
+        .any(|l| l.contains("another version of the input light.inc")));
+    assert!(warnings(&out, "a", "golden").is_empty(), "{out}");
+    // An input that cannot be read refuses the test, with its name
+    std::fs::remove_file(dir.join("light.inc")).unwrap();
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(3), "{out}");
+    assert!(
+        line(&out, "b", "golden").contains("the input light.inc: cannot read"),
+        "{out}"
+    );
+}
+
+/// An EXR of `parts` one-pixel parts, each with `groups` layers of R, G, B channels (named
+/// `LAYER.R` … when more than one, as Blender's multilayer files), written with the exr crate.
+fn many_layer_exr(path: &Path, parts: usize, groups: usize) {
+    use exr::prelude::*;
+    let layers: Vec<Layer<AnyChannels<FlatSamples>>> = (0..parts)
+        .map(|i| {
+            let ch = |n: String| AnyChannel::new(n.as_str(), FlatSamples::F32(vec![0.5]));
+            let list: Vec<AnyChannel<FlatSamples>> = (0..groups)
+                .flat_map(|g| {
+                    ["R", "G", "B"].map(|c| {
+                        ch(if groups == 1 {
+                            c.to_string()
+                        } else {
+                            format!("L{g}.{c}")
+                        })
+                    })
+                })
+                .collect();
+            Layer::new(
+                (1, 1),
+                LayerAttributes::named(format!("layer{i}").as_str()),
+                Encoding::UNCOMPRESSED,
+                AnyChannels::sort(list.into()),
+            )
+        })
+        .collect();
+    Image::from_layers(
+        ImageAttributes::new(IntegerBounds::from_dimensions((1, 1))),
+        layers,
+    )
+    .write()
+    .to_file(path)
+    .unwrap();
+}
+
+#[test]
+fn bad_renderer_outputs_are_one_line_the_test_refused_nothing_blessed() {
+    // What the "renderer" leaves at {out} (a shell command), and what the row must say
+    let png = "cp good.png {out}";
+    let cases: [(&str, &str, &str); 8] = [
+        (
+            "directory",
+            "mkdir {out}",
+            "is a directory, not an image file",
+        ),
+        (
+            "symlink",
+            "ln -s \"$PWD/goldens/t.exr\" {out}",
+            "is a symbolic link",
+        ),
+        ("empty", ": > {out}", "is empty (0 bytes)"),
+        ("truncated", "head -c 1000 good.exr > {out}", "cannot read"),
+        (
+            "other-format",
+            png,
+            "is a PNG file, but the test's output format is OpenEXR",
+        ),
+        (
+            "not-an-image",
+            "echo hello > {out}",
+            "is not a file of the test's output format, OpenEXR",
+        ),
+        (
+            "parts",
+            "cp parts.exr {out}",
+            "it has 10000 layers (in 10000 part(s)); at most 256",
+        ),
+        (
+            "channel-layers",
+            "cp groups.exr {out}",
+            "it has 10000 layers (in 1 part(s)); at most 256",
+        ),
+    ];
+    let dir = scratch("bad-outputs");
+    // good.exr and good.png from the stand-in; layers.exr with 10,000 parts
+    let st = Command::new("sh")
+        .arg("-c")
+        .arg(format!("{} good.exr --width 24 --grid 1", standin()))
+        .current_dir(&dir)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let img = rayproof::images::read_image(&dir.join("good.exr")).unwrap();
+    rayproof::images::write_png_rgb8(
+        &dir.join("good.png"),
+        img.width,
+        img.height,
+        &rayproof::images::tonemap_rgb8(&img),
+    )
+    .unwrap();
+    many_layer_exr(&dir.join("parts.exr"), 10_000, 1);
+    many_layer_exr(&dir.join("groups.exr"), 1, 10_000);
+    for (tag, command, want) in cases {
+        // A blessed golden for t; u has none yet
+        let suite = |cmd: &str| {
+            format!(
+                "[suite]\nname = \"bad\"\ngoldens = \"goldens\"\ntimeout = 20\n\n[[test]]\nname = \"t\"\ncommand = \"{}\"\n\n[[test]]\nname = \"u\"\ncommand = \"cp good.exr {{out}}\"\n",
+                cmd.replace('"', "\\\"")
+            )
+        };
+        let _ = std::fs::remove_dir_all(dir.join("goldens"));
+        std::fs::write(dir.join("suite.toml"), suite("cp good.exr {out}")).unwrap();
+        let (code, out, err) = check(&dir, &["--update", "--test", "t"]);
+        assert_eq!(code, Some(0), "{tag}: {out}{err}");
+        let before = (
+            std::fs::read(dir.join("goldens/t.exr")).unwrap(),
+            std::fs::read(dir.join("goldens/manifest.json")).unwrap(),
+        );
+        // Now the renderer leaves the bad file
+        std::fs::write(dir.join("suite.toml"), suite(command)).unwrap();
+        let t0 = std::time::Instant::now();
+        let (code, out, err) = check(&dir, &["--update"]);
+        assert!(t0.elapsed().as_secs() < 30, "{tag}: {:?}", t0.elapsed());
+        assert_eq!(code, Some(3), "{tag}: {out}{err}");
+        assert_eq!(status(&out, "t", "golden"), "REFUSED", "{tag}: {out}");
+        let row = line(&out, "t", "golden");
+        assert!(row.contains(want), "{tag}: {row}");
+        assert!(row.contains("test image"), "{tag}: {row}");
+        assert!(row.len() < 800, "{tag}: a line of {} bytes", row.len());
+        // One line: the row has no continuation, stderr says nothing more
+        let next = out.lines().skip_while(|l| *l != row).nth(1).unwrap_or("");
+        assert!(!next.starts_with(' '), "{tag}: {out}");
+        assert!(err.trim().is_empty(), "{tag}: {err}");
+        // Nothing blessed: t's golden and the manifest as they were, no golden for u
+        assert!(out.contains("--update wrote nothing"), "{tag}: {out}");
+        assert_eq!(
+            std::fs::read(dir.join("goldens/t.exr")).unwrap(),
+            before.0,
+            "{tag}"
+        );
+        assert_eq!(
+            std::fs::read(dir.join("goldens/manifest.json")).unwrap(),
+            before.1,
+            "{tag}"
+        );
+        assert!(!dir.join("goldens/u.exr").exists(), "{tag}");
+    }
+}
+
+#[test]
+fn the_output_format_follows_the_suite_and_goldens_keep_theirs() {
+    let dir = scratch("output-format");
+    let st = Command::new("sh")
+        .arg("-c")
+        .arg(format!("{} good.exr --width 24 --grid 1", standin()))
+        .current_dir(&dir)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let img = rayproof::images::read_image(&dir.join("good.exr")).unwrap();
+    rayproof::images::write_png_rgb8(
+        &dir.join("good.png"),
+        img.width,
+        img.height,
+        &rayproof::images::tonemap_rgb8(&img),
+    )
+    .unwrap();
+    // A renderer that writes only to a name ending in .png (as POV-Ray's +FN appends it)
+    let suite = "[suite]\nname = \"fmt\"\ngoldens = \"goldens\"\noutput = \"png\"\n\n[[test]]\nname = \"p\"\ncommand = \"case {out} in *.png) cp good.png {out};; *) exit 9;; esac\"\n";
+    std::fs::write(dir.join("suite.toml"), suite).unwrap();
+    let (code, out, err) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let golden = std::fs::read(dir.join("goldens/p.png")).unwrap();
+    assert_eq!(golden, std::fs::read(dir.join("good.png")).unwrap());
+    assert!(!dir.join("goldens/p.exr").exists());
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}");
+    assert_eq!(status(&out, "p", "golden"), "PASS", "{out}");
+    // A golden named for another format than the output's: one line, exit 2
+    let bad = suite.replace(
+        "name = \"p\"\n",
+        "name = \"p\"\ngolden = \"goldens/p.exr\"\n",
+    );
+    std::fs::write(dir.join("suite.toml"), bad).unwrap();
+    let (code, out, err) = check(&dir, &[]);
+    assert_eq!(code, Some(2), "{out}{err}");
+    assert!(err.contains("would hold a PNG file: name it .png"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    // An unknown output format: one line, exit 2
+    std::fs::write(dir.join("suite.toml"), suite.replace("\"png\"", "\"pdf\"")).unwrap();
+    let (code, _, err) = check(&dir, &[]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("output = \"pdf\" is not an image format rayproof reads"),
+        "{err}"
+    );
+    // Other formats the image crate reads are test images and references: a PPM against a
+    // BMP of the same pixels passes
+    let ppm = b"P6\n2 1\n255\n\xff\x00\x00\x00\x00\xff".to_vec();
+    std::fs::write(dir.join("t.ppm"), &ppm).unwrap();
+    let bmp = image::RgbImage::from_raw(2, 1, vec![255, 0, 0, 0, 0, 255]).unwrap();
+    bmp.save_with_format(dir.join("r.bmp"), image::ImageFormat::Bmp)
+        .unwrap();
+    let suite = "[[test]]\nname = \"x\"\nimage = \"t.ppm\"\ngolden = false\nreference = [{ name = \"bmp\", path = \"r.bmp\" }]\n";
+    std::fs::write(dir.join("suite.toml"), suite).unwrap();
+    let (code, out, err) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    assert_eq!(status(&out, "x", "bmp"), "PASS", "{out}");
+}
+
+#[test]
+fn height_fills_its_placeholder_and_the_frame_is_checked() {
+    let dir = scratch("height");
+    // A "renderer" that writes a PPM of {width} × {height}
+    let suite = "[suite]\nname = \"h\"\ngoldens = \"goldens\"\noutput = \"ppm\"\n\n[[test]]\nname = \"wide\"\nwidth = 5\nheight = 2\ncommand = \"python3 -c 'import sys; w, h = int(sys.argv[2]), int(sys.argv[3]); open(sys.argv[1], \\\"wb\\\").write(b\\\"P6 %d %d 255 \\\" % (w, h) + bytes(3 * w * h))' {out} {width} {height}\"\n";
+    std::fs::write(dir.join("suite.toml"), suite).unwrap();
+    let (code, out, err) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let m = manifest(&dir);
+    assert_eq!(m["files"]["wide.ppm"]["height"], 2, "{m}");
+    assert_eq!(m["files"]["wide.ppm"]["width"], 5, "{m}");
+    // Without height in the test, the golden's manifest gives it
+    std::fs::write(dir.join("suite.toml"), suite.replace("height = 2\n", "")).unwrap();
+    let (code, out, err) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    // A renderer that ignores {height} is refused, not compared
+    let square = suite.replace("{width} {height}", "{width} {width}");
+    std::fs::write(
+        dir.join("suite.toml"),
+        square.replace("{width} {width}\"", "{width} {width} {height}\""),
+    )
+    .unwrap();
+    let (code, out, _) = check(&dir, &[]);
+    assert_eq!(code, Some(3), "{out}");
+    assert!(
+        line(&out, "wide", "golden")
+            .contains("wrote a 5×5 image, but its command was given {height} = 2"),
+        "{out}"
+    );
+}
