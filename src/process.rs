@@ -621,9 +621,9 @@ pub fn explain(stderr: &str) -> String {
         .collect();
     let last = lines.len().saturating_sub(3)..lines.len();
     let mut picked: Vec<&str> = vec![];
-    for i in 0..lines.len() {
-        if (says_idx.contains(&i) || last.contains(&i)) && !picked.contains(&lines[i]) {
-            picked.push(lines[i]);
+    for (i, &l) in lines.iter().enumerate() {
+        if (says_idx.contains(&i) || last.contains(&i)) && !picked.contains(&l) {
+            picked.push(l);
         }
     }
     let s = picked.join(" | ");

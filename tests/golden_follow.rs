@@ -353,15 +353,24 @@ fn bad_renderer_outputs_are_one_line_the_test_refused_nothing_blessed() {
             (code == Some(3), "exit code is not 3"),
             (row.contains("REFUSED"), "the row is not REFUSED"),
             (row.contains(want), "the row does not say the problem"),
-            (row.contains("test image"), "the row does not say 'test image'"),
+            (
+                row.contains("test image"),
+                "the row does not say 'test image'",
+            ),
             (row.len() < 800, "the row is longer than 800 bytes"),
             // One line: the row has no continuation, stderr says nothing more
             (!next.starts_with(' '), "the row has a continuation line"),
             (err.trim().is_empty(), "something on standard error"),
             // Nothing blessed: t's golden and the manifest as they were, no golden for u
-            (out.contains("--update wrote nothing"), "--update was not withheld"),
+            (
+                out.contains("--update wrote nothing"),
+                "--update was not withheld",
+            ),
             (after == before, "the golden or its manifest changed"),
-            (!dir.join("goldens/u.exr").exists(), "u's golden was written"),
+            (
+                !dir.join("goldens/u.exr").exists(),
+                "u's golden was written",
+            ),
         ];
         for (ok, what) in checks {
             if !ok {
