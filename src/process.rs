@@ -621,9 +621,9 @@ pub fn explain(stderr: &str) -> String {
         .collect();
     let last = lines.len().saturating_sub(3)..lines.len();
     let mut picked: Vec<&str> = vec![];
-    for i in 0..lines.len() {
-        if (says_idx.contains(&i) || last.contains(&i)) && !picked.contains(&lines[i]) {
-            picked.push(lines[i]);
+    for (i, &l) in lines.iter().enumerate() {
+        if (says_idx.contains(&i) || last.contains(&i)) && !picked.contains(&l) {
+            picked.push(l);
         }
     }
     let s = picked.join(" | ");
@@ -683,4 +683,32 @@ pub fn run_capped(
         return Err(e);
     }
     Ok(String::from_utf8_lossy(&f.stdout).into_owned())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::explain;
+
+    #[test]
+    fn explain_shows_the_reason_not_the_noise() {
+        // POV-Ray 3.7's standard error for a missing include (abridged, as it prints it)
+        let pov = "povray: cannot open the user configuration file /root/.povray/3.7/povray.conf: No such file or directory\n\
+                   Persistence of Vision(tm) Ray Tracer Version 3.7.0.10.unofficial (g++ @\n\
+                   Information Output Options\n  Fatal Stream to console.........On \n\
+                   ==== [Parsing...] ==========================================================\n\
+                   File 'a.pov' line 2: Parse Error: Cannot open include file light.inc.\n\
+                   Fatal error in parser: Cannot parse input.\nRender failed\n\n";
+        let e = explain(pov);
+        assert!(e.contains("Cannot open include file light.inc"), "{e}");
+        assert!(!e.contains("user configuration file"), "{e}");
+        assert!(!e.contains("Stream to console"), "{e}");
+        assert!(e.ends_with("Render failed"), "{e}");
+        // A warning first, the reason last
+        let gpu = "warning: GPU driver is old\nloading scene\nout of memory\n";
+        assert!(explain(gpu).contains("out of memory"));
+        // Long: the end is kept
+        let long = format!("{}\nthe reason\n", "x".repeat(2000));
+        let e = explain(&long);
+        assert!(e.ends_with("the reason") && e.chars().count() < 610, "{e}");
+    }
 }

@@ -145,14 +145,18 @@ fn a_changed_scene_refuses_stale_external_references_and_compares_a_stale_golden
         assert_eq!(status(&out, r), "REFUSED", "{out}");
     }
     assert!(
-        out.contains("was made from another version of the scene scenes/diffuse.toml: re-render it"),
+        out.contains(
+            "was made from another version of the scene scenes/diffuse.toml: re-render it"
+        ),
         "{out}"
     );
     // rayproof's own golden is rendered and compared (the albedo changed: it fails), and
     // said to be stale
     assert_eq!(status(&out, "golden"), "FAILURE", "{out}");
     assert!(
-        out.contains("warning: stale golden: made from another version of the scene scenes/diffuse.toml"),
+        out.contains(
+            "warning: stale golden: made from another version of the scene scenes/diffuse.toml"
+        ),
         "{out}"
     );
 }

@@ -4,8 +4,9 @@
 //! Exit codes: 0 every comparison passes (warnings, known failures, skipped optional
 //! references included); 1 some comparison fails (FAILURE, XPASS, a missing golden); 2 bad
 //! usage or a suite file that does not validate (nothing runs); 3 some test was refused (a
-//! renderer command failed, hung or wrote no image; a required reference is missing, tampered,
-//! stale or unreadable): then `--update` writes nothing.
+//! renderer command failed, hung or wrote no usable image; a required reference is missing,
+//! tampered, unreadable, or an external one stale): then `--update` writes nothing. A stale
+//! golden is not a refusal: it is compared, and `--update` re-blesses it.
 
 use super::*;
 use anyhow::Result;
@@ -21,12 +22,13 @@ pub struct CheckArgs {
     /// The suite file: tests, their images or renderer commands, references and thresholds.
     #[arg(long, default_value = "reference/suite.toml")]
     pub suite: PathBuf,
-    /// Write an HTML report (index.html and PNGs) into this directory.
+    /// Write an HTML report (index.html and PNGs) into this directory, and each renderer's
+    /// whole log as logs/TEST.log.
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// Write goldens where the golden comparison fails or the golden is missing (each with a
-    /// manifest entry); external references are never written, and nothing is written when a
-    /// test is refused.
+    /// Write goldens where the golden comparison fails, the golden is missing or it is stale
+    /// (made from another version of the test's scene or inputs), each with a manifest entry;
+    /// external references are never written, and nothing is written when a test is refused.
     #[arg(long)]
     pub update: bool,
     /// Tests rayproof renders: also render with these methods (compared with their external

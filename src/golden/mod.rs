@@ -5,16 +5,32 @@
 //! one such suite, `reference/suite.toml`: their POV-Ray and Mitsuba renders are external
 //! references, `NAME/rayproof.exr` the golden.
 //!
-//! - A reference with a `manifest.json` entry beside it must match its SHA-256 and, when the test
-//!   names a scene, the scene's SHA-256 (else REFUSED: tampered or stale). Its width and
-//!   sampling grid are the ones the test image is made with, unless the test says otherwise
-//!   (then a warning).
+//! - A reference with a `manifest.json` entry beside it must match its SHA-256 (else REFUSED:
+//!   tampered). An external reference whose entry records another version of the test's scene
+//!   (or of a declared input) is REFUSED as stale: rayproof cannot re-make it. The test's own
+//!   golden made from another version of its scene or inputs is **stale, not refused**: the
+//!   test renders and is compared as usual, its row warns `stale golden` (and the row's `stale`
+//!   field says which files), and `--update` re-blesses it. Its width, height and sampling grid
+//!   are the ones the test image is made with, unless the test says otherwise (then a warning).
+//! - The renderer's output is checked before it is compared: a regular file (not a directory or
+//!   a symbolic link), not empty, of the declared `output` format, decodable, at most 256 EXR
+//!   layers, the size its `{width}`/`{height}` asked for; else REFUSED with one line
+//!   ([`formats`]). The bytes compared are the bytes `--update` blesses.
+//! - A renderer that fails is reported by the lines of its standard error that explain it (those
+//!   that say error, fatal or cannot, and the last few; POV-Ray's `cannot open the user
+//!   configuration file` and option listing are left out: [`crate::process::explain`]). With
+//!   `--report DIR` each test's whole log (the command as run, how it ended, its standard error
+//!   and output) is kept as `DIR/logs/TEST.log`: the row's `log` field, linked from the HTML
+//!   and the JUnit XML.
 //! - A missing required reference, a renderer command that fails, hangs past the suite's
 //!   timeout or writes no readable image: REFUSED, one line in the row. A missing optional
 //!   reference: SKIPPED.
 //! - `--update` writes a golden (a copy of the test image, with a manifest entry: SHA-256, the
-//!   command, the date) only where the golden comparison fails or the golden is missing, never
-//!   an external reference, and nothing at all when any test of the run was refused.
+//!   command as the suite writes it, never a scratch path; the test's own scene as written and
+//!   its inputs by SHA-256; width, height, grid; the date) where the golden comparison fails,
+//!   the golden is missing or it is stale (every stale golden, passing or not, so that after
+//!   `--update` no golden is stale), never an external reference, and nothing at all when any
+//!   test of the run was refused.
 //!
 //! One file per job: `suite` (the suite file), `references` (rules, manifests, hashes, bless),
 //! `rows` (the results and their tables), `html` and `junit` (the reports); this file runs it.
@@ -49,10 +65,10 @@
 //!   `junit-10.xsd`: failures, XPASS and NEW as `<failure>`, refusals as `<error>`, XFAIL and
 //!   skipped optional references as `<skipped>`, times that add up; the table in [`junit()`]).
 //! - **Exit codes** of `check`: 0 every comparison passes (warnings, XFAIL and SKIPPED included);
-//!   1 a comparison fails (FAILURE, XPASS, a missing golden); 2 the suite file does not validate
-//!   or bad usage (one line, nothing runs); 3 a test was refused: its renderer command failed,
-//!   hung past `timeout` or wrote no image, or a required reference is missing, tampered, stale
-//!   or unreadable. A refused test is one line in its row of every report, and then `--update`
+//!   1 a comparison fails (FAILURE, XPASS, a missing golden; a stale golden counts as its
+//!   comparison does); 2 the suite file does not validate or bad usage (one line, nothing runs);
+//!   3 a test was refused: its renderer command failed, hung past `timeout` or wrote no usable
+//!   image, or a required reference is missing, tampered, stale or unreadable. A refused test is one line in its row of every report, and then `--update`
 //!   writes nothing at all, no golden and no manifest.
 //!
 //! In CI (GitHub Actions, after installing rayproof and your renderer):

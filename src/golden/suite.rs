@@ -9,6 +9,7 @@
 //! renderer = "myrender {scene} -o {out} --spp {spp}"   # tests without their own source use it
 //! timeout = 600                                        # seconds per render command
 //! goldens = "goldens"                                  # where --update writes NAME.exr
+//! output = "exr"                  # the renderer's format: {out} and goldens end in .exr
 //!
 //! [thresholds]          # every external reference (idiff keys, max_mean, max_flip, …)
 //! fail = 0.05
@@ -20,6 +21,8 @@
 //! [[test]]
 //! name = "cornell"
 //! scene = "scenes/cornell.toml"        # {scene}; relative to this file
+//! inputs = ["scenes/light.inc"]        # other files the image is made from (hashed)
+//! width = 64                           # {width}; height = 48 for {height} (non-square)
 //! grid = 8                             # {grid}, {spp} = grid²; else the references' manifests'
 //! [[test.reference]]
 //! name = "povray"
@@ -31,8 +34,16 @@
 //! A test's image comes from exactly one of `image = "PATH"` (an image already rendered),
 //! `command = "TEMPLATE"` (or the suite's `renderer`), or `rayproof = { method, precision }`
 //! (rayproof renders `scene` itself). Placeholders: `{scene}`, `{out}` (the file the command
-//! must write), `{variance}` (its variance image, for the z-test), `{width}`, `{grid}`, `{spp}`,
-//! `{name}`. Commands run through `sh -c` in the suite file's directory, placeholders shell-quoted.
+//! must write), `{variance}` (its variance image, for the z-test), `{width}`, `{height}`,
+//! `{grid}`, `{spp}`, `{name}`. Commands run through `sh -c` in the suite file's directory,
+//! placeholders shell-quoted. A renderer given `{width}` or `{height}` must write that size.
+//!
+//! `output` (in `[suite]` or a test) names the format of the renderer's image by its extension
+//! (`exr` by default; `png`, `jpg`, `tif`, `ppm`, `hdr`, `tga`, `bmp`, … as [`super::formats`]
+//! reads them): `{out}` ends in it, the default golden is `GOLDENS/NAME.EXT`, and a golden named
+//! for another format is a suite error (a golden keeps its real format). An `image` test's
+//! format is its extension's. `scene` and `inputs` are hashed into a golden's manifest entry: a
+//! golden made from other versions of them is stale (compared, then re-blessed by `--update`).
 //!
 //! A NaN or an infinity in a test image fails every comparison of the test, whatever its
 //! thresholds (idiff lets a few through under `failpercent`); a test whose image may hold them on
