@@ -90,7 +90,8 @@ pub fn clean_up_on_signals() {
         let _commit = COMMIT.lock().unwrap_or_else(|e| e.into_inner());
         // Temporaries being written are finished first (a stuck writer is given up on)
         let start = std::time::Instant::now();
-        while IN_FLIGHT.load(std::sync::atomic::Ordering::SeqCst) > 0 && start.elapsed() < WRITE_GRACE
+        while IN_FLIGHT.load(std::sync::atomic::Ordering::SeqCst) > 0
+            && start.elapsed() < WRITE_GRACE
         {
             std::thread::sleep(std::time::Duration::from_millis(2));
         }
@@ -158,7 +159,10 @@ fn tmp_for(path: &Path, kind: &str) -> PathBuf {
     );
     let bytes = path.as_os_str().as_bytes();
     let end = bytes.len() - bytes.iter().rev().take_while(|&&b| b == b'/').count();
-    let cut = bytes[..end].iter().rposition(|&b| b == b'/').map_or(0, |i| i + 1);
+    let cut = bytes[..end]
+        .iter()
+        .rposition(|&b| b == b'/')
+        .map_or(0, |i| i + 1);
     if path.file_name().map(|n| n.as_bytes()) != Some(&bytes[cut..end]) {
         return path.with_file_name(tmp);
     }
@@ -486,8 +490,9 @@ impl Outputs {
                     remove_temporary(&t.tmp);
                     live(|v| v.retain(|p| p != &t.tmp));
                 }
-                return Err(anyhow::Error::new(e)
-                    .context(format!("cannot write {}", s.path.display())));
+                return Err(
+                    anyhow::Error::new(e).context(format!("cannot write {}", s.path.display()))
+                );
             }
         }
         Ok(())

@@ -53,7 +53,11 @@ const PEAK_MEMORY: u64 = 1 << 30;
 /// Cases for a surface: `RAYPROOF_FUZZ_CASES_<SURFACE>`, else `RAYPROOF_FUZZ_CASES`, else the
 /// default.
 fn cases(surface: &str, default: u32) -> u32 {
-    let var = |k: &str| std::env::var(k).ok().and_then(|v| v.trim().parse::<u32>().ok());
+    let var = |k: &str| {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.trim().parse::<u32>().ok())
+    };
     var(&format!("RAYPROOF_FUZZ_CASES_{}", surface.to_uppercase()))
         .or_else(|| var("RAYPROOF_FUZZ_CASES"))
         .unwrap_or(default)
@@ -171,7 +175,8 @@ fn run_in(dir: &Path, args: &[OsString]) -> Run {
     }
     drop(child);
     let status = std::process::ExitStatus::from_raw(raw);
-    let read = |p: &Path| String::from_utf8_lossy(&std::fs::read(p).unwrap_or_default()).into_owned();
+    let read =
+        |p: &Path| String::from_utf8_lossy(&std::fs::read(p).unwrap_or_default()).into_owned();
     let r = Run {
         code: status.code(),
         signal: status.signal(),
@@ -209,7 +214,9 @@ fn snapshot(dir: &Path) -> Snapshot {
         for e in rd.flatten() {
             let p = e.path();
             let rel = p.strip_prefix(root).unwrap().to_path_buf();
-            let Ok(m) = std::fs::symlink_metadata(&p) else { continue };
+            let Ok(m) = std::fs::symlink_metadata(&p) else {
+                continue;
+            };
             let t = m.file_type();
             if t.is_symlink() {
                 out.insert(rel, Node::Link(std::fs::read_link(&p).unwrap_or_default()));
@@ -313,13 +320,19 @@ fn judge(r: &Run, e: &Expect, before: &Snapshot, after: &Snapshot) -> Result<(),
         tail(&r.stdout, 1500)
     );
     if r.timed_out {
-        return Err(format!("a hang: no end within {} s ({ended})", RUN_TIMEOUT.as_secs()));
+        return Err(format!(
+            "a hang: no end within {} s ({ended})",
+            RUN_TIMEOUT.as_secs()
+        ));
     }
     let Some(code) = r.code else {
         return Err(format!("killed by a signal ({ended})"));
     };
     if r.peak > PEAK_MEMORY {
-        return Err(format!("a memory blow-up: {} MB resident at the peak ({ended})", r.peak >> 20));
+        return Err(format!(
+            "a memory blow-up: {} MB resident at the peak ({ended})",
+            r.peak >> 20
+        ));
     }
     if !e.codes.contains(&code) {
         return Err(format!("undocumented exit code {code} ({ended})"));
@@ -329,7 +342,8 @@ fn judge(r: &Run, e: &Expect, before: &Snapshot, after: &Snapshot) -> Result<(),
     }
     let lines: Vec<&str> = r.stderr.trim_end().lines().collect();
     let says_error = lines.iter().any(|l| l.starts_with("error"));
-    let error = e.errors.contains(&code) || (e.maybe_errors.contains(&code) && !r.stderr.trim().is_empty());
+    let error =
+        e.errors.contains(&code) || (e.maybe_errors.contains(&code) && !r.stderr.trim().is_empty());
     if error {
         if lines.len() != 1 || !lines[0].starts_with("error") {
             return Err(format!(
@@ -338,7 +352,9 @@ fn judge(r: &Run, e: &Expect, before: &Snapshot, after: &Snapshot) -> Result<(),
             ));
         }
     } else if says_error {
-        return Err(format!("an \"error\" line with a non-error exit code ({ended})"));
+        return Err(format!(
+            "an \"error\" line with a non-error exit code ({ended})"
+        ));
     }
     let diff = changes(before, after);
     if error {
@@ -378,7 +394,13 @@ fn tail(s: &str, n: usize) -> String {
 /// A failure with its reproducer: the surface, the command, the mutated inputs `(name,
 /// original, mutated)` (the lines that differ are shown; the files are kept under
 /// `CARGO_TARGET_TMPDIR/fuzz-surfaces-failures/`), and how to replay the case.
-fn fail(what: &str, replay: &str, cmd: &[OsString], input: &[(&str, &[u8], &[u8])], why: String) -> TestCaseError {
+fn fail(
+    what: &str,
+    replay: &str,
+    cmd: &[OsString],
+    input: &[(&str, &[u8], &[u8])],
+    why: String,
+) -> TestCaseError {
     let cmd: Vec<String> = cmd.iter().map(|a| format!("{a:?}")).collect();
     let keep = Path::new(env!("CARGO_TARGET_TMPDIR"))
         .join("fuzz-surfaces-failures")
@@ -392,7 +414,11 @@ fn fail(what: &str, replay: &str, cmd: &[OsString], input: &[(&str, &[u8], &[u8]
         let file = keep.join(name);
         std::fs::create_dir_all(file.parent().unwrap()).unwrap();
         std::fs::write(&file, mutated).unwrap();
-        s += &format!("--- {name} (kept as {}):\n{}", file.display(), changed_lines(original, mutated));
+        s += &format!(
+            "--- {name} (kept as {}):\n{}",
+            file.display(),
+            changed_lines(original, mutated)
+        );
     }
     TestCaseError::fail(s)
 }
@@ -402,7 +428,12 @@ fn changed_lines(original: &[u8], mutated: &[u8]) -> String {
     let a: Vec<&[u8]> = original.split(|&b| b == b'\n').collect();
     let b: Vec<&[u8]> = mutated.split(|&b| b == b'\n').collect();
     let head = a.iter().zip(&b).take_while(|(x, y)| x == y).count();
-    let tail = a[head..].iter().rev().zip(b[head..].iter().rev()).take_while(|(x, y)| x == y).count();
+    let tail = a[head..]
+        .iter()
+        .rev()
+        .zip(b[head..].iter().rev())
+        .take_while(|(x, y)| x == y)
+        .count();
     let show = |l: &[u8]| clip(&format!("{:?}", String::from_utf8_lossy(l)), 400);
     let mut s = String::new();
     for (k, l) in a.iter().enumerate().take(a.len() - tail).skip(head) {
@@ -432,7 +463,9 @@ const KNOWN_FAILURES: &[KnownFailure] = &[(
 
 fn names_an_infinite_device(input: &[u8]) -> bool {
     let text = String::from_utf8_lossy(input);
-    ["/dev/zero", "/dev/full", "/dev/urandom"].iter().any(|d| text.contains(d))
+    ["/dev/zero", "/dev/full", "/dev/urandom"]
+        .iter()
+        .any(|d| text.contains(d))
 }
 
 /// The verdict on a case, or `Ok` for a known failure (printed).
@@ -473,7 +506,13 @@ struct Mutation {
 }
 
 fn mutation() -> impl Strategy<Value = Mutation> {
-    (0usize..12, 0usize..100_000, 0usize..100_000, 0usize..100_000).prop_map(|(kind, a, b, v)| Mutation { kind, a, b, v })
+    (
+        0usize..12,
+        0usize..100_000,
+        0usize..100_000,
+        0usize..100_000,
+    )
+        .prop_map(|(kind, a, b, v)| Mutation { kind, a, b, v })
 }
 
 /// A very long string of `c`.
@@ -486,20 +525,100 @@ fn toml_hostile() -> &'static Vec<String> {
     static V: OnceLock<Vec<String>> = OnceLock::new();
     V.get_or_init(|| {
         let mut v: Vec<String> = [
-            "nan", "+nan", "-nan", "inf", "+inf", "-inf", "-0", "-0.0", "0", "0.0", "-1", "1", "2", "1e308",
-            "-1e308", "1e-320", "5e-324", "1e-5", "18446744073709551616", "18446744073709551615",
-            "9223372036854775807", "-9223372036854775808", "4294967295", "4294967296", "65", "16385",
-            "1.5", "0x10", "true", "false", "\"\"", "\" \"", "\"x\"", "\"nan\"", "\"1\"", "[]", "[1, 2]", "[\"a\", \"a\"]",
-            "[[]]", "{}", "{ fail = nan }", "{ fail = -1 }", "{ nosuchkey = 1 }", "1979-05-27T07:32:00Z", "\"..\"",
-            "\".\"", "\"/\"", "\"/dev/null\"", "\"/dev/full\"", "\"/dev/zero\"", "\"/dev/urandom\"", "\"/proc/self/status\"", "\"/no/such/file\"",
-            "\"suite.toml\"", "\"refs/manifest.json\"", "\"refs/a.exr\"", "\"img/c.exr\"", "\"goldens\"",
-            "\"goldens/a.exr\"", "\"{out}\"", "\"{unknown}\"", "\"{\"", "\"}\"", "\"{out\"", "\"a\\nb\"",
-            "\"\\u0000\"", "\"\\r\"", "\"ü\"", "'''\nmulti\nline'''", "\"none\"", "\"measured\"", "\"reject\"",
-            "\"rcp\"", "\"sphere\"", "\"division\"", "\"bits+1\"", "\"promote\"", "\"f32\"", "\"f64\"",
-            "\"f16\"", "[\"f32\", \"f32\"]", "[\"mantissa\", \"huge\"]", "[0, 0]", "[1, 0]", "[0, 1]",
-            "[9223372036854775807, 9223372036854775807]", "[1, 9223372036854775807]", "[-1, 5]",
-            "[1.5, 2]", "[1, 2, 3]", "[nan, 1]", "{ method = \"promote\", precision = \"f16\" }",
-            "{ method = \"nope\", precision = \"f64\" }", "{ method = \"promote\" }",
+            "nan",
+            "+nan",
+            "-nan",
+            "inf",
+            "+inf",
+            "-inf",
+            "-0",
+            "-0.0",
+            "0",
+            "0.0",
+            "-1",
+            "1",
+            "2",
+            "1e308",
+            "-1e308",
+            "1e-320",
+            "5e-324",
+            "1e-5",
+            "18446744073709551616",
+            "18446744073709551615",
+            "9223372036854775807",
+            "-9223372036854775808",
+            "4294967295",
+            "4294967296",
+            "65",
+            "16385",
+            "1.5",
+            "0x10",
+            "true",
+            "false",
+            "\"\"",
+            "\" \"",
+            "\"x\"",
+            "\"nan\"",
+            "\"1\"",
+            "[]",
+            "[1, 2]",
+            "[\"a\", \"a\"]",
+            "[[]]",
+            "{}",
+            "{ fail = nan }",
+            "{ fail = -1 }",
+            "{ nosuchkey = 1 }",
+            "1979-05-27T07:32:00Z",
+            "\"..\"",
+            "\".\"",
+            "\"/\"",
+            "\"/dev/null\"",
+            "\"/dev/full\"",
+            "\"/dev/zero\"",
+            "\"/dev/urandom\"",
+            "\"/proc/self/status\"",
+            "\"/no/such/file\"",
+            "\"suite.toml\"",
+            "\"refs/manifest.json\"",
+            "\"refs/a.exr\"",
+            "\"img/c.exr\"",
+            "\"goldens\"",
+            "\"goldens/a.exr\"",
+            "\"{out}\"",
+            "\"{unknown}\"",
+            "\"{\"",
+            "\"}\"",
+            "\"{out\"",
+            "\"a\\nb\"",
+            "\"\\u0000\"",
+            "\"\\r\"",
+            "\"ü\"",
+            "'''\nmulti\nline'''",
+            "\"none\"",
+            "\"measured\"",
+            "\"reject\"",
+            "\"rcp\"",
+            "\"sphere\"",
+            "\"division\"",
+            "\"bits+1\"",
+            "\"promote\"",
+            "\"f32\"",
+            "\"f64\"",
+            "\"f16\"",
+            "[\"f32\", \"f32\"]",
+            "[\"mantissa\", \"huge\"]",
+            "[0, 0]",
+            "[1, 0]",
+            "[0, 1]",
+            "[9223372036854775807, 9223372036854775807]",
+            "[1, 9223372036854775807]",
+            "[-1, 5]",
+            "[1.5, 2]",
+            "[1, 2, 3]",
+            "[nan, 1]",
+            "{ method = \"promote\", precision = \"f16\" }",
+            "{ method = \"nope\", precision = \"f64\" }",
+            "{ method = \"promote\" }",
         ]
         .iter()
         .map(|s| s.to_string())
@@ -517,10 +636,39 @@ fn json_hostile() -> &'static Vec<String> {
     static V: OnceLock<Vec<String>> = OnceLock::new();
     V.get_or_init(|| {
         let mut v: Vec<String> = [
-            "null", "true", "false", "0", "-0", "-1", "1", "2", "64", "65", "1.5", "1e308", "-1e308", "1e-320",
-            "1e999", "18446744073709551616", "18446744073709551615", "4294967296", "4294967295", "16385",
-            "\"\"", "\"x\"", "\"24\"", "[]", "[1]", "{}", "{\"sha256\": 1}", "{\"files\": {}}", "NaN", "Infinity",
-            "\"0000000000000000000000000000000000000000000000000000000000000000\"", "\"\\u0000\"", "\"a\\nb\"",
+            "null",
+            "true",
+            "false",
+            "0",
+            "-0",
+            "-1",
+            "1",
+            "2",
+            "64",
+            "65",
+            "1.5",
+            "1e308",
+            "-1e308",
+            "1e-320",
+            "1e999",
+            "18446744073709551616",
+            "18446744073709551615",
+            "4294967296",
+            "4294967295",
+            "16385",
+            "\"\"",
+            "\"x\"",
+            "\"24\"",
+            "[]",
+            "[1]",
+            "{}",
+            "{\"sha256\": 1}",
+            "{\"files\": {}}",
+            "NaN",
+            "Infinity",
+            "\"0000000000000000000000000000000000000000000000000000000000000000\"",
+            "\"\\u0000\"",
+            "\"a\\nb\"",
             "\"\\ud800\"",
         ]
         .iter()
@@ -536,13 +684,66 @@ fn json_hostile() -> &'static Vec<String> {
 
 /// Tokens for numbers, counts and fields of cases and answers (and the `--exec` child's).
 const TOKENS: [&str; 60] = [
-    "nan", "-nan", "NaN", "inf", "-inf", "+inf", "infinity", "Inf", "-0", "0", "-0.0", "+0", "1", "2", "3",
-    "-1", "1e308", "1e309", "-1e308", "1e-320", "4.9e-324", "1e-400", "0x1p-1074", "0x1p+1024",
-    "0x1.fffffffffffffp+1023", "0x", "0x1p", "0xp1", "1e", "--1", "+-1", "18446744073709551616",
-    "18446744073709551615", "4294967296", "4294967295", "1.5", "1e2", "0x1", "1_000", "\u{661}",
-    "1,5", "0b1", "1..2", "", "f32", "f64", "f16", "mantissa", "tangent", "invalid",
-    "cases=18446744073709551616", "cases=0", "cases=-1", "cases=99999999999", "seed=-1",
-    "seed=18446744073709551616", "shape=torus", "shape=", "shape=sphere", "#",
+    "nan",
+    "-nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "+inf",
+    "infinity",
+    "Inf",
+    "-0",
+    "0",
+    "-0.0",
+    "+0",
+    "1",
+    "2",
+    "3",
+    "-1",
+    "1e308",
+    "1e309",
+    "-1e308",
+    "1e-320",
+    "4.9e-324",
+    "1e-400",
+    "0x1p-1074",
+    "0x1p+1024",
+    "0x1.fffffffffffffp+1023",
+    "0x",
+    "0x1p",
+    "0xp1",
+    "1e",
+    "--1",
+    "+-1",
+    "18446744073709551616",
+    "18446744073709551615",
+    "4294967296",
+    "4294967295",
+    "1.5",
+    "1e2",
+    "0x1",
+    "1_000",
+    "\u{661}",
+    "1,5",
+    "0b1",
+    "1..2",
+    "",
+    "f32",
+    "f64",
+    "f16",
+    "mantissa",
+    "tangent",
+    "invalid",
+    "cases=18446744073709551616",
+    "cases=0",
+    "cases=-1",
+    "cases=99999999999",
+    "seed=-1",
+    "seed=18446744073709551616",
+    "shape=torus",
+    "shape=",
+    "shape=sphere",
+    "#",
 ];
 
 /// A hostile token: one of [`TOKENS`] or a very long number.
@@ -557,8 +758,22 @@ fn token(v: usize) -> String {
 
 /// Lines inserted whole.
 const LINES: [&str; 16] = [
-    "", " ", "#", "# a comment", "[suite]", "[[test]]", "[[rule]]", "[measured]", "{", "}", "\"files\": {},",
-    "0", "1 1 1", "garbage line", "\u{0}", "key = ",
+    "",
+    " ",
+    "#",
+    "# a comment",
+    "[suite]",
+    "[[test]]",
+    "[[rule]]",
+    "[measured]",
+    "{",
+    "}",
+    "\"files\": {},",
+    "0",
+    "1 1 1",
+    "garbage line",
+    "\u{0}",
+    "key = ",
 ];
 
 /// Applies one mutation to a text file.
@@ -586,7 +801,11 @@ fn mutate(text: &str, m: &Mutation, style: Style, hostile: &[String]) -> Vec<u8>
             }
             Style::Json => {
                 let (key, rest) = line.split_once("\":").unwrap();
-                let comma = if rest.trim_end().ends_with(',') { "," } else { "" };
+                let comma = if rest.trim_end().ends_with(',') {
+                    ","
+                } else {
+                    ""
+                };
                 format!("{key}\": {v}{comma}")
             }
             Style::Words => line.to_string(),
@@ -596,7 +815,11 @@ fn mutate(text: &str, m: &Mutation, style: Style, hostile: &[String]) -> Vec<u8>
         // Hostile values, most often
         0..=3 if !kv.is_empty() => {
             // Tokens: the first line (a cases file's header) a quarter of the time
-            let k = if style == Style::Words && m.a % 4 == 0 { kv[0] } else { kv[m.a % kv.len()] };
+            let k = if style == Style::Words && m.a % 4 == 0 {
+                kv[0]
+            } else {
+                kv[m.a % kv.len()]
+            };
             if style == Style::Words {
                 let mut w: Vec<String> = lines[k].split_whitespace().map(String::from).collect();
                 let i = m.b % w.len();
@@ -632,7 +855,13 @@ fn mutate(text: &str, m: &Mutation, style: Style, hostile: &[String]) -> Vec<u8>
             } else {
                 let val = |l: &str| match style {
                     Style::Toml => l.split_once('=').unwrap().1.trim().to_string(),
-                    _ => l.split_once("\":").unwrap().1.trim().trim_end_matches(',').to_string(),
+                    _ => l
+                        .split_once("\":")
+                        .unwrap()
+                        .1
+                        .trim()
+                        .trim_end_matches(',')
+                        .to_string(),
                 };
                 out[i] = set_value(lines[i], &val(lines[j]));
                 out[j] = set_value(lines[j], &val(lines[i]));
@@ -692,14 +921,22 @@ fn python() -> &'static str {
 }
 
 fn standin() -> String {
-    format!("'{}' '{}'", python(), common::outside("standin_render.py").display())
+    format!(
+        "'{}' '{}'",
+        python(),
+        common::outside("standin_render.py").display()
+    )
 }
 
 /// Renders with the stand-in renderer.
 fn standin_render(out: &Path, width: u32, grid: u32) {
     let st = Command::new("sh")
         .arg("-c")
-        .arg(format!("{} '{}' --width {width} --grid {grid}", standin(), out.display()))
+        .arg(format!(
+            "{} '{}' --width {width} --grid {grid}",
+            standin(),
+            out.display()
+        ))
         .status()
         .unwrap();
     assert!(st.success());
@@ -730,7 +967,9 @@ fn suite_template() -> &'static Path {
         std::fs::copy(d.join("refs/c.exr"), d.join("img/c.exr")).unwrap();
         std::fs::write(
             d.join("refs/manifest.json"),
-            serde_json::to_string_pretty(&serde_json::json!({ "scene": "none", "files": files })).unwrap() + "\n",
+            serde_json::to_string_pretty(&serde_json::json!({ "scene": "none", "files": files }))
+                .unwrap()
+                + "\n",
         )
         .unwrap();
         // A small scene for the test rayproof renders
@@ -799,9 +1038,21 @@ golden_thresholds = {{ fail = 1e-5 }}
         std::fs::write(d.join("suite.toml"), suite).unwrap();
         let args = os(&["check", "--suite", "suite.toml", "--update"]);
         let r = run_in(&d, &args);
-        assert_eq!(r.code, Some(0), "the fixture's first --update: {}{}", r.stdout, r.stderr);
+        assert_eq!(
+            r.code,
+            Some(0),
+            "the fixture's first --update: {}{}",
+            r.stdout,
+            r.stderr
+        );
         let r = run_in(&d, &args);
-        assert_eq!(r.code, Some(0), "the fixture passes: {}{}", r.stdout, r.stderr);
+        assert_eq!(
+            r.code,
+            Some(0),
+            "the fixture passes: {}{}",
+            r.stdout,
+            r.stderr
+        );
         assert!(d.join("goldens/manifest.json").is_file());
         std::fs::write(d.join("rows.json"), b"previous").unwrap();
         d
@@ -862,7 +1113,13 @@ fn child() -> &'static Path {
         let c = d.join("child.c");
         std::fs::write(&c, src).unwrap();
         let exe = d.join("child");
-        let o = Command::new("cc").args(["-O2", "-o"]).arg(&exe).arg(&c).arg("-lm").output().expect("a C compiler (cc)");
+        let o = Command::new("cc")
+            .args(["-O2", "-o"])
+            .arg(&exe)
+            .arg(&c)
+            .arg("-lm")
+            .output()
+            .expect("a C compiler (cc)");
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         exe
     })
@@ -1010,7 +1267,11 @@ fn answers_for(shape: &str, case_lines: &str) -> String {
         .stdout(Stdio::piped())
         .spawn()
         .unwrap();
-    c.stdin.take().unwrap().write_all(case_lines.as_bytes()).unwrap();
+    c.stdin
+        .take()
+        .unwrap()
+        .write_all(case_lines.as_bytes())
+        .unwrap();
     let o = c.wait_with_output().unwrap();
     assert!(o.status.success());
     String::from_utf8(o.stdout).unwrap()
@@ -1025,7 +1286,10 @@ fn score_template(shape: &str) -> &'static (String, String) {
             .iter()
             .map(|s| {
                 let d = fresh(&format!("score-template-{s}"));
-                let r = run_in(&d, &os(&["cases", "--shape", s, "--cases", "3", "-o", "cases.txt"]));
+                let r = run_in(
+                    &d,
+                    &os(&["cases", "--shape", s, "--cases", "3", "-o", "cases.txt"]),
+                );
                 assert_eq!(r.code, Some(0), "{}", r.stderr);
                 let cases = std::fs::read_to_string(d.join("cases.txt")).unwrap();
                 // The child reads PRECISION INPUT…: drop the class and the index
@@ -1039,8 +1303,16 @@ fn score_template(shape: &str) -> &'static (String, String) {
                     .collect();
                 let answers = answers_for(s, &lines);
                 std::fs::write(d.join("answers.txt"), &answers).unwrap();
-                let r = run_in(&d, &os(&["score", "--cases", "cases.txt", "--answers", "answers.txt"]));
-                assert!(matches!(r.code, Some(0 | 1)), "the fixture scores: {}{}", r.stdout, r.stderr);
+                let r = run_in(
+                    &d,
+                    &os(&["score", "--cases", "cases.txt", "--answers", "answers.txt"]),
+                );
+                assert!(
+                    matches!(r.code, Some(0 | 1)),
+                    "the fixture scores: {}{}",
+                    r.stdout,
+                    r.stderr
+                );
                 (s.to_string(), (cases, answers))
             })
             .collect()
@@ -1052,9 +1324,16 @@ fn score_template(shape: &str) -> &'static (String, String) {
 
 /// The inputs of the suite fixture that no run may change.
 fn suite_protected(p: &Path) -> bool {
-    ["suite.toml", "refs/a.exr", "refs/b.exr", "refs/c.exr", "img/c.exr", "scene.toml"]
-        .iter()
-        .any(|q| p == Path::new(q))
+    [
+        "suite.toml",
+        "refs/a.exr",
+        "refs/b.exr",
+        "refs/c.exr",
+        "img/c.exr",
+        "scene.toml",
+    ]
+    .iter()
+    .any(|q| p == Path::new(q))
         || p.starts_with("tmp")
 }
 
@@ -1102,7 +1381,14 @@ fn suite_case(target: usize, m: &Mutation) -> Result<(), TestCaseError> {
     let text = std::fs::read_to_string(d.join(file)).unwrap();
     let input = mutate(&text, m, style, hostile);
     std::fs::write(d.join(file), &input).unwrap();
-    let args = os(&["check", "--suite", "suite.toml", "--update", "--json", "rows.json"]);
+    let args = os(&[
+        "check",
+        "--suite",
+        "suite.toml",
+        "--update",
+        "--json",
+        "rows.json",
+    ]);
     let before = snapshot(&d);
     let r = run_in(&d, &args);
     let after = snapshot(&d);
@@ -1126,7 +1412,8 @@ fn suite_case(target: usize, m: &Mutation) -> Result<(), TestCaseError> {
             && !suite_protected(p)
             && goldens.iter().any(|g| {
                 p == g
-                    || (p.file_name().is_some_and(|f| f == "manifest.json") && p.parent() == g.parent())
+                    || (p.file_name().is_some_and(|f| f == "manifest.json")
+                        && p.parent() == g.parent())
                     || (g.starts_with(p) && matches!(after.get(p), Some(Node::Dir)))
             })
     };
@@ -1148,7 +1435,13 @@ fn suite_case(target: usize, m: &Mutation) -> Result<(), TestCaseError> {
     }
     let replay = format!("suite {target} {} {} {} {}", m.kind, m.a, m.b, m.v);
     let res = res.map_err(|why| {
-        fail(&format!("suite surface ({file} mutated: {m:?})"), &replay, &args, &[(file, text.as_bytes(), &input)], why)
+        fail(
+            &format!("suite surface ({file} mutated: {m:?})"),
+            &replay,
+            &args,
+            &[(file, text.as_bytes(), &input)],
+            why,
+        )
     });
     verdict("suite", &input, res)
 }
@@ -1172,14 +1465,28 @@ fn tolerance_case(m: &Mutation) -> Result<(), TestCaseError> {
     std::fs::write(d.join("out.json"), b"previous").unwrap();
     std::fs::write(d.join("out.md"), b"previous").unwrap();
     let args = os(&[
-        "audit", "--shape", "rcp", "--cases", "200", "--tolerances", "t.toml", "--json", "out.json", "--markdown",
+        "audit",
+        "--shape",
+        "rcp",
+        "--cases",
+        "200",
+        "--tolerances",
+        "t.toml",
+        "--json",
+        "out.json",
+        "--markdown",
         "out.md",
     ]);
     let before = snapshot(&d);
     let r = run_in(&d, &args);
     let after = snapshot(&d);
     let may_write = |p: &Path, _: i32| p == Path::new("out.json") || p == Path::new("out.md");
-    let e = Expect { codes: &[0, 1, 2], errors: &[2], maybe_errors: &[], may_write: &may_write };
+    let e = Expect {
+        codes: &[0, 1, 2],
+        errors: &[2],
+        maybe_errors: &[],
+        may_write: &may_write,
+    };
     let mut res = judge(&r, &e, &before, &after);
     if res.is_ok() && matches!(r.code, Some(0 | 1)) {
         let json = std::fs::read(d.join("out.json")).unwrap();
@@ -1189,7 +1496,13 @@ fn tolerance_case(m: &Mutation) -> Result<(), TestCaseError> {
     }
     let replay = format!("tolerances {} {} {} {}", m.kind, m.a, m.b, m.v);
     let res = res.map_err(|why| {
-        fail(&format!("tolerance surface ({m:?})"), &replay, &args, &[("t.toml", rcp_tolerances().as_bytes(), &input)], why)
+        fail(
+            &format!("tolerance surface ({m:?})"),
+            &replay,
+            &args,
+            &[("t.toml", rcp_tolerances().as_bytes(), &input)],
+            why,
+        )
     });
     verdict("tolerances", &input, res)
 }
@@ -1198,7 +1511,18 @@ fn tolerance_case(m: &Mutation) -> Result<(), TestCaseError> {
 fn the_rcp_tolerance_fixture_passes_on_its_own() {
     let d = fresh("tolerances-fixture");
     std::fs::write(d.join("t.toml"), rcp_tolerances()).unwrap();
-    let r = run_in(&d, &os(&["audit", "--shape", "rcp", "--cases", "200", "--tolerances", "t.toml"]));
+    let r = run_in(
+        &d,
+        &os(&[
+            "audit",
+            "--shape",
+            "rcp",
+            "--cases",
+            "200",
+            "--tolerances",
+            "t.toml",
+        ]),
+    );
     assert_eq!(r.code, Some(0), "{}{}", r.stdout, r.stderr);
 }
 
@@ -1212,8 +1536,26 @@ fn a_measurement_of_ten_million_cases_is_judged_in_time() {
     );
     assert_ne!(&table, rcp_tolerances());
     std::fs::write(d.join("t.toml"), table).unwrap();
-    let r = run_in(&d, &os(&["audit", "--shape", "rcp", "--cases", "200", "--tolerances", "t.toml"]));
-    assert!(!r.timed_out && r.code == Some(0), "exit {:?} (timed out: {}): {}{}", r.code, r.timed_out, r.stdout, r.stderr);
+    let r = run_in(
+        &d,
+        &os(&[
+            "audit",
+            "--shape",
+            "rcp",
+            "--cases",
+            "200",
+            "--tolerances",
+            "t.toml",
+        ]),
+    );
+    assert!(
+        !r.timed_out && r.code == Some(0),
+        "exit {:?} (timed out: {}): {}{}",
+        r.code,
+        r.timed_out,
+        r.stdout,
+        r.stderr
+    );
 }
 
 proptest! {
@@ -1234,24 +1576,56 @@ fn score_case(shape: usize, target: usize, m: &Mutation) -> Result<(), TestCaseE
     let d = fresh("score");
     std::fs::create_dir_all(d.join("tmp")).unwrap();
     let (cases, answers) = match target {
-        0 => (mutate(cases, m, Style::Words, &[]), answers.as_bytes().to_vec()),
-        _ => (cases.as_bytes().to_vec(), mutate(answers, m, Style::Words, &[])),
+        0 => (
+            mutate(cases, m, Style::Words, &[]),
+            answers.as_bytes().to_vec(),
+        ),
+        _ => (
+            cases.as_bytes().to_vec(),
+            mutate(answers, m, Style::Words, &[]),
+        ),
     };
     std::fs::write(d.join("cases.txt"), &cases).unwrap();
     std::fs::write(d.join("answers.txt"), &answers).unwrap();
     std::fs::write(d.join("out.json"), b"previous").unwrap();
-    let args = os(&["score", "--cases", "cases.txt", "--answers", "answers.txt", "--json", "out.json"]);
+    let args = os(&[
+        "score",
+        "--cases",
+        "cases.txt",
+        "--answers",
+        "answers.txt",
+        "--json",
+        "out.json",
+    ]);
     let before = snapshot(&d);
     let r = run_in(&d, &args);
     let after = snapshot(&d);
     let may_write = |p: &Path, _: i32| p == Path::new("out.json");
-    let e = Expect { codes: &[0, 1, 2], errors: &[2], maybe_errors: &[], may_write: &may_write };
+    let e = Expect {
+        codes: &[0, 1, 2],
+        errors: &[2],
+        maybe_errors: &[],
+        may_write: &may_write,
+    };
     let res = judge(&r, &e, &before, &after).map_err(|why| {
         fail(
-            &format!("score surface ({shape}, {} mutated: {m:?})", ["cases.txt", "answers.txt"][target]),
-            &format!("score {} {target} {} {} {} {}", ["0", "1"][(shape == "sphere") as usize], m.kind, m.a, m.b, m.v),
+            &format!(
+                "score surface ({shape}, {} mutated: {m:?})",
+                ["cases.txt", "answers.txt"][target]
+            ),
+            &format!(
+                "score {} {target} {} {} {} {}",
+                ["0", "1"][(shape == "sphere") as usize],
+                m.kind,
+                m.a,
+                m.b,
+                m.v
+            ),
             &args,
-            &[("cases.txt", orig_cases.as_bytes(), &cases), ("answers.txt", orig_answers.as_bytes(), &answers)],
+            &[
+                ("cases.txt", orig_cases.as_bytes(), &cases),
+                ("answers.txt", orig_answers.as_bytes(), &answers),
+            ],
             why,
         )
     });
@@ -1275,17 +1649,37 @@ fn exec_case(kind: usize, at: usize, val: usize) -> Result<(), TestCaseError> {
     std::fs::write(d.join("out.json"), b"previous").unwrap();
     let cmd = format!("'{}' sphere {kind} {at} {val}", child().display());
     let args = os(&[
-        "audit", "--shape", "sphere", "--cases", "50", "--exec", &cmd, "--timeout", "5", "--json", "out.json",
+        "audit",
+        "--shape",
+        "sphere",
+        "--cases",
+        "50",
+        "--exec",
+        &cmd,
+        "--timeout",
+        "5",
+        "--json",
+        "out.json",
     ]);
     let before = snapshot(&d);
     let r = run_in(&d, &args);
     let after = snapshot(&d);
     let may_write = |p: &Path, _: i32| p == Path::new("out.json");
-    let e = Expect { codes: &[0, 1, 4], errors: &[2, 3, 4], maybe_errors: &[], may_write: &may_write };
-    let res = judge(&r, &e, &before, &after)
-        .map_err(|why| {
-            fail(&format!("exec surface (child kind {kind} at {at} val {val})"), &format!("exec {kind} {at} {val}"), &args, &[], why)
-        });
+    let e = Expect {
+        codes: &[0, 1, 4],
+        errors: &[2, 3, 4],
+        maybe_errors: &[],
+        may_write: &may_write,
+    };
+    let res = judge(&r, &e, &before, &after).map_err(|why| {
+        fail(
+            &format!("exec surface (child kind {kind} at {at} val {val})"),
+            &format!("exec {kind} {at} {val}"),
+            &args,
+            &[],
+            why,
+        )
+    });
     verdict("exec", cmd.as_bytes(), res)
 }
 
@@ -1293,7 +1687,20 @@ fn exec_case(kind: usize, at: usize, val: usize) -> Result<(), TestCaseError> {
 fn the_unmutated_exec_child_is_audited() {
     let d = fresh("exec-fixture");
     let cmd = format!("'{}' sphere 0 0 0", child().display());
-    let r = run_in(&d, &os(&["audit", "--shape", "sphere", "--cases", "50", "--exec", &cmd, "--timeout", "5"]));
+    let r = run_in(
+        &d,
+        &os(&[
+            "audit",
+            "--shape",
+            "sphere",
+            "--cases",
+            "50",
+            "--exec",
+            &cmd,
+            "--timeout",
+            "5",
+        ]),
+    );
     assert!(matches!(r.code, Some(0 | 1)), "{}{}", r.stdout, r.stderr);
     assert!(!r.stderr.contains("error"), "{}", r.stderr);
 }
@@ -1329,7 +1736,11 @@ fn paths_fixture(d: &Path) {
     std::fs::create_dir_all(d.join("adir")).unwrap();
     std::fs::write(d.join("adir/inside.txt"), b"a user's file in a directory").unwrap();
     std::fs::create_dir_all(d.join("made")).unwrap();
-    std::fs::write(d.join("made").join(rayproof::output::MARKER), b"made by rayproof\n").unwrap();
+    std::fs::write(
+        d.join("made").join(rayproof::output::MARKER),
+        b"made by rayproof\n",
+    )
+    .unwrap();
     std::fs::write(d.join("made/index.html"), b"an old report").unwrap();
     let link = |target: &str, name: &str| std::os::unix::fs::symlink(target, d.join(name)).unwrap();
     link("victim.txt", "link-file");
@@ -1425,17 +1836,33 @@ fn paths_case(command: usize, picks: &[usize]) -> Result<(), TestCaseError> {
     };
     let (mut args, flags): (Vec<OsString>, Vec<(&str, &str)>) = match command % 4 {
         0 => (
-            os(&["audit", "--shape", "rcp", "--cases", "20", "--tolerances", "t.toml"]),
+            os(&[
+                "audit",
+                "--shape",
+                "rcp",
+                "--cases",
+                "20",
+                "--tolerances",
+                "t.toml",
+            ]),
             vec![("--json", "json"), ("--markdown", "md")],
         ),
-        1 => (os(&["cases", "--shape", "rcp", "--cases", "2"]), vec![("-o", "txt")]),
+        1 => (
+            os(&["cases", "--shape", "rcp", "--cases", "2"]),
+            vec![("-o", "txt")],
+        ),
         2 => (
             os(&["score", "--cases", "cases.txt", "--answers", "answers.txt"]),
             vec![("--json", "json"), ("--markdown", "md")],
         ),
         _ => (
             os(&["check", "--suite", "s.toml"]),
-            vec![("--report", "d"), ("--json", "json"), ("--junit", "xml"), ("--markdown", "md")],
+            vec![
+                ("--report", "d"),
+                ("--json", "json"),
+                ("--junit", "xml"),
+                ("--markdown", "md"),
+            ],
         ),
     };
     // Every flag of the command, or only some (the first always)
@@ -1465,12 +1892,17 @@ fn paths_case(command: usize, picks: &[usize]) -> Result<(), TestCaseError> {
         .iter()
         .map(|(flag, p)| {
             let full = normalise(&d.join(p));
-            let parent = full.parent().map(|q| std::fs::canonicalize(q).unwrap_or(q.to_path_buf()));
+            let parent = full
+                .parent()
+                .map(|q| std::fs::canonicalize(q).unwrap_or(q.to_path_buf()));
             let real = match (parent, full.file_name()) {
                 (Some(q), Some(f)) => q.join(f),
                 _ => full.clone(),
             };
-            (*flag == "--report", real.strip_prefix(&canon_d).ok().map(Path::to_path_buf))
+            (
+                *flag == "--report",
+                real.strip_prefix(&canon_d).ok().map(Path::to_path_buf),
+            )
         })
         .collect();
     let may_write = |p: &Path, _: i32| {
@@ -1480,8 +1912,17 @@ fn paths_case(command: usize, picks: &[usize]) -> Result<(), TestCaseError> {
             None => false,
         })
     };
-    let codes: &[i32] = if command % 4 == 3 { &[0, 1, 2, 3] } else { &[0, 1, 2] };
-    let e = Expect { codes, errors: &[2], maybe_errors: &[3], may_write: &may_write };
+    let codes: &[i32] = if command % 4 == 3 {
+        &[0, 1, 2, 3]
+    } else {
+        &[0, 1, 2]
+    };
+    let e = Expect {
+        codes,
+        errors: &[2],
+        maybe_errors: &[3],
+        may_write: &may_write,
+    };
     let mut res = judge(&r, &e, &before, &after);
     // A run that succeeded wrote every output it was given
     if res.is_ok() && matches!(r.code, Some(0 | 1)) {
@@ -1501,9 +1942,31 @@ fn paths_case(command: usize, picks: &[usize]) -> Result<(), TestCaseError> {
             }
         }
     }
-    let replay = format!("paths {command} {}", picks.iter().map(|p| p.to_string()).collect::<Vec<_>>().join(" "));
-    let res = res.map_err(|why| fail(&format!("output-path surface (command {})", command % 4), &replay, &args, &[], why));
-    verdict("paths", &args.iter().flat_map(|a| a.as_bytes().to_vec()).collect::<Vec<u8>>(), res)
+    let replay = format!(
+        "paths {command} {}",
+        picks
+            .iter()
+            .map(|p| p.to_string())
+            .collect::<Vec<_>>()
+            .join(" ")
+    );
+    let res = res.map_err(|why| {
+        fail(
+            &format!("output-path surface (command {})", command % 4),
+            &replay,
+            &args,
+            &[],
+            why,
+        )
+    });
+    verdict(
+        "paths",
+        &args
+            .iter()
+            .flat_map(|a| a.as_bytes().to_vec())
+            .collect::<Vec<u8>>(),
+        res,
+    )
 }
 
 proptest! {
@@ -1535,10 +1998,16 @@ fn every_hostile_output_path_once_per_command() {
 #[test]
 #[ignore]
 fn replay() {
-    let spec = std::env::var("RAYPROOF_FUZZ_REPLAY").expect("RAYPROOF_FUZZ_REPLAY='SURFACE NUMBERS…'");
+    let spec =
+        std::env::var("RAYPROOF_FUZZ_REPLAY").expect("RAYPROOF_FUZZ_REPLAY='SURFACE NUMBERS…'");
     let w: Vec<&str> = spec.split_whitespace().collect();
     let n: Vec<usize> = w[1..].iter().map(|x| x.parse().unwrap()).collect();
-    let m = |k: usize| Mutation { kind: n[k], a: n[k + 1], b: n[k + 2], v: n[k + 3] };
+    let m = |k: usize| Mutation {
+        kind: n[k],
+        a: n[k + 1],
+        b: n[k + 2],
+        v: n[k + 3],
+    };
     let r = match w[0] {
         "suite" => suite_case(n[0], &m(1)),
         "tolerances" => tolerance_case(&m(0)),

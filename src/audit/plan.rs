@@ -190,7 +190,11 @@ impl Plan {
             .map(|p| p.shape.name())
             .collect();
         let r = robustness::run(self.seed, &names, &self.precisions);
-        Ok(robustness::with_outside(r, self.seed, self.outside_watertight()?))
+        Ok(robustness::with_outside(
+            r,
+            self.seed,
+            self.outside_watertight()?,
+        ))
     }
 
     /// The watertightness rows of the triangle routines from outside the crate (none: empty).

@@ -59,8 +59,8 @@
 use super::run::{Group, MethodTag, Tallies};
 use super::shape::Shape;
 use super::tally::Tally;
-use crate::shapes::robustness::WatertightRow;
 use crate::numerics::Precision;
+use crate::shapes::robustness::WatertightRow;
 use serde::{Deserialize, Serialize};
 
 /// The tag in the `format` field of a shard file.

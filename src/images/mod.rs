@@ -86,11 +86,12 @@ mod ztest;
 pub use flip::{flip_error, hdr_flip, heatmap_rgb8, ldr_flip, FlipKind};
 pub use io::one_line;
 pub use io::{
-    read_image, tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError, MAX_PIXELS,
+    read_image, read_image_layer, tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError,
+    LayerInfo, LayerPick, LayerSelect, Window, MAX_CHANNELS, MAX_PIXELS,
 };
 pub use metrics::{
-    abs_diff, abs_error_map, compare, compare_as, verdict, Comparison, Semantics, SizeMismatch,
-    Thresholds, Verdict,
+    abs_diff, abs_error_map, align, compare, compare_as, verdict, Comparison, Semantics,
+    SizeMismatch, Thresholds, Verdict,
 };
 pub use report::{fmt_g, report_text, DiffReport};
 pub use ztest::{erfc, sidak_alpha, z_test, ZParams, ZTest};

@@ -7,8 +7,8 @@
 use super::offset::{ReintersectRow, Rule};
 use super::reintersect;
 use super::triangle;
-pub use super::watertight::WatertightRow;
 use super::watertight;
+pub use super::watertight::WatertightRow;
 use crate::numerics::Precision;
 use serde::Serialize;
 
@@ -72,7 +72,11 @@ pub fn outside_watertight(
 }
 
 /// The built-in tests `r` with the watertightness rows of outside routines after them.
-pub fn with_outside(r: Option<Robustness>, seed: u64, rows: Vec<WatertightRow>) -> Option<Robustness> {
+pub fn with_outside(
+    r: Option<Robustness>,
+    seed: u64,
+    rows: Vec<WatertightRow>,
+) -> Option<Robustness> {
     if rows.is_empty() {
         return r;
     }
