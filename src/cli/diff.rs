@@ -6,7 +6,8 @@
 //! - 2: FAILURE; also bad usage (clap errors exit 2 in this binary, like every rayproof
 //!   command), an output directory that does not exist, or an output that cannot be written
 //! - 3: the images, or the variance image, differ in display window, channels or layer
-//!   (`--idiff-compat`: never for the two images, compared over the union as idiff does)
+//!   (`--idiff-compat` compares them over the union of their data windows as idiff does; then
+//!   only `--diff-exr` and `--variance` need them to show one frame)
 //! - 4: an input file is unreadable: missing, empty, truncated, corrupt, not OpenEXR/PNG, over
 //!   a limit; or it has no layer `--layer` names, or several layers and none the default takes
 //!

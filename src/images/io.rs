@@ -509,27 +509,24 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
         .from_buffered(std::io::Cursor::new(bytes))
         .map_err(|e| e.to_string())?;
     let parts = &image.layer_data;
-    // Every channel: (part, full name); a part's name prefixes its channels in a multipart
-    // file, unless they carry it already. idiff reads the first part alone
+    // Every channel: (part, index, full name, name as stored); a part's name prefixes its
+    // channels in a multipart file, unless they carry it already
     let multipart = parts.len() > 1;
-    let mut chans: Vec<(usize, usize, String)> = vec![];
+    let mut chans: Vec<(usize, usize, String, String)> = vec![];
     for (p, part) in parts.iter().enumerate() {
-        if select == LayerSelect::All && p > 0 {
-            break;
-        }
         let prefix = part
             .attributes
             .layer_name
             .as_ref()
             .map(|n| n.to_string())
-            .filter(|n| multipart && !n.is_empty() && select != LayerSelect::All);
+            .filter(|n| multipart && !n.is_empty());
         for (k, c) in part.channel_data.list.iter().enumerate() {
             let name = c.name.to_string();
             let full = match &prefix {
                 Some(pre) if !name.starts_with(&format!("{pre}.")) => format!("{pre}.{name}"),
-                _ => name,
+                _ => name.clone(),
             };
-            chans.push((p, k, full));
+            chans.push((p, k, full, name));
         }
     }
     let names: Vec<String> = chans.iter().map(|c| c.2.clone()).collect();
@@ -596,12 +593,16 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
             }
         }
     };
-    // Its channels, in order, all from one part
-    let picked: Vec<usize> = order
-        .iter()
-        .copied()
-        .filter(|&i| chosen.as_ref().is_none_or(|l| layer_of(i) == *l))
-        .collect();
+    // Its channels, in order, all from one part; idiff reads the first part alone, its
+    // channels as stored
+    let picked: Vec<usize> = match &chosen {
+        Some(l) => order.iter().copied().filter(|&i| layer_of(i) == *l).collect(),
+        None => {
+            let first: Vec<usize> = (0..chans.len()).filter(|&i| chans[i].0 == 0).collect();
+            let stored: Vec<String> = first.iter().map(|&i| chans[i].3.clone()).collect();
+            oiio_order(&stored).into_iter().map(|j| first[j]).collect()
+        }
+    };
     let part = chans[picked[0]].0;
     if picked.iter().any(|&i| chans[i].0 != part) {
         return Err(format!(
@@ -627,7 +628,7 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
     let channel_names: Vec<&str> = picked
         .iter()
         .map(|&i| match pick {
-            LayerPick::All => names[i].as_str(),
+            LayerPick::All => chans[i].3.as_str(),
             _ => split_name(&names[i]).1,
         })
         .collect();
