@@ -121,7 +121,7 @@
 //! - `scripts/`: `audit-excerpt`, `audit-excerpt-routines`, `measure-tolerances`, `bench-render`,
 //!   `bench-outside`, `make-fan30`, `make-seed1996`, the reference scripts (`render-povray`,
 //!   `render-mitsuba`, `render-references`, `verify-references`, `mitsuba_whitted.py`,
-//!   `reflib.sh`), `check-table`, `idiff-fixtures`, `idiff-pairs`, `fetch-bunny`,
+//!   `reflib.sh`), `check-table`, `idiff-pairs`, `fetch-bunny`,
 //!   `bench-implicit`, `mutate` (the harness's mutation test, see [`audit`]).
 //! - `reference/`: the scene files, the golden images, their manifests and `suite.toml`;
 //!   `reference/report/`: one full `rayproof report` run, the figures the README shows.

@@ -422,7 +422,12 @@ fn an_exr_of_ten_thousand_layers_is_refused_from_its_header() {
     // 10,000 Blender-style layers of one channel and 2×2 pixels: 40,000 samples, far under the
     // sample limit, refused by the channel count
     let list: Vec<AnyChannel<FlatSamples>> = (0..10_000)
-        .map(|i| AnyChannel::new(format!("L{i:05}.Y").as_str(), FlatSamples::F16(vec![f16::ZERO; 4])))
+        .map(|i| {
+            AnyChannel::new(
+                format!("L{i:05}.Y").as_str(),
+                FlatSamples::F16(vec![f16::ZERO; 4]),
+            )
+        })
         .collect();
     let layer = Layer::new(
         (2, 2),
@@ -455,12 +460,18 @@ fn an_exr_of_ten_thousand_layers_is_refused_from_its_header() {
         })
         .collect();
     let bad = d.join("parts.exr");
-    exr::prelude::Image::from_layers(ImageAttributes::new(IntegerBounds::from_dimensions((2, 2))), parts)
-        .write()
-        .to_file(&bad)
-        .unwrap();
+    exr::prelude::Image::from_layers(
+        ImageAttributes::new(IntegerBounds::from_dimensions((2, 2))),
+        parts,
+    )
+    .write()
+    .to_file(&bad)
+    .unwrap();
     let r = bounded(&d, &["diff", "good.exr", s(&bad), "--idiff-compat"], 10);
-    r.refused(4, &[s(&bad), "1100 channels in 1100 part(s)", "at most 1024"]);
+    r.refused(
+        4,
+        &[s(&bad), "1100 channels in 1100 part(s)", "at most 1024"],
+    );
 }
 
 #[test]

@@ -556,7 +556,7 @@ fn png_16_bit_grey_and_alpha() {
     wide.save_with_format(d.join("w.png"), image::ImageFormat::Png)
         .unwrap();
     let w = read_image(&d.join("w.png")).unwrap();
-    // Code × (1/max) in float32, as OpenImageIO converts (idiff parity: tests/idiff.rs)
+    // Code × (1/max) in float32, as OpenImageIO converts (idiff parity: tests/idiff_live.rs)
     let (i8, i16) = (1.0f32 / 255.0, 1.0f32 / 65535.0);
     assert_eq!(w.data, vec![0.0, 32768.0 * i16, 65535.0 * i16]);
 

@@ -210,7 +210,7 @@ fn diff(a: &DiffArgs) -> Result<u8, Exit> {
     // layer
     let select = match (&a.layer, a.idiff_compat) {
         (Some(name), _) => LayerSelect::Named(name),
-        (None, true) => LayerSelect::All,
+        (None, true) => LayerSelect::AsIdiff,
         (None, false) => LayerSelect::Default,
     };
     let read = |p: &Path, select| {

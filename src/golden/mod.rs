@@ -723,6 +723,14 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
                 (r.status, r.note) = (Status::Failure, format!("{e}"));
             }
             Ok(mut c) => {
+                // Both over the union of their data windows (one display window: compare
+                // refused anything else), for the z-test, ꟻLIP and the previews
+                let Ok((reference, image)) = images::align(reference, &made.image) else {
+                    (r.status, r.note) = (Status::Refused, "the images do not align".into());
+                    rows.push(r);
+                    continue;
+                };
+                let reference = &reference;
                 // The z-test, when a variance is given
                 let z = match &made.variance {
                     Some(v) => {
@@ -731,7 +739,12 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
                             significance: rule.significance,
                             pixel_success_rate: rule.pixel_success_rate,
                         };
-                        match images::z_test(reference, &made.image, v, &p) {
+                        // over the same window (0 outside its data window)
+                        let v = match v.display == reference.display {
+                            true => v.padded(reference.data_window()),
+                            false => v.clone(),
+                        };
+                        match images::z_test(reference, &image, &v, &p) {
                             Ok(z) => Some(z),
                             Err(e) => {
                                 (r.status, r.note) =
@@ -745,7 +758,7 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
                 };
                 // ꟻLIP, when a rule or the report needs it
                 let map = if o.flip || o.report.is_some() || rule.max_flip.is_some() {
-                    let (kind, mean, map) = images::flip_error(reference, &made.image);
+                    let (kind, mean, map) = images::flip_error(reference, &image);
                     (c.flip_mean, c.flip_kind) = (Some(mean), Some(kind));
                     Some(map)
                 } else {
@@ -754,7 +767,7 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
                 let nonfinite = (!t.allow_nonfinite).then(|| nan_inf_pixels(&made.image));
                 (r.status, r.note) = judge(&c, z.as_ref(), rule, nonfinite);
                 if let (Some(dir), Some(map)) = (&o.report, map) {
-                    r.images = Some(write_images(dir, &r, reference, &made.image, &map)?);
+                    r.images = Some(write_images(dir, &r, reference, &image, &map)?);
                 }
                 r.comparison = Some(c);
                 r.ztest = z;

@@ -290,8 +290,10 @@ pub enum LayerSelect<'a> {
     /// The layer of this name: its whole prefix (`ViewLayer.Combined`), or its last part(s)
     /// when only one layer ends so (`Combined`); `""` names the channels without a prefix.
     Named(&'a str),
-    /// Every channel of the first part, as idiff reads it (`--idiff-compat` without `--layer`).
-    All,
+    /// As idiff reads a file (`--idiff-compat` without `--layer`): every channel of an EXR's
+    /// first part; a PNG's colour associated with (multiplied by) its alpha as OpenImageIO
+    /// associates it.
+    AsIdiff,
 }
 
 /// Reads an OpenEXR or PNG image, recognised by its magic bytes, not its extension: the
@@ -309,7 +311,9 @@ pub fn read_image(path: &Path) -> Result<Image, ImageError> {
 /// then the others; `X`, `Y`, `Z` in that order in a layer that has `X`). A single channel
 /// (`Y`, `Z`, `R`) is one channel. Subsampled (luminance-chroma) and deep files are refused.
 /// PNG: 8- or 16-bit, grey as one channel `Y` (with alpha `Y`, `A`), palettes as RGB(A), kept
-/// display-referred (value / 255 or / 65535).
+/// display-referred (value / 255 or / 65535), as stored (straight alpha; [`LayerSelect::AsIdiff`]
+/// associates it as OpenImageIO does), its `oFFs` offset (in pixels) as the data window's origin
+/// as OpenImageIO reads it.
 pub fn read_image_layer(path: &Path, select: LayerSelect) -> Result<Image, ImageError> {
     let fail = |reason: &str| ImageError::Unreadable {
         path: path.to_path_buf(),
@@ -328,7 +332,8 @@ pub fn read_image_layer(path: &Path, select: LayerSelect) -> Result<Image, Image
             LayerSelect::Named(n) => Err(format!(
                 "it is a PNG, which has no layer '{n}' (--layer names a layer of a multilayer EXR)"
             )),
-            _ => quietly(|| decode_png(&bytes)).and_then(|r| r),
+            LayerSelect::AsIdiff => quietly(|| decode_png(&bytes, true)).and_then(|r| r),
+            LayerSelect::Default => quietly(|| decode_png(&bytes, false)).and_then(|r| r),
         }
     } else {
         Err("not an OpenEXR or PNG file".to_string())
@@ -540,7 +545,7 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
     }
     // The layer asked for
     let (chosen, pick): (Option<String>, LayerPick) = match select {
-        LayerSelect::All => (None, LayerPick::All),
+        LayerSelect::AsIdiff => (None, LayerPick::All),
         LayerSelect::Named(n) => {
             let ends = |l: &String| l.ends_with(&format!(".{n}"));
             if layers.iter().any(|l| l == n) {
@@ -596,7 +601,11 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
     // Its channels, in order, all from one part; idiff reads the first part alone, its
     // channels as stored
     let picked: Vec<usize> = match &chosen {
-        Some(l) => order.iter().copied().filter(|&i| layer_of(i) == *l).collect(),
+        Some(l) => order
+            .iter()
+            .copied()
+            .filter(|&i| layer_of(i) == *l)
+            .collect(),
         None => {
             let first: Vec<usize> = (0..chans.len()).filter(|&i| chans[i].0 == 0).collect();
             let stored: Vec<String> = first.iter().map(|&i| chans[i].3.clone()).collect();
@@ -651,10 +660,67 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
     Ok(img)
 }
 
-fn decode_png(bytes: &[u8]) -> Result<Image, String> {
+/// What OpenImageIO takes from a PNG's chunks besides the pixels (`png_pvt.h`): the `oFFs`
+/// offset when in pixels, and the gamma with which it associates alpha: 1 with an `sRGB` chunk
+/// or without `gAMA`, else 1/gAMA rounded to hundredths (2.2 for 0.45455). The chunks before
+/// the first `IDAT` are walked; the decoder checks them.
+fn png_chunks(bytes: &[u8]) -> ((i64, i64), f32) {
+    let (mut offset, mut gama, mut srgb) = ((0, 0), None, false);
+    let mut i = 8;
+    while let Some(head) = bytes.get(i..i + 8) {
+        let n = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as usize;
+        let Some(data) = bytes.get(i + 8..(i + 8).saturating_add(n)) else {
+            break;
+        };
+        let be = |k: usize| [data[k], data[k + 1], data[k + 2], data[k + 3]];
+        match &head[4..] {
+            b"IDAT" => break,
+            b"oFFs" if n == 9 && data[8] == 0 => {
+                offset = (
+                    i32::from_be_bytes(be(0)) as i64,
+                    i32::from_be_bytes(be(4)) as i64,
+                )
+            }
+            b"gAMA" if n == 4 => gama = Some(u32::from_be_bytes(be(0))),
+            b"sRGB" => srgb = true,
+            _ => {}
+        }
+        i += 12 + n;
+    }
+    let gamma = match gama {
+        Some(g) if g > 0 && !srgb => {
+            // libpng's gamma (× 0.00001 in double), inverted to float, rounded to hundredths
+            let g = (1.0 / (g as f64 * 0.00001)) as f32;
+            ((100.0 * g as f64) as f32).round() / 100.0
+        }
+        _ => 1.0,
+    };
+    (offset, gamma)
+}
+
+/// OpenImageIO's association of a PNG's colour with its alpha (`png_associateAlpha`), on the
+/// code values: c·a / max in integers at gamma 1, else c·(a/max)^gamma truncated.
+fn associate<T: Copy + Into<u32> + TryFrom<u32>>(data: &mut [T], n: usize, gamma: f32, max: u32) {
+    let inv_max = (1.0 / max as f64) as f32;
+    for px in data.chunks_mut(n) {
+        let a: u32 = px[n - 1].into();
+        let scale = ((a as f32 * inv_max) as f64).powf(gamma as f64) as f32;
+        for c in &mut px[..n - 1] {
+            let v: u32 = (*c).into();
+            let v = if gamma == 1.0 {
+                v * a / max
+            } else {
+                (v as f32 * scale) as u32
+            };
+            *c = T::try_from(v.min(max)).unwrap_or(*c);
+        }
+    }
+}
+
+fn decode_png(bytes: &[u8], associate_alpha: bool) -> Result<Image, String> {
     use image::{ColorType, DynamicImage, ImageDecoder};
-    // The declared size against the limits, from the header alone (channels as decoded: RGB or
-    // RGBA)
+    // The declared size against the limits, from the header alone (channels as decoded: Y,
+    // YA, RGB or RGBA)
     let header = image::codecs::png::PngDecoder::new(std::io::Cursor::new(bytes))
         .map_err(|e| e.to_string())?;
     let (w, h) = header.dimensions();
@@ -675,32 +741,48 @@ fn decode_png(bytes: &[u8]) -> Result<Image, String> {
         img.color(),
         ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16
     );
-    // Grey as one channel Y (and A), as OpenImageIO reads it; palettes as RGB(A); code values
-    // scaled to [0, 1]
-    let (data, names): (Vec<f32>, &[&str]) = match (grey, wide, alpha) {
-        (true, false, false) => (scale(img.to_luma8().as_raw(), 255.0), &["Y"]),
-        (true, false, true) => (scale(img.to_luma_alpha8().as_raw(), 255.0), &["Y", "A"]),
-        (true, true, false) => (scale(img.to_luma16().as_raw(), 65535.0), &["Y"]),
-        (true, true, true) => (scale(img.to_luma_alpha16().as_raw(), 65535.0), &["Y", "A"]),
-        (false, false, false) => (
-            scale(DynamicImage::to_rgb8(&img).as_raw(), 255.0),
-            &["R", "G", "B"],
-        ),
-        (false, false, true) => (
-            scale(DynamicImage::to_rgba8(&img).as_raw(), 255.0),
-            &["R", "G", "B", "A"],
-        ),
-        (false, true, false) => (
-            scale(DynamicImage::to_rgb16(&img).as_raw(), 65535.0),
-            &["R", "G", "B"],
-        ),
-        (false, true, true) => (
-            scale(DynamicImage::to_rgba16(&img).as_raw(), 65535.0),
-            &["R", "G", "B", "A"],
-        ),
+    // Grey as one channel Y (and A), as OpenImageIO reads it; palettes as RGB(A); the code
+    // values, associated with alpha if asked, scaled to [0, 1]
+    let names: &[&str] = match (grey, alpha) {
+        (true, false) => &["Y"],
+        (true, true) => &["Y", "A"],
+        (false, false) => &["R", "G", "B"],
+        (false, true) => &["R", "G", "B", "A"],
+    };
+    let (offset, gamma) = png_chunks(bytes);
+    let n = names.len();
+    let data: Vec<f32> = if wide {
+        let mut v = match (grey, alpha) {
+            (true, false) => img.to_luma16().into_raw(),
+            (true, true) => img.to_luma_alpha16().into_raw(),
+            (false, false) => DynamicImage::to_rgb16(&img).into_raw(),
+            (false, true) => DynamicImage::to_rgba16(&img).into_raw(),
+        };
+        if alpha && associate_alpha {
+            associate(&mut v, n, gamma, 65535);
+        }
+        scale(&v, 65535.0)
+    } else {
+        let mut v = match (grey, alpha) {
+            (true, false) => img.to_luma8().into_raw(),
+            (true, true) => img.to_luma_alpha8().into_raw(),
+            (false, false) => DynamicImage::to_rgb8(&img).into_raw(),
+            (false, true) => DynamicImage::to_rgba8(&img).into_raw(),
+        };
+        if alpha && associate_alpha {
+            associate(&mut v, n, gamma, 255);
+        }
+        scale(&v, 255.0)
     };
     let mut out = Image::new(w, h, names, data);
     out.display_referred = true;
+    out.origin = offset;
+    out.display = Window {
+        x: offset.0,
+        y: offset.1,
+        width: w,
+        height: h,
+    };
     Ok(out)
 }
 

@@ -244,7 +244,7 @@ pub struct Comparison {
     /// `width × height`.
     pub pixels: u64,
     /// The pixels the percentages (printed, and `failpercent`, `warnpercent`) are of: the
-    /// compared pixels; under idiff's semantics the reference's data window (idiff's `npels`).
+    /// reference's data window, as idiff's `npels` (a cropped reference can print 156 %).
     pub npels: u64,
     /// Σ|d| / (pixels × channels), non-finite mismatches left out of the sum.
     #[serde(serialize_with = "nonfinite::ser")]
@@ -432,12 +432,9 @@ pub fn compare_as(
     } else {
         &test.channels
     };
-    // The pixels the percentages are of: idiff's npels is the reference's data window
-    let npels = if idiff {
-        reference.pixels() as u64
-    } else {
-        pixels
-    };
+    // The pixels the percentages are of: idiff's npels, the reference's data window (fewer
+    // than the compared pixels when the reference's data window is smaller: stricter)
+    let npels = reference.pixels() as u64;
     Ok(Comparison {
         width: w,
         height: h,
