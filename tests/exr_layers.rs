@@ -35,8 +35,10 @@ fn write(
             AnyChannel::new(*n, FlatSamples::F32(plane))
         })
         .collect();
-    let mut attributes = LayerAttributes::default();
-    attributes.layer_position = Vec2(origin.0, origin.1);
+    let attributes = LayerAttributes {
+        layer_position: Vec2(origin.0, origin.1),
+        ..Default::default()
+    };
     let layer = Layer::new(
         (w, h),
         attributes,

@@ -602,7 +602,6 @@ fn oiiotool_pairs(d: &Path) -> Vec<Case> {
         &["-d", "half", "--compression", "zip"],
         "exr",
     );
-    drop(pair);
     let only = |case: &str, layer: &str, channels: &str| -> (PathBuf, PathBuf) {
         let mut out = vec![];
         for side in ["ref", "test"] {

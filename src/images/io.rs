@@ -652,7 +652,7 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
         height: display.size.height(),
     };
     let plain = layers.len() == 1 && layers[0].is_empty() && !multipart;
-    img.layer = (!plain).then(|| LayerInfo {
+    img.layer = (!plain).then_some(LayerInfo {
         name: chosen,
         pick,
         layers,
@@ -809,8 +809,10 @@ pub fn write_exr_rgb(path: &Path, img: &Image) -> anyhow::Result<()> {
     let i32_of = |v: i64| {
         i32::try_from(v).map_err(|_| anyhow::anyhow!("position {v} is beyond OpenEXR's range"))
     };
-    let mut attributes = LayerAttributes::default();
-    attributes.layer_position = Vec2(i32_of(img.origin.0)?, i32_of(img.origin.1)?);
+    let attributes = LayerAttributes {
+        layer_position: Vec2(i32_of(img.origin.0)?, i32_of(img.origin.1)?),
+        ..Default::default()
+    };
     let layer = Layer::new(
         (img.width, img.height),
         attributes,
