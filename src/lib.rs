@@ -70,8 +70,8 @@
 //! | 0 | PASS |
 //! | 1 | WARNING |
 //! | 2 | FAILURE (also bad usage, and an output that cannot be written) |
-//! | 3 | the images differ in size or channels |
-//! | 4 | an input is unreadable: missing, empty, truncated, corrupt, or not EXR/PNG |
+//! | 3 | the images differ in display window, channels or layer (with `--idiff-compat`, which compares them over the union of their data windows as idiff does, only when `--diff-exr` or `--variance` needs them to show one frame) |
+//! | 4 | an input is unreadable: missing, empty, truncated, corrupt, not EXR/PNG, or over a limit; or it has no layer `--layer` names, or several layers and none the default takes (a `Combined` layer, else one with `R`, `G`, `B`) |
 //!
 //! How output files are written, and what an interrupted command leaves: [`output`].
 //!
@@ -86,6 +86,7 @@
 //! | image side (camera `width`/`height`, `--width`, a height made by an aspect ratio, a suite test's `width`, a manifest's `width`) | 16,384 pixels |
 //! | pixels of one image, rendered or read (an EXR's declared data window, a PNG's header) | 2^26 (8192²) |
 //! | samples of one image file read (pixels × channels as its header declares them, every EXR part together; a PNG as RGB or RGBA) | 2^28 (8192² × 4): a 198 KB EXR declaring 8192² × 64 channels aborted, a 16384² PNG of 261 KB took 4.2 GB |
+//! | channels of one EXR file (every part and layer together) | 1,024: a file of 10,000 layers of 2×2 pixels is far under the sample limit and refused by this |
 //! | an image file | a regular file of at most 1088 MiB (an uncompressed float32 EXR of 2^28 samples and its tables) |
 //! | an EXR's offset table | must fit in the file (a truncated or corrupt header is refused) |
 //! | layers of an EXR test image or reference in `check` (parts, and `LAYER.CHANNEL` groups in a part) | 256: 10,000 parts of 64² took 2.2 s and 537 MB to read one of them, and 10,000 channel groups were refused in a 300 KB line ([`golden::formats::MAX_EXR_LAYERS`]) |
@@ -122,7 +123,7 @@
 //! - `scripts/`: `audit-excerpt`, `audit-excerpt-routines`, `measure-tolerances`, `bench-render`,
 //!   `bench-outside`, `make-fan30`, `make-seed1996`, the reference scripts (`render-povray`,
 //!   `render-mitsuba`, `render-references`, `verify-references`, `mitsuba_whitted.py`,
-//!   `reflib.sh`), `check-table`, `idiff-fixtures`, `idiff-pairs`, `fetch-bunny`,
+//!   `reflib.sh`), `check-table`, `idiff-pairs`, `fetch-bunny`,
 //!   `bench-implicit`, `mutate` (the harness's mutation test, see [`audit`]).
 //! - `reference/`: the scene files, the golden images, their manifests and `suite.toml`;
 //!   `reference/report/`: one full `rayproof report` run, the figures the README shows.

@@ -413,6 +413,68 @@ fn an_exr_declaring_too_many_channels_is_refused_from_its_header() {
 }
 
 #[test]
+fn an_exr_of_ten_thousand_layers_is_refused_from_its_header() {
+    use exr::prelude::*;
+    let d = scratch("bounds-layers");
+    let good = d.join("good.exr");
+    let img = rayproof::images::Image::rgb(2, 2, vec![0.5; 12]);
+    rayproof::images::write_exr_rgb(&good, &img).unwrap();
+    // 10,000 Blender-style layers of one channel and 2×2 pixels: 40,000 samples, far under the
+    // sample limit, refused by the channel count
+    let list: Vec<AnyChannel<FlatSamples>> = (0..10_000)
+        .map(|i| {
+            AnyChannel::new(
+                format!("L{i:05}.Y").as_str(),
+                FlatSamples::F16(vec![f16::ZERO; 4]),
+            )
+        })
+        .collect();
+    let layer = Layer::new(
+        (2, 2),
+        LayerAttributes::default(),
+        Encoding::UNCOMPRESSED,
+        AnyChannels::sort(list.into()),
+    );
+    let bad = d.join("layers.exr");
+    exr::prelude::Image::from_layer(layer)
+        .write()
+        .to_file(&bad)
+        .unwrap();
+    for layer in [None, Some("L00001"), Some("L00001.Y")] {
+        let mut args = vec!["diff", s(&bad), "good.exr"];
+        args.extend(layer.iter().flat_map(|l| ["--layer", l]));
+        let r = bounded(&d, &args, 10);
+        r.refused(4, &[s(&bad), "10000 channels in 1 part(s)", "at most 1024"]);
+    }
+    // 1,100 parts of one channel each
+    let parts: Vec<Layer<AnyChannels<FlatSamples>>> = (0..1100)
+        .map(|i| {
+            Layer::new(
+                (2, 2),
+                LayerAttributes::named(format!("part{i}").as_str()),
+                Encoding::UNCOMPRESSED,
+                AnyChannels::sort(
+                    vec![AnyChannel::new("Y", FlatSamples::F16(vec![f16::ZERO; 4]))].into(),
+                ),
+            )
+        })
+        .collect();
+    let bad = d.join("parts.exr");
+    exr::prelude::Image::from_layers(
+        ImageAttributes::new(IntegerBounds::from_dimensions((2, 2))),
+        parts,
+    )
+    .write()
+    .to_file(&bad)
+    .unwrap();
+    let r = bounded(&d, &["diff", "good.exr", s(&bad), "--idiff-compat"], 10);
+    r.refused(
+        4,
+        &[s(&bad), "1100 channels in 1100 part(s)", "at most 1024"],
+    );
+}
+
+#[test]
 fn a_png_over_the_pixel_limit_is_refused_from_its_header() {
     use image::codecs::png::{CompressionType, FilterType, PngEncoder};
     use image::ImageEncoder;

@@ -556,17 +556,26 @@ fn png_16_bit_grey_and_alpha() {
     wide.save_with_format(d.join("w.png"), image::ImageFormat::Png)
         .unwrap();
     let w = read_image(&d.join("w.png")).unwrap();
-    // Code × (1/max) in float32, as OpenImageIO converts (idiff parity: tests/idiff.rs)
+    // Code × (1/max) in float32, as OpenImageIO converts (idiff parity: tests/idiff_live.rs)
     let (i8, i16) = (1.0f32 / 255.0, 1.0f32 / 65535.0);
     assert_eq!(w.data, vec![0.0, 32768.0 * i16, 65535.0 * i16]);
 
     let grey = image::GrayImage::from_raw(2, 1, vec![51, 255]).unwrap();
     grey.save_with_format(d.join("g.png"), image::ImageFormat::Png)
         .unwrap();
+    // Grey is one channel Y, as OpenImageIO reads it (idiff compares it as one)
     let g = read_image(&d.join("g.png")).unwrap();
-    assert_eq!(g.channels, ["R", "G", "B"]);
+    assert_eq!(g.channels, ["Y"]);
     let (c51, c255) = (51.0 * i8, 255.0 * i8);
-    assert_eq!(g.data, vec![c51, c51, c51, c255, c255, c255]);
+    assert_eq!(g.data, vec![c51, c255]);
+    let grey16 =
+        image::ImageBuffer::<image::LumaA<u16>, _>::from_raw(1, 1, vec![32768u16, 65535]).unwrap();
+    grey16
+        .save_with_format(d.join("ga.png"), image::ImageFormat::Png)
+        .unwrap();
+    let ga = read_image(&d.join("ga.png")).unwrap();
+    assert_eq!(ga.channels, ["Y", "A"]);
+    assert_eq!(ga.data, vec![32768.0 * i16, 65535.0 * i16]);
 
     let rgba = image::RgbaImage::from_raw(1, 1, vec![255, 0, 0, 51]).unwrap();
     rgba.save_with_format(d.join("a.png"), image::ImageFormat::Png)
@@ -599,7 +608,8 @@ fn exr_half_samples_extra_channels_and_missing_rgb() {
             .to_file(path)
             .unwrap();
     };
-    // half R, G, B plus depth.Z: RGB read as f32, depth ignored
+    // half R, G, B plus depth.Z: the unprefixed R, G, B layer read as f32 (the default: the
+    // first layer with R, G, B), depth another layer
     write(
         &d.join("h.exr"),
         vec![
@@ -612,10 +622,34 @@ fn exr_half_samples_extra_channels_and_missing_rgb() {
     let h = read_image(&d.join("h.exr")).unwrap();
     assert_eq!(h.channels, ["R", "G", "B"]);
     assert_eq!(h.data, vec![0.5, 0.25, 1.0, 2.0, 3.0, 4.0]);
-    // only Y: unreadable, and the message says why
+    let l = h.layer.as_ref().unwrap();
+    assert_eq!((l.name.as_deref(), l.pick), (Some(""), LayerPick::FirstRgb));
+    assert_eq!(l.layers, ["", "depth"]);
+    let z = read_image_layer(&d.join("h.exr"), LayerSelect::Named("depth")).unwrap();
+    assert_eq!(
+        (z.channels.clone(), z.data.clone()),
+        (vec!["Z".to_string()], vec![7.0, 8.0])
+    );
+    // only Y: one channel, compared as such
     write(&d.join("y.exr"), vec![ch("Y", vec![1.0, 2.0])]);
-    let msg = unreadable(&d.join("y.exr"));
-    assert!(msg.contains("no R, G, B") && msg.contains('Y'), "{msg}");
+    let y = read_image(&d.join("y.exr")).unwrap();
+    assert_eq!(
+        (y.channels.clone(), y.data.clone(), y.layer.clone()),
+        (vec!["Y".to_string()], vec![1.0, 2.0], None)
+    );
+    // two layers, neither Combined nor RGB: unreadable without --layer, and the message lists them
+    write(
+        &d.join("zn.exr"),
+        vec![
+            ch("depth.Z", vec![1.0, 2.0]),
+            ch("normal.X", vec![0.0, 1.0]),
+        ],
+    );
+    let msg = unreadable(&d.join("zn.exr"));
+    assert!(
+        msg.contains("--layer") && msg.contains("depth, normal"),
+        "{msg}"
+    );
 }
 
 #[test]

@@ -5,8 +5,11 @@
 //! - 1: WARNING
 //! - 2: FAILURE; also bad usage (clap errors exit 2 in this binary, like every rayproof
 //!   command), an output directory that does not exist, or an output that cannot be written
-//! - 3: the images, or the variance image, differ in width, height or channels
-//! - 4: an input file is unreadable: missing, empty, truncated, corrupt, or not OpenEXR/PNG
+//! - 3: the images, or the variance image, differ in display window, channels or layer
+//!   (`--idiff-compat` compares them over the union of their data windows as idiff does; then
+//!   only `--diff-exr` and `--variance` need them to show one frame)
+//! - 4: an input file is unreadable: missing, empty, truncated, corrupt, not OpenEXR/PNG, over
+//!   a limit; or it has no layer `--layer` names, or several layers and none the default takes
 //!
 //! Errors are one line on stderr, `error: …`, naming the file.
 //!
@@ -15,9 +18,9 @@
 
 use super::emit;
 use rayproof::images::{
-    abs_diff, abs_error_map, compare_as, flip_error, heatmap_rgb8, one_line, read_image,
-    write_exr_rgb, write_png_rgb8, z_test, DiffReport, Semantics, SizeMismatch, Thresholds,
-    ZParams,
+    abs_diff, abs_error_map, align, compare_as, flip_error, heatmap_rgb8, one_line,
+    read_image_layer, write_exr_rgb, write_png_rgb8, z_test, DiffReport, LayerSelect, Semantics,
+    SizeMismatch, Thresholds, ZParams,
 };
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -45,8 +48,8 @@ fn parse_unit_closed(s: &str) -> Result<f64, String> {
 
 /// `rayproof diff`: compare two images (OpenEXR or PNG) like OpenImageIO's idiff.
 ///
-/// Exit codes: 0 PASS, 1 WARNING, 2 FAILURE (also bad usage and unwritable outputs), 3 size
-/// mismatch, 4 unreadable input.
+/// Exit codes: 0 PASS, 1 WARNING, 2 FAILURE (also bad usage and unwritable outputs), 3 size,
+/// channel or layer mismatch, 4 unreadable input (or no such layer).
 #[derive(clap::Args, Debug, Clone)]
 pub struct DiffArgs {
     /// Reference image (OpenEXR or PNG, recognised by content).
@@ -107,13 +110,21 @@ pub struct DiffArgs {
     /// Fraction of pixels that must pass the z-test [default: 0.9975].
     #[arg(long, requires = "variance", value_parser = parse_unit_closed)]
     pub pixel_success_rate: Option<f64>,
+    /// The layer of a multilayer EXR to compare, in both images (`ViewLayer.Combined`, or its
+    /// end when one layer ends so: `Combined`, `Depth`; "" for the channels without a layer
+    /// name). Default: a Combined layer, else the first with R, G, B, else the only one; with
+    /// --idiff-compat, every channel as idiff. The report says which layer was read.
+    #[arg(long, value_name = "NAME")]
+    pub layer: Option<String>,
     /// Print only the verdict line.
     #[arg(short, long)]
     pub quiet: bool,
     /// idiff 2.4's rules exactly, where rayproof is deliberately stricter: a NaN/Inf mismatch
     /// only sets the max error the first time (the next ones make mean, RMS and PSNR inf or
-    /// nan), any infinity matches any infinity, and images of different size or channels are
-    /// compared over the union, missing values read as 0 (README: deliberate differences).
+    /// nan), any infinity matches any infinity, images of different size, display window or
+    /// channels are compared over the union of their data windows, missing values read as 0,
+    /// percentages are of the reference's data window, and an EXR's every channel is compared
+    /// unless --layer names one (README: deliberate differences).
     #[arg(long)]
     pub idiff_compat: bool,
 }
@@ -195,22 +206,46 @@ fn diff(a: &DiffArgs) -> Result<u8, Exit> {
         check_output(p, &inputs)?;
     }
 
-    // Inputs
-    let read = |p: &Path| read_image(p).map_err(|e| Exit(e.exit_code(), e.to_string()));
-    let reference = read(&a.reference)?;
-    let test = read(&a.test)?;
-    let variance = a.variance.as_deref().map(read).transpose()?;
+    // Inputs: the layer asked for (idiff reads every channel); the variance image's default
+    // layer
+    let select = match (&a.layer, a.idiff_compat) {
+        (Some(name), _) => LayerSelect::Named(name),
+        (None, true) => LayerSelect::AsIdiff,
+        (None, false) => LayerSelect::Default,
+    };
+    let read = |p: &Path, select| {
+        read_image_layer(p, select).map_err(|e| Exit(e.exit_code(), e.to_string()))
+    };
+    let reference = read(&a.reference, select)?;
+    let test = read(&a.test, select)?;
+    let variance = match a.variance.as_deref() {
+        Some(v) => Some(read(v, LayerSelect::Default)?),
+        None => None,
+    };
     let (rn, tn) = (a.reference.display(), a.test.display());
     let mismatch = |e: SizeMismatch| Exit(3, format!("{rn} and {tn}: {e}"));
 
-    // Metrics, z-test, ꟻLIP (the last two need images of one shape)
+    // Metrics, z-test, ꟻLIP (the last two need images of one shape). Both images over the
+    // union of their data windows when they show one frame (rayproof's semantics refuse
+    // anything else; idiff's compare anything over the union)
     let semantics = if a.idiff_compat {
         Semantics::Idiff
     } else {
         Semantics::Rayproof
     };
-    let mut c = compare_as(&reference, &test, &t, semantics).map_err(mismatch)?;
-    let same_shape = reference.shape() == test.shape();
+    let c = compare_as(&reference, &test, &t, semantics).map_err(mismatch)?;
+    let (reference, test) = match align(&reference, &test) {
+        Ok(pair) => pair,
+        Err(_) => (reference, test),
+    };
+    let mut c = c;
+    let same_shape =
+        reference.data_window() == test.data_window() && reference.channels == test.channels;
+    // A variance image of the same frame, over the same window (0 outside its data window)
+    let variance = variance.map(|v| match v.display == reference.display {
+        true => v.padded(reference.data_window()),
+        false => v,
+    });
     let z = match &variance {
         Some(v) => Some(z_test(&reference, &test, v, &a.z_params()).map_err(|e| {
             let vn = a.variance.as_deref().unwrap_or(Path::new("")).display();

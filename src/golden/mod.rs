@@ -988,6 +988,14 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                 (r.status, r.note) = (Status::Failure, format!("{e}"));
             }
             Ok(mut c) => {
+                // Both over the union of their data windows (one display window: compare
+                // refused anything else), for the z-test, ꟻLIP and the previews
+                let Ok((reference, image)) = images::align(reference, &made.image) else {
+                    (r.status, r.note) = (Status::Refused, "the images do not align".into());
+                    rows.push(r);
+                    continue;
+                };
+                let reference = &reference;
                 // The z-test, when a variance is given
                 let z = match &made.variance {
                     Some(v) => {
@@ -996,7 +1004,12 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                             significance: rule.significance,
                             pixel_success_rate: rule.pixel_success_rate,
                         };
-                        match images::z_test(reference, &made.image, v, &p) {
+                        // over the same window (0 outside its data window)
+                        let v = match v.display == reference.display {
+                            true => v.padded(reference.data_window()),
+                            false => v.clone(),
+                        };
+                        match images::z_test(reference, &image, &v, &p) {
                             Ok(z) => Some(z),
                             Err(e) => {
                                 (r.status, r.note) =
@@ -1011,7 +1024,7 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                 };
                 // ꟻLIP, when a rule or the report needs it
                 let map = if o.flip || o.report.is_some() || rule.max_flip.is_some() {
-                    let (kind, mean, map) = images::flip_error(reference, &made.image);
+                    let (kind, mean, map) = images::flip_error(reference, &image);
                     (c.flip_mean, c.flip_kind) = (Some(mean), Some(kind));
                     Some(map)
                 } else {
@@ -1020,7 +1033,7 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                 let nonfinite = (!t.allow_nonfinite).then(|| nan_inf_pixels(&made.image));
                 (r.status, r.note) = judge(&c, z.as_ref(), rule, nonfinite);
                 if let (Some(dir), Some(map)) = (&o.report, map) {
-                    r.images = Some(write_images(dir, &r, reference, &made.image, &map, rule)?);
+                    r.images = Some(write_images(dir, &r, reference, &image, &map, rule)?);
                 }
                 r.comparison = Some(c);
                 r.ztest = z;

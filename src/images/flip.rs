@@ -181,6 +181,11 @@ pub fn ldr_flip(reference: &Image, test: &Image) -> (f64, Vec<f32>) {
 
 /// LDR-ꟻLIP if both images are display-referred (PNG), HDR-ꟻLIP otherwise.
 pub fn flip_error(reference: &Image, test: &Image) -> (FlipKind, f64, Vec<f32>) {
+    // Data windows that differ: both over their union (0 outside a data window)
+    if reference.data_window() != test.data_window() {
+        let window = reference.data_window().union(&test.data_window());
+        return flip_error(&reference.padded(window), &test.padded(window));
+    }
     if reference.display_referred && test.display_referred {
         let (m, map) = ldr_flip(reference, test);
         (FlipKind::Ldr, m, map)

@@ -2,22 +2,131 @@
 //! the EXR and PNG writers (through [`crate::output::write_atomic_with`]) and the 8-bit sRGB
 //! preview.
 
+use serde::Serialize;
 use std::cell::Cell;
 use std::path::{Path, PathBuf};
 
-/// A decoded image: interleaved `f32` samples, row-major, top row first.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Image {
+/// A rectangle of pixels in an image's absolute coordinates (OpenEXR's `dataWindow` and
+/// `displayWindow`; a PNG is one window at (0, 0)). Written `WxH+X+Y` as OpenImageIO writes
+/// geometry.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct Window {
+    /// Column of the top-left pixel (may be negative).
+    pub x: i64,
+    /// Row of the top-left pixel (may be negative).
+    pub y: i64,
     /// Width in pixels.
     pub width: usize,
     /// Height in pixels.
     pub height: usize,
-    /// `R`, `G`, `B`, and `A` if present.
+}
+
+impl Window {
+    /// A `width × height` window at (0, 0).
+    pub fn at_origin(width: usize, height: usize) -> Window {
+        Window {
+            x: 0,
+            y: 0,
+            width,
+            height,
+        }
+    }
+
+    /// The smallest window holding both (either may be empty).
+    pub fn union(&self, other: &Window) -> Window {
+        if self.width == 0 || self.height == 0 {
+            return *other;
+        }
+        if other.width == 0 || other.height == 0 {
+            return *self;
+        }
+        let (x, y) = (self.x.min(other.x), self.y.min(other.y));
+        let x1 = (self.x + self.width as i64).max(other.x + other.width as i64);
+        let y1 = (self.y + self.height as i64).max(other.y + other.height as i64);
+        Window {
+            x,
+            y,
+            width: (x1 - x) as usize,
+            height: (y1 - y) as usize,
+        }
+    }
+
+    /// Width × height.
+    pub fn pixels(&self) -> usize {
+        self.width * self.height
+    }
+}
+
+impl std::fmt::Display for Window {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}x{}{:+}{:+}", self.width, self.height, self.x, self.y)
+    }
+}
+
+/// How the layer of an image was chosen (see [`read_image_layer`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LayerPick {
+    /// Named by the caller (`--layer NAME`).
+    Named,
+    /// The default: a layer named `Combined` (Blender's beauty), the first in OpenImageIO's order.
+    Combined,
+    /// The default without a `Combined` layer: the first layer with `R`, `G` and `B` channels.
+    FirstRgb,
+    /// The default: the file's only layer.
+    Only,
+    /// Every channel of the file's first part, as idiff compares them (`--idiff-compat`
+    /// without `--layer`).
+    All,
+}
+
+/// Which layer of a multilayer EXR was read, for the report.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize)]
+pub struct LayerInfo {
+    /// The layer read, by its channel-name prefix (`ViewLayer.Combined`; `""` for the channels
+    /// whose names have no prefix); `None` when every channel of the first part was read.
+    pub name: Option<String>,
+    /// How it was chosen.
+    pub pick: LayerPick,
+    /// Every layer of the file, in OpenImageIO's channel order (`""`: unprefixed channels).
+    pub layers: Vec<String>,
+}
+
+impl LayerInfo {
+    /// `ViewLayer.Combined`, or what the other cases read.
+    pub fn label(&self) -> String {
+        match self.name.as_deref() {
+            None => "all channels of the first part".into(),
+            Some("") => "the channels without a layer name".into(),
+            Some(n) => n.into(),
+        }
+    }
+}
+
+/// A decoded image: interleaved `f32` samples, row-major, top row first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    /// Width in pixels (of the data window).
+    pub width: usize,
+    /// Height in pixels (of the data window).
+    pub height: usize,
+    /// The channels' names in OpenImageIO's order (`R`, `G`, `B`, `A`, then others): within a
+    /// layer without its prefix (`R` of `ViewLayer.Combined.R`), in full when every channel of
+    /// the file was read.
     pub channels: Vec<String>,
     /// `width × height × channels.len()` samples.
     pub data: Vec<f32>,
     /// True for PNG: samples are display-referred code values / 255 (or / 65535).
     pub display_referred: bool,
+    /// Absolute position of the top-left stored pixel (an EXR's `dataWindow` minimum; (0, 0)
+    /// for PNG). Pixel positions are reported in these coordinates, as idiff reports them.
+    pub origin: (i64, i64),
+    /// The display window (the frame; for PNG the image itself). Outside its data window an
+    /// image's pixels are 0.
+    pub display: Window,
+    /// The layer read from a multilayer EXR; `None` for a file whose channels have no layer
+    /// names, and for PNG.
+    pub layer: Option<LayerInfo>,
 }
 
 impl Image {
@@ -34,6 +143,9 @@ impl Image {
             channels: channels.iter().map(|c| c.to_string()).collect(),
             data,
             display_referred: false,
+            origin: (0, 0),
+            display: Window::at_origin(width, height),
+            layer: None,
         }
     }
 
@@ -47,9 +159,83 @@ impl Image {
         self.width * self.height
     }
 
-    /// `4x3 RGBA`.
+    /// The data window: where the stored pixels are, in absolute coordinates.
+    pub fn data_window(&self) -> Window {
+        Window {
+            x: self.origin.0,
+            y: self.origin.1,
+            width: self.width,
+            height: self.height,
+        }
+    }
+
+    /// The sample of channel `c` at absolute position (x, y): 0 outside the data window or
+    /// beyond the channels, as OpenImageIO reads it.
+    pub fn at(&self, x: i64, y: i64, c: usize) -> f32 {
+        let (dx, dy) = (x - self.origin.0, y - self.origin.1);
+        let n = self.channels.len();
+        if dx >= 0 && dy >= 0 && (dx as usize) < self.width && (dy as usize) < self.height && c < n
+        {
+            self.data[(dy as usize * self.width + dx as usize) * n + c]
+        } else {
+            0.0
+        }
+    }
+
+    /// The same image stored over `window` (pixels outside the data window are 0); the
+    /// display window and channels are kept.
+    pub fn padded(&self, window: Window) -> Image {
+        if window == self.data_window() {
+            return self.clone();
+        }
+        let n = self.channels.len();
+        let mut data = vec![0f32; window.pixels() * n];
+        for (p, px) in data.chunks_mut(n.max(1)).enumerate().take(window.pixels()) {
+            let (x, y) = (
+                window.x + (p % window.width) as i64,
+                window.y + (p / window.width) as i64,
+            );
+            for (c, v) in px.iter_mut().enumerate() {
+                *v = self.at(x, y, c);
+            }
+        }
+        Image {
+            width: window.width,
+            height: window.height,
+            data,
+            origin: (window.x, window.y),
+            ..self.clone()
+        }
+    }
+
+    /// The channel names, run together when each is one letter (`RGBA`), else comma-separated.
+    pub fn channel_list(&self) -> String {
+        if self.channels.iter().all(|c| c.chars().count() == 1) {
+            self.channels.concat()
+        } else {
+            self.channels.join(",")
+        }
+    }
+
+    /// `4x3 RGBA`; with a data window other than the display window at (0, 0),
+    /// `40x30+8+12 RGB in display window 64x48+0+0`; with a layer, `(layer NAME)` after it.
     pub fn shape(&self) -> String {
-        format!("{}x{} {}", self.width, self.height, self.channels.concat())
+        let mut s = if self.display == Window::at_origin(self.width, self.height)
+            && self.origin == (0, 0)
+        {
+            format!("{}x{} {}", self.width, self.height, self.channel_list())
+        } else {
+            format!(
+                "{} {} in display window {}",
+                self.data_window(),
+                self.channel_list(),
+                self.display
+            )
+        };
+        if let Some(name) = self.layer.as_ref().and_then(|l| l.name.as_deref()) {
+            s += &format!(" (layer {})", if name.is_empty() { "\"\"" } else { name });
+        }
+        s
     }
 
     /// Indices of R, G, B (by name; else the first channels).
@@ -93,11 +279,42 @@ pub fn one_line(s: &str) -> String {
     s.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
+/// Which layer of a multilayer EXR [`read_image_layer`] reads.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LayerSelect<'a> {
+    /// A layer named `Combined` (Blender's beauty, `ViewLayer.Combined.R` …), else the first
+    /// layer with `R`, `G` and `B` channels, else the file's only layer; several layers and none
+    /// of these is an error that lists them.
+    #[default]
+    Default,
+    /// The layer of this name: its whole prefix (`ViewLayer.Combined`), or its last part(s)
+    /// when only one layer ends so (`Combined`); `""` names the channels without a prefix.
+    Named(&'a str),
+    /// As idiff reads a file (`--idiff-compat` without `--layer`): every channel of an EXR's
+    /// first part; a PNG's colour associated with (multiplied by) its alpha as OpenImageIO
+    /// associates it.
+    AsIdiff,
+}
+
+/// Reads an OpenEXR or PNG image, recognised by its magic bytes, not its extension: the
+/// default layer of an EXR ([`LayerSelect::Default`]), see [`read_image_layer`].
+pub fn read_image(path: &Path) -> Result<Image, ImageError> {
+    read_image_layer(path, LayerSelect::Default)
+}
+
 /// Reads an OpenEXR or PNG image, recognised by its magic bytes, not its extension.
 ///
-/// EXR: the first layer's `R`, `G`, `B` (and `A`) channels, any sample type, as `f32`.
-/// PNG: 8- or 16-bit, grey expanded to RGB, kept display-referred (value / 255 or / 65535).
-pub fn read_image(path: &Path) -> Result<Image, ImageError> {
+/// EXR: the layer `select` picks (a layer is the channels sharing a name prefix, as
+/// `ViewLayer.Combined.R/G/B/A` in Blender's multilayer files; the parts of a multipart file are
+/// searched too, a part's name prefixing its channels), any sample type, as `f32`, with its data
+/// window's origin and the display window; channels in OpenImageIO's order (`R`, `G`, `B`, `A`,
+/// then the others; `X`, `Y`, `Z` in that order in a layer that has `X`). A single channel
+/// (`Y`, `Z`, `R`) is one channel. Subsampled (luminance-chroma) and deep files are refused.
+/// PNG: 8- or 16-bit, grey as one channel `Y` (with alpha `Y`, `A`), palettes as RGB(A), kept
+/// display-referred (value / 255 or / 65535), as stored (straight alpha; [`LayerSelect::AsIdiff`]
+/// associates it as OpenImageIO does), its `oFFs` offset (in pixels) as the data window's origin
+/// as OpenImageIO reads it.
+pub fn read_image_layer(path: &Path, select: LayerSelect) -> Result<Image, ImageError> {
     let fail = |reason: &str| ImageError::Unreadable {
         path: path.to_path_buf(),
         reason: one_line(reason),
@@ -109,9 +326,15 @@ pub fn read_image(path: &Path) -> Result<Image, ImageError> {
     let decoded = if bytes.is_empty() {
         Err("empty file".to_string())
     } else if bytes.starts_with(&EXR_MAGIC) {
-        quietly(|| decode_exr(&bytes)).and_then(|r| r)
+        quietly(|| decode_exr(&bytes, select)).and_then(|r| r)
     } else if bytes.starts_with(&PNG_MAGIC) {
-        quietly(|| decode_png(&bytes)).and_then(|r| r)
+        match select {
+            LayerSelect::Named(n) => Err(format!(
+                "it is a PNG, which has no layer '{n}' (--layer names a layer of a multilayer EXR)"
+            )),
+            LayerSelect::AsIdiff => quietly(|| decode_png(&bytes, true)).and_then(|r| r),
+            LayerSelect::Default => quietly(|| decode_png(&bytes, false)).and_then(|r| r),
+        }
     } else {
         Err("not an OpenEXR or PNG file".to_string())
     };
@@ -149,6 +372,10 @@ fn quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
     })
 }
 
+/// The most channels rayproof reads from one EXR file, every part together: 1024 (Blender's
+/// multilayer files with every pass and Cryptomatte hold about 100). A file of 10,000 layers of
+/// a few pixels stays within [`MAX_SAMPLES`] but is refused by this.
+pub const MAX_CHANNELS: u64 = 1024;
 /// The most pixels rayproof reads from one image (8192²; also the largest image it renders).
 pub const MAX_PIXELS: u64 = 1 << 26;
 /// The most samples (pixels × channels, as the header declares them) rayproof reads from one
@@ -177,12 +404,79 @@ fn check_declared(w: u64, h: u64, channels: u64) -> Result<(), String> {
     Ok(())
 }
 
-fn decode_exr(bytes: &[u8]) -> Result<Image, String> {
+/// `layer.suffix` as OpenImageIO splits it: the layer with its dot, and the suffix.
+fn split_name(full: &str) -> (&str, &str) {
+    match full.rfind('.') {
+        Some(i) => (&full[..=i], &full[i + 1..]),
+        None => ("", full),
+    }
+}
+
+/// The order in which OpenImageIO presents an EXR's channels (`exrinput.cpp`, `ChanNameHolder`):
+/// by layer, then `R`, `G`, `B`, `Y`, …, `A`, …, `Z` (case-insensitive), then by name; in a layer
+/// with an `X` and a `Y` or `Z`, `X`, `Y`, `Z` come after `B`.
+pub(super) fn oiio_order(names: &[String]) -> Vec<usize> {
+    const SPECIAL: [&str; 20] = [
+        "R", "Red", "G", "Green", "B", "Blue", "Y", "real", "imag", "A", "Alpha", "AR", "RA", "AG",
+        "GA", "AB", "BA", "Z", "Depth", "Zback",
+    ];
+    const SPECIAL_XYZ: [&str; 21] = [
+        "R", "Red", "G", "Green", "B", "Blue", "X", "Y", "Z", "real", "imag", "A", "Alpha", "AR",
+        "RA", "AG", "GA", "AB", "BA", "Depth", "Zback",
+    ];
+    let has = |layer: &str, suffix: &str| {
+        names.iter().any(|n| {
+            let (l, s) = split_name(n);
+            l == layer && s.eq_ignore_ascii_case(suffix)
+        })
+    };
+    let mut order: Vec<usize> = (0..names.len()).collect();
+    order.sort_by_cached_key(|&i| {
+        let (layer, suffix) = split_name(&names[i]);
+        let xyz = has(layer, "X") && (has(layer, "Y") || has(layer, "Z"));
+        let list: &[&str] = if xyz { &SPECIAL_XYZ } else { &SPECIAL };
+        let special = list
+            .iter()
+            .position(|t| t.eq_ignore_ascii_case(suffix))
+            .unwrap_or(10_000);
+        (layer.to_string(), special, suffix.to_string())
+    });
+    order
+}
+
+/// `a, b, ""` for a message.
+fn layer_names(layers: &[String]) -> String {
+    let q: Vec<String> = layers
+        .iter()
+        .map(|l| {
+            if l.is_empty() {
+                "\"\"".into()
+            } else {
+                l.clone()
+            }
+        })
+        .collect();
+    q.join(", ")
+}
+
+fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
     use exr::prelude::*;
     // The declared sizes, against the limits and the file's own length, before any allocation:
-    // every part's pixels, and its channels (the decoder holds them all)
+    // the channels of every part, every part's pixels, and its channels (the decoder holds them
+    // all)
     let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false)
         .map_err(|e| e.to_string())?;
+    let channels: u64 = meta
+        .headers
+        .iter()
+        .map(|h| h.channels.list.len() as u64)
+        .sum();
+    if channels > MAX_CHANNELS {
+        return Err(format!(
+            "it declares {channels} channels in {} part(s); at most {MAX_CHANNELS} are read",
+            meta.headers.len()
+        ));
+    }
     let mut samples = 0u64;
     for h in &meta.headers {
         let (w, ht) = (h.layer_size.width() as u64, h.layer_size.height() as u64);
@@ -202,59 +496,243 @@ fn decode_exr(bytes: &[u8]) -> Result<Image, String> {
                 bytes.len()
             ));
         }
+        if let Some(c) = h.channels.list.iter().find(|c| c.sampling != Vec2(1, 1)) {
+            return Err(format!(
+                "its channel {} is subsampled ({}×{}); subsampled (luminance-chroma) files are not read",
+                c.name, c.sampling.0, c.sampling.1
+            ));
+        }
     }
-    // Read the first valid layer, all channels, at full resolution
+    // Decode every part, all channels, at full resolution
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
         .all_channels()
-        .first_valid_layer()
+        .all_layers()
         .all_attributes()
         .non_parallel()
         .from_buffered(std::io::Cursor::new(bytes))
         .map_err(|e| e.to_string())?;
-    let layer = image.layer_data;
-    let (w, h) = (layer.size.width(), layer.size.height());
-    let list = &layer.channel_data.list;
-    let find = |name: &str| list.iter().find(|c| c.name.to_string() == name);
-    // Gather R, G, B (and A) as f32 planes
-    let mut names = vec!["R", "G", "B"];
-    if find("A").is_some() {
-        names.push("A");
+    let parts = &image.layer_data;
+    // Every channel: (part, index, full name, name as stored); a part's name prefixes its
+    // channels in a multipart file, unless they carry it already
+    let multipart = parts.len() > 1;
+    let mut chans: Vec<(usize, usize, String, String)> = vec![];
+    for (p, part) in parts.iter().enumerate() {
+        let prefix = part
+            .attributes
+            .layer_name
+            .as_ref()
+            .map(|n| n.to_string())
+            .filter(|n| multipart && !n.is_empty());
+        for (k, c) in part.channel_data.list.iter().enumerate() {
+            let name = c.name.to_string();
+            let full = match &prefix {
+                Some(pre) if !name.starts_with(&format!("{pre}.")) => format!("{pre}.{name}"),
+                _ => name.clone(),
+            };
+            chans.push((p, k, full, name));
+        }
     }
+    let names: Vec<String> = chans.iter().map(|c| c.2.clone()).collect();
+    let order = oiio_order(&names);
+    let layer_of = |i: usize| split_name(&names[i]).0.trim_end_matches('.').to_string();
+    let mut layers: Vec<String> = vec![];
+    for &i in &order {
+        if layers.last() != Some(&layer_of(i)) {
+            layers.push(layer_of(i));
+        }
+    }
+    // The layer asked for
+    let (chosen, pick): (Option<String>, LayerPick) = match select {
+        LayerSelect::AsIdiff => (None, LayerPick::All),
+        LayerSelect::Named(n) => {
+            let ends = |l: &String| l.ends_with(&format!(".{n}"));
+            if layers.iter().any(|l| l == n) {
+                (Some(n.to_string()), LayerPick::Named)
+            } else {
+                let found: Vec<&String> =
+                    layers.iter().filter(|l| !n.is_empty() && ends(l)).collect();
+                match found[..] {
+                    [one] => (Some(one.clone()), LayerPick::Named),
+                    [] => {
+                        return Err(format!(
+                            "it has no layer '{n}' (its layers: {})",
+                            layer_names(&layers)
+                        ))
+                    }
+                    _ => {
+                        return Err(format!(
+                            "'{n}' names several of its layers ({}): give the whole name",
+                            layer_names(&found.into_iter().cloned().collect::<Vec<_>>())
+                        ))
+                    }
+                }
+            }
+        }
+        LayerSelect::Default => {
+            let suffixes = |l: &String| -> Vec<&str> {
+                order
+                    .iter()
+                    .filter(|&&i| layer_of(i) == *l)
+                    .map(|&i| split_name(&names[i]).1)
+                    .collect()
+            };
+            let combined = layers
+                .iter()
+                .find(|l| *l == "Combined" || l.ends_with(".Combined"));
+            let rgb = layers.iter().find(|l| {
+                let s = suffixes(l);
+                ["R", "G", "B"].iter().all(|c| s.contains(c))
+            });
+            match (combined, rgb) {
+                (Some(l), _) => (Some(l.clone()), LayerPick::Combined),
+                (None, Some(l)) => (Some(l.clone()), LayerPick::FirstRgb),
+                (None, None) if layers.len() == 1 => (Some(layers[0].clone()), LayerPick::Only),
+                _ => {
+                    return Err(format!(
+                        "it has several layers and none is Combined or has R, G, B channels: choose one with --layer (its layers: {})",
+                        layer_names(&layers)
+                    ))
+                }
+            }
+        }
+    };
+    // Its channels, in order, all from one part; idiff reads the first part alone, its
+    // channels as stored
+    let picked: Vec<usize> = match &chosen {
+        Some(l) => order
+            .iter()
+            .copied()
+            .filter(|&i| layer_of(i) == *l)
+            .collect(),
+        None => {
+            let first: Vec<usize> = (0..chans.len()).filter(|&i| chans[i].0 == 0).collect();
+            let stored: Vec<String> = first.iter().map(|&i| chans[i].3.clone()).collect();
+            oiio_order(&stored).into_iter().map(|j| first[j]).collect()
+        }
+    };
+    let part = chans[picked[0]].0;
+    if picked.iter().any(|&i| chans[i].0 != part) {
+        return Err(format!(
+            "its layer '{}' is split over several parts",
+            chosen.unwrap_or_default()
+        ));
+    }
+    let layer = &parts[part];
+    let (w, h) = (layer.size.width(), layer.size.height());
     let mut planes = Vec::new();
-    for n in &names {
-        let ch = find(n).ok_or_else(|| {
-            let have: Vec<String> = list.iter().map(|c| c.name.to_string()).collect();
-            format!(
-                "the first layer has no R, G, B channels (it has {})",
-                have.join(", ")
-            )
-        })?;
+    for &i in &picked {
+        let ch = &layer.channel_data.list[chans[i].1];
         let plane: Vec<f32> = ch.sample_data.values_as_f32().collect();
         if plane.len() != w * h {
             return Err("channel size does not match the data window".into());
         }
         planes.push(plane);
     }
-    // Interleave the planes
+    // Interleave the planes; name the channels within their layer (in full: all of them)
     let data = (0..w * h)
         .flat_map(|i| planes.iter().map(move |p| p[i]))
         .collect();
-    Ok(self::Image::new(w, h, &names, data))
+    let channel_names: Vec<&str> = picked
+        .iter()
+        .map(|&i| match pick {
+            LayerPick::All => chans[i].3.as_str(),
+            _ => split_name(&names[i]).1,
+        })
+        .collect();
+    let mut img = self::Image::new(w, h, &channel_names, data);
+    let pos = layer.attributes.layer_position;
+    img.origin = (pos.x() as i64, pos.y() as i64);
+    let display = image.attributes.display_window;
+    img.display = Window {
+        x: display.position.x() as i64,
+        y: display.position.y() as i64,
+        width: display.size.width(),
+        height: display.size.height(),
+    };
+    let plain = layers.len() == 1 && layers[0].is_empty() && !multipart;
+    img.layer = (!plain).then_some(LayerInfo {
+        name: chosen,
+        pick,
+        layers,
+    });
+    Ok(img)
 }
 
-fn decode_png(bytes: &[u8]) -> Result<Image, String> {
+/// What OpenImageIO takes from a PNG's chunks besides the pixels (`png_pvt.h`): the `oFFs`
+/// offset when in pixels, and the gamma with which it associates alpha: 1 with an `sRGB` chunk
+/// or without `gAMA`, else 1/gAMA rounded to hundredths (2.2 for 0.45455). The chunks before
+/// the first `IDAT` are walked; the decoder checks them.
+fn png_chunks(bytes: &[u8]) -> ((i64, i64), f32) {
+    let (mut offset, mut gama, mut srgb) = ((0, 0), None, false);
+    let mut i = 8;
+    while let Some(head) = bytes.get(i..i + 8) {
+        let n = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as usize;
+        let Some(data) = bytes.get(i + 8..(i + 8).saturating_add(n)) else {
+            break;
+        };
+        let be = |k: usize| [data[k], data[k + 1], data[k + 2], data[k + 3]];
+        match &head[4..] {
+            b"IDAT" => break,
+            b"oFFs" if n == 9 && data[8] == 0 => {
+                offset = (
+                    i32::from_be_bytes(be(0)) as i64,
+                    i32::from_be_bytes(be(4)) as i64,
+                )
+            }
+            b"gAMA" if n == 4 => gama = Some(u32::from_be_bytes(be(0))),
+            b"sRGB" => srgb = true,
+            _ => {}
+        }
+        i += 12 + n;
+    }
+    let gamma = match gama {
+        Some(g) if g > 0 && !srgb => {
+            // libpng's gamma (× 0.00001 in double), inverted to float, rounded to hundredths
+            let g = (1.0 / (g as f64 * 0.00001)) as f32;
+            ((100.0 * g as f64) as f32).round() / 100.0
+        }
+        _ => 1.0,
+    };
+    (offset, gamma)
+}
+
+/// OpenImageIO's association of a PNG's colour with its alpha (`png_associateAlpha`), on the
+/// code values: c·a / max in integers at gamma 1, else c·(a/max)^gamma truncated.
+fn associate<T: Copy + Into<u32> + TryFrom<u32>>(data: &mut [T], n: usize, gamma: f32, max: u32) {
+    let inv_max = (1.0 / max as f64) as f32;
+    for px in data.chunks_mut(n) {
+        let a: u32 = px[n - 1].into();
+        let scale = ((a as f32 * inv_max) as f64).powf(gamma as f64) as f32;
+        for c in &mut px[..n - 1] {
+            let v: u32 = (*c).into();
+            let v = if gamma == 1.0 {
+                v * a / max
+            } else {
+                (v as f32 * scale) as u32
+            };
+            *c = T::try_from(v.min(max)).unwrap_or(*c);
+        }
+    }
+}
+
+fn decode_png(bytes: &[u8], associate_alpha: bool) -> Result<Image, String> {
     use image::{ColorType, DynamicImage, ImageDecoder};
-    // The declared size against the limits, from the header alone (channels as decoded: RGB or
-    // RGBA)
+    // The declared size against the limits, from the header alone (channels as decoded: Y,
+    // YA, RGB or RGBA)
     let header = image::codecs::png::PngDecoder::new(std::io::Cursor::new(bytes))
         .map_err(|e| e.to_string())?;
     let (w, h) = header.dimensions();
-    let channels = 3 + u64::from(header.color_type().has_alpha());
+    let color = header.color_type();
+    let grey = matches!(
+        color,
+        ColorType::L8 | ColorType::La8 | ColorType::L16 | ColorType::La16
+    );
+    let channels = if grey { 1 } else { 3 } + u64::from(color.has_alpha());
     check_declared(w as u64, h as u64, channels)?;
     drop(header);
-    // Decode, noting alpha and 16-bit samples
+    // Decode, noting grey, alpha and 16-bit samples
     let img = image::load_from_memory_with_format(bytes, image::ImageFormat::Png)
         .map_err(|e| e.to_string())?;
     let (w, h) = (img.width() as usize, img.height() as usize);
@@ -263,20 +741,48 @@ fn decode_png(bytes: &[u8]) -> Result<Image, String> {
         img.color(),
         ColorType::L16 | ColorType::La16 | ColorType::Rgb16 | ColorType::Rgba16
     );
-    // Expand to RGB(A) and scale code values to [0, 1]
-    let data: Vec<f32> = match (wide, alpha) {
-        (false, false) => scale(DynamicImage::to_rgb8(&img).as_raw(), 255.0),
-        (false, true) => scale(DynamicImage::to_rgba8(&img).as_raw(), 255.0),
-        (true, false) => scale(DynamicImage::to_rgb16(&img).as_raw(), 65535.0),
-        (true, true) => scale(DynamicImage::to_rgba16(&img).as_raw(), 65535.0),
+    // Grey as one channel Y (and A), as OpenImageIO reads it; palettes as RGB(A); the code
+    // values, associated with alpha if asked, scaled to [0, 1]
+    let names: &[&str] = match (grey, alpha) {
+        (true, false) => &["Y"],
+        (true, true) => &["Y", "A"],
+        (false, false) => &["R", "G", "B"],
+        (false, true) => &["R", "G", "B", "A"],
     };
-    let names: &[&str] = if alpha {
-        &["R", "G", "B", "A"]
+    let (offset, gamma) = png_chunks(bytes);
+    let n = names.len();
+    let data: Vec<f32> = if wide {
+        let mut v = match (grey, alpha) {
+            (true, false) => img.to_luma16().into_raw(),
+            (true, true) => img.to_luma_alpha16().into_raw(),
+            (false, false) => DynamicImage::to_rgb16(&img).into_raw(),
+            (false, true) => DynamicImage::to_rgba16(&img).into_raw(),
+        };
+        if alpha && associate_alpha {
+            associate(&mut v, n, gamma, 65535);
+        }
+        scale(&v, 65535.0)
     } else {
-        &["R", "G", "B"]
+        let mut v = match (grey, alpha) {
+            (true, false) => img.to_luma8().into_raw(),
+            (true, true) => img.to_luma_alpha8().into_raw(),
+            (false, false) => DynamicImage::to_rgb8(&img).into_raw(),
+            (false, true) => DynamicImage::to_rgba8(&img).into_raw(),
+        };
+        if alpha && associate_alpha {
+            associate(&mut v, n, gamma, 255);
+        }
+        scale(&v, 255.0)
     };
     let mut out = Image::new(w, h, names, data);
     out.display_referred = true;
+    out.origin = offset;
+    out.display = Window {
+        x: offset.0,
+        y: offset.1,
+        width: w,
+        height: h,
+    };
     Ok(out)
 }
 
@@ -287,7 +793,8 @@ fn scale<T: Copy + Into<f32>>(v: &[T], max: f32) -> Vec<f32> {
     v.iter().map(|&x| x.into() * inv).collect()
 }
 
-/// Writes every channel of `img` as a float32 EXR, atomically.
+/// Writes every channel of `img` as a float32 EXR, atomically, with its data and display
+/// windows.
 pub fn write_exr_rgb(path: &Path, img: &Image) -> anyhow::Result<()> {
     use exr::prelude::*;
     // One float32 plane per channel, in a single layer
@@ -298,17 +805,29 @@ pub fn write_exr_rgb(path: &Path, img: &Image) -> anyhow::Result<()> {
             AnyChannel::new(img.channels[c].as_str(), FlatSamples::F32(plane))
         })
         .collect();
+    // Its data window where it was, in its display window
+    let i32_of = |v: i64| {
+        i32::try_from(v).map_err(|_| anyhow::anyhow!("position {v} is beyond OpenEXR's range"))
+    };
+    let attributes = LayerAttributes {
+        layer_position: Vec2(i32_of(img.origin.0)?, i32_of(img.origin.1)?),
+        ..Default::default()
+    };
     let layer = Layer::new(
         (img.width, img.height),
-        LayerAttributes::default(),
+        attributes,
         Encoding::FAST_LOSSLESS,
         AnyChannels::sort(list.into()),
     );
+    let d = img.display;
+    let display = IntegerBounds::new(Vec2(i32_of(d.x)?, i32_of(d.y)?), (d.width, d.height));
     // Write it through a temporary sibling
     crate::output::write_atomic_with(path, |tmp| {
-        Ok(exr::prelude::Image::from_layer(layer)
-            .write()
-            .to_file(tmp)?)
+        Ok(
+            exr::prelude::Image::new(ImageAttributes::new(display), layer)
+                .write()
+                .to_file(tmp)?,
+        )
     })
 }
 

@@ -4,7 +4,7 @@
 //! [module documentation](crate::images).
 
 use super::flip::FlipKind;
-use super::io::Image;
+use super::io::{Image, LayerInfo, Window};
 use serde::{Deserialize, Serialize};
 
 /// Serde for `f64`s that may be infinite: JSON has no `inf`, so non-finite values are written
@@ -163,11 +163,12 @@ pub fn verdict(n_fail: u64, n_warn: u64, max_error: f64, pixels: u64, t: &Thresh
     }
 }
 
-/// The images differ in width, height or channels (exit code 3).
+/// The images differ in display window, channels or layer (or, where they must be stored
+/// alike, in data window): exit code 3.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("size mismatch: {reference} against {test}")]
 pub struct SizeMismatch {
-    /// `WxH CHANNELS` of the reference, e.g. `64x48 RGB`.
+    /// `WxH CHANNELS` of the reference, e.g. `64x48 RGB` (see [`Image::shape`]).
     pub reference: String,
     /// The same for the other image.
     pub test: String,
@@ -180,8 +181,20 @@ impl SizeMismatch {
     }
 }
 
-pub(super) fn same_shape(a: &Image, b: &Image) -> Result<(), SizeMismatch> {
-    if a.width == b.width && a.height == b.height && a.channels == b.channels {
+/// The two images show the same frame: one display window, the same channels, and the same
+/// layer (unless one of them is a file without layer names). Their data windows may differ.
+pub(super) fn same_frame(a: &Image, b: &Image) -> Result<(), SizeMismatch> {
+    let name = |i: &Image| {
+        i.layer
+            .as_ref()
+            .and_then(|l| l.name.clone())
+            .filter(|n| !n.is_empty())
+    };
+    let layers_agree = match (name(a), name(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => true,
+    };
+    if a.display == b.display && a.channels == b.channels && layers_agree {
         return Ok(());
     }
     Err(SizeMismatch {
@@ -190,17 +203,49 @@ pub(super) fn same_shape(a: &Image, b: &Image) -> Result<(), SizeMismatch> {
     })
 }
 
+/// [`same_frame`], and the same data window: the samples line up one for one.
+pub(super) fn same_shape(a: &Image, b: &Image) -> Result<(), SizeMismatch> {
+    same_frame(a, b)?;
+    if a.data_window() == b.data_window() {
+        return Ok(());
+    }
+    Err(SizeMismatch {
+        reference: a.shape(),
+        test: b.shape(),
+    })
+}
+
+/// The two images stored over the union of their data windows (a pixel outside an image's
+/// data window is 0, as OpenEXR defines it and idiff reads it), so that every per-pixel tool
+/// ([`abs_diff`], [`z_test`](crate::images::z_test), ꟻLIP, the previews) sees them aligned.
+/// Refused (exit 3) unless they show the same frame: one display window, the same channels, the
+/// same layer.
+pub fn align(reference: &Image, test: &Image) -> Result<(Image, Image), SizeMismatch> {
+    same_frame(reference, test)?;
+    let window = reference.data_window().union(&test.data_window());
+    Ok((reference.padded(window), test.padded(window)))
+}
+
 /// Every metric of one comparison.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Comparison {
-    /// Width in pixels of the compared window (under idiff's semantics the larger image's).
+    /// Width in pixels of the compared window: the union of both data windows.
     pub width: usize,
-    /// Height in pixels of the compared window (under idiff's semantics the larger image's).
+    /// Height in pixels of the compared window.
     pub height: usize,
+    /// The compared window, in absolute pixel coordinates (those of `max_at`).
+    pub window: Window,
+    /// The reference's display window (the test's is the same, unless under idiff's semantics).
+    pub display: Window,
+    /// The layers read from the reference and the test (`None`: a file without layers).
+    pub layers: [Option<LayerInfo>; 2],
     /// Channel names compared: the reference's, or the test's if it has more channels.
     pub channels: Vec<String>,
     /// `width × height`.
     pub pixels: u64,
+    /// The pixels the percentages (printed, and `failpercent`, `warnpercent`) are of: the
+    /// reference's data window, as idiff's `npels` (a cropped reference can print 156 %).
+    pub npels: u64,
     /// Σ|d| / (pixels × channels), non-finite mismatches left out of the sum.
     #[serde(serialize_with = "nonfinite::ser")]
     pub mean_error: f64,
@@ -219,8 +264,9 @@ pub struct Comparison {
     /// Largest |d|; infinite if some NaN/Inf mismatches.
     #[serde(serialize_with = "nonfinite::ser")]
     pub max_error: f64,
-    /// (x, y, channel index) of the first largest |d|.
-    pub max_at: (usize, usize, usize),
+    /// (x, y, channel index) of the first largest |d|, x and y in absolute pixel coordinates
+    /// (an EXR's data window at (8, 12) shifts them), as idiff reports them.
+    pub max_at: (i64, i64, usize),
     /// The name of the channel at `max_at`.
     pub max_channel: String,
     /// Reference and test values there.
@@ -298,22 +344,14 @@ pub fn compare_as(
 ) -> Result<Comparison, SizeMismatch> {
     let idiff = semantics == Semantics::Idiff;
     if !idiff {
-        same_shape(reference, test)?;
+        same_frame(reference, test)?;
     }
-    // The compared window: the union of both (equal unless idiff's semantics)
-    let (w, h) = (
-        reference.width.max(test.width),
-        reference.height.max(test.height),
-    );
+    // The compared window: the union of both data windows, in absolute coordinates; a pixel
+    // outside an image's data window, or a channel it lacks, is 0
+    let window = reference.data_window().union(&test.data_window());
+    let (w, h) = (window.width, window.height);
     let nch = reference.channels.len().max(test.channels.len());
-    let value = |img: &Image, x: usize, y: usize, c: usize| -> f32 {
-        let n = img.channels.len();
-        if x < img.width && y < img.height && c < n {
-            img.data[(y * img.width + x) * n + c]
-        } else {
-            0.0
-        }
-    };
+    let value = |img: &Image, x: i64, y: i64, c: usize| img.at(x, y, c);
     let f32t = |x: f64| x as f32 as f64;
     let (fail, warn) = (f32t(t.fail), f32t(t.warn));
     let (failrel, warnrel) = (f32t(t.failrelative), f32t(t.warnrelative));
@@ -321,11 +359,11 @@ pub fn compare_as(
     // Accumulate Σ|d|, Σd², relMSE, the largest |d| and the warn/fail counts, pixel by pixel
     let (mut sum, mut sum2, mut rel_sum) = (0f64, 0f64, 0f64);
     let (mut batch, mut batch2) = (0f64, 0f64);
-    let (mut max_error, mut max_at) = (0f64, (0, 0, 0));
+    let (mut max_error, mut max_at) = (0f64, (window.x, window.y, 0));
     let mut peak = 1f32;
     let (mut n_warn, mut n_fail, mut n_nonfinite) = (0u64, 0u64, 0u64);
     for p in 0..w * h {
-        let (x, y) = (p % w, p / w);
+        let (x, y) = (window.x + (p % w) as i64, window.y + (p / w) as i64);
         let (mut warned, mut failed, mut nonfinite) = (false, false, false);
         for c in 0..nch {
             let (a, b) = (value(reference, x, y, c), value(test, x, y, c));
@@ -394,12 +432,18 @@ pub fn compare_as(
     } else {
         &test.channels
     };
-    let npels = (reference.width * reference.height).max(1) as u64;
+    // The pixels the percentages are of: idiff's npels, the reference's data window (fewer
+    // than the compared pixels when the reference's data window is smaller: stricter)
+    let npels = reference.pixels() as u64;
     Ok(Comparison {
         width: w,
         height: h,
+        window,
+        display: reference.display,
+        layers: [reference.layer.clone(), test.layer.clone()],
         channels: channels.clone(),
         pixels,
+        npels,
         mean_error: per(sum),
         rms_error,
         psnr: if rms_error == 0.0 {
@@ -420,7 +464,7 @@ pub fn compare_as(
         flip_kind: None,
         semantics,
         // rayproof's semantics: a NaN/Inf mismatch is a failure whatever the percentages allow
-        verdict: match verdict(n_fail, n_warn, max_error, npels, t) {
+        verdict: match verdict(n_fail, n_warn, max_error, npels.max(1), t) {
             _ if !idiff && n_nonfinite > 0 => Verdict::Failure,
             v => v,
         },

@@ -2,6 +2,7 @@
 //! JSON document of `rayproof diff`, with C's `%g` for the numbers.
 
 use super::flip::FlipKind;
+use super::io::{LayerInfo, LayerPick};
 use super::metrics::{Comparison, Semantics, Thresholds, Verdict};
 use super::ztest::ZTest;
 use std::path::Path;
@@ -42,10 +43,63 @@ fn g(x: f64) -> String {
     fmt_g(x, 6)
 }
 
+/// Which layer each image was read from, when one is a multilayer EXR: one line if both say
+/// the same.
+fn layer_lines(ref_name: &str, test_name: &str, c: &Comparison) -> String {
+    let describe = |l: &LayerInfo| {
+        let why = match l.pick {
+            LayerPick::Named => "named by --layer",
+            LayerPick::Combined => "the default: a Combined layer",
+            LayerPick::FirstRgb => "the default: the first layer with R, G, B; none is Combined",
+            LayerPick::Only => "the file's only layer",
+            LayerPick::All => "as idiff reads them; --layer NAME compares one layer",
+        };
+        let all: Vec<String> = l
+            .layers
+            .iter()
+            .map(|n| {
+                if n.is_empty() {
+                    "\"\"".into()
+                } else {
+                    n.clone()
+                }
+            })
+            .collect();
+        (l.label(), format!("{why}; layers: {}", all.join(", ")))
+    };
+    match &c.layers {
+        [None, None] => String::new(),
+        [Some(a), Some(b)] if describe(a) == describe(b) => {
+            let (name, why) = describe(a);
+            format!("  Layer: {name}, in both files ({why})\n")
+        }
+        [a, b] => {
+            let mut s = String::new();
+            for (name, l) in [(ref_name, a), (test_name, b)] {
+                match l {
+                    Some(l) => {
+                        let (layer, why) = describe(l);
+                        s += &format!("  Layer of {name}: {layer} ({why})\n")
+                    }
+                    None => s += &format!("  Layer of {name}: its channels (no layers)\n"),
+                }
+            }
+            s
+        }
+    }
+}
+
 /// idiff's report (plus relMSE and ꟻLIP) without the verdict line.
 fn report_body(ref_name: &str, test_name: &str, c: &Comparison, t: &Thresholds) -> String {
-    let pct = |n: u64| fmt_g(100.0 * n as f64 / c.pixels.max(1) as f64, 4);
+    let pct = |n: u64| fmt_g(100.0 * n as f64 / c.npels.max(1) as f64, 4);
     let mut s = format!("Comparing \"{ref_name}\" and \"{test_name}\"\n");
+    s += &layer_lines(ref_name, test_name, c);
+    if c.window != c.display || c.display.x != 0 || c.display.y != 0 {
+        s += &format!(
+            "  Compared window {} (the union of the data windows; positions are absolute) in display window {}\n",
+            c.window, c.display
+        );
+    }
     s += &format!("  Mean error = {}\n", g(c.mean_error));
     s += &format!("  RMS error = {}\n", g(c.rms_error));
     s += &format!("  Peak SNR = {}\n", g(c.psnr));

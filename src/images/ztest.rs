@@ -72,8 +72,9 @@ pub struct ZTest {
     pub alpha: f64,
     /// The smallest p-value over all pixels and channels.
     pub min_p: f64,
-    /// (x, y, channel index into `channels`) of the first smallest p-value.
-    pub min_p_at: (usize, usize, usize),
+    /// (x, y, channel index into `channels`) of the first smallest p-value, x and y in
+    /// absolute pixel coordinates (as the comparison's `max_at`).
+    pub min_p_at: (i64, i64, usize),
     /// The name of the channel with the smallest p-value.
     pub min_p_channel: String,
     /// Pixels with some channel's p ≤ alpha.
@@ -110,7 +111,7 @@ pub fn z_test(
         })
         .collect();
     let idx = match var_idx {
-        Some(v) if variance.width == reference.width && variance.height == reference.height => v,
+        Some(v) if variance.data_window() == reference.data_window() => v,
         _ => {
             return Err(SizeMismatch {
                 reference: reference.shape(),
@@ -122,7 +123,7 @@ pub fn z_test(
     let (nr, nv) = (reference.channels.len(), variance.channels.len());
     let pixels = reference.pixels() as u64;
     let alpha = sidak_alpha(p.significance, pixels);
-    let (mut min_p, mut min_at) = (f64::INFINITY, (0, 0, 0));
+    let (mut min_p, mut min_at) = (f64::INFINITY, (reference.origin.0, reference.origin.1, 0));
     let (mut failing_pixels, mut passing) = (0u64, 0u64);
     for px in 0..reference.pixels() {
         let mut failed = false;
@@ -142,7 +143,9 @@ pub fn z_test(
                 0.0
             };
             if pv < min_p {
-                (min_p, min_at) = (pv, (px % reference.width, px / reference.width, k));
+                let (x, y) = (px % reference.width, px / reference.width);
+                let (x, y) = (reference.origin.0 + x as i64, reference.origin.1 + y as i64);
+                (min_p, min_at) = (pv, (x, y, k));
             }
             if pv > alpha {
                 passing += 1;
