@@ -90,7 +90,8 @@ pub fn clean_up_on_signals() {
         let _commit = COMMIT.lock().unwrap_or_else(|e| e.into_inner());
         // Temporaries being written are finished first (a stuck writer is given up on)
         let start = std::time::Instant::now();
-        while IN_FLIGHT.load(std::sync::atomic::Ordering::SeqCst) > 0 && start.elapsed() < WRITE_GRACE
+        while IN_FLIGHT.load(std::sync::atomic::Ordering::SeqCst) > 0
+            && start.elapsed() < WRITE_GRACE
         {
             std::thread::sleep(std::time::Duration::from_millis(2));
         }
@@ -142,9 +143,31 @@ fn nonce() -> u64 {
     h.finish()
 }
 
-/// The temporary sibling of `path`: `.NAME.rayproof-PID-NONCE.KIND` in the same directory,
-/// named through the directory as `path` writes it (`with_file_name` drops `./` components, so a
-/// probe could pass where the output's own path is too long: found by `tests/fuzz_surfaces.rs`).
+/// The longest file name a Linux file system takes, in bytes.
+const NAME_MAX: usize = 255;
+/// The bytes a temporary's name adds to the output's: `.`, `.rayproof-`, a pid (at most 10
+/// digits), `-`, 16 hex digits and `.tmp` or `.dir`.
+const TMP_OVERHEAD: usize = 1 + 10 + 10 + 1 + 16 + 4;
+
+/// The part of an output's file name its temporaries carry: the whole name, or its first
+/// `NAME_MAX - TMP_OVERHEAD` bytes (on a character boundary) when the temporary's name would
+/// be longer than a file system takes (a 250-character output name was refused: its
+/// temporary's name was too long).
+fn tmp_stem(name: &str) -> &str {
+    let mut k = NAME_MAX - TMP_OVERHEAD;
+    if name.len() <= k {
+        return name;
+    }
+    while !name.is_char_boundary(k) {
+        k -= 1;
+    }
+    &name[..k]
+}
+
+/// The temporary sibling of `path`: `.NAME.rayproof-PID-NONCE.KIND` in the same directory (NAME
+/// cut by [`tmp_stem`]), named through the directory as `path` writes it (`with_file_name` drops
+/// `./` components, so a probe could pass where the output's own path is too long: found by
+/// `tests/fuzz_surfaces.rs`).
 fn tmp_for(path: &Path, kind: &str) -> PathBuf {
     use std::os::unix::ffi::OsStrExt;
     let name = path
@@ -152,13 +175,17 @@ fn tmp_for(path: &Path, kind: &str) -> PathBuf {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let tmp = format!(
-        ".{name}.rayproof-{}-{:016x}.{kind}",
+        ".{}.rayproof-{}-{:016x}.{kind}",
+        tmp_stem(&name),
         std::process::id(),
         nonce()
     );
     let bytes = path.as_os_str().as_bytes();
     let end = bytes.len() - bytes.iter().rev().take_while(|&&b| b == b'/').count();
-    let cut = bytes[..end].iter().rposition(|&b| b == b'/').map_or(0, |i| i + 1);
+    let cut = bytes[..end]
+        .iter()
+        .rposition(|&b| b == b'/')
+        .map_or(0, |i| i + 1);
     if path.file_name().map(|n| n.as_bytes()) != Some(&bytes[cut..end]) {
         return path.with_file_name(tmp);
     }
@@ -168,10 +195,10 @@ fn tmp_for(path: &Path, kind: &str) -> PathBuf {
 }
 
 /// The process id in a temporary's name `.NAME.rayproof-PID-NONCE.KIND`, if `file` is exactly
-/// such a name for `name` and `kind`.
+/// such a name for `name` (cut by [`tmp_stem`]) and `kind`.
 fn temporary_pid(file: &str, name: &str, kind: &str) -> Option<u32> {
     let rest = file
-        .strip_prefix(&format!(".{name}.rayproof-"))?
+        .strip_prefix(&format!(".{}.rayproof-", tmp_stem(name)))?
         .strip_suffix(&format!(".{kind}"))?;
     let (pid, nonce) = rest.split_once('-')?;
     if nonce.len() != 16 || !nonce.bytes().all(|b| b.is_ascii_hexdigit()) {
@@ -486,8 +513,9 @@ impl Outputs {
                     remove_temporary(&t.tmp);
                     live(|v| v.retain(|p| p != &t.tmp));
                 }
-                return Err(anyhow::Error::new(e)
-                    .context(format!("cannot write {}", s.path.display())));
+                return Err(
+                    anyhow::Error::new(e).context(format!("cannot write {}", s.path.display()))
+                );
             }
         }
         Ok(())
