@@ -46,6 +46,17 @@
 //! | `output_name_of_250_characters` | exit 2, "File name too long" (its temporary's name); this one failed with the binary of the branch too, before the fix of `output::tmp_stem` |
 //! | `downsample_unreadable_exits_4` | exit 2 |
 //!
+//! Found by the hostile run of this work (`scripts/hostile-run`), and failed against the old
+//! binary and the branch before their fix (a467ad4) alike:
+//!
+//! | row | before |
+//! |---|---|
+//! | `score_cases_of_dev_zero` | read whole: "out of memory" at 1 GB resident under the 2 GB address space (22 GB, killed by the kernel, without one) |
+//! | `merge_of_dev_zero` | the same, for a shard file |
+//! | `suite_scene_of_dev_zero` | the scene's SHA-256 read it whole: "out of memory" |
+//! | `mesh_that_is_a_fifo` | still running at the 10 s deadline (opened before it was looked at) |
+//! | `image_that_is_a_fifo` | still running at the 10 s deadline |
+//!
 //! The other reproducers of the issue are tests elsewhere (`tests/bounds.rs`: MPU points at
 //! ±1e308, `[measured] = [1, 1e9]`, 40 glass and mirror spheres at depth 256, `mtllib
 //! /dev/zero` and a mesh `file = "/dev/zero"`, EXR channel counts, a 16384² PNG;
@@ -775,9 +786,8 @@ fn score_zero_cases(d: &Path) -> Result<(), String> {
     r.refused(2, &["zero.txt", "cases=0"])
 }
 
-/// A suite test whose command notes `{width}` and `{spp}` and copies `ref.exr`, judged against
-/// `refs/ref.exr` whose manifest entry says `width` and `grid`.
-fn manifest_numbers(d: &Path, width: u64, grid: u64, want: &str) -> Result<(), String> {
+/// `ref.exr` and its copy `refs/ref.exr`, whose manifest entry says `width` and `grid`.
+fn references(d: &Path, width: u64, grid: u64) {
     std::fs::create_dir_all(d.join("refs")).unwrap();
     let img = rayproof::images::Image::rgb(16, 16, vec![0.5; 16 * 16 * 3]);
     rayproof::images::write_exr_rgb(&d.join("ref.exr"), &img).unwrap();
@@ -787,6 +797,12 @@ fn manifest_numbers(d: &Path, width: u64, grid: u64, want: &str) -> Result<(), S
         "renderer": "test", "version": "1", "width": width, "grid": grid, "sha256": sha,
     }}});
     std::fs::write(d.join("refs/manifest.json"), manifest.to_string()).unwrap();
+}
+
+/// A suite test whose command notes `{width}` and `{spp}` and copies `ref.exr`, judged against
+/// `refs/ref.exr` whose manifest entry says `width` and `grid`.
+fn manifest_numbers(d: &Path, width: u64, grid: u64, want: &str) -> Result<(), String> {
+    references(d, width, grid);
     std::fs::write(
         d.join("suite.toml"),
         "[suite]\n\n[[test]]\nname = \"t\"\ncommand = \"echo {width} {spp} > noted.txt; cp ref.exr {out}\"\nreference = [{ name = \"r\", path = \"refs/ref.exr\" }]\ngolden = false\n",
@@ -923,6 +939,76 @@ fn downsample_unreadable_exits_4(d: &Path) -> Result<(), String> {
     r.refused(4, &["text.exr"])
 }
 
+// ---- Found by the hostile run (scripts/hostile-run) -----------------------------------------
+
+fn score_cases_of_dev_zero(d: &Path) -> Result<(), String> {
+    // Read whole: 22 GB resident before the kernel killed it (without an address-space limit)
+    std::fs::write(d.join("a.txt"), "0\n").unwrap();
+    let r = run(
+        d,
+        &["score", "--cases", "/dev/zero", "--answers", "a.txt"],
+        30,
+    );
+    r.refused(2, &["/dev/zero", "256 MiB"])?;
+    ensure!(r.peak < 600 << 20, "{} MB resident", r.peak >> 20);
+    Ok(())
+}
+
+fn merge_of_dev_zero(d: &Path) -> Result<(), String> {
+    let r = run(d, &["merge", "/dev/zero"], 30);
+    r.refused(2, &["/dev/zero", "256 MiB"])?;
+    ensure!(r.peak < 600 << 20, "{} MB resident", r.peak >> 20);
+    Ok(())
+}
+
+fn suite_scene_of_dev_zero(d: &Path) -> Result<(), String> {
+    // The scene's SHA-256 read /dev/zero until memory ran out
+    references(d, 16, 1);
+    std::fs::write(
+        d.join("suite.toml"),
+        "[suite]\n\n[[test]]\nname = \"t\"\nscene = \"/dev/zero\"\ncommand = \"cp ref.exr {out}\"\nreference = [{ name = \"r\", path = \"refs/ref.exr\" }]\ngolden = false\n",
+    )
+    .unwrap();
+    let r = run(
+        d,
+        &["check", "--suite", "suite.toml", "--json", "r.json"],
+        30,
+    );
+    r.exited(3)?;
+    ensure!(
+        r.stdout.contains("/dev/zero") && r.stdout.contains("not a regular file"),
+        "{}",
+        r.stdout
+    );
+    ensure!(r.peak < 200 << 20, "{} MB resident", r.peak >> 20);
+    Ok(())
+}
+
+/// A FIFO named `name` in `d`, with no writer.
+fn fifo(d: &Path, name: &str) {
+    let c = std::ffi::CString::new(d.join(name).to_str().unwrap()).unwrap();
+    // SAFETY: mkfifo with a NUL-terminated path
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
+}
+
+fn mesh_that_is_a_fifo(d: &Path) -> Result<(), String> {
+    // Opened before it was looked at: the open waited for a writer forever
+    fifo(d, "f.obj");
+    let text = small_scene("[0.0, 0.0, 12.0]", "[40.0, 40.0, 40.0]", "[0.0, 0.0, 0.0]")
+        + "\n[[shapes]]\ntype = \"mesh\"\nfile = \"f.obj\"\nmaterial = \"grey\"\n";
+    std::fs::write(d.join("s.toml"), text).unwrap();
+    let r = run(d, &["render", "s.toml", "-o", "o.exr"], 10);
+    r.refused(2, &["f.obj", "not a regular file"])
+}
+
+fn image_that_is_a_fifo(d: &Path) -> Result<(), String> {
+    fifo(d, "f.exr");
+    let img = rayproof::images::Image::rgb(4, 4, vec![0.5; 4 * 4 * 3]);
+    rayproof::images::write_exr_rgb(&d.join("good.exr"), &img).unwrap();
+    let r = run(d, &["diff", "good.exr", "f.exr"], 10);
+    r.refused(4, &["f.exr", "not a regular file"])
+}
+
 /// The reproducers: a name and the row.
 type Row = (&'static str, fn(&Path) -> Result<(), String>);
 
@@ -983,6 +1069,11 @@ const ROWS: &[Row] = &[
         "downsample_unreadable_exits_4",
         downsample_unreadable_exits_4,
     ),
+    ("score_cases_of_dev_zero", score_cases_of_dev_zero),
+    ("merge_of_dev_zero", merge_of_dev_zero),
+    ("suite_scene_of_dev_zero", suite_scene_of_dev_zero),
+    ("mesh_that_is_a_fifo", mesh_that_is_a_fifo),
+    ("image_that_is_a_fifo", image_that_is_a_fifo),
 ];
 
 #[test]

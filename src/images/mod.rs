@@ -86,7 +86,8 @@ mod ztest;
 pub use flip::{flip_error, hdr_flip, heatmap_rgb8, ldr_flip, FlipKind};
 pub use io::one_line;
 pub use io::{
-    read_image, tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError, MAX_PIXELS,
+    read_image, tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError, MAX_IMAGE_BYTES,
+    MAX_PIXELS,
 };
 pub use metrics::{
     abs_diff, abs_error_map, compare, compare_as, verdict, Comparison, Semantics, SizeMismatch,
