@@ -227,7 +227,7 @@ pub fn remove_stale(path: &Path) {
         };
         let pid = if meta.is_file() {
             temporary_pid(&file, &name, "tmp")
-        } else if meta.is_dir() && e.path().join(MARKER).is_file() {
+        } else if meta.is_dir() && marked(&e.path()) {
             temporary_pid(&file, &name, "dir")
         } else {
             None
@@ -297,13 +297,20 @@ fn check_target(path: &Path) -> Result<()> {
     }
 }
 
+/// Whether `dir` holds [`MARKER`] as a regular file: a link of that name (to any file) or a
+/// directory is not rayproof's marker (a user's directory with such a link was replaced: found
+/// by `scripts/hostile-run`).
+fn marked(dir: &Path) -> bool {
+    std::fs::symlink_metadata(dir.join(MARKER)).is_ok_and(|m| m.is_file())
+}
+
 /// Refuses a directory output that exists and is not a directory rayproof made.
 fn check_dir_target(path: &Path) -> Result<()> {
     if path.file_name().is_none() {
         bail!("{}: output directory has no name", path.display());
     }
     match std::fs::symlink_metadata(path) {
-        Ok(m) if m.is_dir() && path.join(MARKER).is_file() => Ok(()),
+        Ok(m) if m.is_dir() && marked(path) => Ok(()),
         Ok(m) if m.is_dir() => bail!(
             "{}: is a directory rayproof did not make (no {MARKER} in it); rayproof only replaces its own output directories: give a new one",
             path.display()

@@ -23,7 +23,7 @@
 //! | `exec_setsid_grandchild` | still running at the 25 s deadline (the grandchild holds stdout) |
 //! | `exec_stderr_of_1_gb` | aborted (signal 6: "memory allocation of 1000000002 bytes failed") at 1074 MB |
 //! | `exec_yes` | 1034 MB resident before it ended (exit 4) |
-//! | `exec_stdout_without_newline` | 1034 MB resident, then "failed (exit status: 141)", no cap said |
+//! | `exec_stdout_without_newline` | 1034 MB resident, then "failed (exit status: 141)", no cap said; the branch before its fix (a333992) said "failed (signal: 9 (SIGKILL)) after 1 of 20 answers" one run in two, the cap passed while the first batch decided how the child is run |
 //! | `cases_streamed` | 73 MB resident for a 64 MB file (the whole file in memory) |
 //! | `plugin_writes_past_out` | exit 4 with nothing on stderr |
 //! | `plugin_infinite_recursion` | killed by SIGSEGV (exit 139) |
@@ -56,6 +56,7 @@
 //! | `suite_scene_of_dev_zero` | the scene's SHA-256 read it whole: "out of memory" |
 //! | `mesh_that_is_a_fifo` | still running at the 10 s deadline (opened before it was looked at) |
 //! | `image_that_is_a_fifo` | still running at the 10 s deadline |
+//! | `report_out_over_a_directory_with_a_linked_marker` | exit 0, the user's directory (a link named `.rayproof-output` in it) replaced whole |
 //!
 //! The other reproducers of the issue are tests elsewhere (`tests/bounds.rs`: MPU points at
 //! ±1e308, `[measured] = [1, 1e9]`, 40 glass and mirror spheres at depth 256, `mtllib
@@ -538,10 +539,14 @@ fn exec_yes(d: &Path) -> Result<(), String> {
 }
 
 fn exec_stdout_without_newline(d: &Path) -> Result<(), String> {
-    // An answer line that never ends: the cap stops it, and the error says the cap
-    let r = exec(d, "cat /dev/zero", "20", 30);
-    r.refused(4, &["cat /dev/zero", "wrote more than", "bytes (killed)"])?;
-    ensure!(r.peak < 256 << 20, "{} MB resident", r.peak >> 20);
+    // An answer line that never ends: the cap stops it, and the error says the cap. Three runs:
+    // one in two said "failed (signal: 9 (SIGKILL)) after 1 of 20 answers" when the cap was
+    // passed while the first batch decided how the child is run
+    for _ in 0..3 {
+        let r = exec(d, "cat /dev/zero", "20", 30);
+        r.refused(4, &["cat /dev/zero", "wrote more than", "bytes (killed)"])?;
+        ensure!(r.peak < 256 << 20, "{} MB resident", r.peak >> 20);
+    }
     Ok(())
 }
 
@@ -1009,6 +1014,31 @@ fn image_that_is_a_fifo(d: &Path) -> Result<(), String> {
     r.refused(4, &["f.exr", "not a regular file"])
 }
 
+fn report_out_over_a_directory_with_a_linked_marker(d: &Path) -> Result<(), String> {
+    // A link named as rayproof's marker (to any file) passed for the marker: the directory,
+    // the user's thesis in it, was replaced
+    std::fs::create_dir_all(d.join("rep")).unwrap();
+    std::fs::write(d.join("rep/thesis.txt"), b"years of work").unwrap();
+    std::fs::write(d.join("notes.txt"), b"notes").unwrap();
+    std::os::unix::fs::symlink("../notes.txt", d.join("rep/.rayproof-output")).unwrap();
+    let reference = Path::new(env!("CARGO_MANIFEST_DIR")).join("reference");
+    let before = snapshot(d);
+    let r = run(
+        d,
+        &[
+            "report",
+            "--quick",
+            "--out",
+            "rep",
+            "--reference",
+            s(&reference),
+        ],
+        120,
+    );
+    unchanged(&before, d)?;
+    r.refused(2, &["rep", "a directory rayproof did not make"])
+}
+
 /// The reproducers: a name and the row.
 type Row = (&'static str, fn(&Path) -> Result<(), String>);
 
@@ -1074,6 +1104,10 @@ const ROWS: &[Row] = &[
     ("suite_scene_of_dev_zero", suite_scene_of_dev_zero),
     ("mesh_that_is_a_fifo", mesh_that_is_a_fifo),
     ("image_that_is_a_fifo", image_that_is_a_fifo),
+    (
+        "report_out_over_a_directory_with_a_linked_marker",
+        report_out_over_a_directory_with_a_linked_marker,
+    ),
 ];
 
 #[test]
