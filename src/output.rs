@@ -267,12 +267,27 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     identity(a) == identity(b)
 }
 
+/// Refuses an output whose file name is longer than a file system takes: its temporary, cut
+/// by [`tmp_stem`], would be made, and the work done, before the rename into place failed
+/// (found by `scripts/hostile-run`).
+fn check_name_length(path: &Path) -> Result<()> {
+    let n = path.file_name().map_or(0, |n| n.len());
+    if n > NAME_MAX {
+        bail!(
+            "{}: the file name has {n} bytes, more than a file system takes ({NAME_MAX})",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
 /// Refuses an output path that exists and is not a regular file: a directory, a symbolic link,
 /// a FIFO, a device or a socket is never replaced (nor written through).
 fn check_target(path: &Path) -> Result<()> {
     if path.file_name().is_none() {
         bail!("{}: output path has no file name", path.display());
     }
+    check_name_length(path)?;
     // `FILE/` or `FILE/.` names a directory: no file can be renamed there
     let text = path.as_os_str().as_encoded_bytes();
     if text.ends_with(b"/") || text.ends_with(b"/.") {
@@ -309,6 +324,7 @@ fn check_dir_target(path: &Path) -> Result<()> {
     if path.file_name().is_none() {
         bail!("{}: output directory has no name", path.display());
     }
+    check_name_length(path)?;
     match std::fs::symlink_metadata(path) {
         Ok(m) if m.is_dir() && marked(path) => Ok(()),
         Ok(m) if m.is_dir() => bail!(

@@ -20,6 +20,7 @@
 //! | `render_over_its_scene` | the scene overwritten by the EXR (and `s.toml.json` made) |
 //! | `score_over_its_cases` | the cases file overwritten by the report |
 //! | `clean_up_spares_a_users_tmp_directory` | `.keep.exr.tmp99999999/` deleted with everything in it |
+//! | `signal_during_a_commit` | exit 130 with a mix: the report and the golden new, `c.json` old |
 //! | `exec_setsid_grandchild` | still running at the 25 s deadline (the grandchild holds stdout) |
 //! | `exec_stderr_of_1_gb` | aborted (signal 6: "memory allocation of 1000000002 bytes failed") at 1074 MB |
 //! | `exec_yes` | 1034 MB resident before it ended (exit 4) |
@@ -47,7 +48,7 @@
 //! | `downsample_unreadable_exits_4` | exit 2 |
 //!
 //! Found by the hostile run of this work (`scripts/hostile-run`), and failed against the old
-//! binary and the branch before their fix (a467ad4) alike:
+//! binary and the branch before their fix alike:
 //!
 //! | row | before |
 //! |---|---|
@@ -57,6 +58,7 @@
 //! | `mesh_that_is_a_fifo` | still running at the 10 s deadline (opened before it was looked at) |
 //! | `image_that_is_a_fifo` | still running at the 10 s deadline |
 //! | `report_out_over_a_directory_with_a_linked_marker` | exit 0, the user's directory (a link named `.rayproof-output` in it) replaced whole |
+//! | `output_name_of_256_characters` | a regression of this work, found by the hostile run: once temporaries' names were cut to fit (a467ad4), a name of 256 bytes passed the check before the work, the audit ran and its rename failed at the end (its progress line and the error: two lines). The old binary refused it up front ("File name too long"; the row fails there on its wording only) |
 //!
 //! The other reproducers of the issue are tests elsewhere (`tests/bounds.rs`: MPU points at
 //! ±1e308, `[measured] = [1, 1e9]`, 40 glass and mirror spheres at depth 256, `mtllib
@@ -459,6 +461,87 @@ fn clean_up_spares_a_users_tmp_directory(d: &Path) -> Result<(), String> {
         .collect();
     ensure!(after == before, "the user's directory changed: {after:?}");
     Ok(())
+}
+
+fn signal_during_a_commit(d: &Path) -> Result<(), String> {
+    // The handler removed the temporaries and exited while the main thread was committing: a
+    // mixed old/new set. The commit is made long here: the old report directory holds 40,000
+    // files, removed inside the commit once the new one is exchanged for it (the first output
+    // renamed; the goldens, their manifest and the JSON follow). SIGINT lands after the
+    // exchange, the JSON still old: everything must end new (or everything old).
+    let suite = |p: &str| {
+        format!(
+            "[suite]\nrenderer = \"{}\"\ngoldens = \"goldens\"\n\n[[test]]\nname = \"disc\"\n",
+            standin(&format!(" --perturb {p}"))
+        )
+    };
+    std::fs::write(d.join("old.toml"), suite("0")).unwrap();
+    std::fs::write(d.join("new.toml"), suite("0.5")).unwrap();
+    let args = |s: &str| {
+        [
+            "check", "--suite", s, "--update", "--report", "rep", "--json", "c.json",
+        ]
+        .map(String::from)
+    };
+    let outputs = ["rep/index.html", "goldens/disc.exr", "c.json"];
+    let read = |f: &str| std::fs::read(d.join(f)).ok();
+    for _attempt in 0..5 {
+        for f in ["rep", "goldens"] {
+            let _ = std::fs::remove_dir_all(d.join(f));
+        }
+        let _ = std::fs::remove_file(d.join("c.json"));
+        let a = args("old.toml");
+        let r = run(d, &a.iter().map(|x| x.as_str()).collect::<Vec<_>>(), 60);
+        ensure!(matches!(r.code, Some(0 | 1)), "the old run: {}", r.ended());
+        for i in 0..40_000 {
+            std::fs::write(d.join(format!("rep/old-{i}.txt")), b"x").unwrap();
+        }
+        let old: Vec<_> = outputs.iter().map(|f| read(f)).collect();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+            .args(args("new.toml"))
+            .current_dir(d)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let t0 = Instant::now();
+        let mut landed = false;
+        while t0.elapsed() < Duration::from_secs(60) {
+            if child.try_wait().unwrap().is_some() {
+                break;
+            }
+            if read("rep/index.html").is_some_and(|x| Some(x) != old[0]) {
+                landed = read("c.json") == old[2];
+                // SAFETY: kill(2) on the child this row started
+                unsafe {
+                    libc::kill(child.id() as i32, libc::SIGINT);
+                }
+                break;
+            }
+            std::thread::sleep(Duration::from_micros(200));
+        }
+        let st = child.wait().unwrap();
+        if !landed {
+            continue;
+        }
+        let now: Vec<_> = outputs.iter().map(|f| read(f)).collect();
+        let same: Vec<&str> = outputs
+            .iter()
+            .zip(now.iter().zip(&old))
+            .filter(|(_, (n, o))| n == o)
+            .map(|(f, _)| *f)
+            .collect();
+        ensure!(
+            same.is_empty() || same.len() == outputs.len(),
+            "SIGINT during the commit ({st}): a mix, {same:?} old and the rest new"
+        );
+        ensure!(
+            matches!(st.code(), Some(0 | 1 | 130)),
+            "SIGINT during the commit: {st}"
+        );
+        return Ok(());
+    }
+    Err("in 5 attempts the signal never landed inside the commit".into())
 }
 
 // ---- Hangs and exhausted memory --------------------------------------------------------------
@@ -932,6 +1015,20 @@ fn output_name_of_250_characters(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+fn output_name_of_256_characters(d: &Path) -> Result<(), String> {
+    // One byte more than a file system takes: refused before the work (once its temporary's
+    // name was cut to fit, the audit ran and its rename failed at the end)
+    let name = "w".repeat(256);
+    let r = run(
+        d,
+        &["audit", "--shape", "rcp", "--cases", "20", "--json", &name],
+        30,
+    );
+    r.refused(2, &["256 bytes", "255"])?;
+    ensure!(r.stdout.is_empty(), "the audit ran: {}", r.stdout);
+    Ok(())
+}
+
 fn downsample_unreadable_exits_4(d: &Path) -> Result<(), String> {
     // The Limits table says 4 for an unreadable image; it exited 2
     std::fs::write(d.join("text.exr"), "not an image").unwrap();
@@ -1059,6 +1156,7 @@ const ROWS: &[Row] = &[
         "clean_up_spares_a_users_tmp_directory",
         clean_up_spares_a_users_tmp_directory,
     ),
+    ("signal_during_a_commit", signal_during_a_commit),
     ("exec_setsid_grandchild", exec_setsid_grandchild),
     ("exec_stderr_of_1_gb", exec_stderr_of_1_gb),
     ("exec_yes", exec_yes),
@@ -1094,6 +1192,10 @@ const ROWS: &[Row] = &[
     (
         "output_name_of_250_characters",
         output_name_of_250_characters,
+    ),
+    (
+        "output_name_of_256_characters",
+        output_name_of_256_characters,
     ),
     (
         "downsample_unreadable_exits_4",
@@ -1149,4 +1251,72 @@ fn every_reproducer_of_the_issue_ends_as_the_issue_asks() {
         failed.len(),
         failed.join("\n")
     );
+}
+
+// ---- The checks behind the commands, through the library -------------------------------------
+// Each command checks its outputs up front (`output::check_outputs`); the staging checks them
+// again when it writes. These give the second line of defence teeth of its own.
+
+#[test]
+fn the_staging_refuses_an_input_and_a_directory_rayproof_did_not_make() {
+    use rayproof::output::Outputs;
+    let d = std::env::temp_dir().join(format!(
+        "rayproof-reproducers-staging-{}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(d.join("mine")).unwrap();
+    std::fs::write(d.join("in.txt"), b"an input").unwrap();
+    std::fs::write(d.join("mine/thesis.txt"), b"years of work").unwrap();
+    std::fs::hard_link(d.join("in.txt"), d.join("alias.txt")).unwrap();
+    let before = snapshot(&d);
+    let mut o = Outputs::new().reading(&[&d.join("in.txt")]);
+    for p in ["in.txt", "alias.txt"] {
+        let e = o.write(&d.join(p), b"new").unwrap_err().to_string();
+        assert!(e.contains("is an input of this run"), "{p}: {e}");
+    }
+    let e = o.dir(&d.join("mine")).unwrap_err().to_string();
+    assert!(e.contains("a directory rayproof did not make"), "{e}");
+    // A link named as the marker is not the marker
+    std::os::unix::fs::symlink("../in.txt", d.join("mine/.rayproof-output")).unwrap();
+    let e = o.dir(&d.join("mine")).unwrap_err().to_string();
+    assert!(e.contains("a directory rayproof did not make"), "{e}");
+    std::fs::remove_file(d.join("mine/.rayproof-output")).unwrap();
+    o.commit().unwrap();
+    assert_eq!(unchanged(&before, &d), Ok(()));
+    std::fs::remove_dir_all(&d).unwrap();
+}
+
+#[test]
+fn a_command_killed_at_its_output_cap_is_over_the_cap_in_every_later_exchange() {
+    use rayproof::process::{Broken, Session};
+    // A session makes its process the subreaper of all it starts, and kills every child it
+    // adopted: in a process of its own, not among the other tests' children
+    const ALONE: &str = "RAYPROOF_REPRODUCERS_SESSION_ALONE";
+    if std::env::var_os(ALONE).is_none() {
+        let o = Command::new(std::env::current_exe().unwrap())
+            .args([
+                "a_command_killed_at_its_output_cap_is_over_the_cap_in_every_later_exchange",
+                "--exact",
+                "--nocapture",
+            ])
+            .env(ALONE, "1")
+            .output()
+            .unwrap();
+        let text =
+            String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success() && text.contains("1 passed"), "{text}");
+        return;
+    }
+    // A wait that only asks whether an answer is whole passes the cap: killed
+    let mut s = Session::sh("cat /dev/zero", "cat /dev/zero", None, &[], 1 << 20).unwrap();
+    let until = Instant::now() + Duration::from_secs(20);
+    assert!(s.wait_for(&|_| None, until).is_none());
+    // The next exchange says the cap, not what the killed command left
+    match s.exchange(b"", true, None, Instant::now() + Duration::from_secs(20)) {
+        Err(Broken::StdoutCap(cap)) => assert_eq!(cap, 1 << 20),
+        Err(Broken::Deadline) => panic!("a deadline, not the cap"),
+        Err(Broken::Closed) => panic!("closed, not the cap"),
+        Ok(b) => panic!("{} bytes of output after the kill, not the cap", b.len()),
+    }
 }
