@@ -17,6 +17,12 @@ pub const MAX_TEXT_BYTES: u64 = 16 << 20;
 /// a 64 MiB OBJ holds about 1.5 million triangles).
 pub const MAX_MESH_BYTES: u64 = 64 << 20;
 
+/// The largest `score` cases or answers file and `merge` shard file: 256 MiB (read up to that
+/// from a pipe). The default cases file of the largest shape (sphere, 360,000 cases) is 68 MB and
+/// takes 213 MB to score; a shard of every shape at 2,000 cases is 7 MB. `/dev/zero` given as
+/// `score --cases` was read until the kernel killed rayproof at 22 GB.
+pub const MAX_DATA_BYTES: u64 = 256 << 20;
+
 /// Whether the file may be a device or a FIFO.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
@@ -27,11 +33,12 @@ pub enum Kind {
 }
 
 /// Reads at most `cap` bytes of `path`; one line (without the path, which the caller names) if
-/// it cannot be opened, is a directory, is not a regular file when `kind` asks for one, or holds
-/// more than `cap` bytes.
+/// it cannot be opened, is a directory, is not a regular file when `kind` asks for one (checked
+/// before it is opened), or holds more than `cap` bytes.
 pub fn read_capped(path: &Path, cap: u64, kind: Kind) -> Result<Vec<u8>, String> {
-    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
-    let meta = file.metadata().map_err(|e| e.to_string())?;
+    // Looked at before it is opened: opening a FIFO waits for a writer (a mesh or an image that
+    // is a FIFO hung the run)
+    let meta = std::fs::metadata(path).map_err(|e| e.to_string())?;
     if meta.is_dir() {
         return Err("is a directory".into());
     }
@@ -45,6 +52,7 @@ pub fn read_capped(path: &Path, cap: u64, kind: Kind) -> Result<Vec<u8>, String>
             size(cap)
         ));
     }
+    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
     let mut bytes = Vec::new();
     file.take(cap + 1)
         .read_to_end(&mut bytes)

@@ -102,7 +102,11 @@
 //! | a tolerance table's `[measured]` count `[k, n]` | n ≤ 10^7, and bounds that bracket k/n: statrs' beta quantile never returned at n ≥ about 7.9·10^6 (k near 0 or n), so the bounds are found by bisection on the CDF (under 0.2 ms); its accuracy ran out at 5·10^7 (5 of 2001 k with lower bound > k/n) |
 //! | a tolerance rule's `max_err_over_cond` | a finite number ≥ 0 (NaN passed every row) |
 //! | a suite's `timeout` | `(0, 604800]` seconds (one week; 1e20 made the duration panic) |
-//! | `audit --cases` | none: cases are streamed, memory does not grow with it (16 MB peak measured at 10^8 per class) |
+//! | `audit --cases` | none: cases are streamed, memory does not grow with it (16 MB peak measured at 10^8 per class); `cases` streams its file too (10 MB resident for 680 MB at `--cases 200000`; it held the whole file, 672 MB) |
+//! | a `score` cases or answers file, a `merge` shard file | 256 MiB, read up to that from a pipe ([`input::MAX_DATA_BYTES`]): the default cases file of the sphere (360,000 cases) is 68 MB and takes 213 MB to score; `/dev/zero` as `--cases` was read until the kernel killed rayproof at 22 GB |
+//! | a file whose SHA-256 is taken (a reference, a golden, a test's scene) | a regular file of at most 1088 MiB, as an image file (a scene of `/dev/zero` was read until memory ran out) |
+//! | an outside command's output | `--exec`: 16 MiB of standard output per batch ([`audit::exec::STDOUT_CAP`]); a suite's or `reference`'s renderer: 256 MiB ([`process::STDOUT_CAP`]); beyond, the command is killed and the line says the cap. Standard error: its first and last 64 KiB are kept (1 GB of it became a 1 GB error line at 2.9 GB resident) |
+//! | an output's file name | 255 bytes, the file system's own limit: temporaries carry the name's first 213 bytes (a 250-character name was refused, its temporary's name too long) |
 //!
 //! Scene values are validated once, at load, with the file, line and field in the error: every
 //! position, direction and size finite (NaN and ±inf are rejected everywhere) and within ±1e150,

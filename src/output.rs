@@ -143,9 +143,31 @@ fn nonce() -> u64 {
     h.finish()
 }
 
-/// The temporary sibling of `path`: `.NAME.rayproof-PID-NONCE.KIND` in the same directory,
-/// named through the directory as `path` writes it (`with_file_name` drops `./` components, so a
-/// probe could pass where the output's own path is too long: found by `tests/fuzz_surfaces.rs`).
+/// The longest file name a Linux file system takes, in bytes.
+const NAME_MAX: usize = 255;
+/// The bytes a temporary's name adds to the output's: `.`, `.rayproof-`, a pid (at most 10
+/// digits), `-`, 16 hex digits and `.tmp` or `.dir`.
+const TMP_OVERHEAD: usize = 1 + 10 + 10 + 1 + 16 + 4;
+
+/// The part of an output's file name its temporaries carry: the whole name, or its first
+/// `NAME_MAX - TMP_OVERHEAD` bytes (on a character boundary) when the temporary's name would
+/// be longer than a file system takes (a 250-character output name was refused: its
+/// temporary's name was too long).
+fn tmp_stem(name: &str) -> &str {
+    let mut k = NAME_MAX - TMP_OVERHEAD;
+    if name.len() <= k {
+        return name;
+    }
+    while !name.is_char_boundary(k) {
+        k -= 1;
+    }
+    &name[..k]
+}
+
+/// The temporary sibling of `path`: `.NAME.rayproof-PID-NONCE.KIND` in the same directory (NAME
+/// cut by [`tmp_stem`]), named through the directory as `path` writes it (`with_file_name` drops
+/// `./` components, so a probe could pass where the output's own path is too long: found by
+/// `tests/fuzz_surfaces.rs`).
 fn tmp_for(path: &Path, kind: &str) -> PathBuf {
     use std::os::unix::ffi::OsStrExt;
     let name = path
@@ -153,7 +175,8 @@ fn tmp_for(path: &Path, kind: &str) -> PathBuf {
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let tmp = format!(
-        ".{name}.rayproof-{}-{:016x}.{kind}",
+        ".{}.rayproof-{}-{:016x}.{kind}",
+        tmp_stem(&name),
         std::process::id(),
         nonce()
     );
@@ -172,10 +195,10 @@ fn tmp_for(path: &Path, kind: &str) -> PathBuf {
 }
 
 /// The process id in a temporary's name `.NAME.rayproof-PID-NONCE.KIND`, if `file` is exactly
-/// such a name for `name` and `kind`.
+/// such a name for `name` (cut by [`tmp_stem`]) and `kind`.
 fn temporary_pid(file: &str, name: &str, kind: &str) -> Option<u32> {
     let rest = file
-        .strip_prefix(&format!(".{name}.rayproof-"))?
+        .strip_prefix(&format!(".{}.rayproof-", tmp_stem(name)))?
         .strip_suffix(&format!(".{kind}"))?;
     let (pid, nonce) = rest.split_once('-')?;
     if nonce.len() != 16 || !nonce.bytes().all(|b| b.is_ascii_hexdigit()) {
@@ -204,7 +227,7 @@ pub fn remove_stale(path: &Path) {
         };
         let pid = if meta.is_file() {
             temporary_pid(&file, &name, "tmp")
-        } else if meta.is_dir() && e.path().join(MARKER).is_file() {
+        } else if meta.is_dir() && marked(&e.path()) {
             temporary_pid(&file, &name, "dir")
         } else {
             None
@@ -244,12 +267,27 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     identity(a) == identity(b)
 }
 
+/// Refuses an output whose file name is longer than a file system takes: its temporary, cut
+/// by [`tmp_stem`], would be made, and the work done, before the rename into place failed
+/// (found by `scripts/hostile-run`).
+fn check_name_length(path: &Path) -> Result<()> {
+    let n = path.file_name().map_or(0, |n| n.len());
+    if n > NAME_MAX {
+        bail!(
+            "{}: the file name has {n} bytes, more than a file system takes ({NAME_MAX})",
+            path.display()
+        );
+    }
+    Ok(())
+}
+
 /// Refuses an output path that exists and is not a regular file: a directory, a symbolic link,
 /// a FIFO, a device or a socket is never replaced (nor written through).
 fn check_target(path: &Path) -> Result<()> {
     if path.file_name().is_none() {
         bail!("{}: output path has no file name", path.display());
     }
+    check_name_length(path)?;
     // `FILE/` or `FILE/.` names a directory: no file can be renamed there
     let text = path.as_os_str().as_encoded_bytes();
     if text.ends_with(b"/") || text.ends_with(b"/.") {
@@ -274,13 +312,21 @@ fn check_target(path: &Path) -> Result<()> {
     }
 }
 
+/// Whether `dir` holds [`MARKER`] as a regular file: a link of that name (to any file) or a
+/// directory is not rayproof's marker (a user's directory with such a link was replaced: found
+/// by `scripts/hostile-run`).
+fn marked(dir: &Path) -> bool {
+    std::fs::symlink_metadata(dir.join(MARKER)).is_ok_and(|m| m.is_file())
+}
+
 /// Refuses a directory output that exists and is not a directory rayproof made.
 fn check_dir_target(path: &Path) -> Result<()> {
     if path.file_name().is_none() {
         bail!("{}: output directory has no name", path.display());
     }
+    check_name_length(path)?;
     match std::fs::symlink_metadata(path) {
-        Ok(m) if m.is_dir() && path.join(MARKER).is_file() => Ok(()),
+        Ok(m) if m.is_dir() && marked(path) => Ok(()),
         Ok(m) if m.is_dir() => bail!(
             "{}: is a directory rayproof did not make (no {MARKER} in it); rayproof only replaces its own output directories: give a new one",
             path.display()

@@ -478,7 +478,12 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
     // Read and check each shard on its own (exit 2 on a bad file)
     let mut shards = vec![];
     for p in &m.shards {
-        let bytes = std::fs::read(p).with_context(|| format!("cannot read {}", p.display()))?;
+        let bytes = rayproof::input::read_capped(
+            p,
+            rayproof::input::MAX_DATA_BYTES,
+            rayproof::input::Kind::Stream,
+        )
+        .map_err(|e| anyhow!("cannot read {}: {e}", p.display()))?;
         let s = Shard::from_json(&bytes, rayproof::shapes::shape_by_name)
             .map_err(|e| anyhow!("{}: {e}", p.display()))?;
         shards.push((p.display().to_string(), s));

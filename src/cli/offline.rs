@@ -3,7 +3,7 @@
 
 use super::audit::{finish, load_table, print_legend, print_shape, AuditOutput};
 use super::*;
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use rayproof::audit::offline::{read_answers, read_cases, score_plan, write_cases};
 use rayproof::audit::plan::{Options, Plan};
@@ -85,9 +85,14 @@ pub(super) fn run_score(a: ScoreArgs) -> Result<u8> {
         .cloned()
         .collect();
     let outputs = a.out.outputs(&[], &inputs)?;
-    // The two files, read and matched line by line
+    // The two files, read (within their cap) and matched line by line
     let read = |p: &PathBuf| {
-        std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))
+        rayproof::input::read_text(
+            p,
+            rayproof::input::MAX_DATA_BYTES,
+            rayproof::input::Kind::Stream,
+        )
+        .map_err(|e| anyhow!("cannot read {}: {e}", p.display()))
     };
     let (cname, aname) = (
         a.cases.display().to_string(),

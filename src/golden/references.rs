@@ -27,9 +27,13 @@ impl Config {
     }
 }
 
-/// Hex SHA-256 of a file.
+/// Hex SHA-256 of a file (a reference, a golden or a scene): a regular file of at most the
+/// largest image file ([`images::MAX_IMAGE_BYTES`]; a test's scene of `/dev/zero` was read until
+/// memory ran out).
 pub fn sha256_file(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let bytes =
+        crate::input::read_capped(path, crate::images::MAX_IMAGE_BYTES, crate::input::Kind::Regular)
+            .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
     Ok(Sha256::digest(&bytes)
         .iter()
         .map(|b| format!("{b:02x}"))
