@@ -11,6 +11,19 @@ fn esc(s: &str) -> String {
         .replace('\'', "&#39;")
 }
 
+/// A file name as a relative URL: every byte but `A-Z a-z 0-9 - _ . ~` percent-encoded (a
+/// reference's name may hold a space, `#` or `?`).
+fn url(name: &str) -> String {
+    name.bytes()
+        .map(|b| match b {
+            b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => {
+                (b as char).to_string()
+            }
+            b => format!("%{b:02X}"),
+        })
+        .collect()
+}
+
 /// The HTML report in the style of Blender's render report: one row per scene × reference,
 /// failures first; hovering over the new render shows the reference and vice versa. Beside
 /// them, the views that show where the images differ however small the difference: the failing
@@ -70,7 +83,8 @@ fn row(r: &Row) -> String {
     };
     let imgs = match (&r.images, c) {
         (Some(i), Some(c)) => {
-            let (new, reference) = (esc(&i.new), esc(&i.reference));
+            // URL-encoded names hold no quote: safe inside the handlers' strings too
+            let (new, reference) = (url(&i.new), url(&i.reference));
             let scale = if i.diff_scale > 0.0 {
                 format!("scale: pale yellow = {:.3e} (max |d|)", i.diff_scale)
             } else if c.n_nonfinite_mismatch > 0 {
@@ -79,16 +93,16 @@ fn row(r: &Row) -> String {
                 "identical: no difference".to_string()
             };
             format!(
-                "<td><img src=\"{new}\" onmouseover=\"this.src='{reference}'\" onmouseout=\"this.src='{new}'\"></td>\
-                 <td><img src=\"{reference}\" onmouseover=\"this.src='{new}'\" onmouseout=\"this.src='{reference}'\"></td>\
+                "<td><img class=\"new\" src=\"{new}\" onmouseover=\"this.src='{reference}'\" onmouseout=\"this.src='{new}'\"></td>\
+                 <td><img class=\"reference\" src=\"{reference}\" onmouseover=\"this.src='{new}'\" onmouseout=\"this.src='{reference}'\"></td>\
                  <td><div class=\"pic\"><img class=\"mask\" src=\"{}\">{ring}</div><small class=\"cap\">{} px over fail {}</small></td>\
                  <td><div class=\"pic\"><img class=\"diff\" src=\"{}\">{ring}</div><small class=\"cap\">{scale}</small></td>\
                  <td><img class=\"flip\" src=\"{}\"></td>",
-                esc(&i.mask),
+                url(&i.mask),
                 i.mask_pixels,
                 r.rule.idiff.fail,
-                esc(&i.diff),
-                esc(&i.flip),
+                url(&i.diff),
+                url(&i.flip),
             )
         }
         _ => "<td colspan=\"5\"><small>no images: nothing was compared</small></td>".into(),

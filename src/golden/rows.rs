@@ -89,7 +89,8 @@ pub struct Row {
     /// test's render is counted once, the rows of a test add up to its wall time, and the rows
     /// of a run add up to the time spent in its tests.
     pub seconds: f64,
-    /// The command that runs this comparison again (`rayproof check --suite … --test …`).
+    /// The command that runs this comparison again (`rayproof check --suite … --test …`, the
+    /// suite's path as it was given: run it where `check` ran).
     pub replay: String,
     /// The last lines of the renderer's standard error (up to [`LOG_TAIL_LINES`] non-empty
     /// lines), when a renderer command made the test image and wrote any; also when it failed or
