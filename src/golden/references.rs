@@ -31,9 +31,12 @@ impl Config {
 /// largest image file ([`images::MAX_IMAGE_BYTES`]; a test's scene of `/dev/zero` was read until
 /// memory ran out).
 pub fn sha256_file(path: &Path) -> Result<String> {
-    let bytes =
-        crate::input::read_capped(path, crate::images::MAX_IMAGE_BYTES, crate::input::Kind::Regular)
-            .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
+    let bytes = crate::input::read_capped(
+        path,
+        crate::images::MAX_IMAGE_BYTES,
+        crate::input::Kind::Regular,
+    )
+    .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
     Ok(Sha256::digest(&bytes)
         .iter()
         .map(|b| format!("{b:02x}"))
