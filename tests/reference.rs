@@ -1,6 +1,6 @@
-//! `rayproof reference SCENE --with povray`: the real POV-Ray (installed by `.ci/run`) renders
-//! the scene's reference with its manifest entry, and a suite that compares rayproof's render
-//! with it takes the reference's sampling grid from that manifest, so a correct render passes;
+//! `rayproof reference SCENE --with povray` (and `mitsuba`): the real POV-Ray and Mitsuba 3
+//! (installed by `.ci/run`) render the scene's reference with its manifest entry, and a suite
+//! that compares rayproof's render with it takes the reference's sampling grid from that manifest, so a correct render passes;
 //! one that insists on another grid is warned and fails. A missing renderer is one line with
 //! how to install it, exit 3, and nothing written.
 
@@ -36,14 +36,29 @@ fn scratch(tag: &str) -> PathBuf {
 
 #[test]
 fn povray_reference_then_a_suite_that_uses_its_grid() {
-    let d = scratch("pov");
+    reference_then_a_suite_that_uses_its_grid("povray", "3.7", "povray +Iscene.pov");
+}
+
+/// Mitsuba 3 from PyPI (`scalar_rgb`, installed by `.ci/run`), as issue 36 asks: its reference
+/// for the scene, and a suite that passes against it (and fails at another grid).
+#[test]
+fn mitsuba_reference_then_a_suite_that_uses_its_grid() {
+    reference_then_a_suite_that_uses_its_grid(
+        "mitsuba",
+        "3.",
+        "python scripts/mitsuba_whitted.py scene.xml mitsuba.exr --variant scalar_rgb",
+    );
+}
+
+fn reference_then_a_suite_that_uses_its_grid(renderer: &str, version: &str, command: &str) {
+    let d = scratch(renderer);
     let scene = d.join("scenes/diffuse.toml");
     let (code, out, err) = rayproof(
         &[
             "reference",
             scene.to_str().unwrap(),
             "--with",
-            "povray",
+            renderer,
             "--width",
             "64",
             "--grid",
@@ -56,32 +71,35 @@ fn povray_reference_then_a_suite_that_uses_its_grid() {
     let m: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("diffuse/manifest.json")).unwrap())
             .unwrap();
-    let e = &m["files"]["povray.exr"];
+    let e = &m["files"][format!("{renderer}.exr")];
     assert_eq!(
         (e["grid"].as_u64(), e["width"].as_u64()),
         (Some(4), Some(64)),
         "{e}"
     );
-    assert!(e["version"].as_str().unwrap().starts_with("3.7"), "{e}");
+    assert!(e["version"].as_str().unwrap().starts_with(version), "{e}");
     assert!(
-        e["commands"][1]
-            .as_str()
-            .unwrap()
-            .starts_with("povray +Iscene.pov"),
+        e["commands"][1].as_str().unwrap().starts_with(command),
         "{e}"
     );
-    // rayproof's render at the manifest's grid passes against the real POV-Ray
+    // rayproof's render at the manifest's grid passes against the real renderer
     let suite = |extra: &str| {
         format!(
-            "[thresholds]\nfail = 0.05\nfailpercent = 0.1\nmax_mean = 1e-3\n\n[[test]]\nname = \"diffuse\"\nscene = \"scenes/diffuse.toml\"\nrayproof = {{ method = \"promote\", precision = \"f64\" }}\ngolden = false\n{extra}reference = [{{ name = \"povray\", path = \"diffuse/povray.exr\" }}]\n"
+            "[thresholds]\nfail = 0.05\nfailpercent = 0.1\nmax_mean = 1e-3\n\n[[test]]\nname = \"diffuse\"\nscene = \"scenes/diffuse.toml\"\nrayproof = {{ method = \"promote\", precision = \"f64\" }}\ngolden = false\n{extra}reference = [{{ name = \"{renderer}\", path = \"diffuse/{renderer}.exr\" }}]\n"
         )
     };
     std::fs::write(d.join("suite.toml"), suite("")).unwrap();
     let s = d.join("suite.toml");
     let (code, out, _) = rayproof(&["check", "--suite", s.to_str().unwrap()], None);
     assert_eq!(code, Some(0), "{out}");
-    assert!(
-        out.contains("diffuse  povray    promote f64  PASS"),
+    let row = out
+        .lines()
+        .find(|l| l.starts_with("diffuse "))
+        .unwrap_or_else(|| panic!("no row in {out}"));
+    let w: Vec<&str> = row.split_whitespace().collect();
+    assert_eq!(
+        w[..5],
+        ["diffuse", renderer, "promote", "f64", "PASS"],
         "{out}"
     );
     // A render at grid 1 (the scene's own) is told why it fails

@@ -348,6 +348,8 @@ fn row(status: Status, note: &str) -> Row {
         replay: "rayproof check --suite s.toml --test t".into(),
         log_tail: Some("last line".into()),
         images: None,
+        stale: None,
+        log: None,
     }
 }
 

@@ -214,10 +214,27 @@ fn three_tests_one_perturbed_reports_and_blesses_only_the_failing_golden() {
     );
 
     // --update rewrites b's golden only; the external reference stays, so b still fails
+    // (a passing golden is not touched: same bytes and the same modification time)
     let ext = std::fs::read(dir.join("refs/b.exr")).unwrap();
+    let mtime = |name: &str| {
+        std::fs::metadata(dir.join("goldens").join(name))
+            .unwrap()
+            .modified()
+            .unwrap()
+    };
+    let kept = [("a.exr", mtime("a.exr")), ("c.exr", mtime("c.exr"))];
     let (code, out, _) = check(&dir, &["--update"]);
     assert_eq!(code, Some(1), "{out}");
     assert_eq!(status(&out, "b", "golden"), "UPDATED", "{out}");
+    for (name, test) in [("a.exr", "a"), ("c.exr", "c")] {
+        assert_eq!(status(&out, test, "golden"), "PASS", "{out}");
+        let before = kept.iter().find(|k| k.0 == name).unwrap().1;
+        assert_eq!(
+            mtime(name),
+            before,
+            "{name}: a passing golden was rewritten"
+        );
+    }
     assert_eq!(status(&out, "b", "ext"), "FAILURE", "{out}");
     let after = goldens(&dir);
     for (name, bytes) in &blessed {
