@@ -2,7 +2,7 @@
 //! case of every class, ill-posed ones included (the audit's rows judge only the well-posed),
 //! its quick phase's enclosures checked against MPFR enclosures of the exact root, the test's
 //! teeth (a bound made too small is caught), and the share of each class that reaches the
-//! accurate phase (printed: the README and the module docs quote it).
+//! accurate phase (printed: `reference/figures.md` and the module docs quote it).
 
 use rayproof::numerics::real::Real;
 use rayproof::shapes::sphere::cases::{generate, Class};

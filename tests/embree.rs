@@ -12,6 +12,9 @@
 //! - the sphere answers t = 0 for some rays that start on its surface: a hit at t ≤ 0 is an
 //!   `out_of_range` answer, counted as such, never "ok".
 //!
+//! Beside them, what rayproof measures of Embree (not a claim of Embree's): the reintersection
+//! rows of every Embree routine (rays spawned from its hits with rayproof's offset rule).
+//!
 //! Without Embree's headers or library the test fails (CI installs `libembree-dev`).
 
 mod common;
@@ -182,6 +185,23 @@ fn embree_triangles_are_watertight_in_robust_mode_and_fail_huge_and_tiny_by_rang
         table.contains("tri_robust 0 escapes") && !table.contains("tri 0 escapes"),
         "{table}"
     );
+    // Reintersection: rays spawned from Embree's own hits with rayproof's offset rule, on the
+    // single triangle and the hinge, every rule; without an offset they hit the triangle again
+    // (the control), with it Embree's t leaves no self-hit on a single triangle
+    let ri = v["robustness"]["reintersection"].as_array().unwrap();
+    let ri_row = |m: &str, shape: &str, rule: &str| -> &Value {
+        ri.iter()
+            .find(|r| r["method"] == m && r["shape"] == shape && r["rule"] == rule)
+            .unwrap_or_else(|| panic!("no reintersection row {m} {shape} {rule}"))
+    };
+    let self_hits = |r: &Value| n(r, "rehits") - n(r, "neighbour");
+    for m in ["tri", "tri_robust", "tri_prescaled"] {
+        for shape in ["triangle", "hinge"] {
+            assert!(n(ri_row(m, shape, "on"), "rays") > 2000);
+            assert!(self_hits(ri_row(m, shape, "off")) > 100, "{m} {shape}");
+        }
+        assert_eq!(self_hits(ri_row(m, "triangle", "on")), 0, "{m}");
+    }
     // Robust mode's documented near-edge acceptance: false hits at edges and vertices, never a
     // false miss there
     for class in ["edge", "vertex"] {

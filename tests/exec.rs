@@ -105,6 +105,62 @@ fn a_python_routine_is_judged_as_the_same_built_in_formula() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// An outside sphere routine gets the reintersection rows of the built-in methods: the same
+/// instances, primary and spawned rays and judgement. The Python textbook formula in doubles is
+/// the built-in `algebraic` in f64, bit for bit, so its rows (every rule) are `algebraic`'s.
+#[test]
+fn an_outside_sphere_gets_the_reintersection_rows_of_the_same_built_in_formula() {
+    let dir = scratch("reintersect");
+    let json = dir.join("a.json");
+    let o = rayproof(&[
+        "audit",
+        "--shape",
+        "sphere",
+        "--precision",
+        "f64",
+        "--cases",
+        "50",
+        "--exec",
+        &script(),
+        "--name",
+        "py",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        o.status.code().is_some_and(|c| c <= 1),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let rows = v["robustness"]["reintersection"].as_array().unwrap();
+    let of = |m: &str| -> Vec<Vec<Value>> {
+        rows.iter()
+            .filter(|r| r["method"] == m)
+            .map(|r| {
+                [
+                    "shape",
+                    "precision",
+                    "rule",
+                    "rays",
+                    "rehits",
+                    "neighbour",
+                    "ill_posed",
+                ]
+                .iter()
+                .map(|k| r[*k].clone())
+                .collect()
+            })
+            .collect()
+    };
+    let (py, builtin) = (of("py"), of("algebraic"));
+    assert_eq!(py.len(), 3, "{py:?}");
+    assert_eq!(py, builtin);
+    // The controls re-hit: the rows can see a broken offset
+    assert!(py[2][4].as_u64().unwrap() > 100, "{py:?}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn a_failing_child_stops_the_audit_with_one_line_and_exit_4() {
     let dir = scratch("failing");

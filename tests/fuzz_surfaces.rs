@@ -815,7 +815,7 @@ fn mutate(text: &str, m: &Mutation, style: Style, hostile: &[String]) -> Vec<u8>
         // Hostile values, most often
         0..=3 if !kv.is_empty() => {
             // Tokens: the first line (a cases file's header) a quarter of the time
-            let k = if style == Style::Words && m.a % 4 == 0 {
+            let k = if style == Style::Words && m.a.is_multiple_of(4) {
                 kv[0]
             } else {
                 kv[m.a % kv.len()]
@@ -869,7 +869,7 @@ fn mutate(text: &str, m: &Mutation, style: Style, hostile: &[String]) -> Vec<u8>
         }
         // A key given twice (TOML, JSON) or a hostile line
         8 => {
-            let line = if !kv.is_empty() && style != Style::Words && m.v % 2 == 0 {
+            let line = if !kv.is_empty() && style != Style::Words && m.v.is_multiple_of(2) {
                 set_value(lines[kv[m.a % kv.len()]], &value())
             } else {
                 LINES[m.v % LINES.len()].to_string()
@@ -1883,7 +1883,7 @@ fn paths_case(command: usize, picks: &[usize]) -> Result<(), TestCaseError> {
     // Every flag of the command, or only some (the first always)
     let mut outputs: Vec<(&str, OsString)> = vec![];
     for (i, (flag, ext)) in flags.iter().enumerate() {
-        if i > 0 && picks[4 + i] % 3 == 0 {
+        if i > 0 && picks[4 + i].is_multiple_of(3) {
             continue;
         }
         let p = path(i, ext);
@@ -1892,7 +1892,7 @@ fn paths_case(command: usize, picks: &[usize]) -> Result<(), TestCaseError> {
         outputs.push((flag, p));
     }
     // The same path for two outputs, now and then
-    if outputs.len() > 1 && picks[4] % 7 == 0 {
+    if outputs.len() > 1 && picks[4].is_multiple_of(7) {
         let p = outputs[0].1.clone();
         args.push(outputs[1].0.into());
         args.push(p.clone());

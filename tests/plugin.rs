@@ -554,3 +554,58 @@ fn an_outside_triangle_routine_gets_the_watertightness_rows() {
     assert!(c.iter().map(|r| r.3).sum::<u64>() > 100, "{c:?}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Reintersection rows (rays spawned from the routine's own hits with rayproof's offset rule,
+/// `o + t·d` and its rounding bound) of an outside triangle routine on the single triangle and
+/// the hinge, under every rule: the C Möller–Trumbore never hits its own triangle again with the
+/// rule on, a copy whose `t` is 0.1 % short does (its point lies in front of the triangle by far
+/// more than the bound), and without an offset both re-hit (the control).
+#[test]
+fn an_outside_triangle_routine_gets_the_reintersection_rows() {
+    let dir = std::env::temp_dir().join(format!("rayproof-plugin-ri-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("a.json");
+    let o = rayproof(&[
+        "audit",
+        "--shape",
+        "triangle",
+        "--cases",
+        "100",
+        "--plugin",
+        &plugin("triangle_mt_f32"),
+        "--plugin",
+        &plugin("triangle_short_t_f32"),
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    assert!(
+        matches!(o.status.code(), Some(0 | 1)),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let v: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+    let rows = v["robustness"]["reintersection"].as_array().unwrap();
+    let row = |m: &str, shape: &str, rule: &str| -> &Value {
+        rows.iter()
+            .find(|r| r["method"] == m && r["shape"] == shape && r["rule"] == rule)
+            .unwrap_or_else(|| panic!("no reintersection row {m} {shape} {rule}"))
+    };
+    let self_hits = |r: &Value| r["rehits"].as_u64().unwrap() - r["neighbour"].as_u64().unwrap();
+    for m in ["triangle_mt", "triangle_short_t"] {
+        for shape in ["triangle", "hinge"] {
+            let on = row(m, shape, "on");
+            assert!(on["rays"].as_u64().unwrap() > 2000, "{on}");
+            assert!(
+                self_hits(row(m, shape, "off")) > 100,
+                "control: {m} {shape}"
+            );
+        }
+    }
+    assert_eq!(self_hits(row("triangle_mt", "triangle", "on")), 0);
+    let short = row("triangle_short_t", "triangle", "on");
+    assert!(
+        self_hits(short) > 100,
+        "a 0.1 % short t is not seen: {short}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -67,7 +67,14 @@ fn the_chapters_torus_methods_rehit_even_with_the_rule() {
         for m in ["ferrari", "yuksel", "newton_bbox"] {
             let r = rows()
                 .iter()
-                .find(|r| (r.shape, r.method, r.precision, r.rule) == ("torus", m, prec, "on"))
+                .find(|r| {
+                    (
+                        r.shape.as_str(),
+                        r.method.as_str(),
+                        r.precision.as_str(),
+                        r.rule.as_str(),
+                    ) == ("torus", m, prec, "on")
+                })
                 .expect("row");
             assert!(r.rehits > r.rays / 20, "{r:?}");
         }
@@ -82,7 +89,7 @@ fn ill_posed_hits_are_rare() {
     // their tube is a few hundred ulps thick), others ≤ 23 % (ferrari f32, whose declared error
     // bound, and so its reach, is wide); everything else ≤ 6 %
     for r in rows().iter().filter(|r| r.rule == Rule::On.name()) {
-        let limit = match (r.shape, r.precision, r.robust) {
+        let limit = match (r.shape.as_str(), r.precision.as_str(), r.robust) {
             ("torus", "f32", true) => 15,
             ("torus", _, false) => 25,
             _ => 10,

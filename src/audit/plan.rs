@@ -193,16 +193,15 @@ impl Plan {
         Ok(robustness::with_outside(
             r,
             self.seed,
-            self.outside_watertight()?,
+            self.outside_robustness()?,
         ))
     }
 
-    /// The watertightness rows of the triangle routines from outside the crate (none: empty).
-    pub fn outside_watertight(
-        &self,
-    ) -> Result<Vec<robustness::WatertightRow>, super::run::MethodFailed> {
-        let mut rows = vec![];
-        for p in self.shapes.iter().filter(|p| p.shape.name() == "triangle") {
+    /// The reintersection rows of the sphere and triangle routines from outside the crate, and
+    /// the watertightness rows of the triangle routines (none: empty).
+    pub fn outside_robustness(&self) -> Result<robustness::Outside, super::run::MethodFailed> {
+        let mut rows = robustness::Outside::default();
+        for p in &self.shapes {
             let info = p.shape.info();
             let outside: Vec<&dyn Method> = p
                 .methods
@@ -210,8 +209,16 @@ impl Plan {
                 .filter(|m| !info.methods.iter().any(|b| b.name == m.name()))
                 .map(|m| m.as_ref())
                 .collect();
-            if !outside.is_empty() {
-                rows.extend(
+            if outside.is_empty() {
+                continue;
+            }
+            let name = p.shape.name();
+            rows.reintersection.extend(
+                robustness::outside_reintersection(self.seed, name, &self.precisions, &outside)
+                    .map_err(super::run::MethodFailed)?,
+            );
+            if name == "triangle" {
+                rows.watertight.extend(
                     robustness::outside_watertight(self.seed, &self.precisions, &outside)
                         .map_err(super::run::MethodFailed)?,
                 );

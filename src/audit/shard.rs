@@ -40,8 +40,9 @@
 //! # The shard file
 //!
 //! A shard file (format [`SHARD_FORMAT`], version [`SHARD_FORMAT_VERSION`]) is one line of JSON
-//! with `"format": "rayproof-audit-shard"`, `"format_version": 4`, `tool`,
-//! `seed`, `every_shape`, `"shard": {"k", "n"}`, `tolerances`, `shapes` and `outside_watertight`: per shape its selection
+//! with `"format": "rayproof-audit-shard"`, `"format_version": 5`, `tool`,
+//! `seed`, `every_shape`, `"shard": {"k", "n"}`, `tolerances`, `shapes` and `outside` (the
+//! reintersection and watertightness rows of routines from outside the crate): per shape its selection
 //! (`cases_per_class`, `methods` with their `robust` flag, `precisions`, `classes`) and `groups`,
 //! one per precision × class in selection order, each with one tally per method (counts, the value
 //! errors as a `{value: count}` histogram, err/cond and residuals as histograms of values rounded
@@ -60,13 +61,13 @@ use super::run::{Group, MethodTag, Tallies};
 use super::shape::Shape;
 use super::tally::Tally;
 use crate::numerics::Precision;
-use crate::shapes::robustness::WatertightRow;
+use crate::shapes::robustness::Outside;
 use serde::{Deserialize, Serialize};
 
 /// The tag in the `format` field of a shard file.
 pub const SHARD_FORMAT: &str = "rayproof-audit-shard";
 /// The version in the `format_version` field; a reader refuses any other.
-pub const SHARD_FORMAT_VERSION: u32 = 4;
+pub const SHARD_FORMAT_VERSION: u32 = 5;
 
 /// The user's tolerance rules a shard was run with (`--tolerances FILE`), carried whole so that
 /// the merge judges with exactly them: the file's name as given (rule origins name it), its
@@ -156,9 +157,10 @@ pub struct Shard {
     pub tolerances: Option<UserTable>,
     /// One entry per shape, in audit order.
     pub shapes: Vec<ShapeShard>,
-    /// The watertightness rows of triangle routines from outside the crate: run whole by shard
-    /// 0 (the built-in methods' are run by the merge; an outside routine may be gone by then).
-    pub outside_watertight: Vec<WatertightRow>,
+    /// The reintersection and watertightness rows of routines from outside the crate: run whole
+    /// by shard 0 (the built-in methods' are run by the merge; an outside routine may be gone by
+    /// then).
+    pub outside: Outside,
 }
 
 /// Just the tag of a file, to tell "not a shard" from "a corrupt shard".
@@ -177,7 +179,7 @@ impl Shard {
         (k, n): (u64, u64),
         tolerances: Option<UserTable>,
         parts: &[Tallies],
-        outside_watertight: Vec<WatertightRow>,
+        outside: Outside,
     ) -> Shard {
         let shapes = parts
             .iter()
@@ -221,7 +223,7 @@ impl Shard {
             shard: ShardId { k, n },
             tolerances,
             shapes,
-            outside_watertight,
+            outside,
         }
     }
 
@@ -279,12 +281,23 @@ impl Shard {
         if file.shapes.is_empty() {
             return corrupt("no shape".into());
         }
-        if k != 0 && !file.outside_watertight.is_empty() {
+        if k != 0 && file.outside != Outside::default() {
             return corrupt(format!(
-                "shard {k}/{n} carries watertightness rows (only shard 0 runs them)"
+                "shard {k}/{n} carries outside routines' robustness rows (only shard 0 runs them)"
             ));
         }
-        if let Some(w) = file.outside_watertight.iter().find(|w| {
+        if let Some(r) = file
+            .outside
+            .reintersection
+            .iter()
+            .find(|r| r.rehits > r.rays || r.neighbour > r.rehits || r.ill_posed > r.rays)
+        {
+            return corrupt(format!(
+                "reintersection row {} {} {} {}: counts a run cannot make",
+                r.shape, r.method, r.precision, r.rule
+            ));
+        }
+        if let Some(w) = file.outside.watertight.iter().find(|w| {
             w.escaped > w.rays
                 || w.grazing_well_posed > w.grazing
                 || w.rate != w.escaped as f64 / w.rays.max(1) as f64
@@ -468,9 +481,10 @@ pub fn merge(
     // Merge the tallies group by group
     let (seed, every_shape) = (shards[0].1.seed, shards[0].1.every_shape);
     let tolerances = shards[0].1.tolerances.clone();
-    let mut outside_watertight = vec![];
+    let mut outside = Outside::default();
     let mut parts = shards.into_iter().map(|(_, mut s)| {
-        outside_watertight.append(&mut s.outside_watertight);
+        outside.reintersection.append(&mut s.outside.reintersection);
+        outside.watertight.append(&mut s.outside.watertight);
         s.shapes
     });
     let mut shapes: Vec<Tallies> = vec![];
@@ -513,7 +527,7 @@ pub fn merge(
         every_shape,
         tolerances,
         shapes,
-        outside_watertight,
+        outside,
     })
 }
 
@@ -527,8 +541,8 @@ pub struct Merged {
     pub tolerances: Option<UserTable>,
     /// Each shape's merged tallies.
     pub shapes: Vec<Tallies>,
-    /// The watertightness rows of outside triangle routines (from shard 0).
-    pub outside_watertight: Vec<WatertightRow>,
+    /// The reintersection and watertightness rows of outside routines (from shard 0).
+    pub outside: Outside,
 }
 
 #[cfg(test)]

@@ -414,11 +414,11 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         };
         write_files(&mut outputs, &report, &a.out)?;
         // The shard carries the rules it was run with: its merge judges with them
-        // Outside routines' watertightness is not sharded: shard 0 runs it whole
+        // Outside routines' robustness tests are not sharded: shard 0 runs them whole
         let outside = if a.shard.0 == 0 {
-            plan.outside_watertight()?
+            plan.outside_robustness()?
         } else {
-            vec![]
+            Default::default()
         };
         let file = Shard::new(
             TOOL,
@@ -549,7 +549,7 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
     let robustness = robustness::with_outside(
         robustness::run(merged.seed, &names, &precisions),
         merged.seed,
-        merged.outside_watertight,
+        merged.outside,
     )
     .map(|r| print_robustness(r, m.out.verbose));
     finish(

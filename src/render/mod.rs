@@ -110,7 +110,7 @@
 //! the same kind of run: walking the lanes met by their bit mask (1.11×) and inlining the
 //! per-object test into the traversal (1.06×).
 //!
-//! The figures against POV-Ray 3.7 and Mitsuba 3 are in the README, from
+//! The figures against POV-Ray 3.7 and Mitsuba 3 are in `reference/figures.md`, from
 //! `scripts/bench-render`, which checks the images against each other before it prints a
 //! ratio. What specialisation saves, from the same run (2026-11-25 03:31 UTC, 2 cores, AMD
 //! EPYC, rayproof 103fbfc; whole processes, CPU medians of 5 interleaved runs):

@@ -8,7 +8,7 @@
 //! `|p|` (size-aware): a shape at 1e-4 gets a 1e-4-sized offset, not a fixed epsilon.
 
 use crate::numerics::real::Real;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// pbrt's `gamma(n) = nε/(1 − nε)`, with ε half the machine epsilon of `F`.
 pub fn gamma<F: Real>(n: u32) -> F {
@@ -81,18 +81,18 @@ impl Rule {
 /// One method × precision × [`Rule`] of the reintersection test: rays spawned from computed hits
 /// that hit the same surface again where the ideal spawned ray does not (see
 /// [`crate::shapes::reintersect`]).
-#[derive(Clone, Debug, Serialize, PartialEq)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ReintersectRow {
     /// The surface.
-    pub shape: &'static str,
-    /// The intersection method.
-    pub method: &'static str,
+    pub shape: String,
+    /// The intersection method (a built-in's, or a routine's from outside the crate).
+    pub method: String,
     /// `"f32"` or `"f64"`.
-    pub precision: &'static str,
+    pub precision: String,
     /// Offered as robust.
     pub robust: bool,
     /// `on`, `weak` (error bound ×1e-3) or `off` (no offset).
-    pub rule: &'static str,
+    pub rule: String,
     /// Spawned rays tested.
     pub rays: u64,
     /// Spawned rays the method reports hitting the surface before half the distance to the ideal

@@ -10,7 +10,7 @@ use super::triangle;
 use super::watertight;
 pub use super::watertight::WatertightRow;
 use crate::numerics::Precision;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// Instances per decade of scale (1e-4 … 1e4) in the reintersection test.
 pub const PER_SCALE: u64 = 24;
@@ -71,13 +71,38 @@ pub fn outside_watertight(
     Ok(rows)
 }
 
-/// The built-in tests `r` with the watertightness rows of outside routines after them.
-pub fn with_outside(
-    r: Option<Robustness>,
+/// The reintersection rows of ray–surface routines from outside the crate for the audited
+/// `shape` (the sphere's; the triangle's and the hinge's), in each precision: the same
+/// instances and spawned rays as the built-in methods'.
+pub fn outside_reintersection(
     seed: u64,
-    rows: Vec<WatertightRow>,
-) -> Option<Robustness> {
-    if rows.is_empty() {
+    shape: &str,
+    precisions: &[Precision],
+    methods: &[&dyn crate::audit::Method],
+) -> Result<Vec<ReintersectRow>, String> {
+    let mut rows = vec![];
+    for &p in precisions {
+        for s in surfaces_of(shape) {
+            for m in methods {
+                rows.extend(reintersect::outside_rows(s, seed, PER_SCALE, p, *m)?);
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// The rows of routines from outside the crate: reintersection and watertightness.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct Outside {
+    /// Reintersection rows of outside sphere and triangle routines.
+    pub reintersection: Vec<ReintersectRow>,
+    /// Watertightness rows of outside triangle routines.
+    pub watertight: Vec<WatertightRow>,
+}
+
+/// The built-in tests `r` with the rows of outside routines after them.
+pub fn with_outside(r: Option<Robustness>, seed: u64, outside: Outside) -> Option<Robustness> {
+    if outside.reintersection.is_empty() && outside.watertight.is_empty() {
         return r;
     }
     let mut r = r.unwrap_or(Robustness {
@@ -85,7 +110,8 @@ pub fn with_outside(
         reintersection: vec![],
         watertight: vec![],
     });
-    r.watertight.extend(rows);
+    r.reintersection.extend(outside.reintersection);
+    r.watertight.extend(outside.watertight);
     Some(r)
 }
 
@@ -116,11 +142,11 @@ pub fn run(seed: u64, shapes: &[&str], precisions: &[Precision]) -> Option<Robus
 }
 
 /// The surfaces of the rows, each once, in order.
-fn surfaces(rows: &[ReintersectRow]) -> Vec<&'static str> {
-    let mut out = vec![];
+fn surfaces(rows: &[ReintersectRow]) -> Vec<&str> {
+    let mut out: Vec<&str> = vec![];
     for x in rows {
-        if !out.contains(&x.shape) {
-            out.push(x.shape);
+        if !out.contains(&x.shape.as_str()) {
+            out.push(&x.shape);
         }
     }
     out
@@ -324,8 +350,8 @@ fn reintersection_table(r: &Robustness, md: bool) -> String {
             r.reintersection
                 .iter()
                 .find(|y| {
-                    (y.shape, y.method, y.precision, y.rule)
-                        == (x.shape, x.method, x.precision, rule.name())
+                    (&y.shape, &y.method, &y.precision, y.rule.as_str())
+                        == (&x.shape, &x.method, &x.precision, rule.name())
                 })
                 .map_or(0, |y| y.rehits)
         };

@@ -57,6 +57,7 @@
 //! 17) is blind: a point left inside by rounding makes the exact answer a hit at a tiny `t`, so
 //! the self-hit looks right and no breakage of the offset rule is ever seen.
 
+mod outside;
 mod surfaces;
 
 use super::offset::{gamma, spawn_origin, ReintersectRow, Rule};
@@ -68,6 +69,7 @@ use rand::Rng;
 use rayon::prelude::*;
 use std::cell::OnceCell;
 
+pub use outside::outside_rows;
 pub(crate) use surfaces::Surface;
 pub use surfaces::NAMES;
 
@@ -291,11 +293,11 @@ fn rows_in<K: Surface, F: PickPrecision>(k: &K, seed: u64, per_scale: u64) -> Ve
             let mut c = Count::default();
             per.iter().for_each(|v| c += v[m][r]);
             rows.push(ReintersectRow {
-                shape: k.name(),
-                method,
-                precision: F::NAME,
+                shape: k.name().into(),
+                method: method.into(),
+                precision: F::NAME.into(),
                 robust,
-                rule: rule.name(),
+                rule: rule.name().into(),
                 rays: c.rays,
                 rehits: c.rehits,
                 neighbour: c.neighbour,

@@ -265,7 +265,7 @@ impl Surface for QuadR {
 
 /// The sphere of `src/shapes/sphere`, every method of its `METHODS` table; hits reprojected onto
 /// the sphere by this test (none of the methods does it itself).
-struct SphereR;
+pub(super) struct SphereR;
 
 fn sphere_case<F: Copy>(v: &[F]) -> Case<F> {
     Case {
@@ -385,13 +385,13 @@ impl Surface for TorusR {
 
 /// One triangle, or two sharing the edge `a b` (`hinge`: `A = a b c`, `B = b a e`, folded by up
 /// to 60° either way, hit at or next to the shared edge).
-struct TriR {
-    hinge: bool,
+pub(super) struct TriR {
+    pub(super) hinge: bool,
 }
 
 impl TriR {
     /// The case of triangle `k` (0 or 1) of a hinge, or of the single triangle.
-    fn tri<F: Copy>(&self, input: &[F], k: usize) -> ([F; 3], [F; 3], [[F; 3]; 3]) {
+    pub(super) fn tri<F: Copy>(&self, input: &[F], k: usize) -> ([F; 3], [F; 3], [[F; 3]; 3]) {
         let v = |i: usize| v3(input, 6 + 3 * i);
         let p = if k == 0 {
             [v(0), v(1), v(2)]
@@ -400,9 +400,31 @@ impl TriR {
         };
         (v3(input, 0), v3(input, 3), p)
     }
-    fn tris(&self) -> usize {
+    pub(super) fn tris(&self) -> usize {
         1 + self.hinge as usize
     }
+    /// Method `m`'s hit `h` on triangle `k` as the renderer's point, its error bound and the
+    /// triangle's unit normal (`m = 0`, the chapter's `o + t·d`, is also the rule for a routine
+    /// that returns only `t`).
+    pub(super) fn point_of<F: Real>(
+        &self,
+        m: usize,
+        input: &[F],
+        k: usize,
+        h: &triangle::TriHit<F>,
+    ) -> ([F; 3], [F; 3], [F; 3]) {
+        let (o, d, p) = self.tri(input, k);
+        let (pt, err) = triangle::hit_point(m, o, d, &p, h);
+        let e1: [F; 3] = std::array::from_fn(|i| p[1][i] - p[0][i]);
+        let e2: [F; 3] = std::array::from_fn(|i| p[2][i] - p[0][i]);
+        let n = [
+            e1[1] * e2[2] - e1[2] * e2[1],
+            e1[2] * e2[0] - e1[0] * e2[2],
+            e1[0] * e2[1] - e1[1] * e2[0],
+        ];
+        (pt, err, unit_f(n))
+    }
+
     /// The nearest hit of method `m` over the triangles.
     fn hit<F: Real>(&self, m: usize, input: &[F]) -> Option<(usize, triangle::TriHit<F>)> {
         (0..self.tris())
@@ -498,16 +520,7 @@ impl Surface for TriR {
     fn surface<F: PickPrecision>(&self, m: usize, input: &[F], t: F) -> ([F; 3], [F; 3], [F; 3]) {
         let (k, h) = self.hit(m, input).expect("a hit");
         debug_assert!(h.t == t);
-        let (o, d, p) = self.tri(input, k);
-        let (pt, err) = triangle::hit_point(m, o, d, &p, &h);
-        let e1: [F; 3] = std::array::from_fn(|i| p[1][i] - p[0][i]);
-        let e2: [F; 3] = std::array::from_fn(|i| p[2][i] - p[0][i]);
-        let n = [
-            e1[1] * e2[2] - e1[2] * e2[1],
-            e1[2] * e2[0] - e1[0] * e2[2],
-            e1[0] * e2[1] - e1[1] * e2[0],
-        ];
-        (pt, err, unit_f(n))
+        self.point_of(m, input, k, &h)
     }
     fn other_part<F: PickPrecision>(&self, m: usize, primary: &[F], spawned: &[f64]) -> bool {
         let spawned: Vec<F> = spawned.iter().map(|&x| F::from_f64(x)).collect();

@@ -1,7 +1,7 @@
 //! **Certified**: the exact verdict and the correctly rounded `t`, built the way correctly
 //! rounded math libraries are (CRlibm, CORE-MATH): a quick phase with a rigorous error bound,
 //! and an accurate phase only when the bound cannot decide. Measured cost against `algebraic`:
-//! the README's figures, from `scripts/readme-figures` section 7.
+//! `reference/figures.md`, from `scripts/readme-figures` section 7.
 //!
 //! Five tiers, each rigorous, each handing on only what it cannot decide:
 //! 1. **First look**: for `f32` inputs [`first_look`], the textbook quadratic in `f64` and one

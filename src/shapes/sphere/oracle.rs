@@ -19,7 +19,7 @@
 //!
 //! # Why it is fast
 //!
-//! The sphere is a small part of the default audit's time (the README's per-family timing lines),
+//! The sphere is a small part of the default audit's time (`reference/figures.md`, per family),
 //! while the routines' exact oracles use nearly all of its CPU time. Three reasons:
 //! - The exact verdict first goes through the outward-rounded `f64` interval filter. GMP integers
 //!   are used only when the filter cannot decide a sign.

@@ -1,0 +1,161 @@
+//! Reintersection for a routine from outside the crate (a `--plugin` symbol or an `--exec`
+//! child): the sphere's, the triangle's and the hinge's instances, primary rays, spawned rays and
+//! judgement are the built-in methods' (the same seed gives the same rays), and the routine
+//! answers every ray, one case per call (a hinge is a call per triangle, the nearest hit kept,
+//! as for the built-ins).
+//!
+//! The renderer's point is rayproof's offset rule applied to the routine's `t`: the sphere's hit
+//! reprojected onto the sphere as for every built-in method (pbrt's rule, `γ₅|p − c| + γ₁|p|`),
+//! a triangle's `o + t·d` with `γ₂(|o| + |t·d|)`, the bound a routine that returns only `t` can
+//! justify. A routine whose `t` is too far off for that bound re-hits its own surface: what the
+//! test is there to show. A hit whose `t` is not finite and `> 0` (outside the answer contract,
+//! judged in the audit's rows) is taken as no hit here.
+
+use super::surfaces::{SphereR, Surface, TriR};
+use super::Instance;
+use crate::audit::Method;
+use crate::numerics::Precision;
+use crate::shapes::offset::ReintersectRow;
+use crate::shapes::sphere::methods::PickPrecision;
+use crate::shapes::triangle::TriHit;
+use rand_chacha::ChaCha8Rng;
+use std::sync::Mutex;
+
+enum Kind {
+    Sphere(SphereR),
+    Tri(TriR),
+}
+
+/// An outside routine on one surface's instances.
+struct Outside<'a> {
+    kind: Kind,
+    method: &'a dyn Method,
+    prec: Precision,
+    /// The routine's first failure (a crash, a broken answer line): the run's error.
+    failed: Mutex<Option<String>>,
+}
+
+impl Outside<'_> {
+    /// The routine's nearest hit on the case `input` (object space): which part and its `t`.
+    fn hit<F: PickPrecision>(&self, input: &[F]) -> Option<(usize, F)> {
+        let parts: Vec<Vec<f64>> = match &self.kind {
+            Kind::Sphere(_) => vec![input.iter().map(|x| x.to_f64()).collect()],
+            Kind::Tri(k) => (0..k.tris())
+                .map(|i| {
+                    let (o, d, p) = k.tri(input, i);
+                    [&o[..], &d[..], &p.concat()[..]]
+                        .concat()
+                        .iter()
+                        .map(|x| x.to_f64())
+                        .collect()
+                })
+                .collect(),
+        };
+        if self.failed.lock().is_ok_and(|f| f.is_some()) {
+            return None;
+        }
+        let answers = match self.method.answer(self.prec, &parts) {
+            Ok(a) => a,
+            Err(e) => {
+                if let Ok(mut f) = self.failed.lock() {
+                    f.get_or_insert(e);
+                }
+                return None;
+            }
+        };
+        answers
+            .iter()
+            .enumerate()
+            .filter(|(_, a)| a.count > 0)
+            .filter_map(|(i, a)| a.values.first().map(|&t| (i, t)))
+            .filter(|(_, t)| t.is_finite() && *t > 0.0)
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, t)| (i, F::from_f64(t)))
+    }
+}
+
+impl Surface for Outside<'_> {
+    fn name(&self) -> &'static str {
+        match &self.kind {
+            Kind::Sphere(k) => k.name(),
+            Kind::Tri(k) => k.name(),
+        }
+    }
+    fn methods(&self) -> Vec<(&'static str, bool)> {
+        // Renamed to the routine's own name by `rows`
+        vec![("outside", self.method.robust())]
+    }
+    fn instance(&self, rng: &mut ChaCha8Rng, s: f64, at: [f64; 3], prec: Precision) -> Instance {
+        match &self.kind {
+            Kind::Sphere(k) => k.instance(rng, s, at, prec),
+            Kind::Tri(k) => k.instance(rng, s, at, prec),
+        }
+    }
+    fn run<F: PickPrecision>(&self, _m: usize, input: &[F]) -> Option<F> {
+        self.hit(input).map(|(_, t)| t)
+    }
+    fn exact(&self, input: &[f64]) -> Option<f64> {
+        match &self.kind {
+            Kind::Sphere(k) => k.exact(input),
+            Kind::Tri(k) => k.exact(input),
+        }
+    }
+    fn surface<F: PickPrecision>(&self, _m: usize, input: &[F], t: F) -> ([F; 3], [F; 3], [F; 3]) {
+        match &self.kind {
+            // Every method's hit is reprojected the same way
+            Kind::Sphere(k) => k.surface(0, input, t),
+            Kind::Tri(k) => {
+                // The part the routine hit (asked again: one call, the same answer)
+                let part = self.hit(input).map_or(0, |(i, _)| i);
+                let h = TriHit { t, b: [F::ZERO; 3] };
+                k.point_of(0, input, part, &h)
+            }
+        }
+    }
+    fn curvature(&self, params: &[f64]) -> f64 {
+        match &self.kind {
+            Kind::Sphere(k) => k.curvature(params),
+            Kind::Tri(k) => k.curvature(params),
+        }
+    }
+    fn other_part<F: PickPrecision>(&self, _m: usize, primary: &[F], spawned: &[f64]) -> bool {
+        let spawned: Vec<F> = spawned.iter().map(|&x| F::from_f64(x)).collect();
+        match (self.hit(primary), self.hit(&spawned)) {
+            (Some((a, _)), Some((b, _))) => a != b,
+            _ => false,
+        }
+    }
+}
+
+/// The reintersection rows (every rule) of the outside routine `method` on the surface `name`
+/// (`sphere`, `triangle` or `hinge`; empty for another), in precision `prec`; the routine's
+/// first failure is the error.
+pub fn outside_rows(
+    name: &str,
+    seed: u64,
+    per_scale: u64,
+    prec: Precision,
+    method: &dyn Method,
+) -> Result<Vec<ReintersectRow>, String> {
+    let kind = match name {
+        "sphere" => Kind::Sphere(SphereR),
+        "triangle" => Kind::Tri(TriR { hinge: false }),
+        "hinge" => Kind::Tri(TriR { hinge: true }),
+        _ => return Ok(vec![]),
+    };
+    let k = Outside {
+        kind,
+        method,
+        prec,
+        failed: Mutex::new(None),
+    };
+    let mut rows = super::rows(&k, seed, per_scale, prec);
+    method.finish()?;
+    if let Some(e) = k.failed.into_inner().ok().flatten() {
+        return Err(e);
+    }
+    for r in &mut rows {
+        r.method = method.name().to_string();
+    }
+    Ok(rows)
+}
