@@ -602,6 +602,8 @@ fn an_outside_triangle_routine_gets_the_reintersection_rows() {
         }
     }
     assert_eq!(self_hits(row("triangle_mt", "triangle", "on")), 0);
+    // At the hinge, only crossings of the neighbour (the rule is applied per triangle)
+    assert_eq!(self_hits(row("triangle_mt", "hinge", "on")), 0);
     let short = row("triangle_short_t", "triangle", "on");
     assert!(
         self_hits(short) > 100,
