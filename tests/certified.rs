@@ -813,3 +813,138 @@ fn the_floor_is_certified_without_its_certificate() {
     assert!(s32 * 100 >= n32 * 99, "f32 floor: {s32} of {n32}");
     assert!(s64 * 100 >= n64 * 90, "f64 floor: {s64} of {n64}");
 }
+
+/// The quick phase's discriminant bound `e_Δ` (issue 38 item 6): on near-tangent `f64` rays
+/// climbed (seeded) towards the largest rounding error, `|Δ̂ − Δ| ≤ e_Δ` always (`Δ` exact, from
+/// the same inputs); and teeth: some ray's error exceeds a quarter of the bound, so a bound cut
+/// to `e_Δ/4` is caught here. It cannot be halved on the same grounds: the first-order analysis
+/// of this evaluation order gives `5u·Ar² + 5u·X + 4u·ΣP|x| + u|Δ|`, 0.56–0.73 of `e_Δ`; the
+/// search reaches about 0.35 (no ray found needs more than half of it, none proves half enough).
+#[test]
+fn the_discriminant_bound_holds_and_a_quarter_of_it_is_too_small() {
+    use rand::{Rng, SeedableRng};
+    use rayproof::shapes::sphere::certified::discriminant_of;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(38);
+    let ratio = |v: &[f64; 10]| -> f64 {
+        let (disc, ed, exact) = discriminant_of(&case_of(v)).expect("valid input");
+        let err = rug::Rational::from_f64(disc).unwrap() - exact;
+        (err / rug::Rational::from_f64(ed).unwrap()).to_f64()
+    };
+    let nudge = |x: f64, k: i32| {
+        (0..k.abs()).fold(x, |x, _| if k > 0 { x.next_up() } else { x.next_down() })
+    };
+    let (mut worst, mut evaluated) = (0f64, 0usize);
+    for _ in 0..60 {
+        // A ray from outside, tangent to the sphere (its direction to a point of the tangent cone)
+        let c: [f64; 3] = std::array::from_fn(|_| rng.random_range(-2.0..2.0));
+        let r: f64 = rng.random_range(0.5..2.0);
+        let o: [f64; 3] = std::array::from_fn(|_| rng.random_range(-8.0..8.0));
+        let w: [f64; 3] = std::array::from_fn(|i| o[i] - c[i]);
+        let l = w.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if l < 1.01 * r {
+            continue;
+        }
+        let wu = w.map(|x| x / l);
+        let q: [f64; 3] = std::array::from_fn(|_| rng.random_range(-1.0..1.0));
+        let qd: f64 = (0..3).map(|i| q[i] * wu[i]).sum();
+        let q: [f64; 3] = std::array::from_fn(|i| q[i] - qd * wu[i]);
+        let qn = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let (ca, sa) = (r / l, (1.0 - (r / l) * (r / l)).sqrt());
+        let t: [f64; 3] = std::array::from_fn(|i| c[i] + r * (ca * wu[i] + sa * q[i] / qn));
+        let mut v = [
+            o[0],
+            o[1],
+            o[2],
+            t[0] - o[0],
+            t[1] - o[1],
+            t[2] - o[2],
+            c[0],
+            c[1],
+            c[2],
+            r,
+        ];
+        // Climb: one input a few ulps at a time, keeping the larger error
+        let mut best = ratio(&v).abs();
+        for _ in 0..1500 {
+            let mut u = v;
+            let i = rng.random_range(0..10);
+            u[i] = nudge(u[i], rng.random_range(-2..=2));
+            let e = ratio(&u);
+            evaluated += 1;
+            assert!(
+                e.abs() <= 1.0,
+                "|Δ̂ − Δ| = {:.3} e_Δ: the bound fails\n  replay: rayproof probe sphere {}",
+                e.abs(),
+                case_of(&u).probe_args()
+            );
+            if e.abs() >= best {
+                (v, best) = (u, e.abs());
+            }
+        }
+        worst = worst.max(best);
+    }
+    eprintln!("discriminant: {evaluated} climbed near-tangent rays, the largest |Δ̂ − Δ| is {worst:.3} of e_Δ");
+    assert!(
+        worst > 0.25,
+        "teeth: no ray needs more than a quarter of e_Δ ({worst:.3})"
+    );
+}
+
+/// Tangent rays that hit (the exact discriminant is positive) while the quick phase's rounds to
+/// about a fifth of its bound below zero: built by the same kind of climb as above (from
+/// random tangent rays, keeping `Δ > 0` and pushing `Δ̂` down). The quick phase must not call
+/// them a miss (it would with a bound of `e_Δ/5`), and `certified` gives the oracle's `t`.
+#[test]
+fn tangent_hits_whose_discriminant_rounds_below_zero_are_not_missed() {
+    use rayproof::shapes::sphere::certified::discriminant_of;
+    let hex = |s: &str| hexf_parse::parse_hexf64(s, false).unwrap();
+    let table = [
+        [
+            "0x1.2a6b38a446c5cp+2",
+            "0x1.8dc1dd66aaf51p+2",
+            "0x1.742cf036f3044p+2",
+            "-0x1.d3e945716a984p+2",
+            "-0x1.1f33fca6e34c7p+2",
+            "-0x1.2d59fe1d77bdcp+2",
+            "-0x1.e00b386481992p+0",
+            "0x1.5b8151974d281p+0",
+            "0x1.08f5c21ecd2b7p-2",
+            "0x1.34a3a81890b4cp+0",
+        ],
+        [
+            "-0x1.925134cadc698p+2",
+            "0x1.cd518b245c0f5p+2",
+            "-0x1.1ff12a3b19d73p+0",
+            "0x1.782f8788cfe36p+2",
+            "-0x1.2e998329b3bb0p+3",
+            "0x1.a07b89211abebp+0",
+            "0x1.f597801603be9p-2",
+            "-0x1.979ad322597e0p+0",
+            "0x1.11da11a6fee84p+0",
+            "0x1.3fa6c787662aap+0",
+        ],
+    ];
+    for row in table {
+        let v: Vec<f64> = row.iter().map(|s| hex(s)).collect();
+        let case = case_of(&v);
+        let (disc, ed, exact) = discriminant_of(&case).unwrap();
+        assert!(exact > 0, "not a hit: {row:?}");
+        assert!(disc < -0.2 * ed, "Δ̂ = {:.3} e_Δ: {row:?}", disc / ed);
+        assert_ne!(
+            quick_phase(&case),
+            Quick::Miss,
+            "a tangent hit missed: {row:?}"
+        );
+        assert_as_the_oracle(&case, "a tangent hit with Δ̂ < 0");
+    }
+}
+
+/// A sphere case from its ten values `o d c r`.
+fn case_of(v: &[f64]) -> Case<f64> {
+    Case {
+        o: [v[0], v[1], v[2]],
+        d: [v[3], v[4], v[5]],
+        c: [v[6], v[7], v[8]],
+        r: v[9],
+    }
+}

@@ -1190,22 +1190,7 @@ pub fn quick_phase<F: Real>(case: &Case<F>) -> Quick {
             (b, eb) = (0.5 * z.dp, 0.5 * z.edp);
         }
     }
-    // Lagrange's discriminant A r² − |d × f|², with the magnitudes P_k of the cross product
-    let x = [
-        d[1] * f[2] - d[2] * f[1],
-        d[2] * f[0] - d[0] * f[2],
-        d[0] * f[1] - d[1] * f[0],
-    ];
-    let p = [
-        ad[1] * af[2] + ad[2] * af[1],
-        ad[2] * af[0] + ad[0] * af[2],
-        ad[0] * af[1] + ad[1] * af[0],
-    ];
-    let xx = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
-    let px = p[0] * x[0].abs() + p[1] * x[1].abs() + p[2] * x[2].abs();
-    let ar2 = a * r2;
-    let disc = ar2 - xx;
-    let ed = 8.0 * U * ar2 + 5.0 * U * xx + 9.0 * U * px + 33.0 * U * U * a * ff + ETA;
+    let (disc, ed) = discriminant(d, f, a, r2, ff);
     // Signs: the verdict (outside: behind, or a certain miss by the discriminant; inside: the
     // far root, Δ > −AC > 0, but its computed value must show it)
     let outside = cc > ec;
@@ -1259,6 +1244,62 @@ pub fn quick_phase<F: Real>(case: &Case<F>) -> Quick {
         return Quick::Hit { th, tl, err };
     }
     Quick::Hit { th, tl, err }
+}
+
+/// Lagrange's discriminant `Δ = A r² − |d × f|²` and its bound `e_Δ` (the module docs' table),
+/// from the (scaled) direction `d`, `f = o − c`, `A = d·d`, `r²` and `f·f` as the quick phase
+/// computes them.
+#[inline(always)]
+fn discriminant(d: [f64; 3], f: [f64; 3], a: f64, r2: f64, ff: f64) -> (f64, f64) {
+    let (ad, af) = (d.map(f64::abs), f.map(f64::abs));
+    // The cross product and the magnitudes P_k of its terms
+    let x = [
+        d[1] * f[2] - d[2] * f[1],
+        d[2] * f[0] - d[0] * f[2],
+        d[0] * f[1] - d[1] * f[0],
+    ];
+    let p = [
+        ad[1] * af[2] + ad[2] * af[1],
+        ad[2] * af[0] + ad[0] * af[2],
+        ad[0] * af[1] + ad[1] * af[0],
+    ];
+    let xx = x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
+    let px = p[0] * x[0].abs() + p[1] * x[1].abs() + p[2] * x[2].abs();
+    let ar2 = a * r2;
+    let disc = ar2 - xx;
+    let ed = 8.0 * U * ar2 + 5.0 * U * xx + 9.0 * U * px + 33.0 * U * U * a * ff + ETA;
+    (disc, ed)
+}
+
+/// The quick phase's discriminant `Δ̂` and bound `e_Δ` for a case, and the exact `Δ` of the same
+/// (scaled) inputs' `d` and `f = o − c`, for tests of the bound: `None` for input the quick
+/// phase rejects before it (a radius not `> 0`, a non-finite component, a zero direction).
+/// Both are of the inputs scaled by powers of two (for `f64` inputs), where the phase works.
+pub fn discriminant_of<F: Real>(case: &Case<F>) -> Option<(f64, f64, rug::Rational)> {
+    let w = |v: [F; 3]| v.map(|x| x.to_f64());
+    let (mut o, mut d, mut c, mut r) = (w(case.o), w(case.d), w(case.c), case.r.to_f64());
+    let sum = o[0] + o[1] + o[2] + d[0] + d[1] + d[2] + c[0] + c[1] + c[2] + r;
+    if !(r > 0.0) || !sum.is_finite() {
+        return None;
+    }
+    if F::MANT_BITS == 53 {
+        (o, d, c, r, _) = scaled(o, d, c, r);
+    }
+    let f = [o[0] - c[0], o[1] - c[1], o[2] - c[2]];
+    let a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    if !(a > 0.0) {
+        return None;
+    }
+    let ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
+    let (disc, ed) = discriminant(d, f, a, r * r, ff);
+    // The exact value from the same (exact) scaled inputs
+    let q = |x: f64| rug::Rational::from_f64(x).expect("finite");
+    let (qd, qf): (Vec<_>, Vec<_>) = (0..3).map(|i| (q(d[i]), q(o[i]) - q(c[i]))).unzip();
+    let qa = qd.iter().map(|x| x.clone() * x).sum::<rug::Rational>();
+    let cross = |i: usize, j: usize| qd[i].clone() * &qf[j] - qd[j].clone() * &qf[i];
+    let qx = [cross(1, 2), cross(2, 0), cross(0, 1)];
+    let exact = qa * q(r) * q(r) - qx.iter().map(|x| x.clone() * x).sum::<rug::Rational>();
+    Some((disc, ed, exact))
 }
 
 /// The inputs scaled by exact powers of two, positions (`o`, `c`, `r`) and the direction
