@@ -259,8 +259,9 @@ fn one_child_answers_the_whole_run() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
+    // (the reintersection test's rays, after the cases, go to the same child)
     assert_eq!(starts(&dir), 1, "the child was started more than once");
-    // --exec-per-batch: one per batch, as before
+    // --exec-per-batch: one per batch, as before (8 of cases, then the reintersection test's)
     std::fs::remove_file(dir.join("starts")).unwrap();
     let o = run(&["--exec-per-batch"]);
     assert!(
@@ -268,7 +269,7 @@ fn one_child_answers_the_whole_run() {
         "{}",
         String::from_utf8_lossy(&o.stderr)
     );
-    assert_eq!(starts(&dir), 8);
+    assert!(starts(&dir) > 8, "{} starts", starts(&dir));
     // A child that writes only at exit (awk to a pipe) is found out by its first batch and
     // run once per batch; with --exec-keep it is held to flushing, and the message says so
     let lazy = "echo $$ >> starts; exec awk '{print 0}'";

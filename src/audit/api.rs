@@ -210,6 +210,7 @@ impl Audit {
         let user = rules.as_deref().map(|t| ("tolerances", t));
         let table = Table::load(user, &plan.known())?;
         let tallies = plan.run_shape(0, false).map_err(|e| e.0)?;
+        plan.finish().map_err(|e| e.0)?;
         Ok(tallies.report(Some(&table)))
     }
 

@@ -173,9 +173,20 @@ impl Plan {
         }
     }
 
-    /// Runs shape `i`.
+    /// Runs shape `i` (its outside methods stay open: [`Plan::finish`] ends them).
     pub fn run_shape(&self, i: usize, progress: bool) -> Result<Tallies, super::run::MethodFailed> {
         super::run::run(&self.selection(i), progress)
+    }
+
+    /// Ends the run's outside methods (a child kept for the run is closed and how it ended is
+    /// checked): once the run has no more cases, robustness tests included.
+    pub fn finish(&self) -> Result<(), super::run::MethodFailed> {
+        for p in &self.shapes {
+            for m in &p.methods {
+                m.finish().map_err(super::run::MethodFailed)?;
+            }
+        }
+        Ok(())
     }
 
     /// The reintersection and watertightness tests of the shapes audited completely (every
@@ -273,6 +284,7 @@ pub fn audit_shape(shape: &dyn Shape, opts: &Options) -> Result<ShapeReport, Str
     let table = Table::load(None, &plan.known())?;
     let judged = opts.shard == (0, 1);
     let tallies = plan.run_shape(0, false).map_err(|e| e.0)?;
+    plan.finish().map_err(|e| e.0)?;
     Ok(tallies.report(judged.then_some(&table)))
 }
 

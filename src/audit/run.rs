@@ -275,7 +275,8 @@ fn group(
 }
 
 /// Runs the selection: every precision × class in turn, with a progress bar when asked. An
-/// outside method that fails stops the run with its error.
+/// outside method that fails stops the run with its error. The methods are not finished: an
+/// outside child lives on for the rest of the run (see [`super::plan::Plan::finish`]).
 pub fn run(sel: &Selection, progress: bool) -> Result<Tallies, MethodFailed> {
     let per_group = shard_len(sel.cases, sel.shard);
     let total = per_group * (sel.classes.len() * sel.precisions.len()) as u64;
@@ -296,9 +297,6 @@ pub fn run(sel: &Selection, progress: bool) -> Result<Tallies, MethodFailed> {
         for &class in &sel.classes {
             out.push(group(sel, prec, class, &bar).map_err(MethodFailed)?);
         }
-    }
-    for m in &sel.methods {
-        m.finish().map_err(MethodFailed)?;
     }
     bar.finish_and_clear();
     Ok(Tallies {

@@ -381,6 +381,8 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     // Each shape in turn, printed as it finishes
     let mut runs: Vec<Tallies> = vec![];
     let mut reports = vec![];
+    let outside = a.outside.any();
+    let mut progress: Vec<String> = vec![];
     for i in 0..plan.shapes.len() {
         let start = Instant::now();
         rayproof::audit::run::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
@@ -392,14 +394,19 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
             as f64
             * 1e-9;
         let n = rayproof::audit::run::shard_len(t.cases, a.shard) * t.groups.len() as u64;
-        // Progress, off the report: one line per finished family on stderr
-        eprintln!(
+        // Progress, off the report: one line per finished family on stderr (after the run when
+        // an outside routine is in it: its errors can come until its child is closed, and an
+        // error is one line)
+        progress.push(format!(
             "{}: {n} cases × {} methods in {secs:.1} s on {} threads ({:.0} cases/s; the oracle alone {oracle:.1} s of CPU)",
             r.shape,
             t.methods.len(),
             rayon::current_num_threads(),
             n as f64 / secs.max(1e-9),
-        );
+        ));
+        if !outside {
+            eprintln!("{}", progress.remove(0));
+        }
         runs.push(t);
         reports.push(r);
     }
@@ -420,6 +427,8 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         } else {
             Default::default()
         };
+        plan.finish()?;
+        progress.iter().for_each(|l| eprintln!("{l}"));
         let file = Shard::new(
             TOOL,
             a.seed,
@@ -440,7 +449,10 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         return Ok(0);
     }
     let start = Instant::now();
-    let robustness = plan.robustness()?.map(|r| {
+    let robustness = plan.robustness()?;
+    plan.finish()?;
+    progress.iter().for_each(|l| eprintln!("{l}"));
+    let robustness = robustness.map(|r| {
         eprintln!(
             "robustness: reintersection and watertightness in {:.1} s on {} threads",
             start.elapsed().as_secs_f64(),

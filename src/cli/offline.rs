@@ -112,6 +112,7 @@ pub(super) fn run_score(a: ScoreArgs) -> Result<u8> {
     let table = load_table(&a.out.tolerances, &plan.known())?;
     print_legend(plan.seed, "0/1", &a.out);
     let report = plan.run_shape(0, false)?.report(Some(&table));
+    plan.finish()?;
     print_shape(&report, &a.out);
     finish(
         Report {

@@ -210,6 +210,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
         }
     }
     let tallies = plan.run_shape(0, o.progress)?;
+    plan.finish()?;
     let report = tallies.report(None);
     say("timing every method × precision");
     let runs = if o.quick { 3 } else { 9 };

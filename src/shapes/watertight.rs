@@ -323,7 +323,6 @@ fn any_hits(
     for chunk in inputs.chunks(4096) {
         answers.extend(m.answer(prec, chunk)?.into_iter().map(|a| a.count > 0));
     }
-    m.finish()?;
     let mut out = vec![];
     let mut at = 0;
     for n in counts {

@@ -1,8 +1,13 @@
 //! Reintersection for a routine from outside the crate (a `--plugin` symbol or an `--exec`
 //! child): the sphere's, the triangle's and the hinge's instances, primary rays, spawned rays and
 //! judgement are the built-in methods' (the same seed gives the same rays), and the routine
-//! answers every ray, one case per call (a hinge is a call per triangle, the nearest hit kept,
-//! as for the built-ins).
+//! answers every ray (a hinge is a case per triangle, the nearest hit kept, as for the built-ins).
+//!
+//! The routine is asked in batches, not ray by ray (a call to a worker or a child costs far more
+//! than the arithmetic): the test runs once to collect the primary rays, which are answered in
+//! one batch; again to collect the spawned rays, which depend on those answers; and a last time
+//! with every answer known, which gives the rows. The passes are deterministic, so the last
+//! asks nothing new.
 //!
 //! The renderer's point is rayproof's offset rule applied to the routine's `t`: the sphere's hit
 //! reprojected onto the sphere as for every built-in method (pbrt's rule, `γ₅|p − c| + γ₁|p|`),
@@ -19,6 +24,7 @@ use crate::shapes::offset::ReintersectRow;
 use crate::shapes::sphere::methods::PickPrecision;
 use crate::shapes::triangle::TriHit;
 use rand_chacha::ChaCha8Rng;
+use std::collections::HashMap;
 use std::sync::Mutex;
 
 enum Kind {
@@ -26,51 +32,86 @@ enum Kind {
     Tri(TriR),
 }
 
-/// An outside routine on one surface's instances.
+/// An outside routine on one surface's instances, its answers cached by case.
 struct Outside<'a> {
     kind: Kind,
     method: &'a dyn Method,
     prec: Precision,
-    /// The routine's first failure (a crash, a broken answer line): the run's error.
-    failed: Mutex<Option<String>>,
+    /// The routine's nearest hit (part, t) of each case answered, by the case's bits.
+    answers: Mutex<HashMap<Vec<u64>, Option<(usize, f64)>>>,
+    /// Cases asked in this pass and not yet answered (answered as misses in this pass).
+    asked: Mutex<Vec<Vec<f64>>>,
+}
+
+fn key<F: PickPrecision>(input: &[F]) -> Vec<u64> {
+    input.iter().map(|x| x.to_f64().to_bits()).collect()
 }
 
 impl Outside<'_> {
-    /// The routine's nearest hit on the case `input` (object space): which part and its `t`.
+    /// The routine's nearest hit on the case `input` (object space): which part and its `t`;
+    /// a case not answered yet is noted for the next batch (and a miss for now).
     fn hit<F: PickPrecision>(&self, input: &[F]) -> Option<(usize, F)> {
-        let parts: Vec<Vec<f64>> = match &self.kind {
-            Kind::Sphere(_) => vec![input.iter().map(|x| x.to_f64()).collect()],
+        let k = key(input);
+        let known = self.answers.lock().expect("not poisoned").get(&k).copied();
+        match known {
+            Some(h) => h.map(|(i, t)| (i, F::from_f64(t))),
+            None => {
+                let mut asked = self.asked.lock().expect("not poisoned");
+                asked.push(input.iter().map(|x| x.to_f64()).collect());
+                None
+            }
+        }
+    }
+
+    /// The routine's inputs for one case: the sphere's as it is, a triangle per part.
+    fn parts(&self, input: &[f64]) -> Vec<Vec<f64>> {
+        match &self.kind {
+            Kind::Sphere(_) => vec![input.to_vec()],
             Kind::Tri(k) => (0..k.tris())
                 .map(|i| {
                     let (o, d, p) = k.tri(input, i);
-                    [&o[..], &d[..], &p.concat()[..]]
-                        .concat()
-                        .iter()
-                        .map(|x| x.to_f64())
-                        .collect()
+                    [&o[..], &d[..], &p.concat()[..]].concat()
                 })
                 .collect(),
-        };
-        if self.failed.lock().is_ok_and(|f| f.is_some()) {
-            return None;
         }
-        let answers = match self.method.answer(self.prec, &parts) {
-            Ok(a) => a,
-            Err(e) => {
-                if let Ok(mut f) = self.failed.lock() {
-                    f.get_or_insert(e);
-                }
-                return None;
+    }
+
+    /// Answers every case asked since the last batch: `false` when none was.
+    fn answer_asked(&self) -> Result<bool, String> {
+        let mut asked = std::mem::take(&mut *self.asked.lock().expect("not poisoned"));
+        asked.sort_by(|a, b| key(a).cmp(&key(b)));
+        asked.dedup_by(|a, b| key(a) == key(b));
+        if asked.is_empty() {
+            return Ok(false);
+        }
+        let per = self.parts(&asked[0]).len();
+        let inputs: Vec<Vec<f64>> = asked.iter().flat_map(|c| self.parts(c)).collect();
+        let mut got = Vec::with_capacity(inputs.len());
+        for chunk in inputs.chunks(4096) {
+            let a = self.method.answer(self.prec, chunk)?;
+            if a.len() != chunk.len() {
+                return Err(format!(
+                    "{}: {} answers to {} cases",
+                    self.method.name(),
+                    a.len(),
+                    chunk.len()
+                ));
             }
-        };
-        answers
-            .iter()
-            .enumerate()
-            .filter(|(_, a)| a.count > 0)
-            .filter_map(|(i, a)| a.values.first().map(|&t| (i, t)))
-            .filter(|(_, t)| t.is_finite() && *t > 0.0)
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map(|(i, t)| (i, F::from_f64(t)))
+            got.extend(a);
+        }
+        let mut answers = self.answers.lock().expect("not poisoned");
+        for (case, parts) in asked.iter().zip(got.chunks(per)) {
+            // The nearest hit ahead; a t outside the contract (not finite, not > 0) is no hit
+            let nearest = parts
+                .iter()
+                .enumerate()
+                .filter(|(_, a)| a.count > 0)
+                .filter_map(|(i, a)| a.values.first().map(|&t| (i, t)))
+                .filter(|(_, t)| t.is_finite() && *t > 0.0)
+                .min_by(|a, b| a.1.total_cmp(&b.1));
+            answers.insert(key(case), nearest);
+        }
+        Ok(true)
     }
 }
 
@@ -147,12 +188,21 @@ pub fn outside_rows(
         kind,
         method,
         prec,
-        failed: Mutex::new(None),
+        answers: Mutex::new(HashMap::new()),
+        asked: Mutex::new(vec![]),
     };
+    // Primary rays, then spawned rays, then the rows with every answer known
     let mut rows = super::rows(&k, seed, per_scale, prec);
-    method.finish()?;
-    if let Some(e) = k.failed.into_inner().ok().flatten() {
-        return Err(e);
+    let mut passes = 1;
+    while k.answer_asked()? {
+        rows = super::rows(&k, seed, per_scale, prec);
+        passes += 1;
+        if passes > 3 {
+            return Err(format!(
+                "{}: the reintersection test kept asking new rays after three passes (a bug: please report it)",
+                method.name()
+            ));
+        }
     }
     for r in &mut rows {
         r.method = method.name().to_string();
