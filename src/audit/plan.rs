@@ -2,12 +2,20 @@
 //! (an unknown name is a one-line error), the case count per shape, and whether the
 //! reintersection and watertightness tests run (with every shape).
 
-use super::report::ShapeReport;
+use super::report::{Report, ShapeReport, TOOL};
 use super::run::{Selection, Tallies};
 use super::shape::{Builtin, Method, Shape};
 use super::tolerance::{Known, Table};
 use crate::numerics::Precision;
 use crate::shapes::{registry, robustness, shape_by_name, shape_names};
+
+/// What a run tells as it goes (for progress lines; the report holds the results).
+pub enum Progress<'a> {
+    /// A shape is done: its tallies, its report and its wall time in seconds.
+    Shape(&'a Tallies, &'a ShapeReport, f64),
+    /// The reintersection and watertightness tests are done, in this many seconds.
+    Robustness(f64),
+}
 
 /// The audit as asked for on the command line.
 #[derive(Clone, Debug)]
@@ -176,6 +184,63 @@ impl Plan {
     /// Runs shape `i` (its outside methods stay open: [`Plan::finish`] ends them).
     pub fn run_shape(&self, i: usize, progress: bool) -> Result<Tallies, super::run::MethodFailed> {
         super::run::run(&self.selection(i), progress)
+    }
+
+    /// Every shape in turn, each judged by `table` when given; `each` hears of each shape as it
+    /// finishes. Outside methods stay open ([`Plan::finish`]).
+    pub fn run_shapes(
+        &self,
+        table: Option<&Table>,
+        progress: bool,
+        each: &mut dyn FnMut(Progress),
+    ) -> Result<(Vec<Tallies>, Vec<ShapeReport>), super::run::MethodFailed> {
+        let (mut runs, mut reports) = (vec![], vec![]);
+        for i in 0..self.shapes.len() {
+            let start = std::time::Instant::now();
+            let t = self.run_shape(i, progress)?;
+            let r = t.report(table);
+            each(Progress::Shape(&t, &r, start.elapsed().as_secs_f64()));
+            runs.push(t);
+            reports.push(r);
+        }
+        Ok((runs, reports))
+    }
+
+    /// The whole audit, judged by `table`: every shape, then the reintersection and
+    /// watertightness tests of the shapes audited completely and of outside routines; outside
+    /// methods are finished. Its verdict is [`Report::outcome`].
+    ///
+    /// ```no_run
+    /// use rayproof::audit::plan::{Options, Plan};
+    /// use rayproof::audit::tolerance::Table;
+    /// let plan = Plan::new(&Options::default())?;
+    /// let table = Table::load(None, &plan.known())?;
+    /// let report = plan.run(&table, false, &mut |_| {}).map_err(|e| e.0)?;
+    /// let outcome = report.outcome();
+    /// println!("verdict: {}", if outcome.passed() { "pass" } else { "fail" });
+    /// # Ok::<(), String>(())
+    /// ```
+    pub fn run(
+        &self,
+        table: &Table,
+        progress: bool,
+        each: &mut dyn FnMut(Progress),
+    ) -> Result<Report, super::run::MethodFailed> {
+        let judged = self.shard == (0, 1);
+        let (_, shapes) = self.run_shapes(judged.then_some(table), progress, each)?;
+        let start = std::time::Instant::now();
+        let robustness = self.robustness()?;
+        self.finish()?;
+        if robustness.is_some() {
+            each(Progress::Robustness(start.elapsed().as_secs_f64()));
+        }
+        Ok(Report {
+            tool: TOOL,
+            seed: self.seed,
+            shard: format!("{}/{}", self.shard.0, self.shard.1),
+            shapes,
+            robustness,
+        })
     }
 
     /// Ends the run's outside methods (a child kept for the run is closed and how it ended is

@@ -74,7 +74,60 @@ impl Tallies {
     }
 }
 
+/// The verdict of a judged audit: its rows counted by status, what failed and what could not
+/// be told, one line each.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Outcome {
+    /// Judged rows.
+    pub rows: u64,
+    /// Rows within their rule.
+    pub pass: u64,
+    /// Known failures shown, as expected.
+    pub known_failures: u64,
+    /// Rows no rule applies to (reported only).
+    pub unchecked: u64,
+    /// Rows outside their rule.
+    pub out_of_tolerance: u64,
+    /// Known failures too few cases could show.
+    pub undecided: Vec<String>,
+    /// Rows out of tolerance and robustness goals missed.
+    pub failures: Vec<String>,
+}
+
+impl Outcome {
+    /// No row out of tolerance, no robustness goal missed.
+    pub fn passed(&self) -> bool {
+        self.failures.is_empty()
+    }
+    /// The command's exit status: 0 pass, 1 a failure (`src/lib.rs` lists every code).
+    pub fn exit_code(&self) -> u8 {
+        if self.passed() {
+            0
+        } else {
+            1
+        }
+    }
+}
+
 impl Report {
+    /// The verdict: every judged row counted by status, the failures and the undecided rows.
+    pub fn outcome(&self) -> Outcome {
+        let judged: Vec<Status> = self
+            .rows()
+            .filter_map(|(_, r)| r.verdict.as_ref().map(|v| v.status))
+            .collect();
+        let n = |s: Status| judged.iter().filter(|&&x| x == s).count() as u64;
+        Outcome {
+            rows: self.rows().count() as u64,
+            pass: n(Status::Pass),
+            known_failures: n(Status::KnownFailure),
+            unchecked: n(Status::Unchecked),
+            out_of_tolerance: n(Status::Fail),
+            undecided: self.undecided(),
+            failures: self.failures(),
+        }
+    }
+
     /// Rows of every shape with their shape's name.
     pub fn rows(&self) -> impl Iterator<Item = (&str, &Row)> {
         self.shapes

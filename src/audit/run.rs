@@ -10,16 +10,12 @@ use crate::numerics::{exact, Precision};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// A method under audit failed (a crashed or hung child, a malformed answer): the audit stops
 /// with this one line.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
 pub struct MethodFailed(pub String);
-
-/// CPU time spent in oracles (all threads), for the terminal summary only (never in a report).
-pub static ORACLE_NANOS: AtomicU64 = AtomicU64::new(0);
 
 /// What to run of one shape.
 pub struct Selection<'a> {
@@ -61,6 +57,9 @@ pub struct Tallies {
     pub methods: Vec<MethodTag>,
     /// One group per precision × class.
     pub groups: Vec<Group>,
+    /// CPU time the oracle took over the run's cases, all threads (for progress lines only:
+    /// never in a report; 0 for merged shards).
+    pub oracle_nanos: u64,
 }
 
 impl Tallies {
@@ -149,12 +148,11 @@ fn sample(
     }
 }
 
-/// The oracle on one case, its CPU time counted in [`ORACLE_NANOS`].
-fn oracle(shape: &dyn Shape, input: &[f64], prec: Precision) -> Truth {
+/// The oracle on one case, and the CPU time it took in nanoseconds.
+fn oracle(shape: &dyn Shape, input: &[f64], prec: Precision) -> (Truth, u64) {
     let clock = std::time::Instant::now();
     let truth = shape.oracle(input, prec);
-    ORACLE_NANOS.fetch_add(clock.elapsed().as_nanos() as u64, Ordering::Relaxed);
-    truth
+    (truth, clock.elapsed().as_nanos() as u64)
 }
 
 /// Every method's answers to a batch of inputs, checked for their number.
@@ -180,10 +178,12 @@ fn answers(
         .collect()
 }
 
-/// A generated case with the oracle's truth (`None`: the generator found no member).
+/// A generated case with the oracle's truth (`None`: the generator found no member) and the
+/// oracle's time on it.
 struct Posed {
     index: u64,
     case: Option<(Vec<f64>, Truth)>,
+    nanos: u64,
 }
 
 /// Tallies of one precision × class: in batches, each case generated and judged in parallel,
@@ -193,12 +193,13 @@ fn group(
     prec: Precision,
     class: usize,
     bar: &ProgressBar,
-) -> Result<Group, String> {
+) -> Result<(Group, u64), String> {
     let shape = sel.shape;
     let empty = || vec![Tally::default(); sel.methods.len()];
     let (k, n) = sel.shard;
     let count = shard_len(sel.cases, sel.shard);
     let mut tallies = empty();
+    let mut nanos = 0;
     for start in (0..count).step_by(CHUNK as usize) {
         let end = (start + CHUNK).min(count);
         // Generate and ask the oracle
@@ -206,13 +207,16 @@ fn group(
             .into_par_iter()
             .map(|i| {
                 let index = k + i * n;
+                let mut nanos = 0;
                 let case = generate(shape, sel.seed, class, prec, index).map(|x| {
-                    let t = oracle(shape, &x, prec);
+                    let (t, ns) = oracle(shape, &x, prec);
+                    nanos = ns;
                     (x, t)
                 });
-                Posed { index, case }
+                Posed { index, case, nanos }
             })
             .collect();
+        nanos += posed.iter().map(|p| p.nanos).sum::<u64>();
         // Every method answers the batch of inputs
         let inputs: Vec<Vec<f64>> = posed
             .iter()
@@ -267,11 +271,14 @@ fn group(
         }
         bar.inc(end - start);
     }
-    Ok(Group {
-        precision: prec,
-        class,
-        tallies,
-    })
+    Ok((
+        Group {
+            precision: prec,
+            class,
+            tallies,
+        },
+        nanos,
+    ))
 }
 
 /// Runs the selection: every precision × class in turn, with a progress bar when asked. An
@@ -292,10 +299,12 @@ pub fn run(sel: &Selection, progress: bool) -> Result<Tallies, MethodFailed> {
         ))
         .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let mut out = vec![];
+    let (mut out, mut oracle_nanos) = (vec![], 0);
     for &prec in &sel.precisions {
         for &class in &sel.classes {
-            out.push(group(sel, prec, class, &bar).map_err(MethodFailed)?);
+            let (g, ns) = group(sel, prec, class, &bar).map_err(MethodFailed)?;
+            out.push(g);
+            oracle_nanos += ns;
         }
     }
     bar.finish_and_clear();
@@ -312,6 +321,7 @@ pub fn run(sel: &Selection, progress: bool) -> Result<Tallies, MethodFailed> {
             })
             .collect(),
         groups: out,
+        oracle_nanos,
     })
 }
 
@@ -322,7 +332,7 @@ pub fn judge_all(
     input: &[f64],
     prec: Precision,
 ) -> Result<(Truth, Vec<Sample>), String> {
-    let truth = oracle(shape, input, prec);
+    let (truth, _) = oracle(shape, input, prec);
     let samples = answers(methods, prec, &[input.to_vec()])?
         .into_iter()
         .map(|mut a| sample(shape, &truth, input, a.remove(0), prec))

@@ -511,6 +511,7 @@ pub fn merge(
                     tallies: g.tallies,
                 })
                 .collect(),
+            oracle_nanos: 0,
         });
     }
     for other in parts {

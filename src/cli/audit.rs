@@ -3,17 +3,15 @@
 use super::*;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
-use rayproof::audit::plan::{Options, Plan};
-use rayproof::audit::run::Tallies;
+use rayproof::audit::plan::{Options, Plan, Progress};
 use rayproof::audit::shard::{self, Shard, UserTable};
-use rayproof::audit::tolerance::{Known, Status, Table};
+use rayproof::audit::tolerance::{Known, Table};
 use rayproof::audit::{table, Report, ShapeReport, TOOL};
 use rayproof::numerics::Precision;
 use rayproof::output::{check_outputs, Outputs};
 use rayproof::shapes::robustness::{self, Robustness};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 #[derive(Args, Debug)]
 pub struct AuditArgs {
@@ -378,40 +376,40 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     // A shard is judged by its merge, not here
     let judge = a.shard_out.is_none() && a.shard == (0, 1);
     print_legend(a.seed, &shard_label, &a.out);
-    // Each shape in turn, printed as it finishes
-    let mut runs: Vec<Tallies> = vec![];
-    let mut reports = vec![];
+    // Each shape printed as it finishes; progress on stderr, off the report (after the run when
+    // an outside routine is in it: its errors can come until its child is closed, and an error
+    // is one line)
     let outside = a.outside.any();
     let mut progress: Vec<String> = vec![];
-    for i in 0..plan.shapes.len() {
-        let start = Instant::now();
-        rayproof::audit::run::ORACLE_NANOS.store(0, std::sync::atomic::Ordering::Relaxed);
-        let t = plan.run_shape(i, std::io::stderr().is_terminal())?;
-        let r = t.report(judge.then_some(&table));
-        print_shape(&r, &a.out);
-        let secs = start.elapsed().as_secs_f64();
-        let oracle = rayproof::audit::run::ORACLE_NANOS.load(std::sync::atomic::Ordering::Relaxed)
-            as f64
-            * 1e-9;
-        let n = rayproof::audit::run::shard_len(t.cases, a.shard) * t.groups.len() as u64;
-        // Progress, off the report: one line per finished family on stderr (after the run when
-        // an outside routine is in it: its errors can come until its child is closed, and an
-        // error is one line)
-        progress.push(format!(
-            "{}: {n} cases × {} methods in {secs:.1} s on {} threads ({:.0} cases/s; the oracle alone {oracle:.1} s of CPU)",
-            r.shape,
-            t.methods.len(),
-            rayon::current_num_threads(),
-            n as f64 / secs.max(1e-9),
-        ));
-        if !outside {
-            eprintln!("{}", progress.remove(0));
+    let mut each = |p: Progress| {
+        let line = match p {
+            Progress::Shape(t, r, secs) => {
+                print_shape(r, &a.out);
+                let n = rayproof::audit::run::shard_len(t.cases, a.shard) * t.groups.len() as u64;
+                format!(
+                    "{}: {n} cases × {} methods in {secs:.1} s on {} threads ({:.0} cases/s; the oracle alone {:.1} s of CPU)",
+                    r.shape,
+                    t.methods.len(),
+                    rayon::current_num_threads(),
+                    n as f64 / secs.max(1e-9),
+                    t.oracle_nanos as f64 * 1e-9,
+                )
+            }
+            Progress::Robustness(secs) => format!(
+                "robustness: reintersection and watertightness in {secs:.1} s on {} threads",
+                rayon::current_num_threads()
+            ),
+        };
+        if outside {
+            progress.push(line);
+        } else {
+            eprintln!("{line}");
         }
-        runs.push(t);
-        reports.push(r);
-    }
-    // A shard: its tallies go to the file for the merge
+    };
+    let progress_bar = std::io::stderr().is_terminal();
+    // A shard: its tallies go to the file for the merge, judged by the merge
     if let Some(p) = &a.shard_out {
+        let (runs, reports) = plan.run_shapes(None, progress_bar, &mut each)?;
         let report = Report {
             tool: TOOL,
             seed: a.seed,
@@ -448,30 +446,15 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         );
         return Ok(0);
     }
-    let start = Instant::now();
-    let robustness = plan.robustness()?;
-    plan.finish()?;
+    let report = plan.run(&table, progress_bar, &mut each)?;
     progress.iter().for_each(|l| eprintln!("{l}"));
-    let robustness = robustness.map(|r| {
-        eprintln!(
-            "robustness: reintersection and watertightness in {:.1} s on {} threads",
-            start.elapsed().as_secs_f64(),
-            rayon::current_num_threads()
-        );
-        print_robustness(r, a.out.verbose)
-    });
-    finish(
-        Report {
-            tool: TOOL,
-            seed: a.seed,
-            shard: shard_label,
-            shapes: reports,
-            robustness,
-        },
-        judge,
-        outputs,
-        &a.out,
-    )
+    let report = Report {
+        robustness: report
+            .robustness
+            .map(|r| print_robustness(r, a.out.verbose)),
+        ..report
+    };
+    finish(report, judge, outputs, &a.out)
 }
 
 /// Prints the reintersection and watertightness tests' summary (with `--verbose`, tables).
@@ -622,37 +605,27 @@ pub(super) fn finish(
     if !judged {
         return Ok(0);
     }
-    // Counts by status
-    let mut by = std::collections::BTreeMap::new();
-    for (_, r) in report.rows() {
-        if let Some(v) = &r.verdict {
-            *by.entry(format!("{:?}", v.status)).or_insert(0u64) += 1;
-        }
-    }
-    let n = |s: Status| by.get(&format!("{s:?}")).copied().unwrap_or(0);
-    let failures = report.failures();
-    let undecided = report.undecided();
+    let o = report.outcome();
     say!(
         "\ntolerance table: {} rows — {} within their rule, {} known failures shown, {} reported only, {} too few cases to tell, {} out of tolerance",
-        report.rows().count(),
-        n(Status::Pass),
-        n(Status::KnownFailure),
-        n(Status::Unchecked),
-        n(Status::Undecided),
-        n(Status::Fail)
+        o.rows,
+        o.pass,
+        o.known_failures,
+        o.unchecked,
+        o.undecided.len(),
+        o.out_of_tolerance
     );
-    for u in &undecided {
+    for u in &o.undecided {
         say!("  undecided: {u}");
     }
     // The failures, then the verdict as the last line
-    for f in &failures {
+    for f in &o.failures {
         say!("  {f}");
     }
-    if failures.is_empty() {
+    if o.passed() {
         say!("verdict: pass");
-        Ok(0)
     } else {
-        say!("verdict: {} failure(s) (listed above)", failures.len());
-        Ok(1)
+        say!("verdict: {} failure(s) (listed above)", o.failures.len());
     }
+    Ok(o.exit_code())
 }
