@@ -32,13 +32,16 @@ enum Kind {
     Tri(TriR),
 }
 
+/// The routine's nearest hit on a case: which part and its `t` (`None`: a miss).
+type Nearest = Option<(usize, f64)>;
+
 /// An outside routine on one surface's instances, its answers cached by case.
 struct Outside<'a> {
     kind: Kind,
     method: &'a dyn Method,
     prec: Precision,
-    /// The routine's nearest hit (part, t) of each case answered, by the case's bits.
-    answers: Mutex<HashMap<Vec<u64>, Option<(usize, f64)>>>,
+    /// The routine's nearest hit of each case answered, by the case's bits.
+    answers: Mutex<HashMap<Vec<u64>, Nearest>>,
     /// Cases asked in this pass and not yet answered (answered as misses in this pass).
     asked: Mutex<Vec<Vec<f64>>>,
 }
@@ -79,7 +82,7 @@ impl Outside<'_> {
     /// Answers every case asked since the last batch: `false` when none was.
     fn answer_asked(&self) -> Result<bool, String> {
         let mut asked = std::mem::take(&mut *self.asked.lock().expect("not poisoned"));
-        asked.sort_by(|a, b| key(a).cmp(&key(b)));
+        asked.sort_by_key(|a| key(a));
         asked.dedup_by(|a, b| key(a) == key(b));
         if asked.is_empty() {
             return Ok(false);
