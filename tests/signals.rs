@@ -107,8 +107,17 @@ fn leftovers(dir: &Path, pid: u32) -> Vec<String> {
         .flatten()
         .flatten()
     {
+        // rayproof's scratch directories, `rayproof-TAG-PID-NONCE` (16 hex digits): not another
+        // test's `rayproof-…-N-…` whose N is this run's pid again
         let n = e.file_name().to_string_lossy().into_owned();
-        if n.starts_with("rayproof-") && n.contains(&format!("-{pid}-")) {
+        let ours = n
+            .split_once(&format!("-{pid}-"))
+            .is_some_and(|(head, nonce)| {
+                head.starts_with("rayproof-")
+                    && nonce.len() == 16
+                    && nonce.chars().all(|c| c.is_ascii_hexdigit())
+            });
+        if ours {
             v.push(e.path().display().to_string());
         }
     }
