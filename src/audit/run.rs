@@ -156,7 +156,7 @@ fn oracle(shape: &dyn Shape, input: &[f64], prec: Precision) -> (Truth, u64) {
 }
 
 /// Every method's answers to a batch of inputs, checked for their number.
-fn answers(
+pub(crate) fn answers(
     methods: &[&dyn Method],
     prec: Precision,
     inputs: &[Vec<f64>],

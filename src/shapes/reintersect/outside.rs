@@ -82,7 +82,7 @@ impl Outside<'_> {
     /// Answers every case asked since the last batch: `false` when none was.
     fn answer_asked(&self) -> Result<bool, String> {
         let mut asked = std::mem::take(&mut *self.asked.lock().expect("not poisoned"));
-        asked.sort_by_key(|a| key(a));
+        asked.sort_by_cached_key(|a| key(a));
         asked.dedup_by(|a, b| key(a) == key(b));
         if asked.is_empty() {
             return Ok(false);
@@ -91,16 +91,8 @@ impl Outside<'_> {
         let inputs: Vec<Vec<f64>> = asked.iter().flat_map(|c| self.parts(c)).collect();
         let mut got = Vec::with_capacity(inputs.len());
         for chunk in inputs.chunks(4096) {
-            let a = self.method.answer(self.prec, chunk)?;
-            if a.len() != chunk.len() {
-                return Err(format!(
-                    "{}: {} answers to {} cases",
-                    self.method.name(),
-                    a.len(),
-                    chunk.len()
-                ));
-            }
-            got.extend(a);
+            let mut a = crate::audit::run::answers(&[self.method], self.prec, chunk)?;
+            got.append(&mut a[0]);
         }
         let mut answers = self.answers.lock().expect("not poisoned");
         for (case, parts) in asked.iter().zip(got.chunks(per)) {
