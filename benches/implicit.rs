@@ -1,15 +1,15 @@
 //! Criterion bench: the primary visibility pass of `reference/implicit/bunny.toml` (the MPU
 //! bunny at 400×400, seed 004's Table 1) for every (mode, tracer) pair of
-//! [`rayproof::implicit::check::RUNS`], 10×10 blocks. Criterion times each separately;
+//! [`rayproof::render::subdiv::check::RUNS`], 10×10 blocks. Criterion times each separately;
 //! `scripts/bench-implicit` times all of them in one run and prints the ratios.
 //!
 //! Validation comes first: each certified pass must reproduce the coverage of the per-pixel
 //! pass with its tracer exactly (0 lost, 0 ghost pixels) or the bench refuses to time.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use rayproof::implicit::check::{marcher, size, RUNS};
 use rayproof::implicit::march::{Marcher, Tracer};
-use rayproof::implicit::subdiv::{primary, Mode};
+use rayproof::render::subdiv::check::{marcher, size, RUNS};
+use rayproof::render::subdiv::{primary, Mode};
 use rayproof::render::{scene, Lens};
 use std::hint::black_box;
 use std::path::Path;

@@ -18,7 +18,8 @@ use rayproof::audit::tolerance::Table;
 use rayproof::audit::{judge, probe_line, Shape, Truth};
 use rayproof::numerics::real::Real;
 use rayproof::numerics::Precision;
-use rayproof::shapes::{poly, registry};
+use rayproof::shapes::oracle::poly;
+use rayproof::shapes::registry;
 use std::hint::black_box;
 use std::time::Duration;
 

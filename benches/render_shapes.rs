@@ -53,7 +53,7 @@ fn validate(p: &Prim, rays: &[(DVec3, DVec3)]) -> usize {
             Judgement::Ok { .. } => judged += 1,
             j => panic!(
                 "{name}: {j:?}; refusing to time. Replay: {}",
-                rayproof::audit::shape::probe_line(shape.name(), Precision::F64, &input)
+                rayproof::shapes::shape::probe_line(shape.name(), Precision::F64, &input)
             ),
         }
     }

@@ -10,6 +10,13 @@
 use std::io::Read;
 use std::path::Path;
 
+/// The largest magnitude of any number in a scene file, and of an MPU point's coordinates:
+/// squared distances between such points stay below f64's range (3·(2·1e150)² ≈ 1.2e301). Five
+/// MPU points at ±1e153 fit in 0.05 s; at ±1e154 the squared distances overflow to ∞ and the
+/// fit's search for the nearest points had not ended after 10 s (it cannot: no distance is below
+/// ∞).
+pub const MAX_MAGNITUDE: f64 = 1e150;
+
 /// The largest scene file, suite file, tolerance table or manifest: 16 MiB (the reference
 /// scenes are below 5 KB; fan30's 30 spheres take 3.9 KB).
 pub const MAX_TEXT_BYTES: u64 = 16 << 20;

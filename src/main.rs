@@ -26,7 +26,7 @@ fn main() -> ExitCode {
     rayproof::output::clean_up_on_signals();
     let result = run(cli);
     // An interrupted run ends in the signal handler (exit 130), never here
-    rayproof::output::wait_if_interrupted();
+    rayproof::process::wait_if_interrupted();
     match result {
         Ok(code) => ExitCode::from(code),
         Err(e) => {

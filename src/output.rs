@@ -22,6 +22,7 @@
 //!   leaves every old output byte-identical, or the run's new outputs all in place; never a mix.
 //!   (A SIGKILL cannot be caught: its temporaries are removed by the next run.)
 
+use crate::process::{interrupted, wait_if_interrupted};
 use anyhow::{bail, Context, Result};
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
@@ -37,8 +38,6 @@ static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 static COMMIT: Mutex<()> = Mutex::new(());
 /// Temporaries being created and written now (see [`staging`]).
 static IN_FLIGHT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-/// Set by the signal handler before it does anything else.
-static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
 fn live(f: impl FnOnce(&mut Vec<PathBuf>)) {
     if let Ok(mut v) = LIVE.lock() {
@@ -64,28 +63,13 @@ fn remove_temporary(p: &Path) {
     }
 }
 
-/// Whether SIGINT or SIGTERM arrived.
-pub fn interrupted() -> bool {
-    INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst)
-}
-
-/// Once SIGINT or SIGTERM arrived, the handler ends the run (exit 130): a thread that sees the
-/// effects of the interruption (a child killed by the handler) waits here instead of reporting
-/// them as its own failure.
-pub fn wait_if_interrupted() {
-    while interrupted() {
-        std::thread::sleep(std::time::Duration::from_secs(1));
-    }
-}
-
 /// On SIGINT or SIGTERM: stop the outside commands, let a commit in progress finish, remove
 /// every temporary, exit with 130 (the shell's code for an interrupted command).
 pub fn clean_up_on_signals() {
     let _ = ctrlc::set_handler(|| {
-        // From now on no other thread decides how the run ends, and no commit starts
-        INTERRUPTED.store(true, std::sync::atomic::Ordering::SeqCst);
-        // The outside commands running now, and all they started, go first
-        crate::process::kill_all();
+        // From now on no other thread decides how the run ends and no commit starts; the
+        // outside commands running now, and all they started, go first
+        crate::process::interrupt();
         // A commit in progress finishes whole
         let _commit = COMMIT.lock().unwrap_or_else(|e| e.into_inner());
         // Temporaries being written are finished first (a stuck writer is given up on)

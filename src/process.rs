@@ -50,6 +50,30 @@ fn become_subreaper() {
     });
 }
 
+/// Set by [`interrupt`] (the signal handler's first step) before anything else.
+static INTERRUPTED: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Marks the run interrupted (SIGINT or SIGTERM: from now on no other thread decides how the
+/// run ends, and no commit starts), then kills every outside command with all it started.
+pub fn interrupt() {
+    INTERRUPTED.store(true, std::sync::atomic::Ordering::SeqCst);
+    kill_all();
+}
+
+/// Whether SIGINT or SIGTERM arrived.
+pub fn interrupted() -> bool {
+    INTERRUPTED.load(std::sync::atomic::Ordering::SeqCst)
+}
+
+/// Once SIGINT or SIGTERM arrived, the handler ends the run (exit 130): a thread that sees the
+/// effects of the interruption (a child killed by the handler) waits here instead of reporting
+/// them as its own failure.
+pub fn wait_if_interrupted() {
+    while interrupted() {
+        std::thread::sleep(std::time::Duration::from_secs(1));
+    }
+}
+
 /// Kills every running group and every orphan rayproof adopted (the signal handler's step).
 pub fn kill_all() {
     let mut running = vec![];
@@ -529,7 +553,7 @@ impl Drop for Session {
         self.kill();
         groups(|g| g.retain(|&p| p != self.pgid));
         // Killed by the signal handler: not the command's failure; the handler ends the run
-        crate::output::wait_if_interrupted();
+        wait_if_interrupted();
     }
 }
 

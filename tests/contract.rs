@@ -230,7 +230,7 @@ fn every_way(shape: &str, n: usize, plugin: Option<&str>) -> Vec<(&'static str, 
         let vals: Vec<String> = a
             .values
             .iter()
-            .map(|&v| rayproof::audit::shape::hex_text(v))
+            .map(|&v| rayproof::shapes::shape::hex_text(v))
             .collect();
         text += &format!("{} {}\n", a.count, vals.join(" "));
     }

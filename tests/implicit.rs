@@ -4,11 +4,11 @@
 
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
-use rayproof::implicit::check::{self, Options};
 use rayproof::implicit::field::{Field, SdfPart};
 use rayproof::implicit::march::Marcher;
-use rayproof::implicit::subdiv::Mode;
 use rayproof::render::scene;
+use rayproof::render::subdiv::check::{self, Options};
+use rayproof::render::subdiv::Mode;
 use rayproof::shapes::{aabb, quadric, torus};
 use std::path::Path;
 use std::process::Command;

@@ -56,7 +56,7 @@ fn answer(shape: &dyn Shape, method: &str, cases: &str) -> String {
         let vals: Vec<String> = a
             .values
             .iter()
-            .map(|&v| rayproof::audit::shape::hex_text(v))
+            .map(|&v| rayproof::shapes::shape::hex_text(v))
             .collect();
         out += &format!("{} {}\n", a.count, vals.join(" "));
     }

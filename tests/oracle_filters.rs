@@ -1,13 +1,13 @@
-//! The oracles' quick phases — the one-ulp box filter (`shapes::ulp_box`), which decides most
+//! The oracles' quick phases — the one-ulp box filter (`shapes::oracle::ulp_box`), which decides most
 //! cases' ill-posedness in interval arithmetic before any exact move is made, and the roots
-//! oracle's proved `f64` estimates (`shapes::quick_roots`) — must never change an answer: for
+//! oracle's proved `f64` estimates (`shapes::oracle::quick_roots`) — must never change an answer: for
 //! every routine family, class and precision, the oracle gives exactly the truth it gives with
 //! every decision made exactly.
 
 use rayproof::audit::run::generate;
 use rayproof::numerics::Precision;
+use rayproof::shapes::oracle::ulp_box::without_filter;
 use rayproof::shapes::registry;
-use rayproof::shapes::ulp_box::without_filter;
 
 #[test]
 fn the_quick_phases_never_change_an_oracles_truth() {
@@ -28,7 +28,7 @@ fn the_quick_phases_never_change_an_oracles_truth() {
                 let filtered = shape.oracle(&v, prec);
                 assert_eq!(filtered, without_filter(|| shape.oracle(&v, prec)));
                 match filtered {
-                    rayproof::audit::shape::Truth::Answer(e) => ill += e.ill_posed as u32,
+                    rayproof::shapes::shape::Truth::Answer(e) => ill += e.ill_posed as u32,
                     t => panic!("{}: the tangent case is {t:?}", info.name),
                 }
             }
@@ -48,9 +48,9 @@ fn the_quick_phases_never_change_an_oracles_truth() {
                         info.name,
                         prec.name(),
                         info.classes[class],
-                        rayproof::audit::shape::probe_line(info.name, prec, &v)
+                        rayproof::shapes::shape::probe_line(info.name, prec, &v)
                     );
-                    if let rayproof::audit::shape::Truth::Answer(e) = exact {
+                    if let rayproof::shapes::shape::Truth::Answer(e) = exact {
                         ill += e.ill_posed as u32;
                     }
                 }

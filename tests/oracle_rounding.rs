@@ -88,11 +88,11 @@ fn f64_ties_round_to_even_and_near_ties_to_nearest() {
 // of that precision (rational root theorem: its odd numerator would divide a coefficient's odd
 // mantissa, which has fewer bits) and a square root is a tie only when it is exact.
 
-use rayproof::audit::shape::Truth;
 use rayproof::numerics::exact::{q, sqrt_encl, ziv, ZIV_CAP};
 use rayproof::numerics::real::hex_float;
 use rayproof::numerics::Precision;
-use rayproof::shapes::sturm::{real_roots, round_root};
+use rayproof::shapes::oracle::sturm::{real_roots, round_root};
+use rayproof::shapes::shape::Truth;
 use rayproof::shapes::{aabb, triangle};
 use rug::Rational;
 

@@ -10,7 +10,8 @@ use rayproof::audit::{judge, Answer, Shape, Truth};
 use rayproof::numerics::exact::{q, round_q};
 use rayproof::numerics::real::Real;
 use rayproof::numerics::Precision;
-use rayproof::shapes::{poly, recip, roots, sturm};
+use rayproof::shapes::oracle::{poly, sturm};
+use rayproof::shapes::{recip, roots};
 use std::collections::HashMap;
 use std::sync::{Mutex, OnceLock};
 
@@ -50,7 +51,11 @@ fn row<'a>(r: &'a ShapeReport, method: &str, prec: Precision, class: &str) -> &'
         .expect("row present")
 }
 
-fn expected(shape: &dyn Shape, input: &[f64], prec: Precision) -> rayproof::audit::shape::Expected {
+fn expected(
+    shape: &dyn Shape,
+    input: &[f64],
+    prec: Precision,
+) -> rayproof::shapes::shape::Expected {
     match shape.oracle(input, prec) {
         Truth::Answer(e) => e,
         Truth::Invalid => panic!("valid case judged invalid: {input:?}"),

@@ -3,9 +3,9 @@
 //! re-hit; with the rule off or 1000× too weak some method of every surface does, so a broken
 //! rule cannot pass unseen.
 
+use rayproof::audit::robustness::offset::{ReintersectRow, Rule};
+use rayproof::audit::robustness::reintersect::{reintersection_all, rows_of, table, NAMES};
 use rayproof::numerics::Precision;
-use rayproof::shapes::offset::{ReintersectRow, Rule};
-use rayproof::shapes::reintersect::{reintersection_all, rows_of, table, NAMES};
 use std::sync::OnceLock;
 
 /// Instances per decade and placement.

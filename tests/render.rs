@@ -755,8 +755,8 @@ fn renderer_calls_agree_with_the_exact_oracles() {
         let mut judge_ray = |o: glam::DVec3, d: glam::DVec3| {
             let (_, input) = routine_input(prim, o, d).unwrap();
             let answer = match solid_hit(prim, o, d) {
-                Some((t, _)) => rayproof::audit::shape::Answer::hit(vec![t]),
-                None => rayproof::audit::shape::Answer::miss(),
+                Some((t, _)) => rayproof::shapes::shape::Answer::hit(vec![t]),
+                None => rayproof::shapes::shape::Answer::miss(),
             };
             let truth = shape.oracle(&input, Precision::F64);
             if matches!(&truth, Truth::Answer(e) if e.ill_posed) {
@@ -771,7 +771,7 @@ fn renderer_calls_agree_with_the_exact_oracles() {
                         worst_line = format!(
                             "{max_ulps} ulps at t = {:?}: {}",
                             answer.values,
-                            rayproof::audit::shape::probe_line(
+                            rayproof::shapes::shape::probe_line(
                                 shape.name(),
                                 Precision::F64,
                                 &input
@@ -781,7 +781,7 @@ fn renderer_calls_agree_with_the_exact_oracles() {
                 }
                 j => wrong.push(format!(
                     "{j:?}: {}",
-                    rayproof::audit::shape::probe_line(shape.name(), Precision::F64, &input)
+                    rayproof::shapes::shape::probe_line(shape.name(), Precision::F64, &input)
                 )),
             }
         };

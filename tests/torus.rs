@@ -222,7 +222,7 @@ fn teeth_the_table_raises_an_alarm_when_a_known_failure_passes() {
 
 // ---- the oracle on hand-made cases ----
 
-fn truth(x: [f64; 8], p: Precision) -> rayproof::audit::shape::Expected {
+fn truth(x: [f64; 8], p: Precision) -> rayproof::shapes::shape::Expected {
     match Torus.oracle(&x, p) {
         Truth::Answer(e) => e,
         Truth::Invalid => panic!("valid case judged invalid"),
@@ -306,7 +306,7 @@ fn oracle_rejects_invalid_shapes_and_rays() {
     }
 }
 
-fn normal_truth(x: [f64; 8], p: Precision) -> rayproof::audit::shape::Expected {
+fn normal_truth(x: [f64; 8], p: Precision) -> rayproof::shapes::shape::Expected {
     match TorusNormal.oracle(&x, p) {
         Truth::Answer(e) => e,
         Truth::Invalid => panic!("valid case judged invalid"),
@@ -553,7 +553,7 @@ proptest! {
                         continue;
                     }
                     let j = judge(&truth, &shape.run(3, &x, p), shape.info(), p);
-                    let probe = rayproof::audit::shape::probe_line(shape.name(), p, &x);
+                    let probe = rayproof::shapes::shape::probe_line(shape.name(), p, &x);
                     prop_assert!(!j.is_wrong(), "{:?}: {}", j, probe);
                     if let Judgement::Ok { ulps: Some(u) } = j {
                         prop_assert!(u <= robust_bound(shape, p, class), "{} ulps: {}", u, probe);

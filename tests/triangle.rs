@@ -4,6 +4,7 @@
 
 use proptest::prelude::*;
 use rayproof::audit::plan::Options;
+use rayproof::audit::robustness::watertight::run as watertight_audit;
 use rayproof::audit::{audit_shape, table, Row, ShapeReport};
 use rayproof::audit::{judge, Shape, Truth};
 use rayproof::numerics::exact::q;
@@ -12,7 +13,6 @@ use rayproof::shapes::triangle::{
     self, exact_tri, moller_trumbore_hit, watertight, watertight_hit, watertight_wide_hit,
     ExactTri, Triangle, CLASSES, METHODS,
 };
-use rayproof::shapes::watertight::run as watertight_audit;
 use rug::Rational;
 use std::sync::OnceLock;
 
@@ -210,7 +210,7 @@ fn teeth_naive_methods_fail_where_known() {
 fn teeth_judge_catches_a_planted_false_hit() {
     let v = case([1.0, 1.0, 1.0], [0.0, 0.0, -1.0]);
     let truth = Triangle.oracle(&v, Precision::F64);
-    let planted = rayproof::audit::shape::Answer::hit(vec![1.0]);
+    let planted = rayproof::shapes::shape::Answer::hit(vec![1.0]);
     assert!(judge(&truth, &planted, Triangle.info(), Precision::F64).is_wrong());
 }
 

@@ -56,9 +56,9 @@
 use super::plan::{Options, Plan};
 use super::probe::probe_text;
 use super::report::ShapeReport;
-use super::shape::{Answer, Builtin, Method, PerCase, Shape};
 use super::tolerance::Table;
 use crate::numerics::Precision;
+use crate::shapes::shape::{Answer, Builtin, Method, PerCase, Shape};
 use crate::shapes::{shape_by_name, shape_names};
 
 /// A routine written outside the crate: a name and a function of the case's inputs.

@@ -28,19 +28,9 @@
 //! (`inf`, `-inf`, `nan` allowed); a line that does not parse is not an answer but a broken
 //! protocol, and stops the run (`--exec`: exit 4; `score`: exit 2) with one line naming the case.
 
-use super::shape::{Answer, ShapeInfo};
 use crate::numerics::real::parse_f64;
 use crate::numerics::Precision;
-
-/// Where a hit's first value must lie.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Domain {
-    /// Any finite value: roots, reciprocals, vector components.
-    Real,
-    /// A ray parameter: `t > 0` (`+0` only as the rounding of an exact `t` below half the least
-    /// subnormal).
-    RayParameter,
-}
+use crate::shapes::shape::{Answer, Domain, ShapeInfo};
 
 /// How many values a hit of the shape has at most, and whether the count is the number of
 /// values (else a hit is `1` with all of them).

@@ -44,15 +44,15 @@
 //! leaves no report written.
 
 use super::contract::parse_line;
-use super::shape::{hex_text, probe_line_with, Answer, Method};
 use crate::numerics::Precision;
 use crate::process::{Broken, Session};
+use crate::shapes::shape::{hex_text, probe_line_with, Answer, Method};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 /// The line protocol of an `--exec` child, for `rayproof header --exec` (each shape's fields and
 /// contract follow it there).
-pub fn protocol(shapes: &[&'static dyn super::shape::Shape]) -> String {
+pub fn protocol(shapes: &[&'static dyn crate::shapes::shape::Shape]) -> String {
     let mut out = String::from(
         "# The --exec line protocol: rayproof audit --exec CMD (one child, `sh -c CMD`, for the run)
 #

@@ -2,8 +2,8 @@
 //! shape, after the one check of the answer contract ([`super::contract`]).
 
 use super::contract;
-use super::shape::{Answer, Metric, ShapeInfo, Truth};
 use crate::numerics::{exact, Precision};
+use crate::shapes::shape::{Answer, Metric, ShapeInfo, Truth};
 use serde::{Deserialize, Serialize};
 
 /// How one method's answer compares with the oracle on one case.

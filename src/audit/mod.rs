@@ -112,13 +112,15 @@ pub mod plan;
 pub mod plugin;
 pub mod probe;
 pub mod report;
+pub mod robustness;
 pub mod row;
 pub mod run;
-pub mod shape;
 pub mod shard;
 pub mod table;
 pub mod tally;
 pub mod tolerance;
+
+pub use crate::shapes::shape;
 
 pub use api::Audit;
 pub use judge::{judge, Judgement};

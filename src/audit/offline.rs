@@ -37,8 +37,8 @@
 use super::contract::{number, parse_line};
 use super::plan::{Options, Plan};
 use super::run::generate;
-use super::shape::{hex_text, Answer, PerCase, Shape};
 use crate::numerics::Precision;
+use crate::shapes::shape::{hex_text, Answer, PerCase, Shape};
 use std::collections::HashMap;
 
 /// The tag and version on the first line of a cases file.

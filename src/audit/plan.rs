@@ -3,11 +3,12 @@
 //! reintersection and watertightness tests run (with every shape).
 
 use super::report::{Report, ShapeReport, TOOL};
+use super::robustness;
 use super::run::{Selection, Tallies};
-use super::shape::{Builtin, Method, Shape};
 use super::tolerance::{Known, Table};
 use crate::numerics::Precision;
-use crate::shapes::{registry, robustness, shape_by_name, shape_names};
+use crate::shapes::shape::{Builtin, Method, Shape};
+use crate::shapes::{registry, shape_by_name, shape_names};
 
 /// What a run tells as it goes (for progress lines; the report holds the results).
 pub enum Progress<'a> {

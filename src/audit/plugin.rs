@@ -71,9 +71,9 @@
 //! section, with its own ns per test measured on the same batch (for a plugin, one call per batch;
 //! for `--exec`, including the child's start).
 
-use super::shape::{probe_line_with, Answer, Method};
 use crate::numerics::Precision;
 use crate::process::{Broken, Session};
+use crate::shapes::shape::{probe_line_with, Answer, Method};
 use std::ffi::CString;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -239,7 +239,7 @@ impl Plugin {
     pub fn load(
         specs: &[String],
         name: Option<&str>,
-        shape: &super::shape::ShapeInfo,
+        shape: &crate::shapes::shape::ShapeInfo,
         worker: &Path,
         timeout: Duration,
     ) -> Result<Plugin, String> {
@@ -553,7 +553,7 @@ impl Method for Plugin {
 }
 
 /// The C header: one typedef per shape and precision.
-pub fn header(shapes: &[&'static dyn super::shape::Shape]) -> String {
+pub fn header(shapes: &[&'static dyn crate::shapes::shape::Shape]) -> String {
     let mut out = [
         "/* rayproof.h: the C signatures of routines audited with `rayproof audit --plugin PATH:SYMBOL`.",
         " * A routine answers n cases at once: in[i] holds case i's inputs in order; it writes",

@@ -24,8 +24,8 @@
 use super::contract;
 use super::judge::Judgement;
 use super::run::judge_all;
-use super::shape::{hex_text, Answer, Method, Shape, Truth};
 use crate::numerics::Precision;
+use crate::shapes::shape::{hex_text, Answer, Method, Shape, Truth};
 use serde_json::{json, Value};
 
 /// Parses probe values (decimal or hex, each rounded once to the precision).

@@ -5,7 +5,7 @@
 use super::row::{Row, RowKey, Status};
 use super::run::Tallies;
 use super::tolerance::Table;
-use crate::shapes::robustness::Robustness;
+use crate::audit::robustness::Robustness;
 use serde::Serialize;
 
 /// The `tool` field of reports and shard files.
@@ -139,7 +139,7 @@ impl Report {
     pub fn failures(&self) -> Vec<String> {
         let mut out: Vec<String> = self.shapes.iter().flat_map(|s| s.failures()).collect();
         if let Some(r) = &self.robustness {
-            out.extend(crate::shapes::robustness::check(r));
+            out.extend(crate::audit::robustness::check(r));
         }
         out
     }

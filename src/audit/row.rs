@@ -2,9 +2,9 @@
 //! tolerance table's [`Verdict`] (given by [`super::tolerance`]).
 
 use super::hist::Stats;
-use super::shape::{hex_text, probe_line_with};
 use super::tally::{Candidate, InvalidStats, Tally, KINDS};
 use crate::numerics::Precision;
+use crate::shapes::shape::{hex_text, probe_line_with};
 use serde::Serialize;
 
 /// The outcome of a row.

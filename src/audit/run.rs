@@ -4,9 +4,10 @@
 //! kept per case, so memory does not grow with the case count.
 
 use super::judge::{enclosure_holds, judge};
-use super::shape::{Answer, Method, Shape, Truth};
 use super::tally::{Case, Sample, Tally};
 use crate::numerics::{exact, Precision};
+pub use crate::shapes::shape::generate;
+use crate::shapes::shape::{Answer, Method, Shape, Truth};
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -87,20 +88,6 @@ pub struct Group {
     pub class: usize,
     /// One tally per method, in [`Tallies::methods`] order.
     pub tallies: Vec<Tally>,
-}
-
-/// Generates case `index` of a class (public for tests and benches).
-pub fn generate(
-    shape: &dyn Shape,
-    seed: u64,
-    class: usize,
-    prec: Precision,
-    index: u64,
-) -> Option<Vec<f64>> {
-    let mut rng = shape.case_rng(seed, class, prec, index);
-    let v = shape.generate(class, prec, &mut rng)?;
-    debug_assert!(v.iter().all(|&x| exact::representable(x, prec)));
-    Some(v)
 }
 
 /// The indices of shard `(k, n)` among `0..cases`: `k, k + n, k + 2n, …`.

@@ -58,10 +58,10 @@
 //! and Markdown were byte-identical to the unsharded run's.
 
 use super::run::{Group, MethodTag, Tallies};
-use super::shape::Shape;
 use super::tally::Tally;
+use crate::audit::robustness::Outside;
 use crate::numerics::Precision;
-use crate::shapes::robustness::Outside;
+use crate::shapes::shape::Shape;
 use serde::{Deserialize, Serialize};
 
 /// The tag in the `format` field of a shard file.

@@ -233,7 +233,7 @@ pub fn markdown(report: &Report) -> String {
     }
     if let Some(r) = &report.robustness {
         out += "\n";
-        out += &crate::shapes::robustness::table(r, true);
+        out += &crate::audit::robustness::table(r, true);
     }
     out
 }

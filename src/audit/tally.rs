@@ -8,7 +8,7 @@
 
 use super::hist::{FloatHist, Hist};
 use super::judge::Judgement;
-use super::shape::Truth;
+use crate::shapes::shape::Truth;
 use serde::{Deserialize, Serialize};
 
 /// What was recorded of one case for one method.

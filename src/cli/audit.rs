@@ -4,12 +4,12 @@ use super::*;
 use anyhow::{anyhow, bail, Context, Result};
 use clap::Args;
 use rayproof::audit::plan::{Options, Plan, Progress};
+use rayproof::audit::robustness::{self, Robustness};
 use rayproof::audit::shard::{self, Shard, UserTable};
 use rayproof::audit::tolerance::{Known, Table};
 use rayproof::audit::{table, Report, ShapeReport, TOOL};
 use rayproof::numerics::Precision;
 use rayproof::output::{check_outputs, Outputs};
-use rayproof::shapes::robustness::{self, Robustness};
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 

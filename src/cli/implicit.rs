@@ -26,7 +26,7 @@ pub struct ImplicitCheckArgs {
 
 /// `implicit-check`: both renders, the table, exit 1 if the certified mode differs in coverage.
 pub(super) fn run_implicit_check(a: ImplicitCheckArgs) -> Result<u8> {
-    use rayproof::implicit::{check, subdiv::Mode};
+    use rayproof::render::subdiv::{check, Mode};
     let sc = rayproof::render::scene::load(&a.scene)?;
     let inputs = sc.files();
     let inputs: Vec<&std::path::Path> = inputs.iter().map(|p| p.as_path()).collect();

@@ -136,7 +136,7 @@
 //!   offset of about 1e-14 is too small. With `offset = 1e-9` it matches POV-Ray (mean error
 //!   1.1e-6). Only `promote`, which forms o − c exactly, passes everywhere with the automatic
 //!   offset. A size-aware offset rule (pbrt-style error bounds) was left for the reintersection
-//!   work of issue 6, which made it [`crate::shapes::offset`]; the renderer's `auto` offset is
+//!   work of issue 6, which made it [`crate::audit::robustness::offset`]; the renderer's `auto` offset is
 //!   still the 16-ulp rule.
 //!
 //! # The comparison table

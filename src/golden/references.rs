@@ -28,7 +28,7 @@ impl Config {
 }
 
 /// Hex SHA-256 of a file (a reference, a golden or a scene): a regular file of at most the
-/// largest image file ([`images::MAX_IMAGE_BYTES`]; a test's scene of `/dev/zero` was read until
+/// largest image file ([`crate::images::MAX_IMAGE_BYTES`]; a test's scene of `/dev/zero` was read until
 /// memory ran out).
 pub fn sha256_file(path: &Path) -> Result<String> {
     let bytes = crate::input::read_capped(

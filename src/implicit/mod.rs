@@ -63,7 +63,7 @@
 //!
 //! # Subdivision
 //!
-//! [`subdiv`] has three primary-visibility modes (its module doc has every step):
+//! [`crate::render::subdiv`] has three primary-visibility modes (its module doc has every step):
 //! - `full`: every pixel traced from the eye (clipped to the scene box).
 //! - `paper`: §2 as written. 10×10 blocks (`--region`), 9 samples per block at offsets
 //!   ⌊(2i+1)·n/6⌋ = 1, 5, 8 (the paper's Figure 2 is not in our copy of the text, so this is our
@@ -85,7 +85,7 @@
 //!
 //! # The proof: `rayproof implicit-check SCENE`
 //!
-//! [`check`] renders the scene in each mode with shadows off and on (shading shared with the
+//! [`crate::render::subdiv::check`] renders the scene in each mode with shadows off and on (shading shared with the
 //! renderer), and compares every pixel with the per-pixel render: rays and marching steps (pixel
 //! traces, cones and shadow rays), times, the speed-up, and every **lost** pixel (a surface the
 //! per-pixel render hits and the mode does not), **ghost** and **moved** pixel, each with its
@@ -205,9 +205,7 @@
 //! tracing with the same bounds). Per pixel, the local tracer proves one grazing sign change at
 //! (41, 96) that the global tracer's probes step over (the 1 ghost of `full/local`).
 
-pub mod check;
 pub mod field;
 pub mod lipschitz;
 pub mod march;
 pub mod mpu;
-pub mod subdiv;

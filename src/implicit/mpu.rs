@@ -140,8 +140,8 @@
 //! the surface, ≈ 10 elsewhere), [`Mpu::eval_grad`] ≈ 0.45 µs.
 
 use super::lipschitz::{CellBound, LocalBounds};
+use crate::input::MAX_MAGNITUDE;
 use crate::numerics::interval::Interval;
-use crate::render::scene::MAX_MAGNITUDE;
 use anyhow::{anyhow, bail, Context, Result};
 use glam::DVec3;
 use rayon::prelude::*;

@@ -270,6 +270,39 @@ impl_real!(
     parse_f64
 );
 
+/// pbrt's `gamma(n) = nε/(1 − nε)`, with ε half the machine epsilon of `F`.
+pub fn gamma<F: Real>(n: u32) -> F {
+    let eps = F::from_f64(0.5 * 2f64.powi(1 - F::MANT_BITS as i32));
+    let ne = F::from_f64(n as f64) * eps;
+    ne / (F::ONE - ne)
+}
+
+/// ⌊log₂|x|⌋ for finite non-zero `x` (subnormals included); 0 otherwise.
+pub fn ilogb(x: f64) -> i32 {
+    if x == 0.0 || !x.is_finite() {
+        return 0;
+    }
+    let bits = x.abs().to_bits();
+    let e = ((bits >> 52) & 0x7ff) as i32;
+    if e == 0 {
+        -1023 - ((bits << 12).leading_zeros() as i32)
+    } else {
+        e - 1023
+    }
+}
+
+/// `x·2^k`, exact unless the result over- or underflows; for types with `f64`'s exponent range.
+pub fn mul_pow2<S: Scalar>(mut x: S, mut k: i32) -> S {
+    // 2^k for |k| ≤ 512, built from its bits (powi is a library call)
+    let pow2 = |k: i32| f64::from_bits(((k + 1023) as u64) << 52);
+    while k.abs() > 512 {
+        let step = 512 * k.signum();
+        x = x * S::from_f64(pow2(step));
+        k -= step;
+    }
+    x * S::from_f64(pow2(k))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,7 +3,7 @@
 //! Spheres go through the audited method and precision chosen for the render: the ray and the
 //! sphere are rounded to that precision, the method runs, and its `t` comes back as `f64`.
 //! Discs, planes and triangles (Möller–Trumbore) are intersected in `f64`. Boxes, cylinder
-//! sides, ellipsoids and tori go through the audited robust routines of [`crate::audit::shape`] in
+//! sides, ellipsoids and tori go through the audited robust routines of [`crate::shapes::shape`] in
 //! `f64`, with the ray moved into each routine's object space: translated by the shape's
 //! centre (or base), and for the cylinder and torus, whose routines are around z, with y and z
 //! swapped (a reflection: `t` is unchanged, and normals are swapped back).

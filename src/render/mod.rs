@@ -130,6 +130,7 @@ pub mod export;
 pub mod geom;
 pub mod output;
 pub mod scene;
+pub mod subdiv;
 
 use crate::shapes::sphere::methods::{method_by_name, Method, PickPrecision};
 use geom::{Geometry, Object, Plane, Prim, TestCounts};

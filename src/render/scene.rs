@@ -56,12 +56,7 @@ pub const MIN_IOR: f64 = 0.01;
 pub const MAX_IOR: f64 = 100.0;
 /// The most ray segments per path (`render.max_depth`; POV-Ray's `max_trace_level` stops at 256).
 pub const MAX_DEPTH: u32 = 256;
-/// The largest magnitude of any number in a scene file, and of an MPU point's coordinates:
-/// squared distances between such points stay below f64's range (3·(2·1e150)² ≈ 1.2e301). Five
-/// MPU points at ±1e153 fit in 0.05 s; at ±1e154 the squared distances overflow to ∞ and the
-/// fit's search for the nearest points had not ended after 10 s (it cannot: no distance is below
-/// ∞).
-pub const MAX_MAGNITUDE: f64 = 1e150;
+pub use crate::input::MAX_MAGNITUDE;
 /// The largest light intensity (W/sr), directional irradiance and ambient radiance, per channel:
 /// 1e30 (the Sun's intensity is about 3e25 W/sr). A diffuse pixel's radiance is then far below
 /// f32's largest value (3.4e38) unless a point light is closer than 5e-5 to the surface it lights

@@ -16,12 +16,12 @@
 //! precision, up or down (24 moves, each decided exactly), changes the count or switches the
 //! answer between the entry and the exit.
 
-use super::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
-use crate::audit::shape::{Answer, Domain, Expected, MethodInfo, Shape, ShapeInfo, Truth};
+use super::oracle::sample::{self, add, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
 use crate::numerics::exact;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
-use crate::shapes::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
+use crate::shapes::oracle::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
+use crate::shapes::shape::{Answer, Domain, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::Rational;
@@ -110,7 +110,7 @@ pub fn robust_slab<F: Real>(o: V<F>, d: V<F>, lo: V<F>, hi: V<F>) -> Option<F> {
     if !valid(o, d, lo, hi) {
         return None;
     }
-    let pad = F::ONE + F::from_f64(2.0) * super::offset::gamma::<F>(3);
+    let pad = F::ONE + F::from_f64(2.0) * crate::numerics::real::gamma::<F>(3);
     let (mut t0, mut t1) = (-F::INFINITY, F::INFINITY);
     for i in 0..3 {
         // Planes by the sign bit of d, so that −0 behaves like a negative direction

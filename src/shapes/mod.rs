@@ -1,4 +1,4 @@
-//! The audited routine families: each a [`crate::audit::shape::Shape`] with its methods, its
+//! The audited routine families: each a [`crate::shapes::shape::Shape`] with its methods, its
 //! exact oracle and its hard-case classes, kept together.
 //!
 //! # The routines of Lengyel's ray-tracing chapter
@@ -31,34 +31,6 @@
 //! is judged by the one tolerance table ([`crate::audit::tolerance`]): robust methods have 0 wrong
 //! verdicts and a measured ulp bound; the chapter's known failures are expected failures, so the
 //! audit fails if the harness stops finding them.
-//!
-//! # Reintersection and watertightness
-//!
-//! The audit of a shape also runs its mesh-and-spawn tests ([`robustness`]) when it covers all of
-//! the shape's built-in methods and classes (`--shape triangle` runs the triangle's, the default
-//! audit every shape's):
-//! - **Reintersection** ([`reintersect`]). Rays spawned from the hit point a renderer really has
-//!   (the method's own point, in working precision) with the project's size-aware offset
-//!   ([`offset`], pbrt-v4's rule), at log-uniform sizes 1e-4 … 1e4, near the origin and 10³–10⁵
-//!   sizes away. Each spawned ray is judged against the *ideal* one, from the exact hit along the
-//!   same direction: a re-hit is a hit before half the distance to the ideal ray's next crossing
-//!   (for a reflection ray off a convex shape or any ray off a triangle, any hit). The robust
-//!   methods of every surface (box, ellipsoid, cylinder, sphere, torus, triangle, and `hinge`, two
-//!   triangles hit at their shared edge) are held to 0 re-hits with the rule `on`; with the rule
-//!   1000× too `weak` and `off` (controls) some method of every surface must re-hit, or the audit
-//!   fails: a test that cannot see a missing offset cannot see a broken one. Finding: at a hinge,
-//!   the per-triangle rule lets a spawned origin cross the *neighbouring* triangle (confirmed by
-//!   the exact answer for the spawned ray; up to 47 of ~3,000 rays per method at the default
-//!   size); these are reported in a `neighbour` column, not charged to the method.
-//! - **Watertightness** ([`watertight`]). Rays that must hit a mesh: from inside a closed
-//!   icosphere near the origin and one 1e5 away (random, aimed at an edge, aimed at a vertex), and
-//!   from outside at the shared edge of a fold of two triangles. Escapes are counted per method
-//!   (Embree's bound: 0.002 %), the watertight methods are held to 0, and each row with an escape
-//!   carries the `rayproof probe triangle` line of its first one. A fold whose shared edge is a
-//!   silhouette seen from the ray's origin may rightly be missed by both triangles (`grazing`, not
-//!   a leak: the `f32` watertight method does it 28 times in 2,886 rays): most are on rays the
-//!   oracle calls ill-posed; the rest are single-triangle false misses by a rounding larger than
-//!   one ulp of an input (the triangle audit's rows judge those), reported and not failed.
 //!
 //! # An excerpt
 //!
@@ -163,24 +135,17 @@
 //! routines (see [`crate::render`]).
 
 pub mod aabb;
-pub mod offset;
 pub mod optics;
-pub mod poly;
+pub mod oracle;
 pub mod quadric;
-pub mod quick_roots;
 pub mod recip;
-pub mod reintersect;
-pub mod robustness;
 pub mod roots;
-pub(crate) mod sample;
+pub mod shape;
 pub mod sphere;
-pub mod sturm;
 pub mod torus;
 pub mod triangle;
-pub mod ulp_box;
-pub mod watertight;
 
-use crate::audit::shape::Shape;
+use shape::Shape;
 
 /// Every routine family: the sphere, then the seed chapter's in its order.
 pub fn registry() -> Vec<&'static dyn Shape> {

@@ -19,10 +19,10 @@
 //! when one of the 7 inputs moves by one ulp (14 single moves, exact); reflection is never
 //! ill-posed (its count is always 1).
 
-use crate::audit::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{self, nudge, q, round_q, sqrt_encl, ziv, ZIV_CAP};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
+use crate::shapes::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::float::Round;

@@ -23,13 +23,14 @@
 //! decided exactly) changes the count or which root is the answer (the origin crossing the
 //! surface, or the near root crossing a cap plane), as in the sphere's oracle.
 
-use super::sample::{self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
-use crate::audit::shape::{Answer, Domain, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use super::oracle::sample::{self, add, ball, cube, lu, mul, normalize, perp, rp, rpv, sub, unit};
 use crate::numerics::exact;
+use crate::numerics::real::{ilogb, mul_pow2};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
-use crate::shapes::sphere::methods::{ilogb, mul_pow2, nearest_positive, rtg7_roots};
-use crate::shapes::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
+use crate::shapes::oracle::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
+use crate::shapes::shape::{Answer, Domain, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
+use crate::shapes::sphere::methods::{nearest_positive, rtg7_roots};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::float::Round;

@@ -2,9 +2,9 @@
 //! `newton` (§1.4).
 //!
 //! **Polynomials.** Probe arguments are the coefficients LEADING FIRST (`a b c` is
-//! `ax² + bx + c`); the methods of [`super::poly`] take them ascending. The answer's count is
+//! `ax² + bx + c`); the methods of [`super::oracle::poly`] take them ascending. The answer's count is
 //! the number of distinct real roots, its values those roots ascending, correctly rounded
-//! ([`super::sturm`]; a double root appears once). Invalid: a NaN/inf coefficient or the zero
+//! ([`super::oracle::sturm`]; a double root appears once). Invalid: a NaN/inf coefficient or the zero
 //! polynomial. A case is **ill-posed** when the number of distinct real roots changes as any
 //! one coefficient moves one ulp up or down (2(n+1) exact Sturm counts). An exact double root
 //! is ill-posed by construction (moving the constant term splits it or removes it); a leading
@@ -19,14 +19,16 @@
 //! roots of the cubic are the `others` of the judgement: plain Newton landing nearer one of
 //! them is a wrong root.
 
-use super::poly;
-use super::quick_roots;
-use super::sturm::{self, RealRoot};
-use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
+use super::oracle::poly;
+use super::oracle::quick_roots;
+use super::oracle::sturm::{self, RealRoot};
 use crate::numerics::exact::{all_finite, nudge, q};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
-use crate::shapes::ulp_box::{roots_keep_count, strict_sign as sign_on_box, ulp_box, BoxIv};
+use crate::shapes::oracle::ulp_box::{
+    roots_keep_count, strict_sign as sign_on_box, ulp_box, BoxIv,
+};
+use crate::shapes::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::Rational;

@@ -1,7 +1,7 @@
 //! Ray–triangle (seed 002 §2.1): the chapter's plane-then-barycentrics method, Möller–Trumbore,
 //! and the watertight test of Woop, Benthin & Wald (2013) as pbrt-v4 implements it; an exact
 //! oracle; the hard-case classes; the closed-mesh watertightness test (issue 6 item 3) and the
-//! hit point the reintersection test ([`crate::shapes::reintersect`]) spawns rays from.
+//! hit point the reintersection test ([`crate::audit::robustness::reintersect`]) spawns rays from.
 //!
 //! **Contract.** A case is `o d p0 p1 p2` (15 scalars). The answer is a hit (count 1) when the
 //! ray `o + t·d` meets the *closed* triangle (edges and vertices included) at some `t > 0`;
@@ -18,13 +18,13 @@
 //! up or down (30 single moves, each evaluated exactly; a move that makes the input invalid
 //! counts as a miss). Joint moves of several inputs are not tried.
 
-use super::offset::gamma;
-use crate::audit::run::generate as gen_case;
-use crate::audit::shape::{Answer, Domain, Expected, MethodInfo, Shape, ShapeInfo, Truth};
+use super::shape::generate as gen_case;
 use crate::numerics::exact::{self, decompose, nudge, round_q};
+use crate::numerics::real::gamma;
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
-use crate::shapes::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
+use crate::shapes::oracle::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
+use crate::shapes::shape::{Answer, Domain, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::{Integer, Rational};

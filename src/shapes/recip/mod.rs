@@ -21,9 +21,9 @@
 pub mod newton;
 
 use self::newton::{BitTrick, Func};
-use crate::audit::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::exact::{all_finite, q, round_q, sqrt_encl, ziv, ZIV_CAP};
 use crate::numerics::Precision;
+use crate::shapes::shape::{Answer, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rug::Rational;

@@ -111,10 +111,11 @@
 
 pub mod floors;
 
-use super::methods::{ilogb, mul_pow2, Ray, Sphere, SphereHit};
 use super::oracle::{nearest_root, Case};
+use super::ray::{Ray, Sphere, SphereHit};
 use crate::numerics::dd::{two_prod, two_prod_split, two_sum};
 use crate::numerics::real::Real;
+use crate::numerics::real::{ilogb, mul_pow2};
 
 /// `u = 2⁻⁵³`, the unit roundoff of `f64`.
 const U: f64 = 1.0 / 9_007_199_254_740_992.0;

@@ -14,42 +14,9 @@
 #![allow(clippy::neg_cmp_op_on_partial_ord)]
 
 pub use super::certified::certified;
+pub use super::ray::{Ray, Sphere, SphereHit};
 use crate::numerics::interval::Interval;
-use crate::numerics::real::{Real, Scalar};
-
-/// A ray `o + t·d`, in the precision `F`.
-#[derive(Clone, Copy, Debug)]
-pub struct Ray<F: Real> {
-    /// Origin `o`.
-    pub origin: F::Vec3,
-    /// Direction `d`, as given (not renormalised).
-    pub dir: F::Vec3,
-}
-
-/// A sphere `|p − c| = r`.
-#[derive(Clone, Copy, Debug)]
-pub struct Sphere<F: Real> {
-    /// Centre `c`.
-    pub center: F::Vec3,
-    /// Radius `r`.
-    pub radius: F,
-}
-
-/// A hit: the ray parameter, and for methods that bound their error, an enclosure `[lo, hi]`
-/// that the method claims contains the exact root.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SphereHit<F> {
-    /// The ray parameter of the nearest hit with `t > 0`.
-    pub t: F,
-    /// The method's claimed enclosure of the exact root, if it gives one.
-    pub enclosure: Option<[F; 2]>,
-}
-
-impl<F> SphereHit<F> {
-    fn at(t: F) -> Option<Self> {
-        Some(SphereHit { t, enclosure: None })
-    }
-}
+use crate::numerics::real::{ilogb, mul_pow2, Real, Scalar};
 
 type V<S> = [S; 3];
 
@@ -316,32 +283,6 @@ pub fn promote<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     } else {
         None
     }
-}
-
-/// ⌊log₂|x|⌋ for finite non-zero `x` (subnormals included); 0 otherwise.
-pub(crate) fn ilogb(x: f64) -> i32 {
-    if x == 0.0 || !x.is_finite() {
-        return 0;
-    }
-    let bits = x.abs().to_bits();
-    let e = ((bits >> 52) & 0x7ff) as i32;
-    if e == 0 {
-        -1023 - ((bits << 12).leading_zeros() as i32)
-    } else {
-        e - 1023
-    }
-}
-
-/// `x·2^k`, exact unless the result over- or underflows; for types with `f64`'s exponent range.
-pub(crate) fn mul_pow2<S: Scalar>(mut x: S, mut k: i32) -> S {
-    // 2^k for |k| ≤ 512, built from its bits (powi is a library call)
-    let pow2 = |k: i32| f64::from_bits(((k + 1023) as u64) << 52);
-    while k.abs() > 512 {
-        let step = 512 * k.signum();
-        x = x * S::from_f64(pow2(step));
-        k -= step;
-    }
-    x * S::from_f64(pow2(k))
 }
 
 /// **Interval** (pbrt-v4 `Sphere::BasicIntersect`): the whole computation in outward-rounded

@@ -140,10 +140,11 @@ pub mod cases;
 pub mod certified;
 pub mod methods;
 pub mod oracle;
+pub mod ray;
 
-use crate::audit::shape::{Answer, Domain, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use crate::numerics::real::{Real, Scalar};
 use crate::numerics::Precision;
+use crate::shapes::shape::{Answer, Domain, Expected, MethodInfo, Shape, ShapeInfo, Truth};
 use cases::Class;
 use methods::{PickPrecision, METHODS};
 use oracle::{Case, Verdict};

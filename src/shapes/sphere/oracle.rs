@@ -27,7 +27,7 @@
 //!   decides them one by one, exactly, only when the box is undecided.
 //! - MPFR starts at 2·p + 64 bits and doubles only when the rounding is still uncertain.
 
-use super::methods::{Ray, Sphere};
+use super::ray::{Ray, Sphere};
 use crate::numerics::interval::Interval;
 use crate::numerics::real::Real;
 use rug::float::Round;

@@ -8,9 +8,9 @@
 //! input; [`torus_robust`] rejects NaN/inf, `d = 0` and any shape other than a ring torus
 //! (`0 < r2 < r1`).
 
+use crate::numerics::real::gamma;
 use crate::numerics::real::Real;
-use crate::shapes::offset::gamma;
-use crate::shapes::poly;
+use crate::shapes::oracle::poly;
 
 type V<F> = [F; 3];
 

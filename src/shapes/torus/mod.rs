@@ -1,5 +1,5 @@
 //! Ray–torus (seed 002 §2.5) and the torus normal from the gradient (§3) (issue 6 items 5, 6);
-//! its reintersection rows come from [`crate::shapes::reintersect`].
+//! its reintersection rows come from [`crate::audit::robustness::reintersect`].
 //!
 //! - [`Torus`] (`torus`): the nearest `t > 0` of the ray `o + t·d` on the torus around the z
 //!   axis (major radius `r1`, minor radius `r2`), by four methods ([`methods`]).
@@ -13,9 +13,9 @@ pub mod oracle;
 
 pub use methods::{torus_normal, torus_robust, torus_robust_hit, ERR_GAMMA};
 
-use crate::audit::shape::{Answer, Domain, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
+use crate::shapes::shape::{Answer, Domain, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use rand_chacha::ChaCha8Rng;
 
 /// A ray–torus method over one precision.

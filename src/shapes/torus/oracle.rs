@@ -21,11 +21,13 @@
 //!    (the gradient equals `8·r1·ρ·(p − c)` there), so no normalisation is rounded.
 
 use super::methods::is_valid;
-use crate::audit::shape::{Expected, Truth};
 use crate::numerics::exact::{self, q, ziv, ZIV_CAP};
 use crate::numerics::Precision;
-use crate::shapes::sturm::{self, eval};
-use crate::shapes::ulp_box::{roots_keep_count, strict_sign as sign_on_box, ulp_box, BoxIv};
+use crate::shapes::oracle::sturm::{self, eval};
+use crate::shapes::oracle::ulp_box::{
+    roots_keep_count, strict_sign as sign_on_box, ulp_box, BoxIv,
+};
+use crate::shapes::shape::{Expected, Truth};
 use rug::float::Round;
 use rug::{Float, Rational};
 use std::cmp::Ordering;

@@ -16,7 +16,7 @@
 
 use super::{case_of, exact_residual, look, to_f64, Look, NewtonTerms};
 use crate::numerics::real::Real;
-use crate::shapes::sphere::methods::{Ray, Sphere, SphereHit};
+use crate::shapes::sphere::ray::{Ray, Sphere, SphereHit};
 
 /// The floor's answer for one test (see the [module docs](self)): `t`, or `None` for a miss.
 pub fn floor<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {

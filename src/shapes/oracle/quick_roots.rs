@@ -244,7 +244,7 @@ fn exact_sign(c: &[f64], a: f64, b: f64) -> Option<i8> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::shapes::sturm;
+    use crate::shapes::oracle::sturm;
 
     fn exact(c: &[f64], prec: Precision) -> Vec<f64> {
         sturm::rounded_roots(&sturm::exact_coeffs(c), prec)

@@ -18,9 +18,9 @@
 
 use super::surfaces::{SphereR, Surface, TriR};
 use super::Instance;
+use crate::audit::robustness::offset::ReintersectRow;
 use crate::audit::Method;
 use crate::numerics::Precision;
-use crate::shapes::offset::ReintersectRow;
 use crate::shapes::sphere::methods::PickPrecision;
 use crate::shapes::triangle::TriHit;
 use rand_chacha::ChaCha8Rng;

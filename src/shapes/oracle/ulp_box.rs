@@ -26,7 +26,7 @@ thread_local! {
 }
 
 /// Runs `f` with the filters off on this thread (this one, and the quick phase of the roots
-/// oracle, `shapes::quick_roots`), so that every decision is made exactly: what the tests
+/// oracle, `shapes::oracle::quick_roots`), so that every decision is made exactly: what the tests
 /// compare the filtered oracles against.
 pub fn without_filter<T>(f: impl FnOnce() -> T) -> T {
     OFF.with(|off| {

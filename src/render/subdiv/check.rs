@@ -9,9 +9,9 @@
 //! paper's undetected case ③), or `other`; and placed: `silhouette` (a 4-neighbour is
 //! background in the per-pixel render) or `interior` (a thin feature or a small object inside).
 
-use super::march::{Marcher, Tracer};
-use super::subdiv::{self, Mode, Primary, Stats};
+use crate::implicit::march::{Marcher, Tracer};
 use crate::render::scene::Scene;
+use crate::render::subdiv::{self, Mode, Primary, Stats};
 use crate::render::{Lens, RayCounts};
 use anyhow::{bail, Result};
 use glam::DVec3;

@@ -30,12 +30,12 @@
 //! A row's `replay` is the `rayproof probe triangle` line of the first escaped (or grazing) ray
 //! and the triangle the exact oracle says it crosses first.
 
-use super::sample::{add, ball, lu, mul, normalize, rpv, sub, unit, V};
-use super::triangle::{self, exact_tri, method, ExactTri, METHODS};
-use crate::audit::shape::{case_rng, probe_line, Truth};
 use crate::numerics::exact::q;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
+use crate::shapes::oracle::sample::{add, ball, lu, mul, normalize, rpv, sub, unit, V};
+use crate::shapes::shape::{case_rng, probe_line, Truth};
+use crate::shapes::triangle::{self, exact_tri, method, ExactTri, METHODS};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;

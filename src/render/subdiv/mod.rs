@@ -27,10 +27,12 @@
 //! from their certified `t` (always case ①). A block one pixel wide or tall (from splitting an
 //! odd width) is not cone-marched: its cone is nearly a ray, and its pixels' own traces march
 //! with steps along their directions, which cost fewer evaluations than the cone's. No pixel that per-pixel tracing hits can be lost,
-//! given valid bounds: with the `local` tracer every bound is proved ([`super::lipschitz`]);
+//! given valid bounds: with the `local` tracer every bound is proved ([`crate::implicit::lipschitz`]);
 //! with `global`, the MPU's is measured.
 
-use super::march::{Marcher, Traced};
+pub mod check;
+
+use crate::implicit::march::{Marcher, Traced};
 use crate::render::Lens;
 use rayon::prelude::*;
 use serde::Serialize;

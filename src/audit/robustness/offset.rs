@@ -7,15 +7,8 @@
 //! leaves on, and each component is then rounded one ulp further away. The offset scales with
 //! `|p|` (size-aware): a shape at 1e-4 gets a 1e-4-sized offset, not a fixed epsilon.
 
-use crate::numerics::real::Real;
+use crate::numerics::real::{gamma, Real};
 use serde::{Deserialize, Serialize};
-
-/// pbrt's `gamma(n) = nε/(1 − nε)`, with ε half the machine epsilon of `F`.
-pub fn gamma<F: Real>(n: u32) -> F {
-    let eps = F::from_f64(0.5 * 2f64.powi(1 - F::MANT_BITS as i32));
-    let ne = F::from_f64(n as f64) * eps;
-    ne / (F::ONE - ne)
-}
 
 /// The bound `γ(k)·|pᵢ|` per component.
 pub fn error_bound<F: Real>(p: [F; 3], k: u32) -> [F; 3] {
@@ -80,7 +73,7 @@ impl Rule {
 
 /// One method × precision × [`Rule`] of the reintersection test: rays spawned from computed hits
 /// that hit the same surface again where the ideal spawned ray does not (see
-/// [`crate::shapes::reintersect`]).
+/// [`crate::audit::robustness::reintersect`]).
 #[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
 pub struct ReintersectRow {
     /// The surface.

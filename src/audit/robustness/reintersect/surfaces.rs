@@ -22,18 +22,20 @@
 //! The harness adds `γ₂(|p| + |c|)` for a world translation `c`.
 
 use super::{point, Instance};
-use crate::audit::shape::Shape;
+use crate::audit::robustness::offset::ReintersectRow;
 use crate::numerics::exact::q;
 use crate::numerics::exact::round_q;
+use crate::numerics::real::gamma;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
-use crate::shapes::offset::{gamma, ReintersectRow};
-use crate::shapes::sample::{self, add, lu, mul, rp, rpv, sub};
+use crate::shapes::oracle::sample::{self, add, lu, mul, rp, rpv, sub};
+use crate::shapes::oracle::sturm;
+use crate::shapes::shape::Shape;
 use crate::shapes::sphere::methods::{PickPrecision, METHODS as SPHERE_METHODS};
 use crate::shapes::sphere::oracle::{self as sphere_oracle, Case};
 use crate::shapes::torus::methods::{torus_normal, torus_robust_hit, ERR_GAMMA};
 use crate::shapes::torus::oracle::{positive_roots, quartic_q, ExactCase};
-use crate::shapes::{aabb, quadric, sturm, torus, triangle};
+use crate::shapes::{aabb, quadric, torus, triangle};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 

@@ -60,10 +60,11 @@
 mod outside;
 mod surfaces;
 
-use super::offset::{gamma, spawn_origin, ReintersectRow, Rule};
-use super::sample::{add, lu, mul, normalize, rpv, sub, unit};
+use super::offset::{spawn_origin, ReintersectRow, Rule};
+use crate::numerics::real::gamma;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
+use crate::shapes::oracle::sample::{add, lu, mul, normalize, rpv, sub, unit};
 use crate::shapes::sphere::methods::PickPrecision;
 use rand::Rng;
 use rayon::prelude::*;
@@ -258,7 +259,7 @@ fn spawn_and_test<K: Surface, F: PickPrecision>(
 /// Every method of one surface on one instance, per rule.
 fn trial<K: Surface, F: PickPrecision>(k: &K, seed: u64, index: u64) -> Vec<[Count; 3]> {
     let prec = prec_of::<F>();
-    let mut rng = crate::audit::shape::case_rng(seed, k.name(), "reintersect", prec, index);
+    let mut rng = crate::shapes::shape::case_rng(seed, k.name(), "reintersect", prec, index);
     // Size by decade, placement near or far
     let decade = (index % DECADES as u64) as f64 - 4.0;
     let (_, lo, hi) = PLACEMENTS[(index / DECADES as u64) as usize % PLACEMENTS.len()];

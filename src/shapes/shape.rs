@@ -9,11 +9,20 @@
 //! **values** (`t`, the roots in ascending order, vector components), each correctly rounded by
 //! the oracle.
 
-pub use super::contract::Domain;
 use crate::numerics::Precision;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sha2::{Digest, Sha256};
+
+/// Where a hit's first value must lie.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Domain {
+    /// Any finite value: roots, reciprocals, vector components.
+    Real,
+    /// A ray parameter: `t > 0` (`+0` only as the rounding of an exact `t` below half the least
+    /// subnormal).
+    RayParameter,
+}
 
 /// A built-in method of a shape.
 #[derive(Clone, Copy, Debug)]
@@ -130,7 +139,7 @@ pub struct ShapeInfo {
     /// The count is the number of values (the polynomials' distinct real roots); otherwise a
     /// non-zero count comes with all the values (`t`, or a vector's components).
     pub count_is_values: bool,
-    /// Where a hit's first value must lie (the answer contract's interval, [`super::contract`]).
+    /// Where a hit's first value must lie (the answer contract's interval, [`crate::audit::contract`]).
     pub domain: Domain,
 }
 
@@ -348,4 +357,20 @@ pub fn probe_line_with(shape: &str, prec: Precision, extra: Option<&str>, input:
         prec.name(),
         vals.join(" ")
     )
+}
+
+/// Generates case `index` of a class (public for tests and benches).
+pub fn generate(
+    shape: &dyn Shape,
+    seed: u64,
+    class: usize,
+    prec: Precision,
+    index: u64,
+) -> Option<Vec<f64>> {
+    let mut rng = shape.case_rng(seed, class, prec, index);
+    let v = shape.generate(class, prec, &mut rng)?;
+    debug_assert!(v
+        .iter()
+        .all(|&x| crate::numerics::exact::representable(x, prec)));
+    Some(v)
 }
