@@ -34,15 +34,17 @@
 //! - [`audit`]: running an audit, the metrics and the harness's mutation test; the tolerance
 //!   rules in [`audit::tolerance`], sharding in [`audit::shard`], replaying a case in
 //!   [`audit::probe`], outside code in [`audit::api`], [`audit::exec`], [`audit::plugin`] and
-//!   [`audit::offline`];
-//! - [`shapes`]: the routines of Lengyel's ray-tracing chapter, the reintersection and
-//!   watertightness tests and an excerpt of their audit; [`shapes::sphere`]: the ray–sphere
+//!   [`audit::offline`]; the reintersection and watertightness tests in
+//!   [`audit::robustness`];
+//! - [`shapes`]: the routines of Lengyel's ray-tracing chapter and an excerpt of their audit;
+//!   [`shapes::sphere`]: the ray–sphere
 //!   methods, case classes, findings and benchmarks;
 //! - [`render`]: the renderer, its conventions and speed; [`render::export`]: how POV-Ray,
 //!   Mitsuba and rayproof are made to agree;
 //! - [`golden`]: golden-image CI and rayproof's own references; [`images`]: `rayproof diff`
 //!   and its parity with idiff;
-//! - [`implicit`]: implicit surfaces and Wu & Pan's image-space subdivision, reproduced;
+//! - [`implicit`]: implicit surfaces; [`render::subdiv`]: Wu & Pan's image-space subdivision,
+//!   reproduced;
 //! - [`report`]: `rayproof report`, what accuracy costs;
 //! - [`output`]: how every output file is written; [`input`]: how input files are read within
 //!   their size caps.

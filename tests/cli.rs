@@ -1,14 +1,9 @@
 //! The `rayproof` binary: probe JSON, audit determinism, and one-line errors with exit code 2.
 
+mod common;
+use common::{rayproof, stderr};
 use serde_json::Value;
 use std::process::{Command, Output};
-
-fn rayproof(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rayproof"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
 
 fn rayproof_threads(threads: &str, args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_rayproof"))
@@ -16,10 +11,6 @@ fn rayproof_threads(threads: &str, args: &[&str]) -> Output {
         .args(args)
         .output()
         .expect("binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// A usage error: exit code 2, exactly one line on stderr naming `what`, no panic.

@@ -4,24 +4,12 @@
 //! - a child that crashes, hangs, answers a malformed line or too few lines stops the audit
 //!   with one line and exit 4, within the timeout, and writes no report.
 
+mod common;
+use common::{rayproof, scratch};
 use serde_json::Value;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
+use std::process::Command;
 use std::time::{Duration, Instant};
-
-fn rayproof(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rayproof"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rayproof-exec-{}-{name}", std::process::id()));
-    std::fs::remove_dir_all(&d).ok();
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn script() -> String {
     let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/outside/sphere_textbook.py");

@@ -8,13 +8,15 @@
 //! - `rayproof downsample`: block means, and one-line errors (exit 2) that leave nothing behind.
 //! - `rayproof export`: one-line errors for a bad target and a missing scene.
 
+mod common;
+use common::{rayproof, stderr};
 use glam::DVec3;
 use rayproof::render::export::{mitsuba, povray, Frame};
 use rayproof::render::scene::{self, Material, Scene, Shape};
 use std::collections::BTreeSet;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 // ---------------------------------------------------------------- shared helpers
 
@@ -98,17 +100,6 @@ fn all_scenes() -> Vec<(String, Scene)> {
     let mut v: Vec<(String, Scene)> = names.into_iter().map(|n| (n.clone(), load(&n))).collect();
     v.push(("oblique".into(), oblique()));
     v
-}
-
-fn rayproof(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rayproof"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// A usage error: exit code 2, exactly one line on stderr naming every one of `what`, no

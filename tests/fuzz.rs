@@ -4,8 +4,10 @@
 //! write no file but the intended outputs, and leave an existing output byte-identical when it
 //! fails.
 
+mod common;
+use common::scratch;
 use proptest::prelude::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 use std::sync::OnceLock;
 
@@ -26,13 +28,6 @@ fn scenes() -> &'static Vec<(String, String)> {
             })
             .collect()
     })
-}
-
-fn scratch(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rayproof-fuzz-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 /// Values that have broken parsers and renderers before.

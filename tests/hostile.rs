@@ -3,7 +3,9 @@
 //! documented limits are refused before anything is allocated, and every reference scene
 //! renders without a NaN or Inf pixel.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::scratch;
+use std::path::Path;
 use std::process::Command;
 
 fn root() -> &'static Path {
@@ -20,13 +22,6 @@ fn rayproof(args: &[&str]) -> (Option<i32>, String, String) {
         String::from_utf8_lossy(&o.stdout).into_owned(),
         String::from_utf8_lossy(&o.stderr).into_owned(),
     )
-}
-
-fn scratch(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rayproof-hostile-{tag}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 /// Writes `text` as `d/s.toml` and renders it to `d/o.exr` with `args`: exit code and stderr.

@@ -2,6 +2,8 @@
 //! `implicit-check` on the reference scenes (the certified mode loses nothing; the paper's
 //! sampling loses the adversarial features), blob against POV-Ray 3.7, and bad input.
 
+mod common;
+use common::rayproof;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rayproof::implicit::field::{Field, SdfPart};
@@ -11,7 +13,6 @@ use rayproof::render::subdiv::check::{self, Options};
 use rayproof::render::subdiv::Mode;
 use rayproof::shapes::{aabb, quadric, torus};
 use std::path::Path;
-use std::process::Command;
 
 fn sdf(part: SdfPart) -> Marcher {
     Marcher::new(vec![Field::Sdf {
@@ -273,13 +274,6 @@ fn blob_matches_povray_reference() {
     let mean = sum / (3.0 * r.beauty.len() as f64);
     // Measured: mean 6.2e-7, max 7.8e-5 (the silhouette's sub-pixel coverage)
     assert!(mean < 5e-6 && max < 1e-3, "mean {mean:e}, max {max:e}");
-}
-
-fn rayproof(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rayproof"))
-        .args(args)
-        .output()
-        .expect("runs")
 }
 
 #[test]

@@ -1,26 +1,14 @@
 //! `rayproof cases` + `rayproof score`: code that cannot be called answers a file of cases, and
 //! the score is exactly the judgement of a direct audit of the same routine.
 
+mod common;
+use common::{rayproof, scratch};
 use rayproof::audit::{probe_line, Shape};
 use rayproof::numerics::real::parse_f64;
 use rayproof::numerics::Precision;
 use rayproof::shapes::shape_by_name;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn rayproof(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rayproof"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rayproof-offline-{}-{name}", std::process::id()));
-    std::fs::remove_dir_all(&d).ok();
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use std::path::Path;
+use std::process::Output;
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()

@@ -1,17 +1,12 @@
 //! `rayproof audit --plugin PATH:SYMBOL`: C routines in a shared library, built here with the
 //! system C compiler from `tests/outside/routines.c`, audited through their C ABI in batches.
 
+mod common;
+use common::rayproof;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 use std::sync::OnceLock;
-
-fn rayproof(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rayproof"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
 
 /// The library, built once.
 fn library() -> &'static Path {

@@ -1,11 +1,12 @@
 //! The renderer: analytic radiance checks, effect analysis, ray counts, every reference scene
 //! free of NaN/Inf, and bad scene input.
 
+mod common;
+use common::rayproof;
 use rayproof::render::scene::{self, Scene};
 use rayproof::render::{render, Effects, Overrides, Render};
 use rayproof::shapes::sphere::methods::METHODS;
 use std::path::Path;
-use std::process::Command;
 
 fn scene(text: &str) -> Scene {
     scene::parse(text, Path::new("test.toml")).expect("valid scene")
@@ -279,13 +280,6 @@ fn reference_scenes_render_without_nan_or_inf() {
 }
 
 // ---- bad input ----
-
-fn rayproof(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_rayproof"))
-        .args(args)
-        .output()
-        .unwrap()
-}
 
 fn one_line_error(o: &std::process::Output, what: &[&str]) {
     let err = String::from_utf8_lossy(&o.stderr);

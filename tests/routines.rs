@@ -2,16 +2,11 @@
 //! shape (rows for every method × precision × class, byte-identical for a seed), and `probe`
 //! replaying the audit's own examples to the same judgement.
 
+mod common;
+use common::rayproof;
 use rayproof::shapes::registry;
 use serde_json::Value;
 use std::process::{Command, Output};
-
-fn rayproof(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_rayproof"))
-        .args(args)
-        .output()
-        .expect("binary runs")
-}
 
 fn text(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()

@@ -2,7 +2,7 @@
 //! tolerance table's [`Verdict`] (given by [`super::tolerance`]).
 
 use super::hist::Stats;
-use super::tally::{Candidate, InvalidStats, Tally, KINDS};
+use super::tally::{Candidate, Counts, InvalidStats, Tally, KINDS};
 use crate::numerics::Precision;
 use crate::shapes::shape::{hex_text, probe_line_with};
 use serde::Serialize;
@@ -81,34 +81,11 @@ pub struct Row {
     pub precision: Precision,
     /// Case class name.
     pub class: String,
-    /// Cases run (valid and invalid).
-    pub cases: u64,
-    /// Cases for which the generator found no member (a broken generator shows here).
-    pub generator_failures: u64,
-    /// Valid cases that a one-ulp move of one input flips (reported apart, not judged).
-    pub ill_posed: u64,
-    /// Valid cases that no one-ulp move flips (the row judges these).
-    pub well_posed: u64,
-    /// Well-posed valid cases whose exact count is not 0.
-    pub oracle_hits: u64,
-    /// Oracle precision cap reached (a value's rounding could not be made certain).
-    pub cap_reached: u64,
-    /// Well-posed cases answered with more hits or roots than the exact answer has.
-    pub false_hit: u64,
-    /// Well-posed cases answered with fewer hits or roots than the exact answer has.
-    pub false_miss: u64,
-    /// Well-posed cases whose first value is nearer another root than the right one.
-    pub wrong_root: u64,
-    /// Well-posed cases answered with a NaN or infinite value.
-    pub nonfinite_t: u64,
-    /// Well-posed cases answered with a hit outside the shape's interval (`t ≤ 0`).
-    pub out_of_range: u64,
-    /// Ill-posed cases answered with a hit outside the shape's interval: never excused, the row
-    /// fails.
-    pub ill_posed_out_of_range: u64,
-    /// Cases of any kind answered outside the answer contract (a count the shape cannot have,
-    /// values that do not match the count): the row fails whatever its rule.
-    pub malformed: u64,
+    /// Cases run (valid and invalid), cases the generator found no member for (a broken
+    /// generator shows here), ill- and well-posed cases, oracle hits, the oracle's precision cap
+    /// reached, and every kind of wrong verdict: the tally's own counters.
+    #[serde(flatten)]
+    pub counts: Counts,
     /// Wrong verdicts / well-posed valid cases.
     pub wrong_rate: f64,
     /// Ill-posed cases on which the method's verdict differs from the exact one (not failures).
@@ -137,11 +114,16 @@ pub struct Row {
     pub verdict: Option<Verdict>,
 }
 
-impl Row {
-    /// Wrong verdicts on well-posed cases: false hits, false misses, wrong roots, non-finite
-    /// values, hits out of range.
-    pub fn wrong(&self) -> u64 {
-        self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t + self.out_of_range
+impl std::ops::Deref for Row {
+    type Target = Counts;
+    fn deref(&self) -> &Counts {
+        &self.counts
+    }
+}
+
+impl std::ops::DerefMut for Row {
+    fn deref_mut(&mut self) -> &mut Counts {
+        &mut self.counts
     }
 }
 
@@ -184,19 +166,7 @@ impl Tally {
             robust: key.robust,
             precision: key.precision,
             class: key.class.to_string(),
-            cases: self.cases,
-            generator_failures: self.generator_failures,
-            ill_posed: self.ill_posed,
-            well_posed: self.well_posed,
-            oracle_hits: self.oracle_hits,
-            cap_reached: self.cap_reached,
-            false_hit: self.false_hit,
-            false_miss: self.false_miss,
-            wrong_root: self.wrong_root,
-            nonfinite_t: self.nonfinite_t,
-            out_of_range: self.out_of_range,
-            ill_posed_out_of_range: self.ill_posed_out_of_range,
-            malformed: self.malformed,
+            counts: self.counts.clone(),
             wrong_rate: self.wrong() as f64 / self.well_posed.max(1) as f64,
             ill_posed_disagree: self.ill_posed_disagree,
             ulps: self.ulps.stats(),

@@ -100,9 +100,10 @@ fn keeps_worst(kind: &str) -> bool {
     kind.starts_with("worst_")
 }
 
-/// Everything a row needs from the cases of one method × precision × class.
+/// The case counters of a tally, and of the row made from it: what was run and every kind of
+/// wrong verdict (one list, so that a row cannot forget a counter its tally has).
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
-pub struct Tally {
+pub struct Counts {
     /// Cases run.
     pub cases: u64,
     /// Cases for which the generator found no member.
@@ -134,6 +135,39 @@ pub struct Tally {
     /// contract ([`super::contract`]): a row with one fails whatever its rule.
     #[serde(default)]
     pub malformed: u64,
+}
+
+impl Counts {
+    /// Wrong verdicts on well-posed valid cases: false hits, false misses, wrong roots,
+    /// non-finite values, hits out of range.
+    pub fn wrong(&self) -> u64 {
+        self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t + self.out_of_range
+    }
+
+    /// Adds another tally's counts.
+    fn merge(&mut self, o: &Counts) {
+        self.cases += o.cases;
+        self.generator_failures += o.generator_failures;
+        self.ill_posed += o.ill_posed;
+        self.well_posed += o.well_posed;
+        self.oracle_hits += o.oracle_hits;
+        self.cap_reached += o.cap_reached;
+        self.false_hit += o.false_hit;
+        self.false_miss += o.false_miss;
+        self.wrong_root += o.wrong_root;
+        self.nonfinite_t += o.nonfinite_t;
+        self.out_of_range += o.out_of_range;
+        self.ill_posed_out_of_range += o.ill_posed_out_of_range;
+        self.malformed += o.malformed;
+    }
+}
+
+/// Everything a row needs from the cases of one method × precision × class.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct Tally {
+    /// Cases run and wrong verdicts by kind.
+    #[serde(flatten)]
+    pub counts: Counts,
     /// Ill-posed cases on which the method's verdict differs from the exact one.
     pub ill_posed_disagree: u64,
     /// What the method did on invalid inputs.
@@ -154,12 +188,20 @@ pub struct Tally {
     pub examples: Vec<(String, Candidate)>,
 }
 
-impl Tally {
-    /// Wrong verdicts on well-posed valid cases.
-    pub fn wrong(&self) -> u64 {
-        self.false_hit + self.false_miss + self.wrong_root + self.nonfinite_t + self.out_of_range
+impl std::ops::Deref for Tally {
+    type Target = Counts;
+    fn deref(&self) -> &Counts {
+        &self.counts
     }
+}
 
+impl std::ops::DerefMut for Tally {
+    fn deref_mut(&mut self) -> &mut Counts {
+        &mut self.counts
+    }
+}
+
+impl Tally {
     /// Keeps `c` as the example of `kind` if it beats the one kept.
     fn offer(&mut self, kind: &str, c: impl FnOnce() -> Candidate, key: u64, index: u64) {
         let better = |old: &Candidate| {
@@ -392,19 +434,7 @@ impl Tally {
 
     /// Adds another tally of the same row (another slice of its cases).
     pub fn merge(&mut self, o: &Tally) {
-        self.cases += o.cases;
-        self.generator_failures += o.generator_failures;
-        self.ill_posed += o.ill_posed;
-        self.well_posed += o.well_posed;
-        self.oracle_hits += o.oracle_hits;
-        self.cap_reached += o.cap_reached;
-        self.false_hit += o.false_hit;
-        self.false_miss += o.false_miss;
-        self.wrong_root += o.wrong_root;
-        self.nonfinite_t += o.nonfinite_t;
-        self.out_of_range += o.out_of_range;
-        self.ill_posed_out_of_range += o.ill_posed_out_of_range;
-        self.malformed += o.malformed;
+        self.counts.merge(&o.counts);
         self.ill_posed_disagree += o.ill_posed_disagree;
         self.invalid.merge(&o.invalid);
         self.ulps.merge(&o.ulps);

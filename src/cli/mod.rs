@@ -1,19 +1,8 @@
 //! The command line: argument definitions (clap derive; doc comments are the help text) and the
 //! commands they run.
 //!
-//! Exit codes, for every command:
-//! - 0: success (for `audit` and `merge`: every row within the tolerance table; `audit
-//!   --shard-out` leaves that check to the merge)
-//! - 1: `audit` or `merge` ran, and some row broke its tolerance-table entry (a regression)
-//! - 2: bad usage or input (a malformed argument, an unknown method or class, an unwritable file,
-//!   and for `merge` a shard file that is unreadable, truncated, corrupt or not a shard)
-//! - 3: `merge`: the shard files are sound but are not one audit's shards 0/N … N−1/N
-//!   (a shard missing or given twice; a different seed, case count, selection, N or version);
-//!   `check`: a test was refused; `reference`: a renderer is missing or failed
-//! - 4: `audit` or `probe` with `--exec` or `--plugin`: the outside routine failed;
-//!   `downsample`: its input image is unreadable (as `diff`'s code 4)
-//!
-//! `diff` follows idiff's codes instead (see `cli/diff.rs`).
+//! Exit codes: written once, in the crate documentation (`src/lib.rs`, "Exit codes of the
+//! `rayproof` command"); [`error_exit_code`] maps a failed command's error to its code.
 
 use anyhow::Result;
 use clap::{Parser, Subcommand};
@@ -162,7 +151,7 @@ pub fn one_line(e: &clap::Error) -> String {
     line
 }
 
-/// The exit code of a command that failed with `e` (see the module documentation).
+/// The exit code of a command that failed with `e` (the table in `src/lib.rs`).
 pub fn error_exit_code(e: &anyhow::Error) -> u8 {
     if e.downcast_ref::<rayproof::audit::shard::IncompatibleShards>()
         .is_some()

@@ -7,6 +7,7 @@ pub mod interval;
 pub mod real;
 pub mod scalar;
 pub mod timing;
+pub mod vec3;
 
 use serde::{Deserialize, Serialize};
 

@@ -21,6 +21,7 @@
 
 use crate::numerics::exact::{self, nudge, q, round_q, sqrt_encl, ziv, ZIV_CAP};
 use crate::numerics::real::{Real, Scalar};
+use crate::numerics::vec3::{dot, scale, sub};
 use crate::numerics::Precision;
 use crate::shapes::shape::{Answer, Expected, MethodInfo, Metric, Shape, ShapeInfo, Truth};
 use rand::Rng;
@@ -31,18 +32,6 @@ use std::cmp::Ordering;
 
 type V<S> = [S; 3];
 
-#[inline(always)]
-fn dot<S: Scalar>(a: V<S>, b: V<S>) -> S {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline(always)]
-fn scale<S: Scalar>(a: V<S>, k: S) -> V<S> {
-    [a[0] * k, a[1] * k, a[2] * k]
-}
-#[inline(always)]
-fn sub<S: Scalar>(a: V<S>, b: V<S>) -> V<S> {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
 /// Valid vectors: finite and not zero.
 fn usable<F: Real>(v: V<F>) -> bool {
     v.iter().all(|x| x.is_finite()) && v.iter().any(|&x| x != F::ZERO)

@@ -22,6 +22,7 @@ use super::shape::generate as gen_case;
 use crate::numerics::exact::{self, decompose, nudge, round_q};
 use crate::numerics::real::gamma;
 use crate::numerics::real::{Real, Scalar};
+use crate::numerics::vec3::{add, cross, dot, scale, sub};
 use crate::numerics::Precision;
 use crate::shapes::oracle::ulp_box::{strict_sign as sign_on_box, ulp_box, BoxIv};
 use crate::shapes::shape::{Answer, Domain, Expected, MethodInfo, Shape, ShapeInfo, Truth};
@@ -35,30 +36,6 @@ type V<S> = [S; 3];
 
 // ---- vector helpers over plain arrays (f32, f64, double-double) ----
 
-#[inline(always)]
-fn sub<S: Scalar>(a: V<S>, b: V<S>) -> V<S> {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline(always)]
-fn add<S: Scalar>(a: V<S>, b: V<S>) -> V<S> {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-#[inline(always)]
-fn scale<S: Scalar>(a: V<S>, k: S) -> V<S> {
-    [a[0] * k, a[1] * k, a[2] * k]
-}
-#[inline(always)]
-fn dot<S: Scalar>(a: V<S>, b: V<S>) -> S {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-#[inline(always)]
-fn cross<S: Scalar>(a: V<S>, b: V<S>) -> V<S> {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
 #[inline(always)]
 fn vabs<S: Scalar>(a: V<S>) -> V<S> {
     [a[0].abs(), a[1].abs(), a[2].abs()]

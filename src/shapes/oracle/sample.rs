@@ -2,6 +2,7 @@
 //! every value is drawn in `f64` and rounded once to the case's precision.
 
 use crate::numerics::exact;
+pub use crate::numerics::vec3::{add, cross, dot, scale as mul, sub};
 use crate::numerics::Precision;
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -49,26 +50,7 @@ pub fn perp(rng: &mut ChaCha8Rng, v: V) -> V {
         }
     }
 }
-pub fn add(a: V, b: V) -> V {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-pub fn sub(a: V, b: V) -> V {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-pub fn mul(a: V, k: f64) -> V {
-    a.map(|x| x * k)
-}
-pub fn dot(a: V, b: V) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 /// `|a|`, scaled by its largest component first so that `|a|²` cannot over- or underflow.
-pub fn cross(a: V, b: V) -> V {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
 pub fn norm(a: V) -> f64 {
     let big = a.iter().fold(0f64, |m, x| m.max(x.abs()));
     if big == 0.0 {

@@ -106,6 +106,7 @@ pub fn generate_from<F: Real>(rng: &mut ChaCha8Rng, class: Class) -> Option<Case
 }
 
 // ---- sampling helpers (all in f64, rounded once to F) ----
+use crate::numerics::vec3::{add, scale as mul, sub};
 
 fn lu(rng: &mut ChaCha8Rng, lo: f64, hi: f64) -> f64 {
     10f64.powf(rng.random_range(lo..hi))
@@ -127,15 +128,6 @@ fn cube(rng: &mut ChaCha8Rng) -> [f64; 3] {
 }
 fn norm(v: [f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
-}
-fn mul(v: [f64; 3], k: f64) -> [f64; 3] {
-    v.map(|x| x * k)
-}
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
 }
 fn normalize(v: [f64; 3]) -> [f64; 3] {
     mul(v, 1.0 / norm(v))

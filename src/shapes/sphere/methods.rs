@@ -17,18 +17,12 @@ pub use super::certified::certified;
 pub use super::ray::{Ray, Sphere, SphereHit};
 use crate::numerics::interval::Interval;
 use crate::numerics::real::{ilogb, mul_pow2, Real, Scalar};
+use crate::numerics::vec3::scale;
+pub(super) use crate::numerics::vec3::{dot, sub};
 
 type V<S> = [S; 3];
 
 // Vector helpers over plain arrays, so that the same body runs on f32, f64 and double-double.
-#[inline(always)]
-pub(super) fn sub<S: Scalar>(a: V<S>, b: V<S>) -> V<S> {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-#[inline(always)]
-pub(super) fn dot<S: Scalar>(a: V<S>, b: V<S>) -> S {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 /// `a·b + c`, fused into one rounding when `FMA` (what a C compiler's contraction makes of it),
 /// else two roundings.
 #[inline(always)]
@@ -43,10 +37,6 @@ pub(super) fn madd<F: Real, const FMA: bool>(a: F, b: F, c: F) -> F {
 #[inline(always)]
 pub(super) fn dot_c<F: Real, const FMA: bool>(a: V<F>, b: V<F>) -> F {
     madd::<F, FMA>(a[2], b[2], madd::<F, FMA>(a[1], b[1], a[0] * b[0]))
-}
-#[inline(always)]
-fn scale<S: Scalar>(a: V<S>, k: S) -> V<S> {
-    [a[0] * k, a[1] * k, a[2] * k]
 }
 #[inline(always)]
 fn parts<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> (V<F>, V<F>, V<F>, F) {

@@ -23,16 +23,7 @@ pub const CLASSES: [&str; 8] = [
 ];
 
 type V = [f64; 3];
-
-fn add(a: V, b: V) -> V {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
-}
-fn sub(a: V, b: V) -> V {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn scale(a: V, k: f64) -> V {
-    [a[0] * k, a[1] * k, a[2] * k]
-}
+use crate::numerics::vec3::{add, scale, sub};
 
 /// `x` rounded to the precision (as `f64`).
 pub fn round_to(x: f64, prec: Precision) -> f64 {

@@ -10,15 +10,12 @@
 
 use crate::numerics::real::gamma;
 use crate::numerics::real::Real;
+pub(super) use crate::numerics::vec3::dot;
 use crate::shapes::oracle::poly;
 
 type V<F> = [F; 3];
 
 // Vector helpers over plain arrays
-#[inline(always)]
-pub(super) fn dot<F: Real>(a: V<F>, b: V<F>) -> F {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 
 /// `o + t·d` with one rounding per component (fused multiply–add).
 #[inline(always)]
