@@ -2,16 +2,11 @@
 //! the same against the real idiff): Blender's multilayer channels and the layer `diff` picks,
 //! single-channel images, data and display windows.
 
+mod common;
+use common::temp_dir;
 use rayproof::images::*;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
-
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rayproof-exrlayers-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// Writes a one-part EXR: `w × h` float channels (name, one value per pixel or a plane) with
 /// its data window at `origin` in the display window `display` ((x, y), (w, h)).

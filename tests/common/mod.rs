@@ -38,6 +38,27 @@ pub fn scratch(tag: &str) -> PathBuf {
     d
 }
 
+/// A scratch directory removed when it goes out of scope (for tests that leave nothing behind).
+pub struct TempDir(PathBuf);
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// A fresh scratch directory as [`scratch`] makes it, removed on drop.
+pub fn temp_dir(tag: &str) -> TempDir {
+    TempDir(scratch(tag))
+}
+
 /// A path as `&str`.
 pub fn s(p: &Path) -> &str {
     p.to_str().expect("UTF-8 path")
