@@ -13,17 +13,13 @@
 //!
 //! Errors are one line on stderr, `error: …`, naming the file.
 //!
-//! Output files are written through [`rayproof::output`] (a temporary sibling renamed into place);
-//! their directories are checked before any image is read.
+//! The comparison, the files and the verdict are one library call, [`rayproof::images::diff::diff`].
 
 use super::emit;
-use rayproof::images::{
-    abs_diff, abs_error_map, align, compare_as, flip_error, heatmap_rgb8, one_line,
-    read_image_layer, write_exr_rgb, write_png_rgb8, z_test, DiffReport, LayerSelect, Semantics,
-    SizeMismatch, Thresholds, ZParams,
-};
+use rayproof::images::diff::{diff, DiffRequest};
+use rayproof::images::{one_line, Thresholds, ZParams};
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 fn parse_threshold(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
@@ -156,152 +152,31 @@ impl DiffArgs {
     }
 }
 
-/// An exit code and a one-line message.
-struct Exit(u8, String);
-
-/// Output files: their directory exists, they are not directories, not one of the inputs.
-fn check_output(path: &Path, inputs: &[&Path]) -> Result<(), Exit> {
-    let bad = |why: String| Exit(2, format!("cannot write {}: {why}", path.display()));
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    if !dir.is_dir() {
-        return Err(bad(format!("directory {} does not exist", dir.display())));
-    }
-    if path.is_dir() {
-        return Err(bad("it is a directory".into()));
-    }
-    let canon = |p: &Path| std::fs::canonicalize(p).ok();
-    if canon(path).is_some() && inputs.iter().any(|i| canon(i) == canon(path)) {
-        return Err(bad("it is one of the input images".into()));
-    }
-    Ok(())
-}
-
 /// Runs `rayproof diff`: prints the report (or only the verdict, or the JSON), writes the
 /// requested files, and returns the exit code; errors are printed as one line on stderr.
 pub fn run_diff(a: DiffArgs) -> u8 {
-    match diff(&a) {
-        Ok(code) => code,
-        Err(Exit(code, msg)) => {
-            let _ = writeln!(std::io::stderr(), "error: {}", one_line(&msg));
-            code
-        }
-    }
-}
-
-fn diff(a: &DiffArgs) -> Result<u8, Exit> {
-    let t = a.thresholds();
-    let json_stdout = a.json.as_deref() == Some(Path::new("-"));
-
-    // Outputs are checked before any work
-    let mut inputs = vec![a.reference.as_path(), a.test.as_path()];
-    inputs.extend(a.variance.as_deref());
-    let json_file = a.json.as_deref().filter(|_| !json_stdout);
-    for p in [a.diff_exr.as_deref(), a.heatmap.as_deref(), json_file]
-        .into_iter()
-        .flatten()
-    {
-        check_output(p, &inputs)?;
-    }
-
-    // Inputs: the layer asked for (idiff reads every channel); the variance image's default
-    // layer
-    let select = match (&a.layer, a.idiff_compat) {
-        (Some(name), _) => LayerSelect::Named(name),
-        (None, true) => LayerSelect::AsIdiff,
-        (None, false) => LayerSelect::Default,
-    };
-    let read = |p: &Path, select| {
-        read_image_layer(p, select).map_err(|e| Exit(e.exit_code(), e.to_string()))
-    };
-    let reference = read(&a.reference, select)?;
-    let test = read(&a.test, select)?;
-    let variance = match a.variance.as_deref() {
-        Some(v) => Some(read(v, LayerSelect::Default)?),
-        None => None,
-    };
-    let (rn, tn) = (a.reference.display(), a.test.display());
-    let mismatch = |e: SizeMismatch| Exit(3, format!("{rn} and {tn}: {e}"));
-
-    // Metrics, z-test, ꟻLIP (the last two need images of one shape). Both images over the
-    // union of their data windows when they show one frame (rayproof's semantics refuse
-    // anything else; idiff's compare anything over the union)
-    let semantics = if a.idiff_compat {
-        Semantics::Idiff
-    } else {
-        Semantics::Rayproof
-    };
-    let c = compare_as(&reference, &test, &t, semantics).map_err(mismatch)?;
-    let (reference, test) = match align(&reference, &test) {
-        Ok(pair) => pair,
-        Err(_) => (reference, test),
-    };
-    let mut c = c;
-    let same_shape =
-        reference.data_window() == test.data_window() && reference.channels == test.channels;
-    // A variance image of the same frame, over the same window (0 outside its data window)
-    let variance = variance.map(|v| match v.display == reference.display {
-        true => v.padded(reference.data_window()),
-        false => v,
-    });
-    let z = match &variance {
-        Some(v) => Some(z_test(&reference, &test, v, &a.z_params()).map_err(|e| {
-            let vn = a.variance.as_deref().unwrap_or(Path::new("")).display();
-            Exit(
-                3,
-                format!(
-                    "{rn} and variance {vn}: {e} (the variance needs the same size and R, G, B)"
-                ),
-            )
-        })?),
-        None => None,
-    };
-    let flip_map = (!a.no_flip && same_shape).then(|| {
-        let (kind, m, map) = flip_error(&reference, &test);
-        (c.flip_kind, c.flip_mean) = (Some(kind), Some(m));
-        map
-    });
-    let report = DiffReport {
+    let request = DiffRequest {
         reference: &a.reference,
         test: &a.test,
-        display_referred: [reference.display_referred, test.display_referred],
-        comparison: &c,
-        thresholds: &t,
-        ztest: z.as_ref(),
+        variance: a.variance.as_deref(),
+        layer: a.layer.as_deref(),
+        idiff_compat: a.idiff_compat,
+        thresholds: a.thresholds(),
+        z: a.z_params(),
+        flip: !a.no_flip,
+        diff_exr: a.diff_exr.as_deref(),
+        heatmap: a.heatmap.as_deref(),
+        json: a.json.as_deref(),
+        quiet: a.quiet,
     };
-    let verdict = report.verdict();
-
-    // Files
-    let (w, h) = (reference.width, reference.height);
-    let write_err = |e: anyhow::Error| Exit(2, format!("{e:#}"));
-    if let Some(p) = &a.diff_exr {
-        let d = abs_diff(&reference, &test).map_err(mismatch)?;
-        write_exr_rgb(p, &d).map_err(write_err)?;
-    }
-    if let Some(p) = &a.heatmap {
-        let map = match flip_map {
-            Some(m) => m,
-            None => abs_error_map(&reference, &test).map_err(mismatch)?,
-        };
-        write_png_rgb8(p, w, h, &heatmap_rgb8(&map, w, h)).map_err(write_err)?;
-    }
-    if let Some(p) = &a.json {
-        let text = report.json();
-        if json_stdout {
-            say_raw!("{text}");
-        } else {
-            rayproof::output::write_atomic(p, text.as_bytes()).map_err(write_err)?;
+    match diff(&request) {
+        Ok(out) => {
+            say_raw!("{}", out.stdout);
+            out.code
+        }
+        Err(e) => {
+            let _ = writeln!(std::io::stderr(), "error: {}", one_line(&e.message));
+            e.code
         }
     }
-
-    // Report
-    if json_stdout {
-    } else if a.quiet {
-        say_raw!("{}\n", verdict.label());
-    } else {
-        say_raw!("{}", report.text());
-    }
-    Ok(verdict.exit_code())
 }

@@ -109,51 +109,20 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
             say!("  {line}");
         }
     }
-    let c = &r.counts;
-    say!(
-        "{}×{} with {} in {}: {:.3} s\nrays: primary {}, shadow {}, reflection {}, refraction {} (total {})\n\
-         missing every shape: primary {}, shadow (light reached) {}, reflection {}, refraction {}\n\
-         tests: sphere {} ({} hits), other {}, BVH nodes {}",
-        r.width, r.height, r.method, r.precision, r.seconds, c.primary, c.shadow, c.reflection, c.refraction, c.total(),
-        c.primary_miss, c.shadow_miss, c.reflection_miss, c.refraction_miss,
-        c.tests.sphere_tests, c.tests.sphere_hits, c.tests.other_tests, c.tests.bvh_nodes
-    );
-    if c.tests.implicit_tests > 0 {
-        say!(
-            "sphere tracing: {} implicit tests, {} field evaluations",
-            c.tests.implicit_tests,
-            c.tests.march_steps
-        );
-    }
-    if c.budget_cut > 0 {
-        say!(
-            "tree budget: {} reflection/refraction rays not traced (black): a camera sample's path tree has at most {} segments",
-            c.budget_cut,
-            render::MAX_TREE_SEGMENTS
-        );
-    }
     let lights = sc.file.lights.len() + sc.file.directional.len();
-    say!("{}", render::budget_line(&r, lights));
+    say_raw!("{}", render::summary(&r, lights));
     // The EXR, its sidecar and the PNG: all written, or none replaced
-    let mut files = rayproof::output::Outputs::new().reading(&inputs);
-    if let Some(out) = &a.output {
-        let layers = output::Layers {
-            depth: a.layers.iter().any(|l| l == "depth"),
-            normal: a.layers.iter().any(|l| l == "normal"),
-            rays: a.layers.iter().any(|l| l == "rays"),
-        };
-        files.write_with(out, |tmp| output::write_exr(&r, tmp, layers))?;
-        let stats = output::stats_json(&r, &a.scene.display().to_string(), lights);
-        let side = side.as_ref().expect("with -o");
-        files.write(
-            side,
-            (serde_json::to_string_pretty(&stats)? + "\n").as_bytes(),
-        )?;
-    }
-    if let Some(png) = &a.png {
-        files.write_with(png, |tmp| output::write_png(&r, tmp))?;
-    }
-    files.commit()?;
+    let layers = output::Layers {
+        depth: a.layers.iter().any(|l| l == "depth"),
+        normal: a.layers.iter().any(|l| l == "normal"),
+        rays: a.layers.iter().any(|l| l == "rays"),
+    };
+    let files = output::Files {
+        exr: a.output.as_deref().zip(side.as_deref()),
+        png: a.png.as_deref(),
+        layers,
+    };
+    output::write_all(&r, &files, &a.scene.display().to_string(), lights, &inputs)?;
     Ok(0)
 }
 

@@ -102,6 +102,7 @@
 //! noise-aware z-test) and `report` (the text and JSON reports); their public items are
 //! re-exported here.
 
+pub mod diff;
 mod flip;
 mod io;
 mod maps;

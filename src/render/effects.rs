@@ -191,3 +191,30 @@ pub fn budget_line(r: &Render, lights: usize) -> String {
         r.counts.total() as f64 / formula.max(1.0)
     )
 }
+
+/// What `rayproof render` prints about a finished render: size, method and time, the rays by
+/// kind, the tests, sphere tracing's work, the tree budget's cuts and the seed paper's budget.
+pub fn summary(r: &Render, lights: usize) -> String {
+    let c = &r.counts;
+    let mut s = format!(
+        "{}×{} with {} in {}: {:.3} s\nrays: primary {}, shadow {}, reflection {}, refraction {} (total {})\n\
+         missing every shape: primary {}, shadow (light reached) {}, reflection {}, refraction {}\n\
+         tests: sphere {} ({} hits), other {}, BVH nodes {}\n",
+        r.width, r.height, r.method, r.precision, r.seconds, c.primary, c.shadow, c.reflection, c.refraction, c.total(),
+        c.primary_miss, c.shadow_miss, c.reflection_miss, c.refraction_miss,
+        c.tests.sphere_tests, c.tests.sphere_hits, c.tests.other_tests, c.tests.bvh_nodes
+    );
+    if c.tests.implicit_tests > 0 {
+        s += &format!(
+            "sphere tracing: {} implicit tests, {} field evaluations\n",
+            c.tests.implicit_tests, c.tests.march_steps
+        );
+    }
+    if c.budget_cut > 0 {
+        s += &format!(
+            "tree budget: {} reflection/refraction rays not traced (black): a camera sample's path tree has at most {} segments\n",
+            c.budget_cut, MAX_TREE_SEGMENTS
+        );
+    }
+    s + &budget_line(r, lights) + "\n"
+}

@@ -138,7 +138,7 @@ pub mod subdiv;
 
 pub use build::build_geometry;
 pub use camera::Lens;
-pub use effects::{budget_line, Effects, RayCounts, MAX_TREE_SEGMENTS};
+pub use effects::{budget_line, summary, Effects, RayCounts, MAX_TREE_SEGMENTS};
 pub use integrator::{fresnel, shade_primary};
 use integrator::{run, Ctx};
 

@@ -18,6 +18,41 @@ pub struct Layers {
     pub rays: bool,
 }
 
+/// The files of one render: the EXR with its JSON sidecar (paths), the PNG preview, the EXR's
+/// extra layers.
+pub struct Files<'a> {
+    /// The EXR and its sidecar.
+    pub exr: Option<(&'a Path, &'a Path)>,
+    /// The PNG preview.
+    pub png: Option<&'a Path>,
+    /// Extra EXR layers.
+    pub layers: Layers,
+}
+
+/// Writes a render's files together: all of them, or none replaced (staged by
+/// [`crate::output::Outputs`], never over one of `inputs`). `scene` and `lights` go in the sidecar.
+pub fn write_all(
+    r: &Render,
+    files: &Files,
+    scene: &str,
+    lights: usize,
+    inputs: &[&Path],
+) -> Result<()> {
+    let mut out = crate::output::Outputs::new().reading(inputs);
+    if let Some((exr, side)) = files.exr {
+        out.write_with(exr, |tmp| write_exr(r, tmp, files.layers))?;
+        let stats = stats_json(r, scene, lights);
+        out.write(
+            side,
+            (serde_json::to_string_pretty(&stats)? + "\n").as_bytes(),
+        )?;
+    }
+    if let Some(png) = files.png {
+        out.write_with(png, |tmp| write_png(r, tmp))?;
+    }
+    out.commit()
+}
+
 /// Writes the EXR to `path` (a temporary file: the caller stages it, see [`crate::output::Outputs`]).
 /// The samples are read from the planes as the encoder asks for each pixel (no copy per channel).
 pub fn write_exr(r: &Render, path: &Path, layers: Layers) -> Result<()> {

@@ -1,0 +1,200 @@
+//! `rayproof diff` as one library call ([`diff`]): the command line only parses and prints.
+
+use super::{
+    abs_diff, abs_error_map, align, compare_as, flip_error, heatmap_rgb8, read_image_layer,
+    write_exr_rgb, write_png_rgb8, z_test, DiffReport, LayerSelect, Semantics, SizeMismatch,
+    Thresholds, ZParams,
+};
+use std::path::Path;
+
+/// What to compare, under which rules, and which files to write.
+pub struct DiffRequest<'a> {
+    /// Reference image (OpenEXR or PNG).
+    pub reference: &'a Path,
+    /// Test image.
+    pub test: &'a Path,
+    /// Per-pixel variance of the test image: the verdict is then the z-test's.
+    pub variance: Option<&'a Path>,
+    /// The layer of a multilayer EXR to compare (default: see [`LayerSelect`]).
+    pub layer: Option<&'a str>,
+    /// idiff 2.4's rules exactly (see the README's deliberate differences).
+    pub idiff_compat: bool,
+    /// idiff's thresholds.
+    pub thresholds: Thresholds,
+    /// The z-test's settings.
+    pub z: ZParams,
+    /// Run ꟻLIP.
+    pub flip: bool,
+    /// Write |REF − TEST| as a float32 EXR.
+    pub diff_exr: Option<&'a Path>,
+    /// Write a heat map PNG.
+    pub heatmap: Option<&'a Path>,
+    /// Write the JSON report (`-`: to stdout, instead of the text).
+    pub json: Option<&'a Path>,
+    /// Only the verdict line on stdout.
+    pub quiet: bool,
+}
+
+/// A verdict: its exit code (0 PASS, 1 WARNING, 2 FAILURE) and the text for stdout.
+pub struct DiffOutcome {
+    /// The exit code.
+    pub code: u8,
+    /// The report, the verdict line, or the JSON.
+    pub stdout: String,
+}
+
+/// A diff without a verdict: the exit code (2 an output that cannot be written, 3 images that
+/// do not show one frame, 4 an unreadable input) and why.
+#[derive(Debug)]
+pub struct DiffError {
+    /// The exit code.
+    pub code: u8,
+    /// Why, naming the file.
+    pub message: String,
+}
+
+impl DiffError {
+    fn new(code: u8, message: String) -> Self {
+        DiffError { code, message }
+    }
+}
+
+/// Output files: their directory exists, they are not directories, not one of the inputs.
+fn check_output(path: &Path, inputs: &[&Path]) -> Result<(), DiffError> {
+    let bad = |why: String| DiffError::new(2, format!("cannot write {}: {why}", path.display()));
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    if !dir.is_dir() {
+        return Err(bad(format!("directory {} does not exist", dir.display())));
+    }
+    if path.is_dir() {
+        return Err(bad("it is a directory".into()));
+    }
+    let canon = |p: &Path| std::fs::canonicalize(p).ok();
+    if canon(path).is_some() && inputs.iter().any(|i| canon(i) == canon(path)) {
+        return Err(bad("it is one of the input images".into()));
+    }
+    Ok(())
+}
+
+/// `rayproof diff` as one call: reads the images (the layer asked for), compares them by idiff's
+/// metrics under rayproof's or idiff's rules, runs the z-test and ꟻLIP, writes the files asked
+/// for (each checked before any image is read) and returns the verdict's exit code with the text
+/// for stdout; what stops it is a [`DiffError`] with its exit code and one line.
+pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
+    let t = a.thresholds;
+    let json_stdout = a.json == Some(Path::new("-"));
+
+    // Outputs are checked before any work
+    let mut inputs = vec![a.reference, a.test];
+    inputs.extend(a.variance);
+    let json_file = a.json.filter(|_| !json_stdout);
+    for p in [a.diff_exr, a.heatmap, json_file].into_iter().flatten() {
+        check_output(p, &inputs)?;
+    }
+
+    // Inputs: the layer asked for (idiff reads every channel); the variance image's default
+    // layer
+    let select = match (a.layer, a.idiff_compat) {
+        (Some(name), _) => LayerSelect::Named(name),
+        (None, true) => LayerSelect::AsIdiff,
+        (None, false) => LayerSelect::Default,
+    };
+    let read = |p: &Path, select| {
+        read_image_layer(p, select).map_err(|e| DiffError::new(e.exit_code(), e.to_string()))
+    };
+    let reference = read(a.reference, select)?;
+    let test = read(a.test, select)?;
+    let variance = match a.variance {
+        Some(v) => Some(read(v, LayerSelect::Default)?),
+        None => None,
+    };
+    let (rn, tn) = (a.reference.display(), a.test.display());
+    let mismatch = |e: SizeMismatch| DiffError::new(3, format!("{rn} and {tn}: {e}"));
+
+    // Metrics, z-test, ꟻLIP (the last two need images of one shape). Both images over the
+    // union of their data windows when they show one frame (rayproof's semantics refuse
+    // anything else; idiff's compare anything over the union)
+    let semantics = if a.idiff_compat {
+        Semantics::Idiff
+    } else {
+        Semantics::Rayproof
+    };
+    let c = compare_as(&reference, &test, &t, semantics).map_err(mismatch)?;
+    let (reference, test) = match align(&reference, &test) {
+        Ok(pair) => pair,
+        Err(_) => (reference, test),
+    };
+    let mut c = c;
+    let same_shape =
+        reference.data_window() == test.data_window() && reference.channels == test.channels;
+    // A variance image of the same frame, over the same window (0 outside its data window)
+    let variance = variance.map(|v| match v.display == reference.display {
+        true => v.padded(reference.data_window()),
+        false => v,
+    });
+    let z = match &variance {
+        Some(v) => Some(z_test(&reference, &test, v, &a.z).map_err(|e| {
+            let vn = a.variance.unwrap_or(Path::new("")).display();
+            DiffError::new(
+                3,
+                format!(
+                    "{rn} and variance {vn}: {e} (the variance needs the same size and R, G, B)"
+                ),
+            )
+        })?),
+        None => None,
+    };
+    let flip_map = (a.flip && same_shape).then(|| {
+        let (kind, m, map) = flip_error(&reference, &test);
+        (c.flip_kind, c.flip_mean) = (Some(kind), Some(m));
+        map
+    });
+    let report = DiffReport {
+        reference: a.reference,
+        test: a.test,
+        display_referred: [reference.display_referred, test.display_referred],
+        comparison: &c,
+        thresholds: &t,
+        ztest: z.as_ref(),
+    };
+    let verdict = report.verdict();
+
+    // Files
+    let (w, h) = (reference.width, reference.height);
+    let write_err = |e: anyhow::Error| DiffError::new(2, format!("{e:#}"));
+    if let Some(p) = a.diff_exr {
+        let d = abs_diff(&reference, &test).map_err(mismatch)?;
+        write_exr_rgb(p, &d).map_err(write_err)?;
+    }
+    if let Some(p) = a.heatmap {
+        let map = match flip_map {
+            Some(m) => m,
+            None => abs_error_map(&reference, &test).map_err(mismatch)?,
+        };
+        write_png_rgb8(p, w, h, &heatmap_rgb8(&map, w, h)).map_err(write_err)?;
+    }
+    let mut stdout = String::new();
+    if let Some(p) = a.json {
+        let text = report.json();
+        if json_stdout {
+            stdout = text;
+        } else {
+            crate::output::write_atomic(p, text.as_bytes()).map_err(write_err)?;
+        }
+    }
+
+    // Report
+    if json_stdout {
+    } else if a.quiet {
+        stdout = format!("{}\n", verdict.label());
+    } else {
+        stdout = report.text();
+    }
+    Ok(DiffOutcome {
+        code: verdict.exit_code(),
+        stdout,
+    })
+}
