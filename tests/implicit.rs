@@ -316,6 +316,21 @@ fn bad_input_gets_one_line_and_exit_2() {
     // A zero region
     let out = rayproof(&["implicit-check", sdf.to_str().unwrap(), "--region", "0"]);
     assert_eq!(out.status.code(), Some(2));
+    // A camera that sees only background: nothing to compare is refused, not passed
+    let away = dir.join("away.toml");
+    let text = std::fs::read_to_string(&sdf).unwrap();
+    assert!(text.contains("look_at = [0.0, 0.2, 0.0]"));
+    std::fs::write(
+        &away,
+        text.replace("look_at = [0.0, 0.2, 0.0]", "look_at = [0.0, 1.5, 10.0]"),
+    )
+    .unwrap();
+    let out = rayproof(&["implicit-check", away.to_str().unwrap(), "--width", "40"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("would compare nothing"), "{err}");
+    assert!(out.stdout.is_empty());
 }
 
 fn tempdir() -> std::path::PathBuf {

@@ -182,6 +182,18 @@ pub const RUNS: [(Mode, Tracer); 7] = [
 /// shading time.
 type Rendered = (Primary, Vec<[f32; 3]>, RayCounts, f64);
 
+impl Report {
+    /// The verdict `implicit-check` exits with: whether the certified mode lost or added a
+    /// pixel against per-pixel tracing (shadows off or on).
+    pub fn certified_differs(&self) -> bool {
+        self.runs
+            .iter()
+            .filter(|x| x.mode == Mode::Certified)
+            .filter_map(|x| x.versus_full.as_ref())
+            .any(|c| c.lost + c.ghost > 0)
+    }
+}
+
 /// Runs the check.
 pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
     let (local, mats) = marcher(s)?;
@@ -268,6 +280,18 @@ pub fn run(s: &Scene, opts: &Options) -> Result<Report> {
                 fulls.push((tracer, p, beauty, seconds));
             }
         }
+    }
+    // A check that compares nothing is refused, not passed: a camera that sees only background
+    // would give "0 lost, 0 ghost" whatever the tracer does
+    let compared = runs
+        .iter()
+        .filter_map(|x| x.versus_full.as_ref())
+        .any(|c| c.surface_pixels > 0);
+    if !compared {
+        bail!(
+            "{}: no pixel of the {w}×{h} image shows a surface (the camera sees only background): implicit-check would compare nothing",
+            s.path.display()
+        );
     }
     Ok(Report {
         scene: s.path.display().to_string(),
