@@ -1069,6 +1069,20 @@ fn run_diff_checks_outputs_before_work() {
     assert_eq!(read_image(&rp).unwrap(), r);
     // a directory is not an output file
     assert_eq!(run_diff(&["-q", "--heatmap", s(&d), s(&rp), s(&rp)]), 2);
+    // one file named as two outputs: refused, and the file there stays as it was (the previous
+    // binary wrote the heat map, then the JSON over it)
+    let both = d.join("both.png");
+    std::fs::write(&both, b"old").unwrap();
+    let o = rayproof_diff(&["--heatmap", s(&both), "--json", s(&both), s(&rp), s(&rp)]);
+    assert_one_line_error(&o, 2, "two outputs");
+    assert_eq!(std::fs::read(&both).unwrap(), b"old");
+    // the outputs of a run are committed together: none is left behind beside the old file
+    let left: Vec<_> = std::fs::read_dir(&*d)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.contains("rayproof"))
+        .collect();
+    assert!(left.is_empty(), "{left:?}");
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -1,9 +1,9 @@
 //! `rayproof diff` as one library call ([`diff`]): the command line only parses and prints.
 
 use super::{
-    abs_diff, abs_error_map, align, compare_as, flip_error, heatmap_rgb8, read_image_layer,
-    write_exr_rgb, write_png_rgb8, z_test, DiffReport, LayerSelect, Semantics, SizeMismatch,
-    Thresholds, ZParams,
+    abs_diff, abs_error_map, align, compare_as, exr_to, flip_error, heatmap_rgb8, png_rgb8_to,
+    read_image_layer, z_test, DiffReport, LayerSelect, Semantics, SizeMismatch, Thresholds,
+    ZParams,
 };
 use std::path::Path;
 
@@ -162,19 +162,25 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
     };
     let verdict = report.verdict();
 
-    // Files
+    // Files: all written, or none replaced
     let (w, h) = (reference.width, reference.height);
     let write_err = |e: anyhow::Error| DiffError::new(2, format!("{e:#}"));
+    let mut files = crate::output::Outputs::new().reading(&inputs);
     if let Some(p) = a.diff_exr {
         let d = abs_diff(&reference, &test).map_err(mismatch)?;
-        write_exr_rgb(p, &d).map_err(write_err)?;
+        files
+            .write_with(p, |tmp| exr_to(tmp, &d))
+            .map_err(write_err)?;
     }
     if let Some(p) = a.heatmap {
         let map = match flip_map {
             Some(m) => m,
             None => abs_error_map(&reference, &test).map_err(mismatch)?,
         };
-        write_png_rgb8(p, w, h, &heatmap_rgb8(&map, w, h)).map_err(write_err)?;
+        let rgb = heatmap_rgb8(&map, w, h);
+        files
+            .write_with(p, |tmp| png_rgb8_to(tmp, w, h, &rgb))
+            .map_err(write_err)?;
     }
     let mut stdout = String::new();
     if let Some(p) = a.json {
@@ -182,9 +188,10 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
         if json_stdout {
             stdout = text;
         } else {
-            crate::output::write_atomic(p, text.as_bytes()).map_err(write_err)?;
+            files.write(p, text.as_bytes()).map_err(write_err)?;
         }
     }
+    files.commit().map_err(write_err)?;
 
     // Report
     if json_stdout {

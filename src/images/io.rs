@@ -796,6 +796,12 @@ fn scale<T: Copy + Into<f32>>(v: &[T], max: f32) -> Vec<f32> {
 /// Writes every channel of `img` as a float32 EXR, atomically, with its data and display
 /// windows.
 pub fn write_exr_rgb(path: &Path, img: &Image) -> anyhow::Result<()> {
+    crate::output::write_atomic_with(path, |tmp| exr_to(tmp, img))
+}
+
+/// [`write_exr_rgb`]'s encoder, to `tmp` as given (a temporary the caller stages, see
+/// [`crate::output::Outputs`]).
+pub fn exr_to(tmp: &Path, img: &Image) -> anyhow::Result<()> {
     use exr::prelude::*;
     // One float32 plane per channel, in a single layer
     let n = img.channels.len();
@@ -821,23 +827,23 @@ pub fn write_exr_rgb(path: &Path, img: &Image) -> anyhow::Result<()> {
     );
     let d = img.display;
     let display = IntegerBounds::new(Vec2(i32_of(d.x)?, i32_of(d.y)?), (d.width, d.height));
-    // Write it through a temporary sibling
-    crate::output::write_atomic_with(path, |tmp| {
-        Ok(
-            exr::prelude::Image::new(ImageAttributes::new(display), layer)
-                .write()
-                .to_file(tmp)?,
-        )
-    })
+    Ok(
+        exr::prelude::Image::new(ImageAttributes::new(display), layer)
+            .write()
+            .to_file(tmp)?,
+    )
 }
 
 /// Writes 8-bit RGB (`w × h × 3` bytes) as a PNG, atomically.
 pub fn write_png_rgb8(path: &Path, w: usize, h: usize, rgb: &[u8]) -> anyhow::Result<()> {
-    crate::output::write_atomic_with(path, |tmp| {
-        let img = image::RgbImage::from_raw(w as u32, h as u32, rgb.to_vec())
-            .ok_or_else(|| anyhow::anyhow!("{} bytes is not {w}x{h} RGB", rgb.len()))?;
-        Ok(img.save_with_format(tmp, image::ImageFormat::Png)?)
-    })
+    crate::output::write_atomic_with(path, |tmp| png_rgb8_to(tmp, w, h, rgb))
+}
+
+/// [`write_png_rgb8`]'s encoder, to `tmp` as given (a temporary the caller stages).
+pub fn png_rgb8_to(tmp: &Path, w: usize, h: usize, rgb: &[u8]) -> anyhow::Result<()> {
+    let img = image::RgbImage::from_raw(w as u32, h as u32, rgb.to_vec())
+        .ok_or_else(|| anyhow::anyhow!("{} bytes is not {w}x{h} RGB", rgb.len()))?;
+    Ok(img.save_with_format(tmp, image::ImageFormat::Png)?)
 }
 
 /// Linear [0, 1] → 8-bit sRGB (ꟻLIP's `LinearRGB2sRGB`, then × 255 rounded).
