@@ -122,9 +122,10 @@
 //!
 //! # The repository around the crate
 //!
-//! - `tests/`: `sphere.rs` (one test per method × class, teeth, hand-derived oracle cases,
-//!   proptest), `verdicts.rs` (other seeds and case counts pass; a robust method made naive
-//!   fails), `shard.rs`, `cli.rs`, `routines.rs`, and one file per other area.
+//! - `tests/`: one test binary, `main.rs`, with a module per area: `sphere.rs` (one test per
+//!   method × class, teeth, hand-derived oracle cases, proptest), `verdicts.rs` (other seeds
+//!   and case counts pass; a robust method made naive fails), `shard.rs`, `cli.rs`,
+//!   `layers.rs` (the layers point one way), and one file per other area.
 //! - `benches/`: criterion benchmarks, each validated against the oracle before it times.
 //! - `scripts/`: `audit-excerpt`, `audit-excerpt-routines`, `measure-tolerances`, `bench-render`,
 //!   `bench-outside`, `make-fan30`, `make-seed1996`, the reference scripts (`render-povray`,

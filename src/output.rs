@@ -362,11 +362,15 @@ pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Resul
         } else {
             check_target(p)?;
         }
-        // Can a temporary be created there? (a read-only directory, /proc, …)
+        // Can a temporary be created there? (a read-only directory, /proc, …) Made under
+        // `staging`, like every temporary: a signal between its creation and its removal left
+        // it behind (1 of 80 interrupted renders, tests/signals.rs, once its tests ran beside
+        // others)
         let tmp = tmp_for(p, "tmp");
-        std::fs::File::create(&tmp)
-            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
-        let _ = std::fs::remove_file(&tmp);
+        let made = staging(&tmp, || std::fs::File::create(&tmp));
+        remove_temporary(&tmp);
+        live(|v| v.retain(|q| q != &tmp));
+        made.map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
     }
     Ok(())
 }

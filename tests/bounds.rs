@@ -4,9 +4,7 @@
 //! it broke (or, for the path-tree budget, render within the budget and say so), never abort,
 //! hang or eat the machine.
 
-mod common;
-
-use common::{s, scratch};
+use crate::common::{s, scratch};
 use std::io::Read;
 use std::os::unix::process::CommandExt;
 use std::path::Path;

@@ -1,7 +1,6 @@
 //! The `rayproof` binary: probe JSON, audit determinism, and one-line errors with exit code 2.
 
-mod common;
-use common::{rayproof, stderr};
+use crate::common::{rayproof, stderr};
 use serde_json::Value;
 use std::process::{Command, Output};
 

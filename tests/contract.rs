@@ -8,9 +8,7 @@
 //!   `--plugin`, `score` and the Rust API: the same rows, count for count.
 //! - A line that is not an answer at all stops the run with one line naming the case, exit 4.
 
-mod common;
-
-use common::{build_library, outside, rayproof, s, scratch, stderr, stdout};
+use crate::common::{build_library, outside, rayproof, s, scratch, stderr, stdout};
 use rayproof::audit::{Answer, Audit};
 use rayproof::numerics::Precision;
 use serde_json::Value;

@@ -2,9 +2,7 @@
 //! with its process group at its deadline, whatever it does with its pipes, and nothing of it
 //! outlives the run. (The renderer of a suite: tests/suite.rs.)
 
-mod common;
-
-use common::{rayproof_in, scratch, stderr};
+use crate::common::{rayproof_in, scratch, stderr};
 use std::path::Path;
 use std::time::Instant;
 

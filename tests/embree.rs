@@ -17,9 +17,7 @@
 //!
 //! Without Embree's headers or library the test fails (CI installs `libembree-dev`).
 
-mod common;
-
-use common::{rayproof, s, scratch, stderr};
+use crate::common::{rayproof, s, scratch, stderr};
 use serde_json::Value;
 use std::path::PathBuf;
 use std::process::Command;

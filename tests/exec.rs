@@ -4,8 +4,7 @@
 //! - a child that crashes, hangs, answers a malformed line or too few lines stops the audit
 //!   with one line and exit 4, within the timeout, and writes no report.
 
-mod common;
-use common::{rayproof, scratch};
+use crate::common::{rayproof, scratch};
 use serde_json::Value;
 use std::path::Path;
 use std::process::Command;
@@ -262,22 +261,6 @@ fn one_child_answers_the_whole_run() {
     // run once per batch; with --exec-keep it is held to flushing, and the message says so
     let lazy = "echo $$ >> starts; exec awk '{print 0}'";
     std::fs::remove_file(dir.join("starts")).unwrap();
-    let o = rayproof(&[
-        "audit",
-        "--shape",
-        "rcp",
-        "--class",
-        "huge",
-        "--cases",
-        "5000",
-        "--precision",
-        "f32",
-        "--exec",
-        lazy,
-        "--timeout",
-        "20",
-    ]);
-    let _ = o;
     let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
         .current_dir(&dir)
         .args([

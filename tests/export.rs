@@ -8,10 +8,10 @@
 //! - `rayproof downsample`: block means, and one-line errors (exit 2) that leave nothing behind.
 //! - `rayproof export`: one-line errors for a bad target and a missing scene.
 
-mod common;
-use common::{rayproof, stderr};
+use crate::common::{rayproof, stderr};
 use glam::DVec3;
-use rayproof::render::export::{mitsuba, povray, Frame};
+use rayproof::render::export::{mitsuba, povray};
+use rayproof::render::scene::Frame;
 use rayproof::render::scene::{self, Material, Scene, Shape};
 use std::collections::BTreeSet;
 use std::f64::consts::PI;

@@ -2,8 +2,7 @@
 //! the same against the real idiff): Blender's multilayer channels and the layer `diff` picks,
 //! single-channel images, data and display windows.
 
-mod common;
-use common::temp_dir;
+use crate::common::temp_dir;
 use rayproof::images::*;
 use std::path::Path;
 use std::process::Command;

@@ -4,8 +4,7 @@
 //! write no file but the intended outputs, and leave an existing output byte-identical when it
 //! fails.
 
-mod common;
-use common::scratch;
+use crate::common::scratch;
 use proptest::prelude::*;
 use std::path::Path;
 use std::process::Command;
@@ -121,7 +120,7 @@ proptest! {
 
     #[test]
     fn a_mutated_exr_header_is_compared_or_refused_in_one_line(byte in 0usize..400, value in 0u8..=255, cut in 0usize..8) {
-        let d = scratch("exr");
+        let d = scratch("fuzz-exr");
         let good = d.join("good.exr");
         if !good.exists() {
             let img = rayproof::images::Image::rgb(16, 16, (0..768).map(|i| i as f32 / 768.0).collect());

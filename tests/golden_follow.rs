@@ -10,15 +10,16 @@
 //!   declared or an EXR of 10,000 parts at `{out}`: one line naming the test and the problem,
 //!   the test refused, nothing blessed.
 
-mod common;
-
-use common::{s, scratch};
+use crate::common::{s, scratch};
 use rayproof::golden::sha256_file;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 fn standin() -> String {
-    format!("python3 '{}'", s(&common::outside("standin_render.py")))
+    format!(
+        "python3 '{}'",
+        s(&crate::common::outside("standin_render.py"))
+    )
 }
 
 fn check(dir: &Path, extra: &[&str]) -> (Option<i32>, String, String) {

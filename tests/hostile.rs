@@ -3,8 +3,7 @@
 //! documented limits are refused before anything is allocated, and every reference scene
 //! renders without a NaN or Inf pixel.
 
-mod common;
-use common::scratch;
+use crate::common::scratch;
 use std::path::Path;
 use std::process::Command;
 

@@ -1,8 +1,7 @@
 //! `rayproof diff`: idiff metrics and verdict order, NaN/Inf rules, unreadable files, size
 //! mismatches, HDR-ꟻLIP, the noise-aware z-test, and `run_diff`'s exit codes and files.
 
-mod common;
-use common::temp_dir;
+use crate::common::temp_dir;
 use rayproof::images::*;
 use std::path::Path;
 

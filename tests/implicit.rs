@@ -2,8 +2,7 @@
 //! `implicit-check` on the reference scenes (the certified mode loses nothing; the paper's
 //! sampling loses the adversarial features), blob against POV-Ray 3.7, and bad input.
 
-mod common;
-use common::rayproof;
+use crate::common::rayproof;
 use glam::DVec3;
 use rand::{Rng, SeedableRng};
 use rayproof::implicit::field::{Field, SdfPart};

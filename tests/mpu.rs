@@ -2,7 +2,7 @@
 //! points (fit accuracy, inside/outside, bounds, the measured Lipschitz bound, ghost surfaces
 //! against the mesh's winding number), the analytic gradient, and malformed .pts input.
 //!
-//! `cargo test --release --test mpu -- --ignored --nocapture report` prints the numbers
+//! `cargo test --release --test integration mpu::report -- --ignored --nocapture` prints the numbers
 //! quoted in the module doc (fit time, eval cost, ghost table).
 
 use glam::DVec3;

@@ -1,8 +1,7 @@
 //! `rayproof cases` + `rayproof score`: code that cannot be called answers a file of cases, and
 //! the score is exactly the judgement of a direct audit of the same routine.
 
-mod common;
-use common::{rayproof, scratch};
+use crate::common::{rayproof, scratch};
 use rayproof::audit::{probe_line, Shape};
 use rayproof::numerics::real::parse_f64;
 use rayproof::numerics::Precision;
@@ -125,7 +124,7 @@ fn refused(o: &Output, what: &str) {
 
 #[test]
 fn bad_files_are_refused_with_one_line() {
-    let dir = scratch("bad");
+    let dir = scratch("offline-bad");
     let cases = dir.join("cases.txt");
     let o = rayproof(&[
         "cases",

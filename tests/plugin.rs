@@ -1,8 +1,7 @@
 //! `rayproof audit --plugin PATH:SYMBOL`: C routines in a shared library, built here with the
 //! system C compiler from `tests/outside/routines.c`, audited through their C ABI in batches.
 
-mod common;
-use common::rayproof;
+use crate::common::rayproof;
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Command;

@@ -9,9 +9,7 @@
 //! POV-Ray must be installed (Debian's `povray`; `.ci/run` installs it): without it these tests
 //! fail, they do not skip.
 
-mod common;
-
-use common::scratch;
+use crate::common::scratch;
 use rayproof::golden::sha256_file;
 use std::path::Path;
 use std::process::Command;

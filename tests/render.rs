@@ -1,8 +1,7 @@
 //! The renderer: analytic radiance checks, effect analysis, ray counts, every reference scene
 //! free of NaN/Inf, and bad scene input.
 
-mod common;
-use common::rayproof;
+use crate::common::rayproof;
 use rayproof::render::scene::{self, Scene};
 use rayproof::render::{render, Effects, Overrides, Render};
 use rayproof::shapes::sphere::methods::METHODS;

@@ -69,9 +69,7 @@
 //! killing the child and all it started; `tests/suite.rs`: a suite renderer that closes its
 //! pipes, killed at the suite's timeout).
 
-mod common;
-
-use common::{outside, s};
+use crate::common::{outside, s};
 use std::collections::BTreeMap;
 use std::os::unix::process::{CommandExt, ExitStatusExt};
 use std::path::{Path, PathBuf};
@@ -657,7 +655,7 @@ fn cases_streamed(d: &Path) -> Result<(), String> {
 
 /// `audit` of 50 random sphere cases by the routine `symbol` of `tests/outside/routines.c`.
 fn plugin(d: &Path, symbol: &str) -> Result<(), String> {
-    let lib = common::build_library("routines.c", d);
+    let lib = crate::common::build_library("routines.c", d);
     let spec = format!("{}:{symbol}", lib.display());
     let args = [
         "audit",
@@ -1214,6 +1212,12 @@ const ROWS: &[Row] = &[
 
 #[test]
 fn every_reproducer_of_the_issue_ends_as_the_issue_asks() {
+    // The runs' peak memory is measured (`cases_streamed`): in a process of its own
+    if !crate::common::in_own_process(
+        "reproducers::every_reproducer_of_the_issue_ends_as_the_issue_asks",
+    ) {
+        return;
+    }
     let only: Option<Vec<String>> = std::env::var("RAYPROOF_REPRODUCERS")
         .ok()
         .map(|v| v.split(',').map(|s| s.trim().to_string()).collect());
@@ -1292,20 +1296,9 @@ fn a_command_killed_at_its_output_cap_is_over_the_cap_in_every_later_exchange() 
     use rayproof::process::{Broken, Session};
     // A session makes its process the subreaper of all it starts, and kills every child it
     // adopted: in a process of its own, not among the other tests' children
-    const ALONE: &str = "RAYPROOF_REPRODUCERS_SESSION_ALONE";
-    if std::env::var_os(ALONE).is_none() {
-        let o = Command::new(std::env::current_exe().unwrap())
-            .args([
-                "a_command_killed_at_its_output_cap_is_over_the_cap_in_every_later_exchange",
-                "--exact",
-                "--nocapture",
-            ])
-            .env(ALONE, "1")
-            .output()
-            .unwrap();
-        let text =
-            String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
-        assert!(o.status.success() && text.contains("1 passed"), "{text}");
+    if !crate::common::in_own_process(
+        "reproducers::a_command_killed_at_its_output_cap_is_over_the_cap_in_every_later_exchange",
+    ) {
         return;
     }
     // A wait that only asks whether an answer is whole passes the cap: killed

@@ -2,8 +2,7 @@
 //! shape (rows for every method × precision × class, byte-identical for a seed), and `probe`
 //! replaying the audit's own examples to the same judgement.
 
-mod common;
-use common::rayproof;
+use crate::common::rayproof;
 use rayproof::shapes::registry;
 use serde_json::Value;
 use std::process::{Command, Output};

@@ -3,9 +3,7 @@
 //! user's. Each case below destroyed a user's file before (the issue "Nothing lost, nothing
 //! hangs"); each checks the user's files byte for byte.
 
-mod common;
-
-use common::{rayproof_in, s, scratch, stderr};
+use crate::common::{rayproof_in, s, scratch, stderr};
 use std::path::{Path, PathBuf};
 
 /// Every file under `dir` with its bytes, sorted (symbolic links as their targets' names).
@@ -204,7 +202,7 @@ fn check_update_never_writes_a_reference() {
     // manifest entry. Now the suite is refused before anything runs.
     let d = scratch("sacred-golden");
     std::fs::create_dir_all(d.join("refs")).unwrap();
-    let standin = common::outside("standin_render.py");
+    let standin = crate::common::outside("standin_render.py");
     let st = std::process::Command::new("python3")
         .arg(&standin)
         .arg(d.join("refs/disc.exr"))
@@ -267,7 +265,7 @@ fn the_clean_up_removes_only_rayproof_temporaries() {
 fn a_check_run_commits_its_reports_and_goldens_together() {
     // A suite with a golden to bless and every report: all land, no temporary is left
     let d = scratch("sacred-together");
-    let standin = common::outside("standin_render.py");
+    let standin = crate::common::outside("standin_render.py");
     std::fs::write(
         d.join("suite.toml"),
         format!(

@@ -3,8 +3,7 @@
 //! sphere, for another shape and for several shapes at once; a shard set that is incomplete,
 //! inconsistent or corrupt is refused with one line and an exit code.
 
-mod common;
-use common::{rayproof, scratch, stderr, stdout};
+use crate::common::{rayproof, scratch, stderr, stdout};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 use std::process::Output;

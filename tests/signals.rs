@@ -3,11 +3,9 @@
 //! after their work) leave every old output byte-identical or every output new, never a mix;
 //! and no temporary, scratch directory or process of theirs behind.
 //!
-//! 210 interrupted runs by default (`RAYPROOF_SIGNAL_RUNS` scales them).
+//! 210 interrupted runs by default (`RAYPROOF_SIGNAL_RUNS` scales them), one test per command.
 
-mod common;
-
-use common::{outside, scratch};
+use crate::common::{outside, scratch};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -124,132 +122,146 @@ fn leftovers(dir: &Path, pid: u32) -> Vec<String> {
     v
 }
 
-fn setup(seed: u64) -> Vec<Case> {
+/// One command (`render`, `audit`, `check` for `check --update`, `report`) with its old
+/// outputs in place.
+fn setup(which: &str) -> Case {
     let scale: f64 = std::env::var("RAYPROOF_SIGNAL_RUNS")
         .ok()
         .and_then(|s| s.parse::<f64>().ok())
         .map_or(1.0, |n| n / 210.0);
     let runs = |n: usize| ((n as f64 * scale).round() as usize).max(1);
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let base = scratch(&format!("signals-{seed}"));
-    let mut cases = vec![];
-    // render: the EXR, its sidecar and the PNG
-    let d = base.join("render");
-    std::fs::create_dir_all(&d).unwrap();
-    let scene = root.join("reference/scenes/fan30.toml");
-    let render = |w: &str| {
-        strings(&[
-            "render",
-            scene.to_str().unwrap(),
-            "--width",
-            w,
-            "-o",
-            "o.exr",
-            "--png",
-            "o.png",
-        ])
-    };
-    complete(&d, &render("96"));
-    cases.push(Case {
-        name: "render",
-        outputs: ["o.exr", "o.exr.json", "o.png"].map(|f| d.join(f)).to_vec(),
-        dir: d,
-        new_args: render("160"),
-        runs: runs(80),
-    });
-    // audit: the JSON, the Markdown and the shard, together
-    let d = base.join("audit");
-    std::fs::create_dir_all(&d).unwrap();
-    let audit = |seed: &str| {
-        strings(&[
-            "audit",
-            "--shape",
-            "rcp,box,sphere",
-            "--cases",
-            "3000",
-            "--seed",
-            seed,
-            "--json",
-            "a.json",
-            "--markdown",
-            "a.md",
-            "--shard-out",
-            "s.json",
-        ])
-    };
-    complete(&d, &audit("1"));
-    cases.push(Case {
-        name: "audit",
-        outputs: ["a.json", "a.md", "s.json"].map(|f| d.join(f)).to_vec(),
-        dir: d,
-        new_args: audit("2"),
-        runs: runs(86),
-    });
-    // check --update: goldens, their manifest, the report directory and the JSON
-    let d = base.join("check");
-    std::fs::create_dir_all(&d).unwrap();
-    let suite = |perturb: &str| {
-        format!(
-            "[suite]\nrenderer = \"echo $$ >> pids; python3 {} {{out}} --width 48 --grid 2 --perturb {perturb}\"\ngoldens = \"goldens\"\n\n[[test]]\nname = \"a\"\n\n[[test]]\nname = \"b\"\n",
-            outside("standin_render.py").display()
-        )
-    };
-    std::fs::write(d.join("old.toml"), suite("0")).unwrap();
-    std::fs::write(d.join("new.toml"), suite("0.25")).unwrap();
-    let check = |s: &str| {
-        strings(&[
-            "check", "--suite", s, "--update", "--report", "rep", "--json", "c.json",
-        ])
-    };
-    complete(&d, &check("old.toml"));
-    cases.push(Case {
-        name: "check --update",
-        outputs: [
-            "goldens/a.exr",
-            "goldens/b.exr",
-            "goldens/manifest.json",
-            "rep",
-            "c.json",
-        ]
-        .map(|f| d.join(f))
-        .to_vec(),
-        dir: d,
-        new_args: check("new.toml"),
-        runs: runs(40),
-    });
-    // report: a whole directory
-    let d = base.join("report");
-    std::fs::create_dir_all(&d).unwrap();
-    let out = d.join("rep");
-    let report = |seed: &str| {
-        strings(&[
-            "report",
-            "--quick",
-            "--seed",
-            seed,
-            "--out",
-            out.to_str().unwrap(),
-            "--reference",
-            root.join("reference").to_str().unwrap(),
-        ])
-    };
-    complete(&d, &report("1"));
-    cases.push(Case {
-        name: "report",
-        outputs: vec![out.clone()],
-        dir: d,
-        new_args: report("2"),
-        runs: runs(4),
-    });
-    cases
+    let base = scratch(&format!("signals-{which}"));
+    match which {
+        "render" => {
+            // render: the EXR, its sidecar and the PNG
+            let d = base.join("render");
+            std::fs::create_dir_all(&d).unwrap();
+            let scene = root.join("reference/scenes/fan30.toml");
+            let render = |w: &str| {
+                strings(&[
+                    "render",
+                    scene.to_str().unwrap(),
+                    "--width",
+                    w,
+                    "-o",
+                    "o.exr",
+                    "--png",
+                    "o.png",
+                ])
+            };
+            complete(&d, &render("96"));
+            Case {
+                name: "render",
+                outputs: ["o.exr", "o.exr.json", "o.png"].map(|f| d.join(f)).to_vec(),
+                dir: d,
+                new_args: render("160"),
+                runs: runs(80),
+            }
+        }
+        "audit" => {
+            // audit: the JSON, the Markdown and the shard, together
+            let d = base.join("audit");
+            std::fs::create_dir_all(&d).unwrap();
+            let audit = |seed: &str| {
+                strings(&[
+                    "audit",
+                    "--shape",
+                    "rcp,box,sphere",
+                    "--cases",
+                    "1000",
+                    "--seed",
+                    seed,
+                    "--json",
+                    "a.json",
+                    "--markdown",
+                    "a.md",
+                    "--shard-out",
+                    "s.json",
+                ])
+            };
+            complete(&d, &audit("1"));
+            Case {
+                name: "audit",
+                outputs: ["a.json", "a.md", "s.json"].map(|f| d.join(f)).to_vec(),
+                dir: d,
+                new_args: audit("2"),
+                runs: runs(86),
+            }
+        }
+        "check" => {
+            // check --update: goldens, their manifest, the report directory and the JSON
+            let d = base.join("check");
+            std::fs::create_dir_all(&d).unwrap();
+            let suite = |perturb: &str| {
+                format!(
+                    "[suite]\nrenderer = \"echo $$ >> pids; python3 {} {{out}} --width 48 --grid 2 --perturb {perturb}\"\ngoldens = \"goldens\"\n\n[[test]]\nname = \"a\"\n\n[[test]]\nname = \"b\"\n",
+                    outside("standin_render.py").display()
+                )
+            };
+            std::fs::write(d.join("old.toml"), suite("0")).unwrap();
+            std::fs::write(d.join("new.toml"), suite("0.25")).unwrap();
+            let check = |s: &str| {
+                strings(&[
+                    "check", "--suite", s, "--update", "--report", "rep", "--json", "c.json",
+                ])
+            };
+            complete(&d, &check("old.toml"));
+            Case {
+                name: "check --update",
+                outputs: [
+                    "goldens/a.exr",
+                    "goldens/b.exr",
+                    "goldens/manifest.json",
+                    "rep",
+                    "c.json",
+                ]
+                .map(|f| d.join(f))
+                .to_vec(),
+                dir: d,
+                new_args: check("new.toml"),
+                runs: runs(40),
+            }
+        }
+        "report" => {
+            // report: a whole directory
+            let d = base.join("report");
+            std::fs::create_dir_all(&d).unwrap();
+            let out = d.join("rep");
+            let report = |seed: &str| {
+                strings(&[
+                    "report",
+                    "--quick",
+                    "--seed",
+                    seed,
+                    "--out",
+                    out.to_str().unwrap(),
+                    "--reference",
+                    root.join("reference").to_str().unwrap(),
+                ])
+            };
+            complete(&d, &report("1"));
+            Case {
+                name: "report",
+                outputs: vec![out.clone()],
+                dir: d,
+                new_args: report("2"),
+                runs: runs(4),
+            }
+        }
+        _ => unreachable!("{which}"),
+    }
 }
 
-#[test]
-fn interrupted_runs_leave_all_old_or_all_new_outputs_and_nothing_behind() {
-    let mut rng = Rng(20261126);
+/// Interrupts `which`'s runs at seeded moments (its own stream: the same moments whichever
+/// commands run and in what order), checking after each that its outputs are all old or all
+/// new and that nothing of it is left.
+fn interrupted_runs(which: &str, seed: u64) {
+    let mut rng = Rng(seed);
     let mut total = 0;
     let mut tally = vec![];
-    for case in setup(1) {
+    {
+        let case = setup(which);
         let old: Vec<_> = case.outputs.iter().map(|p| contents(p)).collect();
         assert!(
             old.iter().all(|c| c.is_some()),
@@ -328,6 +340,28 @@ fn interrupted_runs_leave_all_old_or_all_new_outputs_and_nothing_behind() {
     }
     eprintln!("{total} interrupted runs\n{}", tally.join("\n"));
     assert!(total >= 1);
+}
+
+// One test per command, so that the four run side by side
+
+#[test]
+fn interrupted_renders_leave_all_old_or_all_new_outputs_and_nothing_behind() {
+    interrupted_runs("render", 20261126);
+}
+
+#[test]
+fn interrupted_audits_leave_all_old_or_all_new_outputs_and_nothing_behind() {
+    interrupted_runs("audit", 20261127);
+}
+
+#[test]
+fn interrupted_check_updates_leave_all_old_or_all_new_outputs_and_nothing_behind() {
+    interrupted_runs("check", 20261128);
+}
+
+#[test]
+fn interrupted_reports_leave_all_old_or_all_new_outputs_and_nothing_behind() {
+    interrupted_runs("report", 20261129);
 }
 
 /// Puts the old outputs back exactly (files and directories).

@@ -131,7 +131,7 @@ fn default_audit_passes_the_table() {
     }
 }
 
-/// `cargo test --release --test torus print_tables -- --nocapture` prints the measured tables.
+/// `cargo test --release --test integration torus::print_tables -- --nocapture` prints the measured tables.
 #[test]
 fn print_tables() {
     for report in [torus_report(), normal_report()] {

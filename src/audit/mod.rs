@@ -107,6 +107,7 @@ pub mod exec;
 pub mod hexfloat;
 pub mod hist;
 pub mod judge;
+pub mod merge;
 pub mod offline;
 pub mod plan;
 pub mod plugin;

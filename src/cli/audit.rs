@@ -483,82 +483,31 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
             .map_err(|e| anyhow!("{}: {e}", p.display()))?;
         shards.push((p.display().to_string(), s));
     }
-    // Check that they make up one audit (exit 3), merge, and judge as the unsharded run does
+    // Check that they make up one audit (exit 3), merge, and judge as the unsharded run does,
+    // with the rules the shards carry (a --tolerances file here must be the same one)
     let count = shards.len();
     let merged = shard::merge(TOOL, shards, rayproof::shapes::shape_by_name)?;
-    let extra = merged
-        .shapes
-        .iter()
-        .flat_map(|t| t.methods.iter().map(|x| (t.shape.name(), x.name.clone())))
-        .collect();
-    // Judged with the rules the shards carry; a --tolerances file here must be the same one
-    if let Some(p) = &m.out.tolerances {
-        let given = read_user_table(&Some(p.clone()))?;
-        let carried = merged.tolerances.as_ref().map(|t| &t.sha256);
-        if given.as_ref().map(|t| &t.sha256) != carried {
-            return Err(anyhow::Error::new(shard::IncompatibleShards(format!(
-                "--tolerances {} is not the table the shards were run with ({})",
-                p.display(),
-                UserTable::label(&merged.tolerances)
-            ))));
-        }
-    }
-    let table = table_of(
-        &merged.tolerances,
-        &rayproof::audit::plan::known_names(extra),
-    )?;
+    merged.check_table(&read_user_table(&m.out.tolerances)?)?;
+    let table = table_of(&merged.tolerances, &merged.known())?;
     print_legend(merged.seed, "0/1", &m.out);
-    let mut reports = vec![];
-    for t in &merged.shapes {
-        let r = t.report(Some(&table));
-        print_shape(&r, &m.out);
-        eprintln!(
-            "{}: {} cases × {} methods merged from {count} shards",
-            r.shape,
-            t.cases * t.groups.len() as u64,
-            t.methods.len()
-        );
-        reports.push(r);
-    }
-    let precisions: Vec<Precision> = merged
-        .shapes
-        .first()
-        .map(|t| {
-            let mut p: Vec<Precision> = t.groups.iter().map(|g| g.precision).collect();
-            p.dedup();
-            p
-        })
-        .unwrap_or_default();
-    let names: Vec<&str> = merged
-        .shapes
-        .iter()
-        .filter(|t| {
-            let mut classes: Vec<usize> = t.groups.iter().map(|g| g.class).collect();
-            classes.sort_unstable();
-            classes.dedup();
-            let methods = t.methods.iter().map(|m| m.name.as_str());
-            robustness::complete(t.shape, methods, classes.len())
-        })
-        .map(|t| t.shape.name())
-        .collect();
-    let robustness = robustness::with_outside(
-        robustness::run(merged.seed, &names, &precisions),
-        merged.seed,
-        merged.outside,
-    )
-    .map(|r| print_robustness(r, m.out.verbose));
-    finish(
-        Report {
-            tool: TOOL,
-            seed: merged.seed,
-            shard: "0/1".into(),
-            shapes: reports,
-            robustness,
-        },
-        true,
-        outputs,
-        &m.out,
-    )
+    let report = merged.report(&table, &mut |p| {
+        if let Progress::Shape(t, r, _) = p {
+            print_shape(r, &m.out);
+            eprintln!(
+                "{}: {} cases × {} methods merged from {count} shards",
+                r.shape,
+                t.cases * t.groups.len() as u64,
+                t.methods.len()
+            );
+        }
+    });
+    let report = Report {
+        robustness: report
+            .robustness
+            .map(|r| print_robustness(r, m.out.verbose)),
+        ..report
+    };
+    finish(report, true, outputs, &m.out)
 }
 
 impl AuditOutput {

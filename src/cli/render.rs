@@ -88,8 +88,7 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
         .collect();
     rayproof::output::check_outputs(&files, &[], &inputs)?;
     // The size and grid asked for, within the documented limits
-    let fr =
-        rayproof::render::export::Frame::of(&sc, a.width, a.spp).map_err(anyhow::Error::msg)?;
+    let fr = rayproof::render::scene::Frame::of(&sc, a.width, a.spp).map_err(anyhow::Error::msg)?;
     let ov = render::Overrides {
         method: a.method,
         precision: a.precision.map(|p| p.name()),
@@ -129,7 +128,7 @@ pub(super) fn run_render(a: RenderArgs) -> Result<u8> {
 pub(super) fn run_export(e: ExportArgs) -> Result<u8> {
     let sc = rayproof::render::scene::load(&e.scene)?;
     let fr =
-        rayproof::render::export::Frame::of(&sc, e.width, e.grid).map_err(anyhow::Error::msg)?;
+        rayproof::render::scene::Frame::of(&sc, e.width, e.grid).map_err(anyhow::Error::msg)?;
     if let Some(why) = rayproof::render::export::unsupported(&sc, &e.to) {
         anyhow::bail!("{}: {why}", e.scene.display());
     }

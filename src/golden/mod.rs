@@ -417,7 +417,7 @@ fn make_logged(
             // Render in process at the frame's size and grid, written as the golden would be
             let scene_path = t.scene.as_ref().expect("validated: rayproof needs a scene");
             let sc = scene::load(scene_path).map_err(|e| format!("{e:#}"))?;
-            let fr = render::export::Frame::of(&sc, frame.width, frame.grid)?;
+            let fr = render::scene::Frame::of(&sc, frame.width, frame.grid)?;
             let ov = render::Overrides {
                 method: Some(cfg.method),
                 precision: Some(cfg.precision),

@@ -146,7 +146,7 @@ pub fn make(req: &Request) -> Result<Vec<PathBuf>> {
         }
         versions.push(find(r)?);
     }
-    let fr = export::Frame::of(&sc, req.width, req.grid).map_err(anyhow::Error::msg)?;
+    let fr = scene::Frame::of(&sc, req.width, req.grid).map_err(anyhow::Error::msg)?;
     let dir = req.dir.clone().unwrap_or_else(|| default_dir(&req.scene));
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let scene_sha = sha256_file(&req.scene)?;

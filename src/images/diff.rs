@@ -59,26 +59,6 @@ impl DiffError {
     }
 }
 
-/// Output files: their directory exists, they are not directories, not one of the inputs.
-fn check_output(path: &Path, inputs: &[&Path]) -> Result<(), DiffError> {
-    let bad = |why: String| DiffError::new(2, format!("cannot write {}: {why}", path.display()));
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    if !dir.is_dir() {
-        return Err(bad(format!("directory {} does not exist", dir.display())));
-    }
-    if path.is_dir() {
-        return Err(bad("it is a directory".into()));
-    }
-    let canon = |p: &Path| std::fs::canonicalize(p).ok();
-    if canon(path).is_some() && inputs.iter().any(|i| canon(i) == canon(path)) {
-        return Err(bad("it is one of the input images".into()));
-    }
-    Ok(())
-}
-
 /// `rayproof diff` as one call: reads the images (the layer asked for), compares them by idiff's
 /// metrics under rayproof's or idiff's rules, runs the z-test and ꟻLIP, writes the files asked
 /// for (each checked before any image is read) and returns the verdict's exit code with the text
@@ -91,9 +71,12 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
     let mut inputs = vec![a.reference, a.test];
     inputs.extend(a.variance);
     let json_file = a.json.filter(|_| !json_stdout);
-    for p in [a.diff_exr, a.heatmap, json_file].into_iter().flatten() {
-        check_output(p, &inputs)?;
-    }
+    let files: Vec<&Path> = [a.diff_exr, a.heatmap, json_file]
+        .into_iter()
+        .flatten()
+        .collect();
+    crate::output::check_outputs(&files, &[], &inputs)
+        .map_err(|e| DiffError::new(2, e.to_string()))?;
 
     // Inputs: the layer asked for (idiff reads every channel); the variance image's default
     // layer

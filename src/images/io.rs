@@ -799,16 +799,42 @@ pub fn write_exr_rgb(path: &Path, img: &Image) -> anyhow::Result<()> {
     crate::output::write_atomic_with(path, |tmp| exr_to(tmp, img))
 }
 
-/// [`write_exr_rgb`]'s encoder, to `tmp` as given (a temporary the caller stages, see
-/// [`crate::output::Outputs`]).
+/// The EXR encoder (of [`write_exr_rgb`], `diff`'s image and every render), to `tmp` as given (a
+/// temporary the caller stages, see [`crate::output::Outputs`]). Compressed on this thread: the
+/// parallel writer starts a thread pool per file, whose threads cost more CPU than they save on
+/// a frame, and it writes the blocks in whatever order they finish (a different file each run).
 pub fn exr_to(tmp: &Path, img: &Image) -> anyhow::Result<()> {
-    use exr::prelude::*;
-    // One float32 plane per channel, in a single layer
     let n = img.channels.len();
-    let list: Vec<AnyChannel<FlatSamples>> = (0..n)
+    let planes = (0..n)
         .map(|c| {
             let plane = img.data.iter().skip(c).step_by(n).copied().collect();
-            AnyChannel::new(img.channels[c].as_str(), FlatSamples::F32(plane))
+            (img.channels[c].as_str(), plane)
+        })
+        .collect();
+    exr_planes_to(
+        tmp,
+        (img.width, img.height),
+        img.origin,
+        img.display,
+        planes,
+    )
+}
+
+/// [`exr_to`] of planes: one float32 plane of `size` samples per named channel, in a single
+/// layer whose data window starts at `origin` in the display window `display`.
+pub fn exr_planes_to(
+    tmp: &Path,
+    size: (usize, usize),
+    origin: (i64, i64),
+    display: Window,
+    planes: Vec<(&str, Vec<f32>)>,
+) -> anyhow::Result<()> {
+    use exr::prelude::*;
+    let list: Vec<AnyChannel<FlatSamples>> = planes
+        .into_iter()
+        .map(|(name, plane)| {
+            assert_eq!(plane.len(), size.0 * size.1, "EXR plane size");
+            AnyChannel::new(name, FlatSamples::F32(plane))
         })
         .collect();
     // Its data window where it was, in its display window
@@ -816,20 +842,21 @@ pub fn exr_to(tmp: &Path, img: &Image) -> anyhow::Result<()> {
         i32::try_from(v).map_err(|_| anyhow::anyhow!("position {v} is beyond OpenEXR's range"))
     };
     let attributes = LayerAttributes {
-        layer_position: Vec2(i32_of(img.origin.0)?, i32_of(img.origin.1)?),
+        layer_position: Vec2(i32_of(origin.0)?, i32_of(origin.1)?),
         ..Default::default()
     };
     let layer = Layer::new(
-        (img.width, img.height),
+        size,
         attributes,
         Encoding::FAST_LOSSLESS,
         AnyChannels::sort(list.into()),
     );
-    let d = img.display;
+    let d = display;
     let display = IntegerBounds::new(Vec2(i32_of(d.x)?, i32_of(d.y)?), (d.width, d.height));
     Ok(
         exr::prelude::Image::new(ImageAttributes::new(display), layer)
             .write()
+            .non_parallel()
             .to_file(tmp)?,
     )
 }
@@ -847,7 +874,7 @@ pub fn png_rgb8_to(tmp: &Path, w: usize, h: usize, rgb: &[u8]) -> anyhow::Result
 }
 
 /// Linear [0, 1] → 8-bit sRGB (ꟻLIP's `LinearRGB2sRGB`, then × 255 rounded).
-pub(super) fn srgb8(x: f64) -> u8 {
+pub fn srgb8(x: f64) -> u8 {
     let x = if x.is_nan() { 0.0 } else { x.clamp(0.0, 1.0) };
     let v = if x <= 0.003_130_8 {
         12.92 * x

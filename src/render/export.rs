@@ -43,43 +43,9 @@
 //!
 //! The references made this way, and how rayproof's renders compare with them: [`crate::golden`].
 
-use crate::render::scene::{GlassShadows, Material, Scene, Shape};
+use crate::render::scene::{Frame, GlassShadows, Material, Scene, Shape};
 use std::f64::consts::PI;
 use std::fmt::Write;
-
-/// Image size and sub-pixel grid of an export (the references are made at a fixed size).
-#[derive(Clone, Copy, Debug)]
-pub struct Frame {
-    /// Image width in pixels.
-    pub width: u32,
-    /// Image height in pixels.
-    pub height: u32,
-    /// `n` of the n×n sub-pixel grid (cell centres, box filter).
-    pub grid: u32,
-}
-
-impl Frame {
-    /// The scene's own frame, or `width` wide with the scene's aspect ratio and an n×n grid.
-    /// The frame of a scene at `width` (the height keeps the scene's aspect) and `grid`, within
-    /// the documented limits ([`crate::render::scene::check_frame`]): one line if not.
-    pub fn of(s: &Scene, width: Option<u32>, grid: Option<u32>) -> Result<Frame, String> {
-        let (w, h) = (
-            *s.file.camera.width.get_ref(),
-            *s.file.camera.height.get_ref(),
-        );
-        let width = width.unwrap_or(w);
-        let height = (width as f64 * h as f64 / w as f64)
-            .round()
-            .clamp(1.0, u32::MAX as f64) as u32;
-        let grid = grid.unwrap_or(*s.file.camera.grid.get_ref());
-        crate::render::scene::check_frame(width, height, grid)?;
-        Ok(Frame {
-            width,
-            height,
-            grid,
-        })
-    }
-}
 
 /// POV-Ray's fade distance for point lights; the residual relative error is (fd/d)², ≤ 1e-8
 /// beyond d = 1 (0.01 left 1e-4 at d = 1 and 1 % at d = 0.1, measured with POV-Ray 3.7).

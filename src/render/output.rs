@@ -3,8 +3,8 @@
 //! Every file is written to a temporary sibling and renamed into place.
 
 use super::Render;
-use anyhow::{Context, Result};
-use exr::prelude::*;
+use crate::images::{exr_planes_to, png_rgb8_to, srgb8, Window};
+use anyhow::Result;
 use std::path::Path;
 
 /// Which extra EXR layers to write.
@@ -53,61 +53,44 @@ pub fn write_all(
     out.commit()
 }
 
-/// Writes the EXR to `path` (a temporary file: the caller stages it, see [`crate::output::Outputs`]).
-/// The samples are read from the planes as the encoder asks for each pixel (no copy per channel).
+/// Writes the EXR to `path` (a temporary file: the caller stages it, see
+/// [`crate::output::Outputs`]) through the one EXR encoder, [`crate::images::exr_planes_to`]:
+/// beauty `R`, `G`, `B`, then the layers asked for (a layer whose plane the render did not fill
+/// is written as 0).
 pub fn write_exr(r: &Render, path: &Path, layers: Layers) -> Result<()> {
-    let ch = |name: &str| ChannelDescription::named(name, SampleType::F32);
-    let opt = |on: bool, name: &str| on.then(|| ch(name));
-    let channels = (
-        ch("R"),
-        ch("G"),
-        ch("B"),
-        opt(layers.depth, "depth.Z"),
-        opt(layers.normal, "normal.X"),
-        opt(layers.normal, "normal.Y"),
-        opt(layers.normal, "normal.Z"),
-        opt(layers.rays, "rays.Y"),
-    );
-    // A layer's plane is empty when the render did not fill it; its channel is then not written
+    let n = r.width * r.height;
+    let plane = |f: &dyn Fn(usize) -> f32| (0..n).map(f).collect::<Vec<f32>>();
     let at = |v: &[f32], i: usize| v.get(i).copied().unwrap_or(0.0);
-    let pixel = |p: Vec2<usize>| {
-        let i = p.y() * r.width + p.x();
-        let [cr, cg, cb] = r.beauty[i];
-        let [nx, ny, nz] = r.normal.get(i).copied().unwrap_or([0.0; 3]);
-        (cr, cg, cb, at(&r.depth, i), nx, ny, nz, at(&r.rays, i))
-    };
-    let layer = Layer::new(
-        (r.width, r.height),
-        LayerAttributes::default(),
-        Encoding::FAST_LOSSLESS,
-        SpecificChannels::new(channels, pixel),
-    );
-    // Compressed on this thread: the parallel writer starts a thread pool per file, whose
-    // threads cost more CPU than they save on a frame, and it writes the blocks in whatever
-    // order they finish (a different file each run)
-    Ok(Image::from_layer(layer)
-        .write()
-        .non_parallel()
-        .to_file(path)?)
+    let normal = |i: usize, k: usize| r.normal.get(i).map_or(0.0, |v| v[k]);
+    let mut planes = vec![
+        ("R", plane(&|i| r.beauty[i][0])),
+        ("G", plane(&|i| r.beauty[i][1])),
+        ("B", plane(&|i| r.beauty[i][2])),
+    ];
+    if layers.depth {
+        planes.push(("depth.Z", plane(&|i| at(&r.depth, i))));
+    }
+    if layers.normal {
+        for (k, name) in ["normal.X", "normal.Y", "normal.Z"].into_iter().enumerate() {
+            planes.push((name, plane(&|i| normal(i, k))));
+        }
+    }
+    if layers.rays {
+        planes.push(("rays.Y", plane(&|i| at(&r.rays, i))));
+    }
+    let frame = Window::at_origin(r.width, r.height);
+    exr_planes_to(path, (r.width, r.height), (0, 0), frame, planes)
 }
 
-/// sRGB transfer of a linear value clamped to [0, 1].
-fn srgb(x: f32) -> u8 {
-    let x = x.clamp(0.0, 1.0);
-    let v = if x <= 0.003_130_8 {
-        12.92 * x
-    } else {
-        1.055 * x.powf(1.0 / 2.4) - 0.055
-    };
-    (v * 255.0 + 0.5) as u8
-}
-
-/// Writes the PNG preview (clamp, sRGB) to `path` (a temporary file, staged by the caller).
+/// Writes the PNG preview (clamp, sRGB: [`crate::images::srgb8`]) to `path` (a temporary file,
+/// staged by the caller).
 pub fn write_png(r: &Render, path: &Path) -> Result<()> {
-    let buf: Vec<u8> = r.beauty.iter().flat_map(|p| p.map(srgb)).collect();
-    let img =
-        image::RgbImage::from_raw(r.width as u32, r.height as u32, buf).context("image size")?;
-    Ok(img.save_with_format(path, image::ImageFormat::Png)?)
+    let buf: Vec<u8> = r
+        .beauty
+        .iter()
+        .flat_map(|p| p.map(|x| srgb8(x as f64)))
+        .collect();
+    png_rgb8_to(path, r.width, r.height, &buf)
 }
 
 /// The statistics as JSON (also written beside the EXR as `<file>.json`).

@@ -68,6 +68,40 @@ pub const MAX_RADIANCE: f64 = 1e30;
 /// repeated indices is n − 2 triangles of 72 bytes each.
 pub const MAX_TRIANGLES: usize = 1 << 22;
 
+/// Image size and sub-pixel grid of a render or an export (the references are made at a fixed
+/// size).
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// `n` of the n×n sub-pixel grid (cell centres, box filter).
+    pub grid: u32,
+}
+
+impl Frame {
+    /// The scene's own frame, or `width` wide with the scene's aspect ratio, and its n×n grid or
+    /// `grid`, within the documented limits ([`check_frame`]): one line if not.
+    pub fn of(s: &Scene, width: Option<u32>, grid: Option<u32>) -> Result<Frame, String> {
+        let (w, h) = (
+            *s.file.camera.width.get_ref(),
+            *s.file.camera.height.get_ref(),
+        );
+        let width = width.unwrap_or(w);
+        let height = (width as f64 * h as f64 / w as f64)
+            .round()
+            .clamp(1.0, u32::MAX as f64) as u32;
+        let grid = grid.unwrap_or(*s.file.camera.grid.get_ref());
+        check_frame(width, height, grid)?;
+        Ok(Frame {
+            width,
+            height,
+            grid,
+        })
+    }
+}
+
 /// Checks an image's size and sampling grid against the documented limits: one line naming
 /// what is too large.
 pub fn check_frame(width: u32, height: u32, grid: u32) -> Result<(), String> {

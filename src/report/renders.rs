@@ -3,7 +3,7 @@
 
 use crate::images::{compare, read_image, Image, Thresholds};
 use crate::numerics::timing::Timing;
-use crate::render::export::Frame;
+use crate::render::scene::Frame;
 use crate::render::{self, scene, Overrides};
 use crate::shapes::sphere::methods::{Method, METHODS};
 use serde::Serialize;

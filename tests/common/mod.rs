@@ -30,9 +30,14 @@ pub fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
-/// A fresh scratch directory for one test: `rayproof-test-TAG-PID` under the temp directory.
+/// A fresh scratch directory for one test: `rayproof-test-FILE-TAG-PID` under the temp
+/// directory, `FILE` the calling test file's name: every test file runs in this one process,
+/// at once, so a tag is only unique within its file.
+#[track_caller]
 pub fn scratch(tag: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rayproof-test-{tag}-{}", std::process::id()));
+    let file = Path::new(std::panic::Location::caller().file());
+    let stem = file.file_stem().unwrap_or_default().to_string_lossy();
+    let d = std::env::temp_dir().join(format!("rayproof-test-{stem}-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
@@ -55,6 +60,7 @@ impl Drop for TempDir {
 }
 
 /// A fresh scratch directory as [`scratch`] makes it, removed on drop.
+#[track_caller]
 pub fn temp_dir(tag: &str) -> TempDir {
     TempDir(scratch(tag))
 }
@@ -92,4 +98,29 @@ pub fn outside(file: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("tests/outside")
         .join(file)
+}
+
+/// Runs the test `name` (its path in the test binary, e.g. `reproducers::every_…`) in a process
+/// of its own and returns false; returns true in that process. For a test that measures its
+/// children's peak memory (a child forked from this process starts with this process's
+/// resident set, which in the one test binary is every running test's), or that makes its
+/// process the subreaper of what it starts. The test's output is printed here.
+pub fn in_own_process(name: &str) -> bool {
+    const KEY: &str = "RAYPROOF_TEST_IN_OWN_PROCESS";
+    if std::env::var(KEY).as_deref() == Ok(name) {
+        return true;
+    }
+    let o = Command::new(std::env::current_exe().unwrap())
+        .args([name, "--exact", "--nocapture", "--test-threads", "1"])
+        .env(KEY, name)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+    print!("{text}");
+    assert!(
+        o.status.success() && text.contains("1 passed"),
+        "{name} in a process of its own:\n{text}"
+    );
+    false
 }
