@@ -448,23 +448,16 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     }
     let report = plan.run(&table, progress_bar, &mut each)?;
     progress.iter().for_each(|l| eprintln!("{l}"));
-    let report = Report {
-        robustness: report
-            .robustness
-            .map(|r| print_robustness(r, a.out.verbose)),
-        ..report
-    };
     finish(report, judge, outputs, &a.out)
 }
 
 /// Prints the reintersection and watertightness tests' summary (with `--verbose`, tables).
-fn print_robustness(r: Robustness, verbose: bool) -> Robustness {
+fn print_robustness(r: &Robustness, verbose: bool) {
     if verbose {
-        say_raw!("{}", robustness::table(&r, false));
+        say_raw!("{}", robustness::table(r, false));
     } else {
-        say_raw!("{}", robustness::summary(&r));
+        say_raw!("{}", robustness::summary(r));
     }
-    r
 }
 
 pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
@@ -501,12 +494,6 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
             );
         }
     });
-    let report = Report {
-        robustness: report
-            .robustness
-            .map(|r| print_robustness(r, m.out.verbose)),
-        ..report
-    };
     finish(report, true, outputs, &m.out)
 }
 
@@ -541,14 +528,17 @@ fn write_files(outputs: &mut Outputs, report: &Report, out: &AuditOutput) -> Res
     Ok(())
 }
 
-/// Prints the verdict, writes the files (together) and returns the exit code (the same for
-/// `audit`, `merge` and `score`).
+/// Prints the robustness tests' summary and the verdict, writes the files (together) and
+/// returns the exit code (the same for `audit`, `merge` and `score`).
 pub(super) fn finish(
     report: Report,
     judged: bool,
     mut outputs: Outputs,
     out: &AuditOutput,
 ) -> Result<u8> {
+    if let Some(r) = &report.robustness {
+        print_robustness(r, out.verbose);
+    }
     write_files(&mut outputs, &report, out)?;
     outputs.commit()?;
     if !judged {
