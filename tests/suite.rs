@@ -572,7 +572,7 @@ fn a_renderer_that_closes_its_pipes_is_killed_at_its_timeout() {
 #[test]
 fn a_test_that_compares_nothing_is_refused_not_passed() {
     // Every reference optional and missing, no golden: nothing was compared, so no pass
-    let dir = fixture("nothing", "", "");
+    let dir = fixture("compares-nothing", "", "");
     let p = dir.join("suite.toml");
     let text = std::fs::read_to_string(&p).unwrap().replace(
         "[[test]]\nname = \"a\"\nreference = [{ name = \"ext\", path = \"refs/a.exr\" }]",
