@@ -45,6 +45,13 @@ fn live(f: impl FnOnce(&mut Vec<PathBuf>)) {
     }
 }
 
+/// Removes a temporary that is no longer live and forgets it (a signal has nothing left to
+/// clean).
+fn discard(p: &Path) {
+    remove_temporary(p);
+    live(|v| v.retain(|q| q != p));
+}
+
 /// Removes a temporary: a file, or a directory with everything in it.
 fn remove_temporary(p: &Path) {
     match std::fs::symlink_metadata(p) {
@@ -368,8 +375,7 @@ pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Resul
         // others)
         let tmp = tmp_for(p, "tmp");
         let made = staging(&tmp, || std::fs::File::create(&tmp));
-        remove_temporary(&tmp);
-        live(|v| v.retain(|q| q != &tmp));
+        discard(&tmp);
         made.map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
     }
     Ok(())
@@ -437,8 +443,7 @@ impl Outputs {
         remove_stale(path);
         let tmp = tmp_for(path, "tmp");
         if let Err(e) = staging(&tmp, || write(&tmp)) {
-            remove_temporary(&tmp);
-            live(|v| v.retain(|p| p != &tmp));
+            discard(&tmp);
             return Err(e.context(format!("cannot write {}", path.display())));
         }
         self.staged.push(Staged {
@@ -471,8 +476,7 @@ impl Outputs {
         })
         .and_then(|_| fill(&tmp));
         if let Err(e) = made {
-            remove_temporary(&tmp);
-            live(|v| v.retain(|p| p != &tmp));
+            discard(&tmp);
             return Err(e.context(format!("cannot write {}", path.display())));
         }
         self.staged.push(Staged {
@@ -521,8 +525,7 @@ impl Outputs {
             if let Err(e) = r {
                 // No temporary is left: this one's and the rest's (a failed rename left them)
                 for t in std::iter::once(&s).chain(staged.as_slice()) {
-                    remove_temporary(&t.tmp);
-                    live(|v| v.retain(|p| p != &t.tmp));
+                    discard(&t.tmp);
                 }
                 return Err(
                     anyhow::Error::new(e).context(format!("cannot write {}", s.path.display()))
@@ -558,8 +561,7 @@ fn exchange(a: &Path, b: &Path) -> std::io::Result<()> {
 impl Drop for Outputs {
     fn drop(&mut self) {
         for s in &self.staged {
-            remove_temporary(&s.tmp);
-            live(|v| v.retain(|p| p != &s.tmp));
+            discard(&s.tmp);
         }
     }
 }
@@ -597,8 +599,7 @@ impl ScratchDir {
 
 impl Drop for ScratchDir {
     fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-        live(|v| v.retain(|p| p != &self.0));
+        discard(&self.0);
     }
 }
 

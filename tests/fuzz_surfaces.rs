@@ -1678,7 +1678,7 @@ fn exec_case(kind: usize, at: usize, val: usize) -> Result<(), TestCaseError> {
     // after a grace of 2.6 s, then starts it per batch. Three cases in four start per batch at
     // once (the same answers reach the same reader, 1.2 s a case instead of 3.8 s); the fourth
     // takes the way through the grace
-    if (at + val) % 4 != 0 {
+    if !(at + val).is_multiple_of(4) {
         args.push("--exec-per-batch".into());
     }
     let before = snapshot(&d);

@@ -129,14 +129,23 @@ fn setup(which: &str) -> Case {
         .ok()
         .and_then(|s| s.parse::<f64>().ok())
         .map_or(1.0, |n| n / 210.0);
-    let runs = |n: usize| ((n as f64 * scale).round() as usize).max(1);
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let base = scratch(&format!("signals-{which}"));
+    let d = scratch(&format!("signals-{which}")).join(which);
+    std::fs::create_dir_all(&d).unwrap();
+    // The old outputs: one complete run of `old`
+    let case = |name, outputs: &[&str], old: Vec<String>, new_args, runs: usize| {
+        complete(&d, &old);
+        Case {
+            name,
+            outputs: outputs.iter().map(|f| d.join(f)).collect(),
+            dir: d.clone(),
+            new_args,
+            runs: ((runs as f64 * scale).round() as usize).max(1),
+        }
+    };
     match which {
         "render" => {
             // render: the EXR, its sidecar and the PNG
-            let d = base.join("render");
-            std::fs::create_dir_all(&d).unwrap();
             let scene = root.join("reference/scenes/fan30.toml");
             let render = |w: &str| {
                 strings(&[
@@ -150,19 +159,16 @@ fn setup(which: &str) -> Case {
                     "o.png",
                 ])
             };
-            complete(&d, &render("96"));
-            Case {
-                name: "render",
-                outputs: ["o.exr", "o.exr.json", "o.png"].map(|f| d.join(f)).to_vec(),
-                dir: d,
-                new_args: render("160"),
-                runs: runs(80),
-            }
+            case(
+                "render",
+                &["o.exr", "o.exr.json", "o.png"],
+                render("96"),
+                render("160"),
+                80,
+            )
         }
         "audit" => {
             // audit: the JSON, the Markdown and the shard, together
-            let d = base.join("audit");
-            std::fs::create_dir_all(&d).unwrap();
             let audit = |seed: &str| {
                 strings(&[
                     "audit",
@@ -180,19 +186,16 @@ fn setup(which: &str) -> Case {
                     "s.json",
                 ])
             };
-            complete(&d, &audit("1"));
-            Case {
-                name: "audit",
-                outputs: ["a.json", "a.md", "s.json"].map(|f| d.join(f)).to_vec(),
-                dir: d,
-                new_args: audit("2"),
-                runs: runs(86),
-            }
+            case(
+                "audit",
+                &["a.json", "a.md", "s.json"],
+                audit("1"),
+                audit("2"),
+                86,
+            )
         }
         "check" => {
             // check --update: goldens, their manifest, the report directory and the JSON
-            let d = base.join("check");
-            std::fs::create_dir_all(&d).unwrap();
             let suite = |perturb: &str| {
                 format!(
                     "[suite]\nrenderer = \"echo $$ >> pids; python3 {} {{out}} --width 48 --grid 2 --perturb {perturb}\"\ngoldens = \"goldens\"\n\n[[test]]\nname = \"a\"\n\n[[test]]\nname = \"b\"\n",
@@ -206,27 +209,23 @@ fn setup(which: &str) -> Case {
                     "check", "--suite", s, "--update", "--report", "rep", "--json", "c.json",
                 ])
             };
-            complete(&d, &check("old.toml"));
-            Case {
-                name: "check --update",
-                outputs: [
-                    "goldens/a.exr",
-                    "goldens/b.exr",
-                    "goldens/manifest.json",
-                    "rep",
-                    "c.json",
-                ]
-                .map(|f| d.join(f))
-                .to_vec(),
-                dir: d,
-                new_args: check("new.toml"),
-                runs: runs(40),
-            }
+            let outputs = [
+                "goldens/a.exr",
+                "goldens/b.exr",
+                "goldens/manifest.json",
+                "rep",
+                "c.json",
+            ];
+            case(
+                "check --update",
+                &outputs,
+                check("old.toml"),
+                check("new.toml"),
+                40,
+            )
         }
         "report" => {
             // report: a whole directory
-            let d = base.join("report");
-            std::fs::create_dir_all(&d).unwrap();
             let out = d.join("rep");
             let report = |seed: &str| {
                 strings(&[
@@ -240,14 +239,7 @@ fn setup(which: &str) -> Case {
                     root.join("reference").to_str().unwrap(),
                 ])
             };
-            complete(&d, &report("1"));
-            Case {
-                name: "report",
-                outputs: vec![out.clone()],
-                dir: d,
-                new_args: report("2"),
-                runs: runs(4),
-            }
+            case("report", &["rep"], report("1"), report("2"), 4)
         }
         _ => unreachable!("{which}"),
     }

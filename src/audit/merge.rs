@@ -3,8 +3,9 @@
 //! of the shapes the shards covered whole. The result is byte for byte the unsharded
 //! [`Report`] (`tests/shard.rs`).
 
-use super::plan::Progress;
+use super::report::ShapeReport;
 use super::robustness;
+use super::run::Tallies;
 use super::shard::{IncompatibleShards, Merged, UserTable};
 use super::tolerance::{Known, Table};
 use super::{Report, TOOL};
@@ -37,13 +38,13 @@ impl Merged {
     }
 
     /// The report of the unsharded audit: each shape judged by `table` (told to `each` as it is
-    /// done, with no time), then the robustness checks of the shapes whose every built-in
+    /// done: merged tallies have no wall time of their own), then the robustness checks of the shapes whose every built-in
     /// method and class the shards ran, with the outside routines' rows of shard 0.
-    pub fn report(self, table: &Table, each: &mut dyn FnMut(Progress)) -> Report {
+    pub fn report(self, table: &Table, each: &mut dyn FnMut(&Tallies, &ShapeReport)) -> Report {
         let mut reports = vec![];
         for t in &self.shapes {
             let r = t.report(Some(table));
-            each(Progress::Shape(t, &r, 0.0));
+            each(t, &r);
             reports.push(r);
         }
         let precisions: Vec<Precision> = self

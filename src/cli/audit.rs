@@ -483,16 +483,14 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
     merged.check_table(&read_user_table(&m.out.tolerances)?)?;
     let table = table_of(&merged.tolerances, &merged.known())?;
     print_legend(merged.seed, "0/1", &m.out);
-    let report = merged.report(&table, &mut |p| {
-        if let Progress::Shape(t, r, _) = p {
-            print_shape(r, &m.out);
-            eprintln!(
-                "{}: {} cases × {} methods merged from {count} shards",
-                r.shape,
-                t.cases * t.groups.len() as u64,
-                t.methods.len()
-            );
-        }
+    let report = merged.report(&table, &mut |t, r| {
+        print_shape(r, &m.out);
+        eprintln!(
+            "{}: {} cases × {} methods merged from {count} shards",
+            r.shape,
+            t.cases * t.groups.len() as u64,
+            t.methods.len()
+        );
     });
     finish(report, true, outputs, &m.out)
 }
