@@ -591,8 +591,13 @@ impl ScratchDir {
             std::process::id(),
             nonce()
         ));
-        std::fs::create_dir_all(&p).with_context(|| format!("cannot create {}", p.display()))?;
-        live(|v| v.push(p.clone()));
+        // Made under `staging`, like every temporary: created and registered apart, a signal
+        // between the two, or a creation after the handler's clean-up, left it behind (once in
+        // 40 interrupted `check --update` runs, tests/signals.rs, the whole suite running)
+        if let Err(e) = staging(&p, || std::fs::create_dir_all(&p)) {
+            discard(&p);
+            return Err(anyhow::Error::new(e).context(format!("cannot create {}", p.display())));
+        }
         Ok(ScratchDir(p))
     }
 }
