@@ -38,8 +38,9 @@ impl Merged {
     }
 
     /// The report of the unsharded audit: each shape judged by `table` (told to `each` as it is
-    /// done: merged tallies have no wall time of their own), then the robustness checks of the shapes whose every built-in
-    /// method and class the shards ran, with the outside routines' rows of shard 0.
+    /// done: merged tallies have no wall time of their own), then the robustness checks of the
+    /// shapes whose every built-in method and class the shards ran, with the outside routines'
+    /// rows of shard 0.
     pub fn report(self, table: &Table, each: &mut dyn FnMut(&Tallies, &ShapeReport)) -> Report {
         let mut reports = vec![];
         for t in &self.shapes {
