@@ -22,6 +22,11 @@ fn main() -> ExitCode {
             return ExitCode::from(2);
         }
     };
+    // An instruction-set cap the kernels cannot follow (RAYPROOF_ISA): one line, exit 2
+    if let Err(e) = rayproof::numerics::cpu::check_env() {
+        eprintln!("error: {e}");
+        return ExitCode::from(2);
+    }
     // A TERM or INT removes the temporaries of outputs being written
     rayproof::output::clean_up_on_signals();
     let result = run(cli);

@@ -627,7 +627,7 @@ fn noise(line: &str) -> bool {
 /// The lines of a failed command's standard error that explain it, as one line: the first four
 /// that say error, fatal or cannot (or can't, failed, traceback, out of memory), and the last
 /// three non-empty lines (a renderer's first line is often noise, its last ones the reason), in
-/// the order written, without repeats or known noise ([`noise`]), joined by ` | `; at most 600
+/// the order written, without repeats or known noise (`noise`), joined by ` | `; at most 600
 /// characters, its end kept (where the reason is).
 pub fn explain(stderr: &str) -> String {
     let lines: Vec<&str> = stderr

@@ -271,8 +271,9 @@ fn second_look_lanes_claim_only_the_truth<F: Real, const F32: bool>() {
     let b = SphereBatch::from_cases(&cases);
     let all: Vec<usize> = (0..b.len()).collect();
     let b64 = b.gather_f64(&all);
-    let mut claimed = 0;
+    let mut counts = vec![];
     for isa in Isa::all_available() {
+        let mut claimed = 0;
         let mut t = vec![0.0; b64.len()];
         run_lanes::<SecondLook<F32>, f64>(isa, &b64, &mut t).unwrap();
         for (i, &t) in t.iter().enumerate() {
@@ -296,8 +297,26 @@ fn second_look_lanes_claim_only_the_truth<F: Real, const F32: bool>() {
                 c.probe_args()
             );
         }
+        // Each instruction set's lanes decide enough by themselves, whichever sets this
+        // machine has (here, seed 9: 1,747 of 7,600 in f32, 1,194 in f64, on every set; most
+        // of the rest are the wild bit patterns, left to the exact tiers)
+        eprintln!(
+            "{} {}: the second look's lanes claim {claimed} of {}",
+            F::NAME,
+            isa.name(),
+            cases.len()
+        );
+        assert!(
+            claimed > cases.len() / 8,
+            "{} {}: {claimed} claims of {}",
+            F::NAME,
+            isa.name(),
+            cases.len()
+        );
+        counts.push(claimed);
     }
-    assert!(claimed > cases.len() / 3, "{claimed} claims");
+    // The same arithmetic on every set: the same claims
+    assert!(counts.windows(2).all(|w| w[0] == w[1]), "{counts:?}");
     // The share it answers of what the first look leaves open on the mix
     let mix = SphereBatch::from_cases(&mix_cases::<F>(7, 512));
     let mut first = vec![F::ZERO; mix.len()];

@@ -281,3 +281,18 @@ fn shards_cover_the_case_space() {
         assert!(text.contains("sphere: 25 cases × 1 methods"), "{text}");
     }
 }
+
+/// An instruction-set cap the kernels cannot follow is bad usage: one line, exit 2, nothing run.
+#[test]
+fn an_unknown_instruction_set_cap_is_refused_with_one_line() {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .args(["audit", "--shape", "sphere", "--cases", "10"])
+        .env("RAYPROOF_ISA", "avx1024")
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("RAYPROOF_ISA=\"avx1024\" is not an instruction-set cap"), "{err}");
+    assert!(o.stdout.is_empty());
+}

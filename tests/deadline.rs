@@ -164,3 +164,141 @@ fn sigterm_and_sigint_kill_the_exec_child_and_all_it_started() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Runs rayproof in `dir` with `args` while this test, a process outside rayproof's tree that
+/// rayproof can neither see nor kill, holds the command's standard output and/or error: the
+/// command writes its pid to `cmd.pid` and waits for `held` before it goes on. Returns the exit
+/// code, stdout and stderr, and the wall time; a run that has not ended after `limit` seconds is
+/// killed and the test fails.
+fn with_pipes_held_from_outside(
+    dir: &Path,
+    args: &[&str],
+    fds: &[u32],
+    limit: f64,
+) -> (Option<i32>, String, String, f64) {
+    let (out, err) = (dir.join("rayproof.out"), dir.join("rayproof.err"));
+    let t0 = Instant::now();
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(dir)
+        .args(args)
+        .stdout(std::fs::File::create(&out).unwrap())
+        .stderr(std::fs::File::create(&err).unwrap())
+        .spawn()
+        .unwrap();
+    let pid_file = dir.join("cmd.pid");
+    let mut held = vec![];
+    let status = loop {
+        if held.is_empty() {
+            if let Some(pid) = std::fs::read_to_string(&pid_file)
+                .ok()
+                .and_then(|p| p.trim().parse::<u32>().ok())
+            {
+                // The command's own pipe ends, opened through /proc by this process
+                for fd in fds {
+                    held.push(
+                        std::fs::OpenOptions::new()
+                            .write(true)
+                            .open(format!("/proc/{pid}/fd/{fd}"))
+                            .unwrap(),
+                    );
+                }
+                std::fs::write(dir.join("held"), "").unwrap();
+            }
+        }
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if t0.elapsed().as_secs_f64() > limit {
+            child.kill().ok();
+            child.wait().ok();
+            panic!(
+                "{args:?} with fds {fds:?} held from outside: still running after {limit} s\n{}",
+                std::fs::read_to_string(&err).unwrap_or_default()
+            );
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    let wall = t0.elapsed().as_secs_f64();
+    assert!(!held.is_empty(), "{args:?}: the command never started");
+    drop(held);
+    (
+        status.code(),
+        std::fs::read_to_string(&out).unwrap(),
+        std::fs::read_to_string(&err).unwrap(),
+        wall,
+    )
+}
+
+/// The give-up path of `process.rs`: a command that has exited while a process outside
+/// rayproof's tree (not a descendant: no group kill or subreaper reaches it) still holds its
+/// standard output, its standard error or both. rayproof gives the pipes up after its grace and
+/// the run ends as the command's did: a renderer under `check`, an `--exec` child (one for the
+/// run, which rayproof reads to its end for stray lines), each well within the deadline.
+#[test]
+fn a_pipe_held_from_outside_the_tree_does_not_outlive_the_deadline() {
+    let wait = "echo $$ > cmd.pid; while [ ! -e held ]; do sleep 0.02; done";
+    for (tag, fds) in [("out", &[1][..]), ("err", &[2][..]), ("both", &[1, 2][..])] {
+        // check: the stand-in renderer writes its image, then the shell exits
+        let dir = scratch(&format!("deadline-held-check-{tag}"));
+        let standin = crate::common::outside("standin_render.py");
+        let suite = format!(
+            r#"[suite]
+name = "held"
+renderer = "{wait}; python3 '{}' {{out}} --width 16 --grid 1"
+goldens = "goldens"
+timeout = 20
+
+[[test]]
+name = "a"
+"#,
+            standin.display()
+        );
+        std::fs::write(dir.join("suite.toml"), suite).unwrap();
+        let (code, out, err, wall) = with_pipes_held_from_outside(
+            &dir,
+            &["check", "--suite", "suite.toml", "--update"],
+            fds,
+            60.0,
+        );
+        assert_eq!(code, Some(0), "check, {tag} held: {out}{err}");
+        assert!(
+            wall < 20.0,
+            "check, {tag} held: {wall:.1} s for a 20 s deadline"
+        );
+        assert!(dir.join("goldens/a.exr").exists(), "{out}");
+        std::fs::remove_dir_all(&dir).ok();
+
+        // --exec: one child for the run answers every case and exits
+        let dir = scratch(&format!("deadline-held-exec-{tag}"));
+        let cmd = format!("{wait}; awk '{{print 0}}'");
+        let (code, out, err, wall) = with_pipes_held_from_outside(
+            &dir,
+            &[
+                "audit",
+                "--shape",
+                "sphere",
+                "--class",
+                "random",
+                "--precision",
+                "f64",
+                "--cases",
+                "20",
+                "--exec",
+                &cmd,
+                "--exec-timeout",
+                "20",
+            ],
+            fds,
+            60.0,
+        );
+        assert!(
+            matches!(code, Some(0 | 1)),
+            "--exec, {tag} held: {out}{err}"
+        );
+        assert!(
+            wall < 20.0,
+            "--exec, {tag} held: {wall:.1} s for a 20 s deadline"
+        );
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

@@ -474,3 +474,133 @@ fn height_fills_its_placeholder_and_the_frame_is_checked() {
         "{out}"
     );
 }
+
+/// Every cause of a stale golden, one at a time from a fresh blessing: the scene changed, an
+/// input changed, added or removed, the renderer command changed, the frame (grid, width) the
+/// test gives changed. Each is named in `check`'s warning, `--update` re-blesses the golden, and
+/// after it nothing is stale.
+#[test]
+fn every_cause_of_a_stale_golden_is_named_and_reblessed() {
+    type Edit = fn(&Path);
+    let edits: [(&str, Edit, &str); 7] = [
+        (
+            "scene",
+            |d| std::fs::write(d.join("a.scene"), "sphere 3\n").unwrap(),
+            "another version of the scene a.scene",
+        ),
+        (
+            "input-changed",
+            |d| std::fs::write(d.join("x.inc"), "x 2\n").unwrap(),
+            "another version of the input x.inc",
+        ),
+        (
+            "input-added",
+            |d| {
+                std::fs::write(d.join("z.inc"), "z 1\n").unwrap();
+                let p = d.join("suite.toml");
+                let t = std::fs::read_to_string(&p).unwrap();
+                std::fs::write(
+                    &p,
+                    t.replace(
+                        r#"inputs = ["x.inc", "y.inc"]"#,
+                        r#"inputs = ["x.inc", "y.inc", "z.inc"]"#,
+                    ),
+                )
+                .unwrap();
+            },
+            "the input z.inc (not recorded)",
+        ),
+        (
+            "input-removed",
+            |d| {
+                let p = d.join("suite.toml");
+                let t = std::fs::read_to_string(&p).unwrap();
+                std::fs::write(
+                    &p,
+                    t.replace(r#"inputs = ["x.inc", "y.inc"]"#, r#"inputs = ["x.inc"]"#),
+                )
+                .unwrap();
+            },
+            "the input y.inc (no longer one)",
+        ),
+        (
+            "command",
+            |d| {
+                let p = d.join("suite.toml");
+                let t = std::fs::read_to_string(&p).unwrap();
+                std::fs::write(
+                    &p,
+                    t.replace("--grid {grid}\"", "--grid {grid} --perturb 0\""),
+                )
+                .unwrap();
+            },
+            "the renderer command (was `",
+        ),
+        (
+            "grid",
+            |d| {
+                let p = d.join("suite.toml");
+                let t = std::fs::read_to_string(&p).unwrap();
+                std::fs::write(&p, t.replace("grid = 2", "grid = 3")).unwrap();
+            },
+            "the grid (3, was 2)",
+        ),
+        (
+            "width",
+            |d| {
+                let p = d.join("suite.toml");
+                let t = std::fs::read_to_string(&p).unwrap();
+                std::fs::write(&p, t.replace("width = 24", "width = 32")).unwrap();
+            },
+            "the width (32, was 24)",
+        ),
+    ];
+    for (tag, edit, want) in edits {
+        let dir = scratch(&format!("follow-cause-{tag}"));
+        std::fs::write(dir.join("a.scene"), "sphere 1\n").unwrap();
+        std::fs::write(dir.join("x.inc"), "x 1\n").unwrap();
+        std::fs::write(dir.join("y.inc"), "y 1\n").unwrap();
+        let suite = format!(
+            r#"[suite]
+name = "causes"
+renderer = "{r} {{out}} --width {{width}} --grid {{grid}}"
+goldens = "goldens"
+timeout = 20
+
+[[test]]
+name = "a"
+scene = "a.scene"
+inputs = ["x.inc", "y.inc"]
+width = 24
+grid = 2
+"#,
+            r = standin()
+        );
+        std::fs::write(dir.join("suite.toml"), suite).unwrap();
+        let (code, out, err) = check(&dir, &["--update"]);
+        assert_eq!(code, Some(0), "{tag}: {out}{err}");
+        let (code, out, err) = check(&dir, &[]);
+        assert_eq!(code, Some(0), "{tag}: {out}{err}");
+        assert!(!out.contains("stale"), "{tag}: fresh, yet {out}");
+        edit(&dir);
+        // Named, whether the image changed (exit 1) or not (exit 0)
+        let (code, out, err) = check(&dir, &[]);
+        assert!(matches!(code, Some(0 | 1)), "{tag}: {out}{err}");
+        assert!(
+            warnings(&out, "a", "golden")
+                .iter()
+                .any(|l| l.contains("stale golden") && l.contains(want)),
+            "{tag}: no stale warning naming {want:?} in\n{out}"
+        );
+        // Re-blessed, and then fresh
+        let (code, out, err) = check(&dir, &["--update"]);
+        assert_eq!(code, Some(0), "{tag}: {out}{err}");
+        assert!(
+            line(&out, "a", "golden").contains("stale → written"),
+            "{tag}: {out}"
+        );
+        let (code, out, err) = check(&dir, &[]);
+        assert_eq!(code, Some(0), "{tag}: {out}{err}");
+        assert!(!out.contains("stale"), "{tag}: after --update, {out}");
+    }
+}

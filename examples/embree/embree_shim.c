@@ -5,6 +5,7 @@
  *   rayproof audit --shape triangle --plugin ./libembree_shim.so:tri_f32 \
  *                                  --plugin ./libembree_shim.so:tri_robust_f32
  *   rayproof audit --shape sphere --plugin ./libembree_shim.so:sphere_f32
+ *   EMBREE_SHIM_ISA=avx2 rayproof audit ...   (Embree's AVX2 path on an AVX-512 machine)
  *
  * Symbols (all f32, as Embree is):
  *   tri_f32            RTC_GEOMETRY_TYPE_TRIANGLE, default scene flags
@@ -27,12 +28,38 @@
 #include <math.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
 
 static RTCDevice device;
 
+/* The device: one thread, and the instruction set named by EMBREE_SHIM_ISA when it is set
+ * (Embree's own names: sse2, sse4.2, avx, avx2, avx512; unset: the best this CPU has), so that
+ * every path Embree has can be audited on one machine. Its answers differ between paths (a
+ * finding, not noise: tests/embree.rs prints them side by side). */
 static RTCDevice dev(void) {
-    if (!device) device = rtcNewDevice("threads=1");
+    if (!device) {
+        char config[128] = "threads=1";
+        const char *isa = getenv("EMBREE_SHIM_ISA");
+        if (isa && *isa) {
+            /* Embree takes a name it does not know as SSE2, silently: only its own names */
+            static const char *known[] = {"sse2", "sse4.2", "avx", "avx2", "avx512"};
+            int ok = 0;
+            for (size_t k = 0; k < sizeof known / sizeof *known; k++) ok |= strcmp(isa, known[k]) == 0;
+            if (!ok) return NULL;
+            snprintf(config, sizeof config, "threads=1,isa=%s", isa);
+        }
+        device = rtcNewDevice(config);
+    }
     return device;
+}
+
+/* Whether the device exists and answers without error (an ISA this CPU lacks, or a name
+ * Embree does not know, is an error: the routine fails rather than answer on another path). */
+static int device_ok(void) {
+    RTCDevice d = dev();
+    return d != NULL && rtcGetDeviceError(d) == RTC_ERROR_NONE;
 }
 
 /* Embree's FLT_LARGE: ray components beyond it fail its ray.valid() assertion. */
@@ -85,6 +112,7 @@ static RTCScene triangle_scene(const float *p, int robust) {
 
 static int triangles(size_t n, const float in[][15], uint32_t count[], float out[][1],
                      int robust, int prescale) {
+    if (!device_ok()) return 1;
     for (size_t i = 0; i < n; i++) {
         float c[15];
         for (int k = 0; k < 15; k++) c[k] = in[i][k];
@@ -129,6 +157,7 @@ int tri_prescaled_f32(size_t n, const float in[][15], uint32_t count[], float ou
 }
 
 int sphere_f32(size_t n, const float in[][10], uint32_t count[], float out[][1]) {
+    if (!device_ok()) return 1;
     for (size_t i = 0; i < n; i++) {
         const float *c = in[i];
         count[i] = 0;

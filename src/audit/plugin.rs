@@ -123,7 +123,7 @@ fn library_path(path: &str) -> String {
 
 // ---- the worker: the routine's own process ----
 
-/// Serves one symbol: loads it, says [`READY`], then answers batches on stdin/stdout until the
+/// Serves one symbol: loads it, says `READY`, then answers batches on stdin/stdout until the
 /// end of its input (what `rayproof __plugin-worker` runs). A batch is `n` (u64 LE) and `n·inputs`
 /// values; the answer is the status (i32 LE), the routine's nanoseconds (u64 LE), `n` counts
 /// (u32 LE) and `n·outputs` values, in the precision's width. The error is one line.

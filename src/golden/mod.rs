@@ -754,7 +754,17 @@ fn sources(t: &Test) -> Result<Sources, String> {
     for (n, p) in &t.inputs {
         inputs.push((n.clone(), hash(&format!("input {n}"), p)?));
     }
-    Ok(Sources { scene, inputs })
+    let command = match &t.source {
+        Source::Command(_) => t.command.clone(),
+        _ => None,
+    };
+    let frame = [("width", t.width), ("height", t.height), ("grid", t.grid)];
+    Ok(Sources {
+        scene,
+        inputs,
+        command,
+        frame,
+    })
 }
 
 /// Keeps a test's renderer log in the report (`logs/NAME.log`); its path relative to the report

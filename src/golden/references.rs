@@ -193,6 +193,11 @@ fn dir_and_name(path: &Path) -> (PathBuf, String) {
 pub struct Sources {
     pub scene: Option<(String, String)>,
     pub inputs: Vec<(String, String)>,
+    /// The renderer command as the suite writes it (placeholders unfilled), for a test made by
+    /// a command.
+    pub command: Option<String>,
+    /// The frame the test itself gives (`width`, `height`, `grid`; `None` where it gives none).
+    pub frame: [(&'static str, Option<u32>); 3],
 }
 
 /// Why a manifest entry was made from other sources than the test's now (`None`: the same, as
@@ -212,6 +217,27 @@ pub fn staleness(entry: &serde_json::Value, now: &Sources, own: bool) -> Option<
         (None, Some((name, _))) if own => changed.push(format!("the scene {name} (not recorded)")),
         (Some(_), None) if own => changed.push("a scene the test no longer has".to_string()),
         _ => {}
+    }
+    // A golden is made by one command with one frame: another command or frame is another
+    // image (an external reference records its own renderer's commands: not compared)
+    if own {
+        let was = entry
+            .get("commands")
+            .and_then(|c| c.get(0))
+            .and_then(|c| c.as_str());
+        if let (Some(was), Some(now)) = (was, &now.command) {
+            if was != now {
+                changed.push(format!("the renderer command (was `{was}`)"));
+            }
+        }
+        for (k, now) in now.frame {
+            let was = entry.get(k).and_then(|v| v.as_u64());
+            if let (Some(was), Some(now)) = (was, now) {
+                if was != u64::from(now) {
+                    changed.push(format!("the {k} ({now}, was {was})"));
+                }
+            }
+        }
     }
     let recorded = entry.get("inputs").and_then(|v| v.as_object());
     if recorded.is_some() || own {

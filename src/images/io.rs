@@ -374,7 +374,7 @@ fn quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
 
 /// The most channels rayproof reads from one EXR file, every part together: 1024 (Blender's
 /// multilayer files with every pass and Cryptomatte hold about 100). A file of 10,000 layers of
-/// a few pixels stays within [`MAX_SAMPLES`] but is refused by this.
+/// a few pixels stays within `MAX_SAMPLES` but is refused by this.
 pub const MAX_CHANNELS: u64 = 1024;
 /// The most pixels rayproof reads from one image (8192²; also the largest image it renders).
 pub const MAX_PIXELS: u64 = 1 << 26;
@@ -383,7 +383,7 @@ pub const MAX_PIXELS: u64 = 1 << 26;
 /// file, so the channel count is bounded too: an EXR of 8192² × 64 channels declared in 198 KB
 /// aborted after allocating, and a valid 4 MB EXR of 16 channels took 5.8 GB.
 pub const MAX_SAMPLES: u64 = 1 << 28;
-/// The largest image file: 1088 MiB, an uncompressed float32 EXR of [`MAX_SAMPLES`] samples
+/// The largest image file: 1088 MiB, an uncompressed float32 EXR of `MAX_SAMPLES` samples
 /// (1 GiB) with room for its header and offset tables. The file is read whole before decoding.
 pub const MAX_IMAGE_BYTES: u64 = 4 * MAX_SAMPLES + (64 << 20);
 

@@ -1,6 +1,7 @@
 //! The number layer: the float trait every method is written against, double-double, outward
 //! rounded intervals, exact rationals and correct rounding, and in-run timing.
 
+pub mod cpu;
 pub mod dd;
 pub mod exact;
 pub mod interval;

@@ -521,7 +521,7 @@ impl Geometry {
             record: None,
             marchers: vec![],
             #[cfg(target_arch = "x86_64")]
-            avx2: std::is_x86_feature_detected!("avx2"),
+            avx2: crate::numerics::cpu::avx2(),
         }
     }
 

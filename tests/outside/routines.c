@@ -75,6 +75,38 @@ int triangle_mt_f32(size_t n, const float in[][15], uint32_t count[], float out[
     return 0;
 }
 
+/* The chapter's plane-then-barycentrics test (Lengyel §6.2), operation for operation the
+ * built-in `chapter` method in float: N = Q1×Q2, t = −(N·S + L_w)/(N·V), then the 2×2 system.
+ * The same bits as the built-in, so its rows under the outside path (o + t·d, the rule the
+ * built-in `chapter` also uses) are the built-in's (tests/plugin.rs pins them). */
+static void cross3f(const float a[3], const float b[3], float c[3]) {
+    c[0] = a[1] * b[2] - a[2] * b[1];
+    c[1] = a[2] * b[0] - a[0] * b[2];
+    c[2] = a[0] * b[1] - a[1] * b[0];
+}
+int triangle_chapter_f32(size_t n, const float in[][15], uint32_t count[], float out[][1]) {
+    for (size_t i = 0; i < n; i++) {
+        const float *o = in[i], *d = in[i] + 3, *p0 = in[i] + 6, *p1 = in[i] + 9, *p2 = in[i] + 12;
+        float q1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+        float q2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+        float nn[3];
+        cross3f(q1, q2, nn);
+        float lw = -dot3f(nn, p0), lv = dot3f(nn, d);
+        count[i] = 0;
+        if (lv == 0.0f) continue;
+        float t = -(dot3f(nn, o) + lw) / lv;
+        if (!(t > 0.0f)) continue;
+        float r[3] = {o[0] + d[0] * t - p0[0], o[1] + d[1] * t - p0[1], o[2] + d[2] * t - p0[2]};
+        float q11 = dot3f(q1, q1), q22 = dot3f(q2, q2), q12 = dot3f(q1, q2);
+        float inv = 1.0f / (q11 * q22 - q12 * q12);
+        float rq1 = dot3f(r, q1), rq2 = dot3f(r, q2);
+        float w1 = inv * (q22 * rq1 - q12 * rq2);
+        float w2 = inv * (q11 * rq2 - q12 * rq1);
+        if (w1 >= 0.0f && w2 >= 0.0f && w1 + w2 <= 1.0f) { count[i] = 1; out[i][0] = t; }
+    }
+    return 0;
+}
+
 /* Möller–Trumbore whose t is 0.1 % short: a hit point in front of the triangle by far more than
  * the o + t·d rounding bound covers, so rays spawned through it hit it again (the reintersection
  * test's teeth for outside routines). */

@@ -478,24 +478,13 @@ impl Isa {
         }
     }
 
-    /// Whether this machine can run it.
+    /// Whether this machine can run it, under the cap of `RAYPROOF_ISA`
+    /// ([`crate::numerics::cpu`]).
     pub fn available(self) -> bool {
         match self {
             Isa::Portable => true,
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => {
-                std::arch::is_x86_feature_detected!("avx2")
-                    && std::arch::is_x86_feature_detected!("fma")
-            }
-            #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 => {
-                std::arch::is_x86_feature_detected!("avx512f")
-                    && std::arch::is_x86_feature_detected!("avx512vl")
-                    && std::arch::is_x86_feature_detected!("avx512dq")
-                    && std::arch::is_x86_feature_detected!("fma")
-            }
-            #[cfg(not(target_arch = "x86_64"))]
-            Isa::Avx2 | Isa::Avx512 => false,
+            Isa::Avx2 => crate::numerics::cpu::avx2(),
+            Isa::Avx512 => crate::numerics::cpu::avx512(),
         }
     }
 

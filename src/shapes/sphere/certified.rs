@@ -154,7 +154,7 @@ pub fn certified<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     // (the clone returns the bare t, in registers), and deciding the misses before the call
     // made the hits slower again (36 ns)
     #[cfg(target_arch = "x86_64")]
-    if F::MANT_BITS == 53 && std::arch::is_x86_feature_detected!("fma") {
+    if F::MANT_BITS == 53 && crate::numerics::cpu::fma() {
         // SAFETY: the CPU has FMA
         let t = unsafe { certified_fma(ray, s) };
         return t.map(|t| SphereHit { t, enclosure: None });
@@ -243,7 +243,7 @@ fn after_look_cold<F: Real>(case: &Case<f64>, l: &Look, e: &Estimate) -> Option<
 #[inline(never)]
 fn from_the_surface<F: Real>(case: &Case<f64>, l: &Look) -> Option<F> {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("fma") {
+    if crate::numerics::cpu::fma() {
         // SAFETY: the CPU has FMA
         return unsafe { from_the_surface_fma(case, l) };
     }
@@ -903,7 +903,10 @@ fn residual_at<const FMA: bool>(
 }
 
 /// `a·b = p + e` exactly: by FMA (`FMA`, two instructions) or by Dekker's split (about
-/// seventeen); the same bits either way.
+/// seventeen); the same bits either way wherever neither `a·b` nor a split of `a` or `b`
+/// overflows and `e` does not underflow. The method's tests, on wild inputs too, give the same
+/// bits under `RAYPROOF_ISA=scalar` (the split) as with FMA; the floor, which has no range
+/// guard, did not, and uses FMA semantics on every CPU.
 #[inline(always)]
 fn exact_prod<const FMA: bool>(a: f64, b: f64) -> (f64, f64) {
     if FMA {
@@ -1011,7 +1014,7 @@ fn second_look<const NEAR: bool>(
 ) -> Second {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("fma") {
+        if crate::numerics::cpu::fma() {
             // SAFETY: the CPU has FMA
             return unsafe { second_look_fma::<NEAR>(o, d, c, r, l, k) };
         }
@@ -1531,7 +1534,7 @@ fn residual_near<const FMA: bool>(
 fn near_surface(case: &Case<f64>, th: f64, tl: f64, err: f64) -> Option<f64> {
     #[cfg(target_arch = "x86_64")]
     {
-        if std::arch::is_x86_feature_detected!("fma") {
+        if crate::numerics::cpu::fma() {
             // SAFETY: the CPU has FMA
             return unsafe { near_surface_fma(case, th, tl, err) };
         }

@@ -8,7 +8,8 @@
 //!   check and no later tier. A certified `f32` answer cannot cost less: the look is
 //!   its first step on every case.
 //! - `f64` inputs: the look's root and one Newton step with the residual from exact products
-//!   (the second look's, FMA when the CPU has it), the verdict from the signs alone, no rounding
+//!   (the second look's, by FMA: the CPU's, else the C library's `fma`, so that the scalar form
+//!   and every batch kernel give the same bits on every input), the verdict from the signs alone, no rounding
 //!   check and no later step. The textbook formula in `f64` cannot prove its `t` within one
 //!   ulp: its last three roundings (square root, sum, division) alone allow `2.5u·t`, more than
 //!   an ulp anywhere in a binade. So a certified `f64` hit evaluates something beyond `f64` at
@@ -21,11 +22,15 @@ use crate::shapes::sphere::ray::{Ray, Sphere, SphereHit};
 /// The floor's answer for one test (see the [module docs](self)): `t`, or `None` for a miss.
 pub fn floor<F: Real>(ray: &Ray<F>, s: &Sphere<F>) -> Option<SphereHit<F>> {
     #[cfg(target_arch = "x86_64")]
-    if F::MANT_BITS == 53 && std::arch::is_x86_feature_detected!("fma") {
+    if F::MANT_BITS == 53 && crate::numerics::cpu::fma() {
         // SAFETY: the CPU has FMA
         return unsafe { floor_fma(ray, s) };
     }
-    floor_body::<F, { cfg!(not(target_arch = "x86_64")) }>(ray, s)
+    // Without hardware FMA, `mul_add` (the C library's `fma`): the batch lanes' products, bit
+    // for bit. Dekker's split would give other bits where a product or its split overflows
+    // (wild inputs such as |d| ≈ 1e303: found with RAYPROOF_ISA=scalar on an FMA machine),
+    // and the floor has no range guard to keep it from them
+    floor_body::<F, true>(ray, s)
 }
 
 /// [`floor`] compiled with FMA.
