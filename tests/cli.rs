@@ -293,6 +293,9 @@ fn an_unknown_instruction_set_cap_is_refused_with_one_line() {
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
-    assert!(err.contains("RAYPROOF_ISA=\"avx1024\" is not an instruction-set cap"), "{err}");
+    assert!(
+        err.contains("RAYPROOF_ISA=\"avx1024\" is not an instruction-set cap"),
+        "{err}"
+    );
     assert!(o.stdout.is_empty());
 }

@@ -34,6 +34,7 @@ mod plugin;
 mod poly;
 mod povray_suite;
 mod quad;
+mod read_as_written;
 mod reference;
 mod reintersect;
 mod render;

@@ -993,6 +993,31 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                 r.stale = Some(what.clone());
             }
         }
+        // A multilayer file: which layer was compared, in every output (the text's warning
+        // lines, the JSON's comparison, the JUnit body, the HTML row)
+        let labels: Vec<String> = [&made.image.layer, &reference.layer]
+            .into_iter()
+            .map(|l| l.as_ref().map(|l| l.label()).unwrap_or_default())
+            .collect();
+        if labels.iter().any(|l| !l.is_empty()) {
+            r.warnings.push(if labels[0] == labels[1] {
+                format!("layer read: {}", labels[0])
+            } else {
+                format!(
+                    "layer read: {} of the test image, {} of the reference",
+                    if labels[0].is_empty() {
+                        "its only layer"
+                    } else {
+                        &labels[0]
+                    },
+                    if labels[1].is_empty() {
+                        "its only layer"
+                    } else {
+                        &labels[1]
+                    }
+                )
+            });
+        }
         match images::compare(reference, &made.image, &rule.idiff) {
             Err(e) => {
                 (r.status, r.note) = (Status::Failure, format!("{e}"));

@@ -3,7 +3,7 @@
 use super::{
     abs_diff, abs_error_map, align, compare_as, exr_to, flip_error, heatmap_rgb8, png_rgb8_to,
     read_image_layer, z_test, DiffReport, LayerSelect, Semantics, SizeMismatch, Thresholds,
-    ZParams,
+    ZParams, ZTestError,
 };
 use std::path::Path;
 
@@ -121,12 +121,16 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
     let z = match &variance {
         Some(v) => Some(z_test(&reference, &test, v, &a.z).map_err(|e| {
             let vn = a.variance.unwrap_or(Path::new("")).display();
-            DiffError::new(
-                3,
-                format!(
-                    "{rn} and variance {vn}: {e} (the variance needs the same size and R, G, B)"
+            match e {
+                ZTestError::Size(e) => DiffError::new(
+                    3,
+                    format!(
+                        "{rn} and variance {vn}: {e} (the variance needs the same size and R, G, B)"
+                    ),
                 ),
-            )
+                // Like a NaN pixel in an image: a file rayproof cannot judge with (exit 4)
+                e => DiffError::new(4, format!("variance {vn}: {e}")),
+            }
         })?),
         None => None,
     };
@@ -179,7 +183,18 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
     // Report
     if json_stdout {
     } else if a.quiet {
-        stdout = format!("{}\n", verdict.label());
+        // The verdict, and the layer read when a file has layers (a multilayer EXR)
+        let layer = report
+            .comparison
+            .layers
+            .iter()
+            .flatten()
+            .map(|l| l.label())
+            .next();
+        stdout = match layer {
+            Some(l) => format!("{} (layer: {l})\n", verdict.label()),
+            None => format!("{}\n", verdict.label()),
+        };
     } else {
         stdout = report.text();
     }

@@ -69,10 +69,16 @@ impl std::fmt::Display for Window {
 pub enum LayerPick {
     /// Named by the caller (`--layer NAME`).
     Named,
-    /// The default: a layer named `Combined` (Blender's beauty), the first in OpenImageIO's order.
+    /// The default: a layer named `Combined` (Blender's beauty) with colour channels, the first
+    /// in OpenImageIO's order.
     Combined,
-    /// The default without a `Combined` layer: the first layer with `R`, `G` and `B` channels.
+    /// The default without such a `Combined` layer: the file's one layer with colour channels
+    /// (`R`, `G`, `B`, or `Y` without `X`, `Z`); its other layers have none.
     FirstRgb,
+    /// The default when several layers have colour channels and none is a `Combined` with them
+    /// (Mitsuba's AOVs, `diffuse.*` beside `specular.*`): every channel of the file, each layer
+    /// compared, as idiff compares them.
+    Every,
     /// The default: the file's only layer.
     Only,
     /// Every channel of the file's first part, as idiff compares them (`--idiff-compat`
@@ -96,6 +102,9 @@ impl LayerInfo {
     /// `ViewLayer.Combined`, or what the other cases read.
     pub fn label(&self) -> String {
         match self.name.as_deref() {
+            None if self.pick == LayerPick::Every => {
+                format!("every layer ({})", layer_names(&self.layers))
+            }
             None => "all channels of the first part".into(),
             Some("") => "the channels without a layer name".into(),
             Some(n) => n.into(),
@@ -127,6 +136,11 @@ pub struct Image {
     /// The layer read from a multilayer EXR; `None` for a file whose channels have no layer
     /// names, and for PNG.
     pub layer: Option<LayerInfo>,
+    /// The exact values of an EXR's `UINT` channels (object and material IDs), per channel in
+    /// the order of `channels` (`None`: a float channel), stored as `data` is; empty when the
+    /// image has none. `data` holds them as OpenImageIO reads them (`u / (2³² − 1)`), which
+    /// `--idiff-compat` compares; rayproof's own rules compare these, exactly as integers.
+    pub uint: Vec<Option<Vec<u32>>>,
 }
 
 impl Image {
@@ -146,6 +160,7 @@ impl Image {
             origin: (0, 0),
             display: Window::at_origin(width, height),
             layer: None,
+            uint: vec![],
         }
     }
 
@@ -182,6 +197,26 @@ impl Image {
         }
     }
 
+    /// Sample `c` at absolute `(x, y)` exactly: a `UINT` channel's integer, else [`Image::at`].
+    pub fn at_exact(&self, x: i64, y: i64, c: usize) -> f64 {
+        match self.uint.get(c) {
+            Some(Some(plane)) => {
+                let (dx, dy) = (x - self.origin.0, y - self.origin.1);
+                if dx >= 0 && dy >= 0 && (dx as usize) < self.width && (dy as usize) < self.height {
+                    plane[dy as usize * self.width + dx as usize] as f64
+                } else {
+                    0.0
+                }
+            }
+            _ => self.at(x, y, c) as f64,
+        }
+    }
+
+    /// Whether channel `c` is an EXR `UINT` channel.
+    pub fn is_uint(&self, c: usize) -> bool {
+        matches!(self.uint.get(c), Some(Some(_)))
+    }
+
     /// The same image stored over `window` (pixels outside the data window are 0); the
     /// display window and channels are kept.
     pub fn padded(&self, window: Window) -> Image {
@@ -199,11 +234,30 @@ impl Image {
                 *v = self.at(x, y, c);
             }
         }
+        let uint = self
+            .uint
+            .iter()
+            .enumerate()
+            .map(|(c, plane)| {
+                plane.as_ref().map(|_| {
+                    (0..window.pixels())
+                        .map(|p| {
+                            let (x, y) = (
+                                window.x + (p % window.width) as i64,
+                                window.y + (p / window.width) as i64,
+                            );
+                            self.at_exact(x, y, c) as u32
+                        })
+                        .collect()
+                })
+            })
+            .collect();
         Image {
             width: window.width,
             height: window.height,
             data,
             origin: (window.x, window.y),
+            uint,
             ..self.clone()
         }
     }
@@ -578,20 +632,24 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
                     .map(|&i| split_name(&names[i]).1)
                     .collect()
             };
+            // Colour: R, G and B, or a luminance Y that is not a vector's (X, Y, Z)
+            let colour = |l: &String| {
+                let s = suffixes(l);
+                let has = |c: &str| s.iter().any(|x| x.eq_ignore_ascii_case(c));
+                ["R", "G", "B"].iter().all(|c| has(c)) || (has("Y") && !has("X") && !has("Z"))
+            };
             let combined = layers
                 .iter()
-                .find(|l| *l == "Combined" || l.ends_with(".Combined"));
-            let rgb = layers.iter().find(|l| {
-                let s = suffixes(l);
-                ["R", "G", "B"].iter().all(|c| s.contains(c))
-            });
-            match (combined, rgb) {
+                .find(|l| (*l == "Combined" || l.ends_with(".Combined")) && colour(l));
+            let coloured: Vec<&String> = layers.iter().filter(|l| colour(l)).collect();
+            match (combined, &coloured[..]) {
                 (Some(l), _) => (Some(l.clone()), LayerPick::Combined),
-                (None, Some(l)) => (Some(l.clone()), LayerPick::FirstRgb),
-                (None, None) if layers.len() == 1 => (Some(layers[0].clone()), LayerPick::Only),
+                (None, [l]) => ((*l).clone().into(), LayerPick::FirstRgb),
+                (None, [_, _, ..]) => (None, LayerPick::Every),
+                (None, []) if layers.len() == 1 => (Some(layers[0].clone()), LayerPick::Only),
                 _ => {
                     return Err(format!(
-                        "it has several layers and none is Combined or has R, G, B channels: choose one with --layer (its layers: {})",
+                        "it has several layers and none has colour channels (R, G, B or Y): choose one with --layer (its layers: {})",
                         layer_names(&layers)
                     ))
                 }
@@ -606,6 +664,8 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
             .copied()
             .filter(|&i| layer_of(i) == *l)
             .collect(),
+        // Every layer: every channel of the file, in OpenImageIO's order
+        None if pick == LayerPick::Every => order.clone(),
         None => {
             let first: Vec<usize> = (0..chans.len()).filter(|&i| chans[i].0 == 0).collect();
             let stored: Vec<String> = first.iter().map(|&i| chans[i].3.clone()).collect();
@@ -614,6 +674,12 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
     };
     let part = chans[picked[0]].0;
     if picked.iter().any(|&i| chans[i].0 != part) {
+        if pick == LayerPick::Every {
+            return Err(format!(
+                "its layers with colour channels are in several parts and none is Combined: choose one with --layer (its layers: {})",
+                layer_names(&layers)
+            ));
+        }
         return Err(format!(
             "its layer '{}' is split over several parts",
             chosen.unwrap_or_default()
@@ -622,13 +688,25 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
     let layer = &parts[part];
     let (w, h) = (layer.size.width(), layer.size.height());
     let mut planes = Vec::new();
+    let mut uint = Vec::new();
     for &i in &picked {
         let ch = &layer.channel_data.list[chans[i].1];
-        let plane: Vec<f32> = ch.sample_data.values_as_f32().collect();
+        // UINT: kept exactly, and scaled to [0, 1] as OpenImageIO reads it (in double, then
+        // float: convert_type's scaled conversion)
+        let (plane, ints): (Vec<f32>, Option<Vec<u32>>) = match &ch.sample_data {
+            exr::prelude::FlatSamples::U32(v) => (
+                v.iter()
+                    .map(|&x| (x as f64 * (1.0 / u32::MAX as f64)) as f32)
+                    .collect(),
+                Some(v.clone()),
+            ),
+            other => (other.values_as_f32().collect(), None),
+        };
         if plane.len() != w * h {
             return Err("channel size does not match the data window".into());
         }
         planes.push(plane);
+        uint.push(ints);
     }
     // Interleave the planes; name the channels within their layer (in full: all of them)
     let data = (0..w * h)
@@ -638,10 +716,14 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
         .iter()
         .map(|&i| match pick {
             LayerPick::All => chans[i].3.as_str(),
+            LayerPick::Every => names[i].as_str(),
             _ => split_name(&names[i]).1,
         })
         .collect();
     let mut img = self::Image::new(w, h, &channel_names, data);
+    if uint.iter().any(|u| u.is_some()) {
+        img.uint = uint;
+    }
     let pos = layer.attributes.layer_position;
     img.origin = (pos.x() as i64, pos.y() as i64);
     let display = image.attributes.display_window;

@@ -386,22 +386,34 @@ pub fn compare_as(
                 }
                 // idiff: the second mismatch and on fall through to the arithmetic
             }
-            // The difference and its relative size, in float32 as idiff has them
-            let f = (a - b).abs() as f64;
+            // The difference and its relative size, in float32 as idiff has them; an EXR's
+            // UINT channel (an ID) under rayproof's rules exactly, as integers (in float32,
+            // IDs 16777216 and 16777217 are one value)
+            let exact = !idiff && (reference.is_uint(c) || test.is_uint(c));
+            let (a64, b64) = if exact {
+                (reference.at_exact(x, y, c), test.at_exact(x, y, c))
+            } else {
+                (a as f64, b as f64)
+            };
+            let f = if exact {
+                (a64 - b64).abs()
+            } else {
+                (a - b).abs() as f64
+            };
             let (aa, ba) = (a.abs(), b.abs());
             // OIIO's lerp(|a|, |b|, 0.5): in double, returned as float
-            let meanabs = (0.5 * aa as f64 + 0.5 * ba as f64) as f32;
+            let meanabs = if exact {
+                0.5 * a64.abs() + 0.5 * b64.abs()
+            } else {
+                (0.5 * aa as f64 + 0.5 * ba as f64) as f32 as f64
+            };
             if aa.max(ba) > peak {
                 peak = aa.max(ba);
             }
-            let rel = if meanabs > 0.0 {
-                f / meanabs as f64
-            } else {
-                0.0
-            };
+            let rel = if meanabs > 0.0 { f / meanabs } else { 0.0 };
             batch += f;
             batch2 += f * f;
-            rel_sum += f * f / ((a as f64) * (a as f64) + 1e-2);
+            rel_sum += f * f / (a64 * a64 + 1e-2);
             if !(f <= max_error) {
                 (max_error, max_at) = (f, (x, y, c));
             }

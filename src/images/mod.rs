@@ -91,7 +91,9 @@
 //!   per-sample variance when N > 1, the variance of the test pixel itself when N = 1 (the
 //!   default). z = |img − ref|·sqrt(spp / max(var, 1e-4)), with a Šidák-corrected
 //!   α = 1 − (1 − 0.01)^(1/pixels), passing when ≥ 99.75 % of channel tests pass (the defaults of
-//!   `--significance` and `--pixel-success-rate`). The verdict is then the z-test's, PASS or FAILURE;
+//!   `--significance` and `--pixel-success-rate`). The verdict is then the z-test's, PASS or FAILURE.
+//!   A variance sample that is NaN, infinite or negative is refused with one line (exit 4 in
+//!   `diff`, the test refused in `check`): an infinite variance would pass any difference;
 //! - `--heatmap`: magma map of the ꟻLIP error, or with `--no-flip` of the largest channel
 //!   |d| × 16 clamped to 1 (like Blender's `idiff … --mulc 16`);
 //! - `--json FILE`: the comparison, thresholds and z-test; `--json -` prints the JSON on
@@ -123,4 +125,4 @@ pub use metrics::{
     SizeMismatch, Thresholds, Verdict,
 };
 pub use report::{fmt_g, report_text, DiffReport};
-pub use ztest::{erfc, sidak_alpha, z_test, ZParams, ZTest};
+pub use ztest::{erfc, sidak_alpha, z_test, ZParams, ZTest, ZTestError};

@@ -50,7 +50,8 @@ fn layer_lines(ref_name: &str, test_name: &str, c: &Comparison) -> String {
         let why = match l.pick {
             LayerPick::Named => "named by --layer",
             LayerPick::Combined => "the default: a Combined layer",
-            LayerPick::FirstRgb => "the default: the first layer with R, G, B; none is Combined",
+            LayerPick::FirstRgb => "the default: the one layer with colour channels; none is Combined",
+            LayerPick::Every => "the default: every layer, several have colour channels and none is Combined; --layer NAME compares one",
             LayerPick::Only => "the file's only layer",
             LayerPick::All => "as idiff reads them; --layer NAME compares one layer",
         };

@@ -85,16 +85,41 @@ pub struct ZTest {
     pub verdict: Verdict,
 }
 
+/// Why a z-test could not be run.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum ZTestError {
+    /// The test image, or the variance, is not the reference's size and channels.
+    #[error("{0}")]
+    Size(#[from] SizeMismatch),
+    /// A variance sample is NaN, infinite or negative: no variance, so no test (an infinite
+    /// variance would make every difference plausible noise).
+    #[error("{count} variance samples are NaN, infinite or negative (the first, {value}, at ({x}, {y}) {channel})")]
+    Variance {
+        /// How many samples of the tested channels.
+        count: u64,
+        /// The first one's value.
+        value: f32,
+        /// Its position (absolute, as the reports give pixels).
+        x: i64,
+        /// Its row.
+        y: i64,
+        /// Its channel.
+        channel: String,
+    },
+}
+
 /// Per pixel and channel, z = |test − ref| · sqrt(spp / max(var, 10⁻⁴)) and p = 2(1 − Φ(z)) =
 /// erfc(z/√2); a channel passes if p > α = 1 − (1 − significance)^(1/pixels), and the test
 /// passes if passing channels / channels ≥ success rate × pixels. NaN against NaN (or the same
 /// Inf) passes; any other NaN/Inf in the images fails.
+/// A variance sample of a tested channel that is NaN, infinite or negative refuses the test
+/// ([`ZTestError::Variance`]).
 pub fn z_test(
     reference: &Image,
     test: &Image,
     variance: &Image,
     p: &ZParams,
-) -> Result<ZTest, SizeMismatch> {
+) -> Result<ZTest, ZTestError> {
     same_shape(reference, test)?;
     // Pair each channel of the reference (alpha only if the variance has it) with the variance's
     let var_idx: Option<Vec<(usize, usize)>> = reference
@@ -116,9 +141,32 @@ pub fn z_test(
             return Err(SizeMismatch {
                 reference: reference.shape(),
                 test: variance.shape(),
-            })
+            }
+            .into())
         }
     };
+    // A variance is finite and non-negative, every sample tested
+    let nv = variance.channels.len();
+    let mut bad: Option<(u64, f32, usize, usize)> = None;
+    for px in 0..variance.pixels() {
+        for &(_, j) in &idx {
+            let v = variance.data[px * nv + j];
+            if !(v.is_finite() && v >= 0.0) {
+                let b = bad.get_or_insert((0, v, px, j));
+                b.0 += 1;
+            }
+        }
+    }
+    if let Some((count, value, px, j)) = bad {
+        let (x, y) = (px % variance.width, px / variance.width);
+        return Err(ZTestError::Variance {
+            count,
+            value,
+            x: variance.origin.0 + x as i64,
+            y: variance.origin.1 + y as i64,
+            channel: variance.channels[j].clone(),
+        });
+    }
     // Test every pixel and channel against the Šidák-corrected significance
     let (nr, nv) = (reference.channels.len(), variance.channels.len());
     let pixels = reference.pixels() as u64;
@@ -134,7 +182,7 @@ pub fn z_test(
             );
             let var = variance.data[px * nv + j] as f64;
             let pv = if r.is_finite() && t.is_finite() {
-                let var = if var.is_nan() { 1e-4 } else { var.max(1e-4) };
+                let var = var.max(1e-4);
                 let z = (t - r).abs() * (p.spp as f64 / var).sqrt();
                 erfc(z / std::f64::consts::SQRT_2).min(1.0) // the fit gives 1 + 3e-8 at 0
             } else if same_nonfinite(r, t) {

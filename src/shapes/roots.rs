@@ -574,6 +574,31 @@ impl Newton {
     }
 }
 
+/// First-order sensitivity of a root `x` of `a x³ + b x² + c x + d` (`abcd`, leading first) to
+/// its coefficients, in ulps of `x`: how far `x` moves when every coefficient moves one ulp of
+/// the precision, `Σ |x|^i ulp(a_i) / |f'(x)| / ulp(x)`. Evaluated in `f64` at the correctly
+/// rounded root: an estimate, not a bound. `None` where `f'(x)` is 0 (a multiple root).
+///
+/// Why a Newton method is judged by err/cond (`tolerances.toml`): Horner's rule evaluates `f(x)`
+/// with an absolute error at most `γ₆ Σ|a_i||x|^i` (Higham, *Accuracy and Stability*, eq. 5.3),
+/// and since `ulp(a) ≥ u|a|` (`u = 2^-p`) that is at most `γ₆/u · cond · ulp(x)`, about
+/// `6·cond` ulps of `x` after division by `f'`. Newton's iterates, once within that band of the
+/// root, stay within twice it (a step is the computed residual over the derivative); the
+/// result's rounding adds half an ulp. So a Newton iteration that has converged is within
+/// `12·cond + 1` ulps, whatever the seed or the case count.
+pub fn cubic_root_cond(abcd: &[f64], x: f64, prec: Precision) -> Option<f64> {
+    let [a, b, c, d] = [abcd[0], abcd[1], abcd[2], abcd[3]];
+    let df = (3.0 * a * x + 2.0 * b) * x + c;
+    if df == 0.0 || !df.is_finite() || !x.is_finite() {
+        return None;
+    }
+    let ax = x.abs();
+    let u = crate::numerics::exact::ulp;
+    let sum = ((u(a, prec) * ax + u(b, prec)) * ax + u(c, prec)) * ax + u(d, prec);
+    let ux = u(x, prec);
+    (ux > 0.0).then(|| sum / df.abs() / ux)
+}
+
 const NEWTON_INFO: ShapeInfo = ShapeInfo {
     name: "newton",
     about: "Newton's method on ax³+bx²+cx+d in [lo, hi] from x0 (§1.4)",
@@ -583,6 +608,7 @@ const NEWTON_INFO: ShapeInfo = ShapeInfo {
     methods: NEWTON_METHODS,
     // The Sturm oracle with one-ulp ill-posedness costs about 0.1 ms per case.
     default_cases: 5_000,
+    reports_cond: true,
     ..ShapeInfo::DEFAULTS
 };
 
@@ -649,12 +675,16 @@ impl Shape for Newton {
         {
             others.remove(p);
         }
+        let cond = values
+            .first()
+            .and_then(|&x| cubic_root_cond(&input[..4], x, prec));
         Truth::Answer(Expected {
             count: values.len() as u32,
             values,
             others,
             ill_posed,
             cap_reached: false,
+            cond,
             ..Default::default()
         })
     }

@@ -108,6 +108,7 @@ const TORUS: ShapeInfo = ShapeInfo {
     // milliseconds per case.
     default_cases: 500,
     domain: Domain::RayParameter,
+    reports_cond: true,
     ..ShapeInfo::DEFAULTS
 };
 

@@ -258,14 +258,105 @@ pub fn truth(x: &[f64], prec: Precision) -> Truth {
         .iter()
         .map(|(lo, hi)| sturm::round_in(&sf, lo, hi, prec))
         .collect();
+    let cond = rounded.first().and_then(|&t| {
+        let (dt, _) = root_gradient(x, t)?;
+        let ut = crate::numerics::exact::ulp(t, prec);
+        let sum: f64 = (0..8)
+            .map(|k| dt[k].abs() * crate::numerics::exact::ulp(x[k], prec))
+            .sum();
+        (ut > 0.0 && sum.is_finite()).then(|| sum / ut)
+    });
     Truth::Answer(Expected {
         count: (!roots.is_empty()) as u32,
         values: rounded.first().copied().into_iter().collect(),
         others: rounded.iter().skip(1).copied().collect(),
         ill_posed: ill,
         cap_reached: rounded.iter().any(|v| v.is_nan()),
+        cond,
         ..Default::default()
     })
+}
+
+/// First-order derivatives of the first root `t` with respect to the eight inputs `o d r1 r2`,
+/// and the hit point `p = o + t·d`, evaluated in `f64` at the correctly rounded `t`. From
+/// `F(p) = (|p|² + R² − r²)² − 4R²(px² + py²) = 0` (`R = r1`, `r = r2`):
+/// `∂t/∂x = −(∂F/∂x)/(∂F/∂t)` with `∂F/∂t = ∇F·d`, `∂F/∂o = ∇F`, `∂F/∂d = t∇F`,
+/// `∂F/∂R = 4R(|p|² + R² − r²) − 8R(px² + py²)`, `∂F/∂r = −4r(|p|² + R² − r²)`. `None` where
+/// `∇F·d` is 0 (a tangent ray) or a value is not finite.
+pub fn root_gradient(x: &[f64], t: f64) -> Option<([f64; 8], [f64; 3])> {
+    let (o, d, big, small) = ([x[0], x[1], x[2]], [x[3], x[4], x[5]], x[6], x[7]);
+    let p: [f64; 3] = std::array::from_fn(|i| o[i] + t * d[i]);
+    let s = p[0] * p[0] + p[1] * p[1] + p[2] * p[2] + big * big - small * small;
+    let g = [
+        4.0 * s * p[0] - 8.0 * big * big * p[0],
+        4.0 * s * p[1] - 8.0 * big * big * p[1],
+        4.0 * s * p[2],
+    ];
+    let dfdt = g[0] * d[0] + g[1] * d[1] + g[2] * d[2];
+    if dfdt == 0.0 || !dfdt.is_finite() || !t.is_finite() {
+        return None;
+    }
+    let dfdr1 = 4.0 * big * s - 8.0 * big * (p[0] * p[0] + p[1] * p[1]);
+    let dfdr2 = -4.0 * small * s;
+    let df = [g[0], g[1], g[2], t * g[0], t * g[1], t * g[2], dfdr1, dfdr2];
+    Some((df.map(|v| -v / dfdt), p))
+}
+
+/// First-order sensitivity of the unit normal at the first hit, in ulps of its largest
+/// component: how far the normal moves (largest component change) when every input moves one
+/// ulp. The normal is `n = w/|w|`, `w = p − q`, `q = R·(px, py, 0)/ρ` the nearest point of the
+/// core circle (`ρ = √(px² + py²)`): `∂n/∂p = (I − nnᵀ)/|w| · (I − (R/ρ)(P − eeᵀ))` (`P` the
+/// projection on the xy plane, `e = (px, py, 0)/ρ`), `∂n/∂R = −(I − nnᵀ)e/|w|`, and the hit
+/// point moves with the inputs and with `t` (`∂p/∂o = I + d ∂t/∂o`, `∂p/∂d = tI + d ∂t/∂d`,
+/// `∂p/∂R = d ∂t/∂R`, `∂p/∂r = d ∂t/∂r`). `None` on the axis (`ρ = 0`) or where `t` has none.
+pub fn normal_cond(x: &[f64], t: f64, n: [f64; 3], prec: Precision) -> Option<f64> {
+    let (dt, p) = root_gradient(x, t)?;
+    let (d, big) = ([x[3], x[4], x[5]], x[6]);
+    let rho = (p[0] * p[0] + p[1] * p[1]).sqrt();
+    if !(rho > 0.0) {
+        return None;
+    }
+    let e = [p[0] / rho, p[1] / rho, 0.0];
+    let w = [p[0] - big * e[0], p[1] - big * e[1], p[2]];
+    let wn = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+    if !(wn > 0.0) {
+        return None;
+    }
+    // (I − nnᵀ) v / |w|
+    let tangent = |v: [f64; 3]| -> [f64; 3] {
+        let k = v[0] * n[0] + v[1] * n[1] + v[2] * n[2];
+        std::array::from_fn(|i| (v[i] - k * n[i]) / wn)
+    };
+    // (I − (R/ρ)(P − eeᵀ)) v
+    let through_q = |v: [f64; 3]| -> [f64; 3] {
+        let ev = e[0] * v[0] + e[1] * v[1];
+        let k = big / rho;
+        [
+            v[0] - k * (v[0] - ev * e[0]),
+            v[1] - k * (v[1] - ev * e[1]),
+            v[2],
+        ]
+    };
+    let mut sum = 0.0;
+    for k in 0..8 {
+        // ∂p/∂x_k
+        let mut dp: [f64; 3] = std::array::from_fn(|i| d[i] * dt[k]);
+        if k < 3 {
+            dp[k] += 1.0;
+        } else if k < 6 {
+            dp[k - 3] += t;
+        }
+        let mut dn = tangent(through_q(dp));
+        if k == 6 {
+            let de = tangent(e);
+            dn = std::array::from_fn(|i| dn[i] - de[i]);
+        }
+        let m = dn.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        sum += m * crate::numerics::exact::ulp(x[k], prec);
+    }
+    let big_n = n.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let un = crate::numerics::exact::ulp(big_n, prec);
+    (un > 0.0 && sum.is_finite()).then(|| sum / un)
 }
 
 /// The exact first positive root and its ray, for the normal and reintersection oracles.
@@ -448,12 +539,16 @@ pub fn normal_truth(x: &[f64], prec: Precision) -> Truth {
         cap |= v.is_none();
         values.push(v.unwrap_or(f64::NAN));
     }
+    let cond = (!cap)
+        .then(|| normal_cond(x, h.t, [values[0], values[1], values[2]], prec))
+        .flatten();
     Truth::Answer(Expected {
         count: 1,
         values,
         others: vec![],
         ill_posed: ill,
         cap_reached: cap,
+        cond,
         ..Default::default()
     })
 }
