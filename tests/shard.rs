@@ -354,7 +354,7 @@ fn shard_files_hold_no_decimal_floats() {
     write_shard(&selection(1, 40), 1, 2, &shard);
     let v: Value = serde_json::from_slice(&std::fs::read(&shard).unwrap()).unwrap();
     assert_eq!(v["format"], "rayproof-audit-shard");
-    assert_eq!(v["format_version"], 5);
+    assert_eq!(v["format_version"], 6);
     assert_eq!(v["shard"]["k"], 1);
     assert_eq!(v["shard"]["n"], 2);
     // Every number is an integer; floats are hex text, so they round-trip exactly
@@ -604,4 +604,78 @@ fn merge_usage_errors_get_one_line_and_exit_2() {
     ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("/no/such/dir"), "{}", stderr(&o));
+}
+
+/// A shard knows what it is (issue 45): shards of two routines that share `--name` are not one
+/// audit, and a copy of shard 1/2 relabelled 0/2 is not shard 0/2. Both merged to
+/// "verdict: pass" before.
+#[test]
+fn merge_refuses_two_routines_under_one_name_and_a_relabelled_copy() {
+    let dir = scratch("identity");
+    let sphere = crate::common::outside("sphere_textbook.py");
+    let base = |cmd: &str| -> Vec<String> {
+        [
+            "--cases",
+            "40",
+            "--seed",
+            "1",
+            "--shape",
+            "sphere",
+            "--precision",
+            "f64",
+            "--class",
+            "random,tangent",
+            "--exec",
+            cmd,
+            "--name",
+            "mine",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect()
+    };
+    let (a, b) = (
+        format!("python3 '{}'", sphere.display()),
+        // Another routine under the same name: every case a miss
+        "while read l; do echo 0; done".to_string(),
+    );
+    let (s0, s1) = (dir.join("s0.json"), dir.join("s1.json"));
+    write_shard(&base(&a), 0, 2, &s0);
+    write_shard(&base(&b), 1, 2, &s1);
+    let o = run(&["merge".to_string(), s(&s0), s(&s1)]);
+    assert_eq!(o.status.code(), Some(3), "{}", stdout(&o));
+    let err = stderr(&o);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("not shards of one audit: methods"), "{err}");
+    assert!(err.contains("--exec while read l"), "{err}");
+    // The same routine: merges
+    write_shard(&base(&a), 1, 2, &s1);
+    let o = run(&["merge".to_string(), s(&s0), s(&s1)]);
+    assert!(o.status.code().is_some_and(|c| c <= 1), "{}", stderr(&o));
+    // A copy of 1/2 relabelled 0/2
+    let text = std::fs::read_to_string(&s1).unwrap();
+    let fake = dir.join("fake0.json");
+    std::fs::write(
+        &fake,
+        text.replacen(
+            "\"shard\":{\"k\":1,\"n\":2}",
+            "\"shard\":{\"k\":0,\"n\":2}",
+            1,
+        ),
+    )
+    .unwrap();
+    assert_ne!(
+        std::fs::read(&fake).unwrap(),
+        text.as_bytes(),
+        "the label moved"
+    );
+    let o = run(&["merge".to_string(), s(&fake), s(&s1)]);
+    assert_eq!(o.status.code(), Some(3), "{}", stdout(&o));
+    let err = stderr(&o);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(
+        err.contains("is labelled shard 0/2 but holds case") || err.contains("ran the same cases"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -367,6 +367,9 @@ impl Method for Exec {
             self.name
         ))
     }
+    fn identity(&self) -> Option<String> {
+        Some(format!("--exec {}", self.command))
+    }
     fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String> {
         if inputs.is_empty() {
             return Ok(vec![]);

@@ -202,6 +202,8 @@ struct Symbol {
     spec: String,
     path: String,
     symbol: String,
+    /// The library file's SHA-256 when the run started (its identity in a shard).
+    sha256: String,
     /// The running worker (replaced after a failure, for the search of the failing case).
     worker: Mutex<Option<Session>>,
     /// Batches answered so far (the failing batch's number in messages).
@@ -258,9 +260,21 @@ impl Plugin {
             if p.symbols.iter().any(|s| s.prec == prec) {
                 return Err(format!("--plugin: two {} symbols", prec.name()));
             }
+            let sha256 = match std::fs::read(&path) {
+                Ok(bytes) => {
+                    use sha2::{Digest, Sha256};
+                    Sha256::digest(&bytes)
+                        .iter()
+                        .map(|b| format!("{b:02x}"))
+                        .collect()
+                }
+                // Found by the loader's search path, not as a file here: named as given
+                Err(_) => format!("(not read: {path})"),
+            };
             let s = Symbol {
                 prec,
                 spec: format!("{path}:{symbol}"),
+                sha256,
                 path,
                 symbol,
                 worker: Mutex::new(None),
@@ -459,6 +473,14 @@ impl Method for Plugin {
             .map(|s| format!("--plugin {}:{}", s.spec, s.prec.name()))
             .collect();
         Some(format!("{} --name {}", specs.join(" "), self.name))
+    }
+    fn identity(&self) -> Option<String> {
+        let ids: Vec<String> = self
+            .symbols
+            .iter()
+            .map(|s| format!("--plugin sha256:{}:{}", s.sha256, s.symbol))
+            .collect();
+        Some(ids.join(" "))
     }
     fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String> {
         let Some(s) = self.symbols.iter().find(|s| s.prec == prec) else {

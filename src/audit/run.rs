@@ -46,6 +46,10 @@ pub struct MethodTag {
     /// The probe arguments that replay this method (outside methods only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub replay: Option<String>,
+    /// What the routine is (outside methods only: the command, or the library's SHA-256 and
+    /// symbol): shards of two routines under one name are not one audit.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub identity: Option<String>,
 }
 
 /// The result of a shape's run (or of merged shards): its selection and its tallies.
@@ -88,6 +92,21 @@ pub struct Group {
     pub class: usize,
     /// One tally per method, in [`Tallies::methods`] order.
     pub tallies: Vec<Tally>,
+    /// The cases run, as a sum (mod 2⁶⁴) of one hash per case of its index and inputs'
+    /// bits ([`case_hash`]): order-free, so shards add up to the unsharded run's, and two
+    /// shards that ran the same cases have the same digest.
+    pub digest: u64,
+}
+
+/// One case's hash for [`Group::digest`]: FNV-1a over its index and its inputs' bits.
+pub fn case_hash(index: u64, input: &[f64]) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for word in std::iter::once(index).chain(input.iter().map(|x| x.to_bits())) {
+        for b in word.to_le_bytes() {
+            h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    h
 }
 
 /// The indices of shard `(k, n)` among `0..cases`: `k, k + n, k + 2n, …`.
@@ -187,6 +206,7 @@ fn group(
     let count = shard_len(sel.cases, sel.shard);
     let mut tallies = empty();
     let mut nanos = 0;
+    let mut digest = 0u64;
     for start in (0..count).step_by(CHUNK as usize) {
         let end = (start + CHUNK).min(count);
         // Generate and ask the oracle
@@ -204,6 +224,10 @@ fn group(
             })
             .collect();
         nanos += posed.iter().map(|p| p.nanos).sum::<u64>();
+        for p in &posed {
+            let input = p.case.as_ref().map(|(x, _)| &x[..]).unwrap_or(&[]);
+            digest = digest.wrapping_add(case_hash(p.index, input));
+        }
         // Every method answers the batch of inputs
         let inputs: Vec<Vec<f64>> = posed
             .iter()
@@ -263,6 +287,7 @@ fn group(
             precision: prec,
             class,
             tallies,
+            digest,
         },
         nanos,
     ))
@@ -305,6 +330,7 @@ pub fn run(sel: &Selection, progress: bool) -> Result<Tallies, MethodFailed> {
                 name: m.name().to_string(),
                 robust: m.robust(),
                 replay: m.replay(),
+                identity: m.identity(),
             })
             .collect(),
         groups: out,

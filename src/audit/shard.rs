@@ -40,7 +40,7 @@
 //! # The shard file
 //!
 //! A shard file (format [`SHARD_FORMAT`], version [`SHARD_FORMAT_VERSION`]) is one line of JSON
-//! with `"format": "rayproof-audit-shard"`, `"format_version": 5`, `tool`,
+//! with `"format": "rayproof-audit-shard"`, `"format_version": 6`, `tool`,
 //! `seed`, `every_shape`, `"shard": {"k", "n"}`, `tolerances`, `shapes` and `outside` (the
 //! reintersection and watertightness rows of routines from outside the crate): per shape its selection
 //! (`cases_per_class`, `methods` with their `robust` flag, `precisions`, `classes`) and `groups`,
@@ -67,7 +67,7 @@ use serde::{Deserialize, Serialize};
 /// The tag in the `format` field of a shard file.
 pub const SHARD_FORMAT: &str = "rayproof-audit-shard";
 /// The version in the `format_version` field; a reader refuses any other.
-pub const SHARD_FORMAT_VERSION: u32 = 5;
+pub const SHARD_FORMAT_VERSION: u32 = 6;
 
 /// The user's tolerance rules a shard was run with (`--tolerances FILE`), carried whole so that
 /// the merge judges with exactly them: the file's name as given (rule origins name it), its
@@ -113,6 +113,8 @@ struct GroupFile {
     precision: Precision,
     class: String,
     tallies: Vec<Tally>,
+    /// [`Group::digest`]: the cases this shard ran.
+    digest: u64,
 }
 
 /// One shape of a shard.
@@ -209,6 +211,7 @@ impl Shard {
                             precision: g.precision,
                             class: info.classes[g.class].to_string(),
                             tallies: g.tallies.clone(),
+                            digest: g.digest,
                         })
                         .collect(),
                 }
@@ -411,7 +414,10 @@ fn check_one_audit(tool: &str, shards: &[(String, Shard)]) -> Result<(), Incompa
                 sel(&|x| {
                     x.methods
                         .iter()
-                        .map(|m| m.name.as_str())
+                        .map(|m| match &m.identity {
+                            Some(id) => format!("{} ({id})", m.name),
+                            None => m.name.clone(),
+                        })
                         .collect::<Vec<_>>()
                         .join(",")
                 }),
@@ -467,6 +473,47 @@ fn check_one_audit(tool: &str, shards: &[(String, Shard)]) -> Result<(), Incompa
             n - 1
         ));
     }
+    // Each shard holds the cases of its label: every case it kept as an example has an index
+    // ≡ k (mod N), and no two shards ran the same cases (a copy relabelled is not another
+    // shard)
+    for (name, s) in shards {
+        let k = s.shard.k;
+        for sh in &s.shapes {
+            for g in &sh.groups {
+                let stray = g
+                    .tallies
+                    .iter()
+                    .flat_map(|t| &t.examples)
+                    .map(|(_, c)| c.index)
+                    .find(|i| i % n.max(1) != k);
+                if let Some(i) = stray {
+                    return fail(format!(
+                        "{name} is labelled shard {k}/{n} but holds case {i} of {} {} {} (shard {}/{n}'s)",
+                        sh.shape,
+                        g.precision.name(),
+                        g.class,
+                        i % n.max(1)
+                    ));
+                }
+            }
+        }
+    }
+    for (i, (a_name, a)) in shards.iter().enumerate() {
+        for (b_name, b) in &shards[i + 1..] {
+            let same = a.shapes.iter().zip(&b.shapes).any(|(x, y)| {
+                x.groups.iter().zip(&y.groups).any(|(g, h)| {
+                    g.digest == h.digest
+                        && super::run::shard_len(x.cases_per_class, (a.shard.k, n)) > 0
+                })
+            });
+            if same {
+                return fail(format!(
+                    "{a_name} and {b_name} ran the same cases (shards {}/{n} and {}/{n} cannot): one is a copy",
+                    a.shard.k, b.shard.k
+                ));
+            }
+        }
+    }
     Ok(())
 }
 
@@ -509,6 +556,7 @@ pub fn merge(
                     precision: g.precision,
                     class: class(&g.class),
                     tallies: g.tallies,
+                    digest: g.digest,
                 })
                 .collect(),
             oracle_nanos: 0,
@@ -520,6 +568,7 @@ pub fn merge(
                 for (t, u) in mine.tallies.iter_mut().zip(&g.tallies) {
                     t.merge(u);
                 }
+                mine.digest = mine.digest.wrapping_add(g.digest);
             }
         }
     }

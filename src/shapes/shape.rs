@@ -230,6 +230,11 @@ pub trait Method: Sync {
     fn replay(&self) -> Option<String> {
         None
     }
+    /// What the routine is, so that shards of two routines that share a name are never one
+    /// audit: an `--exec` command, a library's SHA-256 and symbol; `None`: a built-in method.
+    fn identity(&self) -> Option<String> {
+        None
+    }
     /// One answer per input, in order. An error (a crashed or hung child, a malformed
     /// answer) stops the audit with that one line.
     fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String>;
