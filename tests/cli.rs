@@ -298,4 +298,27 @@ fn an_unknown_instruction_set_cap_is_refused_with_one_line() {
         "{err}"
     );
     assert!(o.stdout.is_empty());
+    // Only the four names, exactly (the hostile run: blank and padded values ran); a long
+    // value is shown cut
+    let long = "x".repeat(100_000);
+    for v in [
+        "",
+        " ",
+        "\t",
+        " avx2",
+        "avx2 ",
+        "avx2\n",
+        "AVX2",
+        long.as_str(),
+    ] {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
+            .args(["audit", "--shape", "sphere", "--cases", "10"])
+            .env("RAYPROOF_ISA", v)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{v:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(err.trim_end().lines().count(), 1, "{v:?}: {err}");
+        assert!(err.len() < 300, "{} bytes", err.len());
+    }
 }

@@ -184,12 +184,15 @@ fn without_combined_the_first_rgb_layer_and_layers_that_differ_are_refused() {
         (l.name.as_deref(), l.pick),
         (Some("Emit"), LayerPick::FirstRgb)
     );
-    // Two view layers: Combined of the first, and "Combined" alone is ambiguous
+    // Two view layers: both Combined layers compared (a change in the second is never passed
+    // over), and "Combined" alone is ambiguous
     let mut v = rgb("A.Combined", 0.5);
     v.extend(rgb("B.Combined", 0.75));
     chans(v, &d.join("ab.exr"));
     let ab = read_image(&d.join("ab.exr")).unwrap();
-    assert_eq!(ab.layer.unwrap().name.as_deref(), Some("A.Combined"));
+    let l = ab.layer.unwrap();
+    assert_eq!((l.name.as_deref(), l.pick), (None, LayerPick::Every));
+    assert_eq!(ab.channels.len(), 6);
     let err = read_image_layer(&d.join("ab.exr"), LayerSelect::Named("Combined")).unwrap_err();
     assert!(
         err.to_string().contains("names several of its layers"),
@@ -200,7 +203,7 @@ fn without_combined_the_first_rgb_layer_and_layers_that_differ_are_refused() {
     let (code, _, err) = diff(&d, &["ab.exr", "o.exr"]);
     assert_eq!(code, 3, "{err}");
     assert!(
-        err.contains("(layer A.Combined)") && err.contains("(layer Other.Combined)"),
+        err.contains("A.Combined.R,A.Combined.G") && err.contains("(layer Other.Combined)"),
         "{err}"
     );
     // Several layers, none Combined or RGB: refused with the list (exit 4)

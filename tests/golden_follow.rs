@@ -604,3 +604,38 @@ grid = 2
         assert!(!out.contains("stale"), "{tag}: after --update, {out}");
     }
 }
+
+/// A file at a golden's path with no manifest beside it is not a golden rayproof blessed: the
+/// test is refused (its staleness and hash cannot be known), and `--update` writes nothing over
+/// it (the hostile run: `goldens = "."` and a user's `victim.exr` was replaced).
+#[test]
+fn a_golden_without_a_manifest_is_refused_and_never_overwritten() {
+    let dir = scratch("follow-nomanifest");
+    std::fs::write(dir.join("victim.exr"), b"the user's own file").unwrap();
+    let suite = format!(
+        r#"[suite]
+name = "nomanifest"
+renderer = "{r} {{out}} --width 8 --grid 1"
+goldens = "."
+timeout = 20
+
+[[test]]
+name = "victim"
+"#,
+        r = standin()
+    );
+    std::fs::write(dir.join("suite.toml"), suite).unwrap();
+    for extra in [&[][..], &["--update"][..]] {
+        let (code, out, err) = check(&dir, extra);
+        assert_eq!(code, Some(3), "{extra:?}: {out}{err}");
+        assert!(
+            line(&out, "victim", "golden").contains("REFUSED")
+                && out.contains("no manifest.json beside it"),
+            "{out}"
+        );
+        assert_eq!(
+            std::fs::read(dir.join("victim.exr")).unwrap(),
+            b"the user's own file"
+        );
+    }
+}

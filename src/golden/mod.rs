@@ -609,6 +609,10 @@ fn judge(
     });
     if verdict == Verdict::Failure {
         why.push(match z {
+            Some(z) if z.beyond_noise > 0 => format!(
+                "z-test: {} pixels beyond any noise (NaN/Inf, or a channel the variance lacks)",
+                z.beyond_noise
+            ),
             Some(z) => format!(
                 "z-test: {} pixels fail at α = {:.2e}",
                 z.failing_pixels, z.alpha

@@ -262,8 +262,9 @@ pub fn staleness(entry: &serde_json::Value, now: &Sources, own: bool) -> Option<
 /// Loads a reference and, when the manifest beside it describes it, proves it is that file
 /// (SHA-256), and says whether it was made from other versions of the test's scene and inputs
 /// ([`staleness`]; the caller decides: a stale golden is compared and re-blessed, a stale
-/// external reference refused). A tampered reference is an error. An image with no manifest
-/// is read as it is, with an empty provenance. Any format [`super::formats`] reads.
+/// external reference refused). A tampered reference is an error. An external reference with
+/// no manifest is read as it is, with an empty provenance; a golden with none is refused. Any
+/// format [`super::formats`] reads.
 pub fn verified_reference(
     path: &Path,
     now: &Sources,
@@ -272,7 +273,17 @@ pub fn verified_reference(
     let (dir, file) = dir_and_name(path);
     let mut prov = Provenance::default();
     let mut stale = None;
-    if let Some(m) = manifest(&dir)? {
+    let m = manifest(&dir)?;
+    // A golden is rayproof's own only with its manifest entry (its hash, what made it): a file
+    // at a golden's path without one is not compared as a golden, and so never re-blessed
+    // over (it may be a user's file)
+    if own && m.is_none() {
+        bail!(
+            "{} has no manifest.json beside it: not a golden rayproof blessed (its hash and what made it are unknown); move it away and run --update to bless one",
+            path.display()
+        );
+    }
+    if let Some(m) = m {
         let entry = m["files"].get(&file).with_context(|| {
             format!(
                 "{} has no entry in {}",

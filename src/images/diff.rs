@@ -78,8 +78,7 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
     crate::output::check_outputs(&files, &[], &inputs)
         .map_err(|e| DiffError::new(2, e.to_string()))?;
 
-    // Inputs: the layer asked for (idiff reads every channel); the variance image's default
-    // layer
+    // Inputs: the layer asked for (idiff reads every channel)
     let select = match (a.layer, a.idiff_compat) {
         (Some(name), _) => LayerSelect::Named(name),
         (None, true) => LayerSelect::AsIdiff,
@@ -90,8 +89,16 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
     };
     let reference = read(a.reference, select)?;
     let test = read(a.test, select)?;
+    // The variance: the same layer as the images (`--layer NAME`: that layer of the variance
+    // too, its checks included), else its own default
     let variance = match a.variance {
-        Some(v) => Some(read(v, LayerSelect::Default)?),
+        Some(v) => Some(read(
+            v,
+            match select {
+                LayerSelect::AsIdiff => LayerSelect::Default,
+                s => s,
+            },
+        )?),
         None => None,
     };
     let (rn, tn) = (a.reference.display(), a.test.display());

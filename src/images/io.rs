@@ -76,7 +76,8 @@ pub enum LayerPick {
     /// (`R`, `G`, `B`, or `Y` without `X`, `Z`); its other layers have none.
     FirstRgb,
     /// The default when several layers have colour channels and none is a `Combined` with them
-    /// (Mitsuba's AOVs, `diffuse.*` beside `specular.*`): every channel of the file, each layer
+    /// (Mitsuba's AOVs, `diffuse.*` beside `specular.*`), or when the file has two `Combined`
+    /// layers (two view layers) or one without colour: every channel of the file, each layer
     /// compared, as idiff compares them.
     Every,
     /// The default: the file's only layer.
@@ -638,15 +639,26 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
                 let has = |c: &str| s.iter().any(|x| x.eq_ignore_ascii_case(c));
                 ["R", "G", "B"].iter().all(|c| has(c)) || (has("Y") && !has("X") && !has("Z"))
             };
-            let combined = layers
+            // A layer named Combined is the beauty: the default when it is the one such layer
+            // and has colour; two view layers' Combined, or a Combined without colour, are
+            // not silently passed over: every layer is compared
+            // Within the first part, as idiff (another part is another image: --layer picks it)
+            let first: Vec<&String> = layers
                 .iter()
-                .find(|l| (*l == "Combined" || l.ends_with(".Combined")) && colour(l));
-            let coloured: Vec<&String> = layers.iter().filter(|l| colour(l)).collect();
-            match (combined, &coloured[..]) {
-                (Some(l), _) => (Some(l.clone()), LayerPick::Combined),
-                (None, [l]) => ((*l).clone().into(), LayerPick::FirstRgb),
-                (None, [_, _, ..]) => (None, LayerPick::Every),
-                (None, []) if layers.len() == 1 => (Some(layers[0].clone()), LayerPick::Only),
+                .filter(|l| order.iter().any(|&i| layer_of(i) == **l && chans[i].0 == 0))
+                .collect();
+            let combined: Vec<&String> = first
+                .iter()
+                .copied()
+                .filter(|l| *l == "Combined" || l.ends_with(".Combined"))
+                .collect();
+            let coloured: Vec<&String> = first.iter().copied().filter(|l| colour(l)).collect();
+            match (&combined[..], &coloured[..]) {
+                ([l], _) if colour(l) => (Some((*l).clone()), LayerPick::Combined),
+                ([_, ..], _) => (None, LayerPick::Every),
+                ([], [l]) => ((*l).clone().into(), LayerPick::FirstRgb),
+                ([], [_, _, ..]) => (None, LayerPick::Every),
+                ([], []) if layers.len() == 1 => (Some(layers[0].clone()), LayerPick::Only),
                 _ => {
                     return Err(format!(
                         "it has several layers and none has colour channels (R, G, B or Y): choose one with --layer (its layers: {})",
@@ -664,8 +676,10 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
             .copied()
             .filter(|&i| layer_of(i) == *l)
             .collect(),
-        // Every layer: every channel of the file, in OpenImageIO's order
-        None if pick == LayerPick::Every => order.clone(),
+        // Every layer: every channel of the file's first part, in OpenImageIO's order
+        None if pick == LayerPick::Every => {
+            order.iter().copied().filter(|&i| chans[i].0 == 0).collect()
+        }
         None => {
             let first: Vec<usize> = (0..chans.len()).filter(|&i| chans[i].0 == 0).collect();
             let stored: Vec<String> = first.iter().map(|&i| chans[i].3.clone()).collect();
@@ -691,12 +705,13 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
     let mut uint = Vec::new();
     for &i in &picked {
         let ch = &layer.channel_data.list[chans[i].1];
-        // UINT: kept exactly, and scaled to [0, 1] as OpenImageIO reads it (in double, then
-        // float: convert_type's scaled conversion)
+        // UINT: kept exactly, and scaled to [0, 1] as OpenImageIO reads it: the integer to
+        // float first, then times the float 1/(2³² − 1) (so 16777216 and 16777217 are one
+        // value there, as the real idiff says; tests/read_as_written.rs)
         let (plane, ints): (Vec<f32>, Option<Vec<u32>>) = match &ch.sample_data {
             exr::prelude::FlatSamples::U32(v) => (
                 v.iter()
-                    .map(|&x| (x as f64 * (1.0 / u32::MAX as f64)) as f32)
+                    .map(|&x| x as f32 * (1.0 / u32::MAX as f32))
                     .collect(),
                 Some(v.clone()),
             ),

@@ -51,7 +51,7 @@ fn layer_lines(ref_name: &str, test_name: &str, c: &Comparison) -> String {
             LayerPick::Named => "named by --layer",
             LayerPick::Combined => "the default: a Combined layer",
             LayerPick::FirstRgb => "the default: the one layer with colour channels; none is Combined",
-            LayerPick::Every => "the default: every layer, several have colour channels and none is Combined; --layer NAME compares one",
+            LayerPick::Every => "the default: every layer (several have colour channels and no single Combined has), as idiff; --layer NAME compares one",
             LayerPick::Only => "the file's only layer",
             LayerPick::All => "as idiff reads them; --layer NAME compares one layer",
         };
@@ -167,7 +167,14 @@ fn z_report(z: &ZTest) -> String {
         z.passing_channels,
         tests,
         g((z.params.pixel_success_rate * tests as f64).ceil()),
-    )
+    ) + &if z.beyond_noise > 0 {
+        format!(
+            "    {} pixels beyond any noise (a NaN/Inf mismatch, or a change in a channel the variance lacks): FAILURE whatever the success rate\n",
+            z.beyond_noise
+        )
+    } else {
+        String::new()
+    }
 }
 
 /// What `rayproof diff` reports about one comparison.

@@ -77,8 +77,11 @@ pub struct ZTest {
     pub min_p_at: (i64, i64, usize),
     /// The name of the channel with the smallest p-value.
     pub min_p_channel: String,
-    /// Pixels with some channel's p ≤ alpha.
+    /// Pixels with some channel's p ≤ alpha, or beyond noise.
     pub failing_pixels: u64,
+    /// Pixels no noise explains: a NaN/Inf mismatch, or a difference in a channel the variance
+    /// does not cover (alpha): any one fails the test, whatever the success rate allows.
+    pub beyond_noise: u64,
     /// Channel tests with p > alpha.
     pub passing_channels: u64,
     /// PASS or FAILURE (the z-test has no warning).
@@ -173,8 +176,18 @@ pub fn z_test(
     let alpha = sidak_alpha(p.significance, pixels);
     let (mut min_p, mut min_at) = (f64::INFINITY, (reference.origin.0, reference.origin.1, 0));
     let (mut failing_pixels, mut passing) = (0u64, 0u64);
+    // What no noise explains, whatever the success rate allows: a NaN/Inf mismatch, and any
+    // difference in a channel the variance does not cover (alpha without a variance for it)
+    let untested: Vec<usize> = (0..nr)
+        .filter(|i| !idx.iter().any(|&(c, _)| c == *i))
+        .collect();
+    let mut beyond_noise = 0u64;
     for px in 0..reference.pixels() {
         let mut failed = false;
+        let mut beyond = untested.iter().any(|&i| {
+            let (r, t) = (reference.data[px * nr + i], test.data[px * nr + i]);
+            r != t && !same_nonfinite(r as f64, t as f64)
+        });
         for (k, &(i, j)) in idx.iter().enumerate() {
             let (r, t) = (
                 reference.data[px * nr + i] as f64,
@@ -188,6 +201,7 @@ pub fn z_test(
             } else if same_nonfinite(r, t) {
                 1.0
             } else {
+                beyond = true;
                 0.0
             };
             if pv < min_p {
@@ -201,14 +215,16 @@ pub fn z_test(
                 failed = true;
             }
         }
-        failing_pixels += failed as u64;
+        failing_pixels += (failed || beyond) as u64;
+        beyond_noise += beyond as u64;
     }
     // Pass if enough channel tests pass
     let channels: Vec<String> = idx
         .iter()
         .map(|&(i, _)| reference.channels[i].clone())
         .collect();
-    let ok = passing as f64 / channels.len().max(1) as f64 >= p.pixel_success_rate * pixels as f64;
+    let ok = beyond_noise == 0
+        && passing as f64 / channels.len().max(1) as f64 >= p.pixel_success_rate * pixels as f64;
     Ok(ZTest {
         params: *p,
         min_p_channel: channels.get(min_at.2).cloned().unwrap_or_default(),
@@ -218,6 +234,7 @@ pub fn z_test(
         min_p: if min_p.is_finite() { min_p } else { 1.0 },
         min_p_at: min_at,
         failing_pixels,
+        beyond_noise,
         passing_channels: passing,
         verdict: if ok { Verdict::Pass } else { Verdict::Failure },
     })

@@ -33,13 +33,22 @@ pub enum Level {
 impl Level {
     /// Reads a cap as `RAYPROOF_ISA` spells it.
     pub fn parse(s: &str) -> Result<Level, String> {
-        match s.trim() {
+        match s {
             "scalar" => Ok(Level::Scalar),
             "avx2" => Ok(Level::Avx2),
-            "avx512" | "native" | "" => Ok(Level::Avx512),
-            other => Err(format!(
-                "{ENV}={other:?} is not an instruction-set cap (scalar, avx2, avx512 or native)"
-            )),
+            "avx512" | "native" => Ok(Level::Avx512),
+            other => {
+                // One line of reasonable length, whatever was set
+                let shown: String = other.chars().take(40).collect();
+                let more = if other.chars().count() > 40 {
+                    "…"
+                } else {
+                    ""
+                };
+                Err(format!(
+                    "{ENV}={shown:?}{more} is not an instruction-set cap (scalar, avx2, avx512 or native)"
+                ))
+            }
         }
     }
 
