@@ -242,3 +242,64 @@ fn a_rate_fails_only_when_its_count_excludes_the_measurement() {
     // ... and a rate far below the measurement's lower bound is an alarm too
     assert_eq!(with("algebraic", 5, 20_000).status, Status::Fail);
 }
+
+/// The seed sweep (issue 45): the default audit's whole selection at seeds 1–6 with 300 cases
+/// per class gives every row the same verdict at every seed, and none out of tolerance (the
+/// main CI job, `cargo run --release -- audit`, is the run at many cases: 20,000 per class for
+/// most shapes). A rule tightened below what a seed's sample shows fails here: the rules hold
+/// by what they measure (err/cond with an analysis, rates with their statistics), not by the
+/// sample they were first measured on. Measured for the change: seeds 1–12 at 2,000 cases and
+/// seed 1 at 20,000, 894 rows, every row one verdict.
+#[test]
+fn every_row_has_one_verdict_at_every_seed() {
+    use std::collections::BTreeMap;
+    let dir = crate::common::scratch("seed-sweep");
+    let mut seen: BTreeMap<String, (u64, String)> = BTreeMap::new();
+    for seed in 1..=6u64 {
+        let json = dir.join(format!("s{seed}.json"));
+        let o = crate::common::rayproof(&[
+            "audit",
+            "--cases",
+            "300",
+            "--seed",
+            &seed.to_string(),
+            "--worst",
+            "0",
+            "--json",
+            crate::common::s(&json),
+        ]);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "seed {seed}: {}",
+            String::from_utf8_lossy(&o.stdout)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+        let mut rows = 0;
+        for sh in v["shapes"].as_array().unwrap() {
+            for r in sh["rows"].as_array().unwrap() {
+                rows += 1;
+                let key = format!(
+                    "{} {} {} {}",
+                    sh["shape"].as_str().unwrap_or("?"),
+                    r["method"].as_str().unwrap(),
+                    r["precision"].as_str().unwrap(),
+                    r["class"].as_str().unwrap()
+                );
+                let status = r["verdict"]["status"].as_str().unwrap().to_string();
+                assert_ne!(status, "fail", "seed {seed}: {key}: {}", r["verdict"]);
+                match seen.get(&key) {
+                    Some((s0, st)) => assert_eq!(
+                        *st, status,
+                        "{key}: {st} at seed {s0}, {status} at seed {seed}"
+                    ),
+                    None => {
+                        seen.insert(key, (seed, status));
+                    }
+                }
+            }
+        }
+        assert!(rows > 800, "seed {seed}: {rows} rows");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
