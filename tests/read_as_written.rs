@@ -30,6 +30,18 @@ fn exr(path: &Path, w: usize, h: usize, channels: Vec<(&str, FlatSamples)>) {
     Image::from_layer(layer).write().to_file(path).unwrap();
 }
 
+/// A 2×2 two-pass EXR without Combined: `diffuse.RGB` 0.5 and `specular.RGB` `spec`.
+fn multipass(path: &Path, spec: f32) {
+    let mut c = vec![];
+    for (l, v) in [("diffuse", 0.5), ("specular", spec)] {
+        for ch in ["R", "G", "B"] {
+            let name: &'static str = Box::leak(format!("{l}.{ch}").into_boxed_str());
+            c.push((name, FlatSamples::F32(vec![v; 4])));
+        }
+    }
+    exr(path, 2, 2, c);
+}
+
 fn rgb(n: usize, v: [f32; 3]) -> Vec<(&'static str, FlatSamples)> {
     vec![
         ("R", FlatSamples::F32(vec![v[0]; n])),
@@ -225,22 +237,7 @@ fn a_combined_layer_without_colour_is_not_the_default() {
 #[test]
 fn a_multipass_file_without_combined_compares_every_pass_and_says_so() {
     let d = scratch("multipass");
-    let n = 4;
-    let file = |path: &str, spec: f32| {
-        exr(
-            &d.join(path),
-            2,
-            2,
-            vec![
-                ("diffuse.R", FlatSamples::F32(vec![0.5; n])),
-                ("diffuse.G", FlatSamples::F32(vec![0.5; n])),
-                ("diffuse.B", FlatSamples::F32(vec![0.5; n])),
-                ("specular.R", FlatSamples::F32(vec![spec; n])),
-                ("specular.G", FlatSamples::F32(vec![spec; n])),
-                ("specular.B", FlatSamples::F32(vec![spec; n])),
-            ],
-        )
-    };
+    let file = |path: &str, spec: f32| multipass(&d.join(path), spec);
     file("a.exr", 0.2);
     file("b.exr", 0.8);
     // A regression in the second pass fails, as idiff says
@@ -268,22 +265,7 @@ fn a_multipass_file_without_combined_compares_every_pass_and_says_so() {
 #[test]
 fn check_says_which_layer_it_read_and_fails_a_regression_in_any_pass() {
     let d = scratch("multipass-check");
-    let n = 4;
-    let file = |path: &str, spec: f32| {
-        exr(
-            &d.join(path),
-            2,
-            2,
-            vec![
-                ("diffuse.R", FlatSamples::F32(vec![0.5; n])),
-                ("diffuse.G", FlatSamples::F32(vec![0.5; n])),
-                ("diffuse.B", FlatSamples::F32(vec![0.5; n])),
-                ("specular.R", FlatSamples::F32(vec![spec; n])),
-                ("specular.G", FlatSamples::F32(vec![spec; n])),
-                ("specular.B", FlatSamples::F32(vec![spec; n])),
-            ],
-        )
-    };
+    let file = |path: &str, spec: f32| multipass(&d.join(path), spec);
     file("ref.exr", 0.2);
     file("test.exr", 0.8);
     std::fs::write(

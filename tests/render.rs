@@ -744,6 +744,7 @@ fn renderer_calls_agree_with_the_exact_oracles() {
         };
         let shape = shape_by_name(name).expect("registered shape");
         let (mut ok, mut ill, mut max_ulps, mut wrong) = (0, 0, 0, vec![]);
+        let mut max_eoc = 0.0f64;
         let mut worst_line = String::new();
         let mut judge_ray = |o: glam::DVec3, d: glam::DVec3| {
             let (_, input) = routine_input(prim, o, d).unwrap();
@@ -759,6 +760,10 @@ fn renderer_calls_agree_with_the_exact_oracles() {
             match judge(&truth, &answer, shape.info(), Precision::F64) {
                 Judgement::Ok { ulps } => {
                     ok += 1;
+                    if let Truth::Answer(e) = &truth {
+                        let cond = e.cond.unwrap_or(1.0).max(1.0);
+                        max_eoc = max_eoc.max(ulps.unwrap_or(0) as f64 / cond);
+                    }
                     if ulps.unwrap_or(0) > max_ulps {
                         max_ulps = ulps.unwrap_or(0);
                         worst_line = format!(
@@ -792,14 +797,26 @@ fn renderer_calls_agree_with_the_exact_oracles() {
         // the most there)
         let info = shape.info();
         let robust = info.methods.iter().find(|m| m.robust).unwrap();
-        let bound = rayproof::audit::tolerance::Table::built_in()
+        let table = rayproof::audit::tolerance::Table::built_in();
+        let rule = table
             .rule(info.name, robust.name, Precision::F64, "generic")
-            .and_then(|r| r.max_ulps)
-            .expect("the robust rows hold a bound");
+            .expect("the robust rows have a rule");
         assert!(
-            max_ulps <= bound,
-            "{name}: {max_ulps} ulps > {bound}; {worst_line}"
+            rule.max_ulps.is_some() || rule.max_err_over_cond.is_some(),
+            "the robust rows hold a bound"
         );
+        if let Some(bound) = rule.max_ulps {
+            assert!(
+                max_ulps <= bound,
+                "{name}: {max_ulps} ulps > {bound}; {worst_line}"
+            );
+        }
+        if let Some(bound) = rule.max_err_over_cond {
+            assert!(
+                max_eoc <= bound,
+                "{name}: err/cond {max_eoc} > {bound}; {worst_line}"
+            );
+        }
         judged += 1;
     }
     assert_eq!(judged, 3, "box, cylinder side and torus");

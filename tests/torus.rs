@@ -491,14 +491,28 @@ fn class_input(class: usize, p: Precision) -> impl Strategy<Value = Vec<f64>> {
     })
 }
 
-/// The robust tolerance for a case of `class`.
-fn robust_bound(shape: &dyn Shape, p: Precision, class: usize) -> u64 {
+/// Whether an error of `u` ulps on a case of sensitivity `cond` is within the robust rule of
+/// `class` (its ulp bound or its err/cond bound; it must have one).
+fn within_robust_rule(
+    shape: &dyn Shape,
+    p: Precision,
+    class: usize,
+    u: u64,
+    cond: Option<f64>,
+) -> bool {
     let m = METHODS.iter().find(|m| m.robust).expect("robust");
     let info = shape.info();
-    Table::built_in()
+    let table = Table::built_in();
+    let r = table
         .rule(info.name, m.name, p, info.classes[class])
-        .and_then(|r| r.max_ulps)
-        .expect("the robust rows hold a bound")
+        .expect("the robust rows have a rule");
+    assert!(
+        r.max_ulps.is_some() || r.max_err_over_cond.is_some(),
+        "the robust rows hold a bound"
+    );
+    r.max_ulps.is_none_or(|b| u <= b)
+        && r.max_err_over_cond
+            .is_none_or(|b| cond.is_none() || u as f64 / cond.unwrap_or(1.0).max(1.0) <= b)
 }
 
 proptest! {
@@ -556,7 +570,7 @@ proptest! {
                     let probe = rayproof::shapes::shape::probe_line(shape.name(), p, &x);
                     prop_assert!(!j.is_wrong(), "{:?}: {}", j, probe);
                     if let Judgement::Ok { ulps: Some(u) } = j {
-                        prop_assert!(u <= robust_bound(shape, p, class), "{} ulps: {}", u, probe);
+                        prop_assert!(within_robust_rule(shape, p, class, u, e.cond), "{} ulps (cond {:?}): {}", u, e.cond, probe);
                     }
                 }
             }
