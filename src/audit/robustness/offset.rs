@@ -97,6 +97,11 @@ pub struct ReintersectRow {
     pub neighbour: u64,
     /// Reported hits whose ideal crossing lies within the self-hit zone: judged neither way.
     pub ill_posed: u64,
+    /// What the row is held to ([`crate::audit::robustness::judge`]): `pass` or `fail` (no
+    /// self-hit under the offset rule), `control` (the rule weak or off), `reported` (a built-in
+    /// method not robust by design).
+    #[serde(default)]
+    pub verdict: String,
 }
 
 #[cfg(test)]

@@ -73,6 +73,10 @@ pub struct WatertightRow {
     pub oracle_violations: u64,
     /// The replay line of the first escaped (or else grazing) ray.
     pub replay: Option<String>,
+    /// What the row is held to ([`crate::audit::robustness::judge`]): `pass` or `fail` (no
+    /// escape), `reported` (a built-in method not watertight by design).
+    #[serde(default)]
+    pub verdict: String,
 }
 
 /// A closed mesh: vertices (rounded once to the precision, shared exactly) and index triples.
@@ -384,6 +388,7 @@ fn row(
         oracle_checked: 0,
         oracle_violations: 0,
         replay: None,
+        verdict: String::new(),
     }
 }
 

@@ -303,6 +303,7 @@ fn rows_in<K: Surface, F: PickPrecision>(k: &K, seed: u64, per_scale: u64) -> Ve
                 rehits: c.rehits,
                 neighbour: c.neighbour,
                 ill_posed: c.ill_posed,
+                verdict: String::new(),
             });
         }
     }
