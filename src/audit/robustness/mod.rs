@@ -133,16 +133,20 @@ pub struct Outside {
 /// The built-in tests `r` with the rows of outside routines after them.
 pub fn with_outside(r: Option<Robustness>, seed: u64, outside: Outside) -> Option<Robustness> {
     if outside.reintersection.is_empty() && outside.watertight.is_empty() {
-        return r.map(judge);
+        return r.map(|r| {
+            let n = (r.reintersection.len(), r.watertight.len());
+            judge(r, n)
+        });
     }
     let mut r = r.unwrap_or(Robustness {
         seed,
         reintersection: vec![],
         watertight: vec![],
     });
+    let built_in = (r.reintersection.len(), r.watertight.len());
     r.reintersection.extend(outside.reintersection);
     r.watertight.extend(outside.watertight);
-    Some(judge(r))
+    Some(judge(r, built_in))
 }
 
 /// The triangle methods built watertight (their rows are held to no escape).
@@ -158,13 +162,16 @@ fn watertight_by_design() -> Vec<&'static str> {
 /// renderer's, whose rays must not re-hit or leak: the default rule), are held to the goal, no
 /// self-hit under the offset rule and no escape through a closed mesh or a fold; the rule's
 /// controls (weak, off) and the built-in methods not robust by design (the chapter's,
-/// Möller–Trumbore: they show the tests' teeth) are reported.
-pub fn judge(mut r: Robustness) -> Robustness {
+/// Möller–Trumbore: they show the tests' teeth) are reported. The first `built_in.0`
+/// reintersection and `built_in.1` watertightness rows are the built-in methods'; the rest are
+/// outside routines'.
+pub fn judge(mut r: Robustness, built_in: (usize, usize)) -> Robustness {
     let by_design = watertight_by_design();
-    for x in &mut r.reintersection {
+    for (i, x) in r.reintersection.iter_mut().enumerate() {
+        let outside = i >= built_in.0;
         x.verdict = if x.rule != Rule::On.name() {
             "control"
-        } else if x.robust || !builtin(&x.method) {
+        } else if x.robust || outside {
             if x.rehits > x.neighbour {
                 "fail"
             } else {
@@ -175,8 +182,9 @@ pub fn judge(mut r: Robustness) -> Robustness {
         }
         .into();
     }
-    for x in &mut r.watertight {
-        x.verdict = if builtin(&x.method) && !by_design.contains(&x.method.as_str()) {
+    for (i, x) in r.watertight.iter_mut().enumerate() {
+        let outside = i >= built_in.1;
+        x.verdict = if !outside && !by_design.contains(&x.method.as_str()) {
             "reported"
         } else if x.escaped > 0 {
             "fail"
