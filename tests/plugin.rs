@@ -629,3 +629,78 @@ fn an_outside_triangle_routine_gets_the_reintersection_rows() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A tolerance file's `[[robustness]]` rules judge an outside routine's robustness rows before
+/// the default (no escape): the C Möller–Trumbore leaks, so by default its watertightness rows
+/// fail and the audit exits 1; a rule allowing as many escapes as a row has passes it, one fewer
+/// fails it, `reported = true` only reports it; a rule naming a method the audit does not have,
+/// or bounding nothing, is refused in one line (exit 2).
+#[test]
+fn a_tolerance_file_holds_an_outside_routine_to_its_own_robustness_rule() {
+    let dir = std::env::temp_dir().join(format!("rayproof-plugin-rr-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let json = dir.join("a.json");
+    let run = |rules: Option<&str>| {
+        let mut args = vec![
+            "audit".to_string(),
+            "--shape".into(),
+            "triangle".into(),
+            "--precision".into(),
+            "f32".into(),
+            "--cases".into(),
+            "100".into(),
+            "--plugin".into(),
+            plugin("triangle_mt_f32"),
+            "--json".into(),
+            json.to_str().unwrap().into(),
+        ];
+        if let Some(text) = rules {
+            let f = dir.join("rules.toml");
+            std::fs::write(&f, text).unwrap();
+            args.extend(["--tolerances".into(), f.to_str().unwrap().into()]);
+        }
+        let a: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = rayproof(&a);
+        let rows: Vec<(u64, String)> = if o.status.code().is_some_and(|c| c <= 1) {
+            let v: Value = serde_json::from_slice(&std::fs::read(&json).unwrap()).unwrap();
+            v["robustness"]["watertight"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .filter(|r| r["method"] == "triangle_mt")
+                .map(|r| (r["escaped"].as_u64().unwrap(), r["verdict"].as_str().unwrap().to_string()))
+                .collect()
+        } else {
+            vec![]
+        };
+        (o.status.code(), String::from_utf8_lossy(&o.stderr).to_string(), rows)
+    };
+    // The default: escapes fail
+    let (code, _, rows) = run(None);
+    assert_eq!(code, Some(1));
+    let most = rows.iter().map(|r| r.0).max().unwrap();
+    assert!(most > 0, "{rows:?}");
+    assert!(rows.iter().all(|(e, v)| (*e > 0) == (v == "fail")), "{rows:?}");
+    let rule = |body: &str| format!("[[robustness]]\nmethod = \"triangle_mt\"\ntest = \"watertight\"\n{body}\nwhy = \"a test\"\n");
+    // Allowed as many as the worst row: every row passes (the audit may still fail elsewhere)
+    let (_, _, rows) = run(Some(&rule(&format!("max_escapes = {most}"))));
+    assert!(!rows.is_empty() && rows.iter().all(|r| r.1 == "pass"), "{rows:?}");
+    // One fewer: the worst row fails
+    let (code, _, rows) = run(Some(&rule(&format!("max_escapes = {}", most - 1))));
+    assert_eq!(code, Some(1));
+    assert!(rows.iter().any(|r| r.0 == most && r.1 == "fail"), "{rows:?}");
+    // Reported only
+    let (_, _, rows) = run(Some(&rule("reported = true")));
+    assert!(!rows.is_empty() && rows.iter().all(|r| r.1 == "reported"), "{rows:?}");
+    // Refused: an unknown method, a rule that bounds nothing, a bound of the other test
+    for (text, want) in [
+        (rule("max_escapes = 1").replace("triangle_mt\"", "nobody\""), "no method 'nobody'"),
+        (rule(""), "exactly one"),
+        (rule("max_self_hits = 0"), "max_self_hits bounds the reintersection test"),
+    ] {
+        let (code, err, _) = run(Some(&text));
+        assert_eq!(code, Some(2), "{text}: {err}");
+        assert!(err.contains(want) && err.trim().lines().count() == 1, "{want:?} not in {err:?}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -303,3 +303,68 @@ fn every_row_has_one_verdict_at_every_seed() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The reflection rule is the analysis's bound and it is reached: a constructed f32 case (an
+/// unnormalised L within 2⁻¹³ of a near-axis N) makes the FMA method and the chapter's err by
+/// exactly 6 norm-ulps, the FMA rule's bound; a rule tightened below 6 would fail on it, and a
+/// method worse than the analysis would exceed it.
+#[test]
+fn the_reflection_bound_is_reached_by_a_constructed_case() {
+    use rayproof::audit::judge::{judge, value_error};
+    use rayproof::audit::shape::Truth;
+    let shape = shape_by_name("reflect").unwrap();
+    let hex = [
+        "0x1.000004p+0",
+        "0x1.7fde3ep-13",
+        "0x1.7ccc82p-13",
+        "0x1.fffffap-1",
+        "0x1.35c664p-12",
+        "0x1.45fab4p-12",
+    ];
+    let input: Vec<f64> = hex
+        .iter()
+        .map(|h| rayproof::audit::hexfloat::parse_exact(h).unwrap())
+        .collect();
+    let prec = Precision::F32;
+    let truth = shape.oracle(&input, prec);
+    let Truth::Answer(e) = &truth else { panic!("a valid case") };
+    let table = Table::built_in();
+    for name in ["fma", "chapter"] {
+        let m = shape.info().methods.iter().position(|m| m.name == name).unwrap();
+        let a = shape.run(m, &input, prec);
+        assert!(judge(&truth, &a, shape.info(), prec).ulps().is_some(), "{name}: a right verdict");
+        let err = value_error(&e.values, &a.values, shape.info().metric, prec);
+        assert_eq!(err, 6, "{name}");
+        let rule = table.rule("reflect", name, prec, "unnormalised").unwrap();
+        assert!(rule.max_ulps.unwrap() >= err, "{name}: the rule is below a reached case");
+    }
+    assert_eq!(table.rule("reflect", "fma", prec, "unnormalised").unwrap().max_ulps, Some(6));
+}
+
+/// The f64 promote rule follows its analysis, not a sample: a constructed well-posed case
+/// (an origin within 2⁻⁵⁴ of the surface, cond 2·10¹⁶) puts double-double's C = |o−c|² − r² off by
+/// enough to move t by 2 ulps, more than the old "≤ 1 ulp" rule allowed; the rule holds it.
+#[test]
+fn promote_in_f64_is_held_to_its_analysis_not_to_one_ulp() {
+    use rayproof::audit::judge::{judge, value_error};
+    use rayproof::audit::shape::Truth;
+    let shape = shape_by_name("sphere").unwrap();
+    let hex = "0x1.81966d64c70b0p+0 0x1.2b663812ca709p+0 -0x1.34b714041b60bp-1 -0x1.947e2a4777cf4p-2 -0x1.7ea7442acb322p-2 0x1.68668ff126141p-3 0x1.cfcbabf62b1edp-54 0x1.98f92d7a61d14p-54 0x1.a2acb02d79bc0p-57 0x1.ffffffffffffep+0";
+    let input: Vec<f64> = hex
+        .split(' ')
+        .map(|h| rayproof::audit::hexfloat::parse_exact(h).unwrap())
+        .collect();
+    let prec = Precision::F64;
+    let truth = shape.oracle(&input, prec);
+    let Truth::Answer(e) = &truth else { panic!("a valid case") };
+    assert!(!e.ill_posed);
+    let m = shape.info().methods.iter().position(|m| m.name == "promote").unwrap();
+    let a = shape.run(m, &input, prec);
+    assert!(judge(&truth, &a, shape.info(), prec).ulps().is_some());
+    let err = value_error(&e.values, &a.values, shape.info().metric, prec);
+    assert_eq!(err, 2);
+    let rule = Table::built_in().rule("sphere", "promote", prec, "on_surface").cloned().unwrap();
+    assert!(rule.max_ulps.unwrap() >= err);
+    let cond = e.cond.unwrap();
+    assert!(err as f64 / cond.max(1.0) <= rule.max_err_over_cond.unwrap(), "cond {cond}");
+}

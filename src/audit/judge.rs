@@ -3,7 +3,7 @@
 
 use super::contract;
 use crate::numerics::{exact, Precision};
-use crate::shapes::shape::{Answer, Metric, ShapeInfo, Truth};
+use crate::shapes::shape::{Answer, Expected, Metric, ShapeInfo, Truth};
 use serde::{Deserialize, Serialize};
 
 /// How one method's answer compares with the oracle on one case.
@@ -151,6 +151,29 @@ pub fn value_error(want: &[f64], got: &[f64], metric: Metric, prec: Precision) -
     }
 }
 
+/// A right answer's error over the case's sensitivity (`None` when the oracle gives none): with
+/// one sensitivity per value (`Expected::conds`, by the `Ulps` metric), the largest
+/// `ulps(value_i) / max(1, cond_i)`; otherwise the answer's error `ulps` over `max(1, cond)`.
+pub fn err_over_cond(
+    e: &Expected,
+    got: &[f64],
+    ulps: u64,
+    metric: Metric,
+    prec: Precision,
+) -> Option<f64> {
+    if !e.conds.is_empty() && metric == Metric::Ulps {
+        return Some(
+            e.values
+                .iter()
+                .zip(got)
+                .zip(&e.conds)
+                .map(|((&w, &g), &c)| exact::ulps(w, g, prec) as f64 / c.max(1.0))
+                .fold(0.0, f64::max),
+        );
+    }
+    e.cond.map(|c| ulps as f64 / c.max(1.0))
+}
+
 /// Whether an enclosure `[lo, hi]` contains the exact first value. Checked through the value
 /// correctly rounded to `f64` (or to the case's precision): rounding is monotonic and the ends
 /// are floats, so a rounded value outside means the exact value is outside.
@@ -161,5 +184,34 @@ pub fn enclosure_holds(truth: &Truth, enclosure: [f64; 2]) -> bool {
             None => true,
         },
         Truth::Invalid => true,
+    }
+}
+
+#[cfg(test)]
+mod err_over_cond_tests {
+    use super::*;
+
+    /// Each value is held to its own sensitivity: a badly conditioned root does not excuse an
+    /// error on a well-conditioned one (the largest cond would give 10/1000 here).
+    #[test]
+    fn each_root_is_judged_by_its_own_sensitivity() {
+        let e = Expected {
+            count: 2,
+            values: vec![1.0, 2.0],
+            conds: vec![1000.0, 0.5],
+            ..Default::default()
+        };
+        let step = |x: f64, k: u64| f64::from_bits(x.to_bits() + k);
+        let got = [step(1.0, 10), step(2.0, 10)];
+        let r = err_over_cond(&e, &got, 10, Metric::Ulps, Precision::F64).unwrap();
+        assert_eq!(r, 10.0);
+        // Error on the ill-conditioned root only: 10/1000
+        let got = [step(1.0, 10), 2.0];
+        let r = err_over_cond(&e, &got, 10, Metric::Ulps, Precision::F64).unwrap();
+        assert_eq!(r, 0.01);
+        // One sensitivity for the answer (the other shapes)
+        let one = Expected { cond: Some(4.0), ..e.clone() };
+        let one = Expected { conds: vec![], ..one };
+        assert_eq!(err_over_cond(&one, &got, 10, Metric::Ulps, Precision::F64), Some(2.5));
     }
 }

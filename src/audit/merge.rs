@@ -73,6 +73,7 @@ impl Merged {
             robustness::run(self.seed, &names, &precisions),
             self.seed,
             self.outside,
+            &table.robustness,
         );
         Report {
             tool: TOOL,

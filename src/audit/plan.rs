@@ -230,7 +230,7 @@ impl Plan {
         let judged = self.shard == (0, 1);
         let (_, shapes) = self.run_shapes(judged.then_some(table), progress, each)?;
         let start = std::time::Instant::now();
-        let robustness = self.robustness()?;
+        let robustness = self.robustness(table)?;
         self.finish()?;
         if robustness.is_some() {
             each(Progress::Robustness(start.elapsed().as_secs_f64()));
@@ -257,7 +257,10 @@ impl Plan {
 
     /// The reintersection and watertightness tests of the shapes audited completely (every
     /// built-in method and class; `None`: none has them).
-    pub fn robustness(&self) -> Result<Option<robustness::Robustness>, super::run::MethodFailed> {
+    pub fn robustness(
+        &self,
+        table: &Table,
+    ) -> Result<Option<robustness::Robustness>, super::run::MethodFailed> {
         let names: Vec<&str> = self
             .shapes
             .iter()
@@ -271,6 +274,7 @@ impl Plan {
             r,
             self.seed,
             self.outside_robustness()?,
+            &table.robustness,
         ))
     }
 
@@ -336,6 +340,11 @@ pub fn known_names(extra: Vec<(&'static str, String)>) -> Known<'static> {
                 }
                 (info.name, methods, info.classes.to_vec())
             })
+            .collect(),
+        with_cond: registry()
+            .into_iter()
+            .filter(|s| s.info().reports_cond)
+            .map(|s| s.info().name)
             .collect(),
     }
 }

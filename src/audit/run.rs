@@ -3,7 +3,7 @@
 //! depends only on the seed and the selection, never on the number of threads; nothing is
 //! kept per case, so memory does not grow with the case count.
 
-use super::judge::{enclosure_holds, judge};
+use super::judge::{enclosure_holds, err_over_cond, judge};
 use super::tally::{Case, Sample, Tally};
 use crate::numerics::{exact, Precision};
 pub use crate::shapes::shape::generate;
@@ -144,6 +144,10 @@ fn sample(
         .enclosure
         .filter(|_| right_hit)
         .map(|e| (enclosure_holds(truth, e), exact::ulps(e[0], e[1], prec)));
+    let err_over_cond = match (truth, judgement.ulps()) {
+        (Truth::Answer(e), Some(u)) => err_over_cond(e, &answer.values, u, shape.info().metric, prec),
+        _ => None,
+    };
     let count = answer.count;
     Sample {
         judgement,
@@ -151,6 +155,7 @@ fn sample(
         values: answer.values,
         residual,
         enclosure,
+        err_over_cond,
     }
 }
 

@@ -23,6 +23,9 @@ pub struct Sample {
     pub residual: Option<f64>,
     /// Whether the method's enclosure holds, and its width in ulps.
     pub enclosure: Option<(bool, u64)>,
+    /// The error over the case's sensitivity, for shapes whose oracle gives it (right-verdict
+    /// hits only): [`crate::audit::judge::err_over_cond`].
+    pub err_over_cond: Option<f64>,
 }
 
 /// One evaluated case: its inputs, the oracle's truth, and one sample per method.
@@ -285,7 +288,7 @@ impl Tally {
             Judgement::NonfiniteT => ("nonfinite_t", &mut self.nonfinite_t),
             Judgement::OutOfRange => ("out_of_range", &mut self.out_of_range),
             Judgement::Ok { ulps: Some(u) } => {
-                self.add_right(case, k, u, e.cond, candidate);
+                self.add_right(case, k, u, candidate);
                 return;
             }
             _ => return,
@@ -300,13 +303,12 @@ impl Tally {
         case: &Case,
         k: usize,
         u: u64,
-        cond: Option<f64>,
         candidate: impl Fn(Option<u64>, u64) -> F,
     ) {
         let s = &case.samples[k];
         self.ulps.add(u);
-        if let Some(c) = cond {
-            self.err_over_cond.add(u as f64 / c.max(1.0));
+        if let Some(r) = s.err_over_cond {
+            self.err_over_cond.add(r);
         }
         if u > 0 {
             self.offer("worst_ulps", candidate(Some(u), u), u, case.index);

@@ -21,6 +21,9 @@
 //!   table is out of date). A row with no failure that is too small to tell says so
 //!   (undecided) instead of passing or failing.
 //!
+//! A file may also hold `[[robustness]]` rules for the reintersection and watertightness rows
+//! ([`crate::audit::robustness::rules`]), tried before the defaults.
+//!
 //! With [`ALPHA`] = 10⁻⁶ per bound, a row whose true rate is unchanged raises a false alarm with
 //! probability at most 2·10⁻⁶ (the measurement's bound, and the row's count).
 //!
@@ -50,6 +53,7 @@
 //! otherwise the audit stops with one line and exit 2, so a rule for a method that does not exist
 //! is never silently ignored.
 
+use super::robustness::rules::{self as robust_rules, RobustRule, RobustRuleText};
 use super::row::Row;
 pub use super::row::{Status, Verdict};
 use crate::numerics::Precision;
@@ -117,6 +121,9 @@ struct TableText {
     /// `"shape method precision class" = [k, n]`.
     #[serde(default)]
     measured: BTreeMap<String, [u64; 2]>,
+    /// What reintersection and watertightness rows are held to, before the defaults.
+    #[serde(default)]
+    robustness: Vec<RobustRuleText>,
 }
 
 /// What a row's wrong verdicts may be.
@@ -188,6 +195,9 @@ impl Rule {
 pub struct Known<'a> {
     /// `(shape, its methods, its classes)` for every shape.
     pub shapes: Vec<(&'a str, Vec<String>, Vec<&'a str>)>,
+    /// The shapes whose oracle gives each case's sensitivity: the only ones a
+    /// `max_err_over_cond` rule can judge.
+    pub with_cond: Vec<&'a str>,
 }
 
 /// The ordered rules of the user's file (if any) and the built-in table, and the measured
@@ -198,6 +208,8 @@ pub struct Table {
     pub rules: Vec<Rule>,
     /// `(k, n)` per `(shape, method, precision, class)`: the `[measured]` section.
     pub measured: BTreeMap<(String, String, Precision, String), (u64, u64)>,
+    /// The `[[robustness]]` rules, in the order they are tried (the user's file first).
+    pub robustness: Vec<RobustRule>,
 }
 
 /// A row's measurement key.
@@ -215,7 +227,10 @@ fn parse_precision(p: &str, origin: &str) -> Result<Precision, String> {
 type Measurements = Vec<(RowKey, (u64, u64))>;
 
 /// Reads one file: its rules in order and its measurements.
-fn parse_table(text: &str, file: &str) -> Result<(Vec<Rule>, Measurements), String> {
+fn parse_table(
+    text: &str,
+    file: &str,
+) -> Result<(Vec<Rule>, Measurements, Vec<RobustRuleText>), String> {
     let t: TableText = toml::from_str(text).map_err(|e| {
         format!(
             "{file}: {}",
@@ -314,7 +329,7 @@ fn parse_table(text: &str, file: &str) -> Result<(Vec<Rule>, Measurements), Stri
             })
         })
         .collect::<Result<Vec<_>, String>>()?;
-    Ok((rules, measured))
+    Ok((rules, measured, t.robustness))
 }
 
 impl Table {
@@ -331,6 +346,7 @@ impl Table {
         let mut table = Table::parse(text, file, known)?;
         table.check_complete(known)?;
         table.rules.extend(built_in.rules);
+        table.robustness.extend(built_in.robustness);
         for (k, v) in built_in.measured {
             table.measured.entry(k).or_insert(v);
         }
@@ -339,7 +355,7 @@ impl Table {
 
     /// Reads one file and checks that every shape, method and class it names exists.
     fn parse(text: &str, file: &str, known: &Known) -> Result<Table, String> {
-        let (rules, measured) = parse_table(text, file)?;
+        let (rules, measured, robust_texts) = parse_table(text, file)?;
         let lookup = |origin: &str, shape: &str| {
             known
                 .shapes
@@ -361,6 +377,15 @@ impl Table {
         };
         for r in &rules {
             let (_, methods, classes) = lookup(&r.origin, &r.shape)?;
+            // A bound on err/cond for a shape without a sensitivity would never be checked
+            if r.max_err_over_cond.is_some() && !known.with_cond.contains(&r.shape.as_str()) {
+                return Err(format!(
+                    "{}: shape {} gives no case sensitivity, so max_err_over_cond could never be checked (shapes that give one: {})",
+                    r.origin,
+                    r.shape,
+                    known.with_cond.join(", ")
+                ));
+            }
             let ms: Vec<&str> = methods.iter().map(String::as_str).collect();
             if let Some(m) = r.methods.iter().find(|m| !ms.contains(&m.as_str())) {
                 return Err(unknown(&r.origin, &r.shape, "method", m, &ms));
@@ -385,9 +410,17 @@ impl Table {
                 return Err(unknown(&origin, shape, "class", class, classes));
             }
         }
+        let mut methods: Vec<&str> = known
+            .shapes
+            .iter()
+            .flat_map(|(_, ms, _)| ms.iter().map(String::as_str))
+            .collect();
+        methods.sort_unstable();
+        methods.dedup();
         Ok(Table {
             rules,
             measured: measured.into_iter().collect(),
+            robustness: robust_rules::parse(robust_texts, file, &methods)?,
         })
     }
 
@@ -799,6 +832,37 @@ mod tests {
         assert!(t.rules.iter().all(|r| r.why.len() > 10));
     }
 
+    /// The bit trick's rules are the bound its error analysis proves
+    /// (`shapes::recip::newton::bits_bound_ulps`), not a measurement: every `bits+k` rule of
+    /// the table, each precision it names, holds exactly that number (as `max_ulps` on normal
+    /// inputs, as `known_failure_beyond_ulps` where the start is out of its bound).
+    #[test]
+    fn the_bit_trick_rules_are_the_proven_bound() {
+        use crate::shapes::recip::newton::{bits_bound_ulps, Func};
+        let t = Table::built_in();
+        let mut seen = 0;
+        for r in t.rules.iter().filter(|r| r.shape == "rcp" || r.shape == "rsqrt") {
+            let func = if r.shape == "rcp" { Func::Rcp } else { Func::Rsqrt };
+            for m in &r.methods {
+                let Some(steps) = m.strip_prefix("bits+") else { continue };
+                let steps: u32 = steps.parse().unwrap();
+                for &prec in r.precisions.as_deref().expect("a bits+k rule names its precision") {
+                    let want = match prec {
+                        Precision::F32 => bits_bound_ulps::<f32>(func, steps),
+                        Precision::F64 => bits_bound_ulps::<f64>(func, steps),
+                    };
+                    let got = match r.wrong {
+                        Some(Wrong::Known { beyond }) => beyond,
+                        _ => r.max_ulps.expect("a bits+k rule bounds the ulps"),
+                    };
+                    assert_eq!(got, want, "{}: {} {m} {prec:?}", r.origin, r.shape);
+                    seen += 1;
+                }
+            }
+        }
+        assert_eq!(seen, 2 * 3 * 2 * 2, "rules for rcp and rsqrt × 3 step counts × 2 precisions × 2 input ranges");
+    }
+
     #[test]
     fn names_that_do_not_exist_are_errors_never_ignored() {
         let rule = |body: &str| format!("[[rule]]\n{body}\nwhy = \"a test\"\n");
@@ -815,6 +879,7 @@ mod tests {
                     + &rule("shape = \"sphere\"\nmethod = \"rtg7\"\nclass = \"inside\"\nwrong = \"none\""),
                 "shadowed",
             ),
+            (rule("shape = \"ellipsoid\"\nmethod = \"robust\"\nmax_err_over_cond = 2.0"), "could never be checked"),
             ("[measured]\n\"sphere magic f32 inside\" = [1, 2]\n".into(), "no method 'magic'"),
             ("[measured]\n\"sphere rtg7 f32 inside\" = [1, 2]\n".into(), "no row of that name"),
             ("[measured]\n\"sphere rtg7 inside\" = [1, 2]\n".into(), "not \"shape method precision class\""),

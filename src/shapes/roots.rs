@@ -116,6 +116,7 @@ pub static QUADRATIC: Roots = Roots {
         classes: QUADRATIC_CLASSES,
         methods: QUADRATIC_METHODS,
         count_is_values: true,
+        reports_cond: true,
         ..ShapeInfo::DEFAULTS
     },
 };
@@ -402,9 +403,15 @@ impl Shape for Roots {
         let values = quick_roots::rounded_roots(&asc, prec)
             .unwrap_or_else(|| sturm::rounded_roots(&c, prec));
         let count = values.len() as u32;
+        // Each root's own sensitivity: a multiple root (f' = 0) excuses any error
+        let conds = values
+            .iter()
+            .map(|&x| root_cond(input, x, prec).unwrap_or(f64::INFINITY))
+            .collect();
         Truth::Answer(Expected {
             count,
             others: values.iter().skip(1).copied().collect(),
+            conds,
             values,
             ill_posed: count_unstable(input, prec, count),
             cap_reached: false,
@@ -574,27 +581,36 @@ impl Newton {
     }
 }
 
-/// First-order sensitivity of a root `x` of `a x³ + b x² + c x + d` (`abcd`, leading first) to
-/// its coefficients, in ulps of `x`: how far `x` moves when every coefficient moves one ulp of
-/// the precision, `Σ |x|^i ulp(a_i) / |f'(x)| / ulp(x)`. Evaluated in `f64` at the correctly
-/// rounded root: an estimate, not a bound. `None` where `f'(x)` is 0 (a multiple root).
+/// First-order sensitivity of a root `x` of `Σ a_i x^i` (`lead_first`, leading coefficient
+/// first) to its coefficients, in ulps of `x`: how far `x` moves when every coefficient moves one
+/// ulp of the precision, `Σ |x|^i ulp(a_i) / |f'(x)| / ulp(x)`. Evaluated in `f64` at the
+/// correctly rounded root: an estimate, not a bound. `None` where `f'(x)` is 0 (a multiple root).
 ///
 /// Why a Newton method is judged by err/cond (`tolerances.toml`): Horner's rule evaluates `f(x)`
-/// with an absolute error at most `γ₆ Σ|a_i||x|^i` (Higham, *Accuracy and Stability*, eq. 5.3),
-/// and since `ulp(a) ≥ u|a|` (`u = 2^-p`) that is at most `γ₆/u · cond · ulp(x)`, about
-/// `6·cond` ulps of `x` after division by `f'`. Newton's iterates, once within that band of the
-/// root, stay within twice it (a step is the computed residual over the derivative); the
-/// result's rounding adds half an ulp. So a Newton iteration that has converged is within
-/// `12·cond + 1` ulps, whatever the seed or the case count.
-pub fn cubic_root_cond(abcd: &[f64], x: f64, prec: Precision) -> Option<f64> {
-    let [a, b, c, d] = [abcd[0], abcd[1], abcd[2], abcd[3]];
-    let df = (3.0 * a * x + 2.0 * b) * x + c;
-    if df == 0.0 || !df.is_finite() || !x.is_finite() {
+/// with an absolute error at most `γ₂ₙ Σ|a_i||x|^i` (Higham, *Accuracy and Stability*, eq. 5.3;
+/// `γ₆` for a cubic), and since `ulp(a) ≥ u|a|` (`u = 2^-p`) that is at most `γ₂ₙ/u · cond ·
+/// ulp(x)`, about `2n·cond` ulps of `x` after division by `f'`. Newton's iterates, once within
+/// that band of the root, stay within twice it (a step is the computed residual over the
+/// derivative); the result's rounding adds half an ulp. So a Newton iteration that has converged
+/// on a cubic is within `12·cond + 1` ulps, whatever the seed or the case count. With signs from
+/// compensated Horner (Yuksel's solver) the band is second order, `γ₂ₙ²/u · cond`: within one ulp
+/// of the sign change plus a negligible `8n²u·cond`.
+pub fn root_cond(lead_first: &[f64], x: f64, prec: Precision) -> Option<f64> {
+    if !x.is_finite() {
         return None;
     }
-    let ax = x.abs();
+    let n = lead_first.len() - 1;
+    // f'(x) by Horner on the derivative's coefficients
+    let df = lead_first[..n]
+        .iter()
+        .enumerate()
+        .fold(0.0, |acc, (i, &a)| acc * x + (n - i) as f64 * a);
+    if df == 0.0 || !df.is_finite() {
+        return None;
+    }
     let u = crate::numerics::exact::ulp;
-    let sum = ((u(a, prec) * ax + u(b, prec)) * ax + u(c, prec)) * ax + u(d, prec);
+    let ax = x.abs();
+    let sum = lead_first.iter().fold(0.0, |acc, &a| acc * ax + u(a, prec));
     let ux = u(x, prec);
     (ux > 0.0).then(|| sum / df.abs() / ux)
 }
@@ -677,7 +693,7 @@ impl Shape for Newton {
         }
         let cond = values
             .first()
-            .and_then(|&x| cubic_root_cond(&input[..4], x, prec));
+            .and_then(|&x| root_cond(&input[..4], x, prec));
         Truth::Answer(Expected {
             count: values.len() as u32,
             values,

@@ -84,6 +84,10 @@ pub struct Expected {
     /// How far `values[0]` moves, in its ulps, when every input moves by one ulp (the case's
     /// own sensitivity); a method's error divided by it is reported as err/cond.
     pub cond: Option<f64>,
+    /// For shapes with several values (the roots of a polynomial): each value's sensitivity, in
+    /// the order of `values`; err/cond is then the largest of each value's error over its own
+    /// sensitivity (an ill-conditioned root does not excuse a well-conditioned one).
+    pub conds: Vec<f64>,
 }
 
 /// A method's answer.

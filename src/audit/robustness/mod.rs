@@ -34,8 +34,10 @@
 
 pub mod offset;
 pub mod reintersect;
+pub mod rules;
 pub mod watertight;
 
+use rules::{RobustRule, Test};
 use crate::numerics::Precision;
 use crate::shapes::triangle;
 use offset::{ReintersectRow, Rule};
@@ -130,12 +132,18 @@ pub struct Outside {
     pub watertight: Vec<WatertightRow>,
 }
 
-/// The built-in tests `r` with the rows of outside routines after them.
-pub fn with_outside(r: Option<Robustness>, seed: u64, outside: Outside) -> Option<Robustness> {
+/// The built-in tests `r` with the rows of outside routines after them, judged by the tolerance
+/// file's `rules` first, then by the defaults ([`judge`]).
+pub fn with_outside(
+    r: Option<Robustness>,
+    seed: u64,
+    outside: Outside,
+    rules: &[RobustRule],
+) -> Option<Robustness> {
     if outside.reintersection.is_empty() && outside.watertight.is_empty() {
         return r.map(|r| {
             let n = (r.reintersection.len(), r.watertight.len());
-            judge(r, n)
+            judge(r, n, rules)
         });
     }
     let mut r = r.unwrap_or(Robustness {
@@ -146,7 +154,7 @@ pub fn with_outside(r: Option<Robustness>, seed: u64, outside: Outside) -> Optio
     let built_in = (r.reintersection.len(), r.watertight.len());
     r.reintersection.extend(outside.reintersection);
     r.watertight.extend(outside.watertight);
-    Some(judge(r, built_in))
+    Some(judge(r, built_in, rules))
 }
 
 /// The triangle methods built watertight (their rows are held to no escape).
@@ -165,14 +173,20 @@ fn watertight_by_design() -> Vec<&'static str> {
 /// Möller–Trumbore: they show the tests' teeth) are reported. The first `built_in.0`
 /// reintersection and `built_in.1` watertightness rows are the built-in methods'; the rest are
 /// outside routines'.
-pub fn judge(mut r: Robustness, built_in: (usize, usize)) -> Robustness {
+pub fn judge(mut r: Robustness, built_in: (usize, usize), rules: &[RobustRule]) -> Robustness {
     let by_design = watertight_by_design();
+    let rule = |method: &str, test: Test, precision: &str| {
+        rules.iter().find(|x| x.applies(method, test, precision))
+    };
     for (i, x) in r.reintersection.iter_mut().enumerate() {
         let outside = i >= built_in.0;
+        let self_hits = x.rehits.saturating_sub(x.neighbour);
         x.verdict = if x.rule != Rule::On.name() {
             "control"
+        } else if let Some(u) = rule(&x.method, Test::Reintersection, &x.precision) {
+            u.verdict(Test::Reintersection, self_hits)
         } else if x.robust || outside {
-            if x.rehits > x.neighbour {
+            if self_hits > 0 {
                 "fail"
             } else {
                 "pass"
@@ -184,7 +198,9 @@ pub fn judge(mut r: Robustness, built_in: (usize, usize)) -> Robustness {
     }
     for (i, x) in r.watertight.iter_mut().enumerate() {
         let outside = i >= built_in.1;
-        x.verdict = if !outside && !by_design.contains(&x.method.as_str()) {
+        x.verdict = if let Some(u) = rule(&x.method, Test::Watertight, &x.precision) {
+            u.verdict(Test::Watertight, x.escaped)
+        } else if !outside && !by_design.contains(&x.method.as_str()) {
             "reported"
         } else if x.escaped > 0 {
             "fail"

@@ -223,10 +223,7 @@ impl Variant {
                     Start::Hardware => 1.5 * 2f64.powi(-12),
                     Start::Bits => bits_start_bound::<f32>(func),
                 };
-                (0..steps).fold(e0, |e, _| match func {
-                    Func::Rcp => e * e + 4.0 * u,
-                    Func::Rsqrt => 1.5 * e * e + 0.5 * e * e * e + 4.0 * u,
-                })
+                refined_bound(func, e0, steps, u)
             }
         }
     }
@@ -241,6 +238,41 @@ impl Variant {
             Variant::Newton { .. } => self.bound_rel() * 2f64.powi(24),
         }
     }
+}
+
+/// The relative error bound after `steps` Newton steps from a start within `e0`, each step
+/// computed in a format of unit roundoff `u`: `e ↦ e² + 4u` (`1/x`) or
+/// `e ↦ (3/2)e² + (1/2)e³ + 4u` (`1/√x`).
+///
+/// Why `4u` holds for one step (normal operands, no overflow): for `1/x` with `x = (1 − e)/r`,
+/// `fl(r x) = (1 − e)(1 + δ₁)`, `2 − fl(r x)` rounds by `δ₂` and the product by `δ₃`, so the
+/// result is `(1/r)(1 − e² − δ₁(1 − e)²)(1 + δ₂)(1 + δ₃)`: relative error
+/// `≤ e² + u(1 + |e|)² + 2u + O(u²)`, within `e² + 4u` while `|e| ≤ 0.4`. For `1/√x` with
+/// `y = (1 − e)/√r`, `(r y) y` rounds twice, `3 − ·` once, `y · (·)` once and `· 0.5` is exact:
+/// `(1/√r)(1 − (3/2)e² + (1/2)e³ − (1 − e)³(δ₁ + δ₂)/2)(1 + δ₃)(1 + δ₄)`, within
+/// `(3/2)e² + (1/2)|e|³ + 4u` while `|e| ≤ 0.25`. The bit-trick starts are within 0.051 (`1/x`)
+/// and 0.035 (`1/√x`), [`bits_start_bound`], and each step shrinks the error.
+pub fn refined_bound(func: Func, e0: f64, steps: u32, u: f64) -> f64 {
+    (0..steps).fold(e0, |e, _| match func {
+        Func::Rcp => e * e + 4.0 * u,
+        Func::Rsqrt => 1.5 * e * e + 0.5 * e * e * e + 4.0 * u,
+    })
+}
+
+/// The proven bound of `bits+k` in `F` on normal inputs (every intermediate normal), in the
+/// audit's measure: the ordinal distance, in ulps of `F`, from the correctly rounded value
+/// ([`crate::numerics::exact::ulps`]).
+///
+/// With `ε` = [`refined_bound`] from [`bits_start_bound`], `u = 2⁻ᵖ`, the answer `a` and the
+/// rounded value `v̂` of `v`: `|a − v̂| ≤ εv + u·v` (`v̂` is within half an ulp, `≤ u v`), and
+/// between `min(a, v̂) ≥ v(1 − ε − u)` and `max(a, v̂)` consecutive values are at least
+/// `min(a, v̂)·u` apart (a spacing `2^(e−p+1)` in the binade `[2^e, 2^(e+1))` exceeds `x·2⁻ᵖ`).
+/// So the distance is at most `(ε + u) / ((1 − ε − u) u)` ulps, rounded up here. This is what
+/// `src/audit/tolerances.toml` holds `rcp`/`rsqrt` `bits+k` to, in both precisions.
+pub fn bits_bound_ulps<F: BitTrick>(func: Func, steps: u32) -> u64 {
+    let u = 2f64.powi(-(F::MANT_BITS as i32));
+    let e = refined_bound(func, bits_start_bound::<F>(func), steps, u);
+    ((e + u) / ((1.0 - e - u) * u)).ceil() as u64
 }
 
 /// 2⁻²⁴, the relative rounding error bound of `f32`.

@@ -228,6 +228,7 @@ fn truth_in<F: Real>(input: &[f64]) -> Truth {
         cap_reached: t.cap_reached,
         value_f64: t.t_f64.filter(|_| hit),
         cond: oracle::condition_ulps(&case, &t),
+        conds: vec![],
     })
 }
 

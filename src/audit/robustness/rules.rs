@@ -1,0 +1,187 @@
+//! A tolerance file's `[[robustness]]` rules: what a user holds a routine's reintersection and
+//! watertightness rows to, instead of the default (no self-hit under the offset rule, no escape
+//! through a closed mesh or a fold, for robust built-in methods and every outside routine).
+//!
+//! ```toml
+//! [[robustness]]
+//! method = "mine"            # one name or a list: built-in or outside (`--name`)
+//! test = "watertight"        # or "reintersection"; left out: both
+//! precision = "f32"          # left out: both
+//! max_escapes = 3            # watertightness: escapes allowed per row
+//! max_self_hits = 0          # reintersection: self-hits allowed per row (beyond the neighbour's)
+//! # reported = true          # instead of a bound: the rows are reported only
+//! why = "where the numbers came from"
+//! ```
+//! The first rule that names a row's method, test and precision judges it; rows of the offset
+//! rule's controls (`weak`, `off`) stay controls.
+
+use crate::numerics::Precision;
+use serde::Deserialize;
+
+/// The two tests.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Test {
+    /// Rays spawned from a computed hit must not hit their own surface.
+    Reintersection,
+    /// Rays through a closed mesh or a fold must not escape.
+    Watertight,
+}
+
+/// A rule as written in the file.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RobustRuleText {
+    method: OneOrMany,
+    test: Option<String>,
+    precision: Option<OneOrMany>,
+    max_escapes: Option<u64>,
+    max_self_hits: Option<u64>,
+    reported: Option<bool>,
+    why: String,
+}
+
+/// One name or a list of names.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+enum OneOrMany {
+    One(String),
+    Many(Vec<String>),
+}
+
+impl OneOrMany {
+    fn list(&self) -> Vec<String> {
+        match self {
+            OneOrMany::One(s) => vec![s.clone()],
+            OneOrMany::Many(v) => v.clone(),
+        }
+    }
+}
+
+/// A rule, checked.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RobustRule {
+    /// Where it was read: `FILE robustness rule N`.
+    pub origin: String,
+    /// The methods it applies to.
+    pub methods: Vec<String>,
+    /// The test (`None`: both).
+    pub test: Option<Test>,
+    /// The precisions (`None`: both).
+    pub precisions: Option<Vec<Precision>>,
+    /// Escapes allowed per watertightness row.
+    pub max_escapes: Option<u64>,
+    /// Self-hits allowed per reintersection row, beyond those at a neighbouring triangle.
+    pub max_self_hits: Option<u64>,
+    /// The rows are reported, not judged.
+    pub reported: bool,
+}
+
+impl RobustRule {
+    /// Whether the rule names this row.
+    pub fn applies(&self, method: &str, test: Test, precision: &str) -> bool {
+        self.methods.iter().any(|m| m == method)
+            && self.test.is_none_or(|t| t == test)
+            && self
+                .precisions
+                .as_ref()
+                .is_none_or(|ps| ps.iter().any(|p| p.name() == precision))
+    }
+
+    /// The verdict of a row of `test` with `count` escapes or self-hits.
+    pub fn verdict(&self, test: Test, count: u64) -> &'static str {
+        let bound = match test {
+            Test::Watertight => self.max_escapes,
+            Test::Reintersection => self.max_self_hits,
+        };
+        match bound {
+            _ if self.reported => "reported",
+            Some(b) if count > b => "fail",
+            Some(_) => "pass",
+            // Checked at load: a rule that judges a test bounds it
+            None => "reported",
+        }
+    }
+}
+
+/// Checks the rules of `file` against the methods the audit knows. Errors are one line.
+pub fn parse(
+    texts: Vec<RobustRuleText>,
+    file: &str,
+    known_methods: &[&str],
+) -> Result<Vec<RobustRule>, String> {
+    texts
+        .into_iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let origin = format!("{file} robustness rule {}", i + 1);
+            let bad = |what: String| Err(format!("{origin}: {what}"));
+            let methods = r.method.list();
+            if methods.is_empty() {
+                return bad("name at least one method".into());
+            }
+            if let Some(m) = methods.iter().find(|m| !known_methods.contains(&m.as_str())) {
+                return bad(format!(
+                    "no method '{m}' in this audit (known: {})",
+                    known_methods.join(", ")
+                ));
+            }
+            let test = match r.test.as_deref() {
+                None => None,
+                Some("reintersection") => Some(Test::Reintersection),
+                Some("watertight") => Some(Test::Watertight),
+                Some(t) => {
+                    return bad(format!("test = \"{t}\" (\"reintersection\" or \"watertight\")"))
+                }
+            };
+            let precisions = match &r.precision {
+                None => None,
+                Some(n) => Some(
+                    n.list()
+                        .iter()
+                        .map(|p| match p.as_str() {
+                            "f32" => Ok(Precision::F32),
+                            "f64" => Ok(Precision::F64),
+                            _ => Err(format!("{origin}: unknown precision '{p}' (f32, f64)")),
+                        })
+                        .collect::<Result<Vec<_>, _>>()?,
+                ),
+            };
+            let reported = r.reported.unwrap_or(false);
+            if r.why.trim().is_empty() {
+                return bad("say why (where its numbers came from)".into());
+            }
+            if test == Some(Test::Reintersection) && r.max_escapes.is_some() {
+                return bad("max_escapes bounds the watertightness test, not reintersection".into());
+            }
+            if test == Some(Test::Watertight) && r.max_self_hits.is_some() {
+                return bad("max_self_hits bounds the reintersection test, not watertightness".into());
+            }
+            let bounds = r.max_escapes.is_some() || r.max_self_hits.is_some();
+            if reported == bounds {
+                return bad(
+                    "give reported = true or a bound (max_escapes, max_self_hits), exactly one".into(),
+                );
+            }
+            // Every test the rule names is bounded: a rule for both needs both bounds
+            let needs_escapes = test != Some(Test::Reintersection);
+            let needs_self_hits = test != Some(Test::Watertight);
+            if bounds
+                && ((needs_escapes && r.max_escapes.is_none())
+                    || (needs_self_hits && r.max_self_hits.is_none()))
+            {
+                return bad(
+                    "a rule for both tests bounds both (max_escapes and max_self_hits), or names its test".into(),
+                );
+            }
+            Ok(RobustRule {
+                origin,
+                methods,
+                test,
+                precisions,
+                max_escapes: r.max_escapes,
+                max_self_hits: r.max_self_hits,
+                reported,
+            })
+        })
+        .collect()
+}
