@@ -1137,6 +1137,48 @@ fn report_out_over_a_directory_with_a_linked_marker(d: &Path) -> Result<(), Stri
 /// The reproducers: a name and the row.
 type Row = (&'static str, fn(&Path) -> Result<(), String>);
 
+/// Issue 45's hostile run: a sphere routine that always answers "miss" spawns no ray, and its
+/// reintersection rows (0 rays) were "pass"; now the audit fails on them (exit 1).
+fn outside_routine_that_never_hits(d: &Path) -> Result<(), String> {
+    let args = [
+        "audit", "--shape", "sphere", "--precision", "f32", "--cases", "20",
+        "--exec", "awk '{print 0; fflush()}'", "--name", "miss", "--json", "m.json",
+    ];
+    let r = run(d, &args, 120);
+    r.exited(1)?;
+    let v: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(d.join("m.json")).map_err(|e| format!("no report: {e}"))?,
+    )
+    .map_err(|e| e.to_string())?;
+    let rows: Vec<&serde_json::Value> = v["robustness"]["reintersection"]
+        .as_array()
+        .ok_or("no reintersection rows")?
+        .iter()
+        .filter(|r| r["method"] == "miss" && r["rule"] == "on")
+        .collect();
+    ensure!(!rows.is_empty(), "no row of the routine");
+    ensure!(
+        rows.iter().all(|r| r["rays"] == 0 && r["verdict"] == "fail"),
+        "rows: {rows:?}"
+    );
+    Ok(())
+}
+
+/// Issue 45's hostile run: `--name` took "", a newline, spaces and a built-in's marker
+/// ("watertight (robust)"); a name labels rows and rules, so each is refused in one line.
+fn routine_names_that_fake_a_row(d: &Path) -> Result<(), String> {
+    for name in ["", "x\ny", "watertight (robust)", "a b"] {
+        let args = [
+            "audit", "--shape", "sphere", "--precision", "f32", "--cases", "5",
+            "--exec", "awk '{print 0; fflush()}'", "--name", name,
+        ];
+        run(d, &args, 60)
+            .refused(2, &["a routine's name is 1 to 64"])
+            .map_err(|e| format!("--name {name:?}: {e}"))?;
+    }
+    Ok(())
+}
+
 const ROWS: &[Row] = &[
     (
         "update_beside_an_external_reference",
@@ -1208,6 +1250,8 @@ const ROWS: &[Row] = &[
         "report_out_over_a_directory_with_a_linked_marker",
         report_out_over_a_directory_with_a_linked_marker,
     ),
+    ("outside_routine_that_never_hits", outside_routine_that_never_hits),
+    ("routine_names_that_fake_a_row", routine_names_that_fake_a_row),
 ];
 
 #[test]

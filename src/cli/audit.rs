@@ -213,6 +213,15 @@ pub(super) fn add_outside(plan: &mut Plan, o: &OutsideArgs, precisions_given: bo
     }
     let p = &mut plan.shapes[0];
     for (m, _) in outside {
+        // A name is a table's row label and a tolerance rule's key: one plain word
+        let name = m.name();
+        let plain = |c: char| c.is_ascii_alphanumeric() || "_.+-".contains(c);
+        if name.is_empty() || name.len() > 64 || !name.chars().all(plain) {
+            bail!(
+                "--name {:?}: a routine's name is 1 to 64 letters, digits or _ . + - (it labels table rows and tolerance rules)",
+                name.chars().take(70).collect::<String>()
+            );
+        }
         if p.methods.iter().any(|x| x.name() == m.name()) {
             bail!(
                 "--name {}: a built-in method of {} has that name",

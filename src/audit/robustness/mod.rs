@@ -186,7 +186,8 @@ pub fn judge(mut r: Robustness, built_in: (usize, usize), rules: &[RobustRule]) 
         } else if let Some(u) = rule(&x.method, Test::Reintersection, &x.precision) {
             u.verdict(Test::Reintersection, self_hits)
         } else if x.robust || outside {
-            if self_hits > 0 {
+            // A row that spawned no ray shows nothing: never a pass
+            if self_hits > 0 || x.rays == 0 {
                 "fail"
             } else {
                 "pass"
