@@ -1179,6 +1179,29 @@ fn routine_names_that_fake_a_row(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// Issue 45's hostile run: `[[robustness]]` rules that could never judge a row (a method with
+/// no robustness rows, the watertightness test for a box or sphere routine) were accepted and
+/// the audit passed; each is refused in one line (exit 2).
+fn robustness_rule_that_never_applies(d: &Path) -> Result<(), String> {
+    for (shape, method, test) in [
+        ("reflect", "bits+1", None),
+        ("box", "robust_slab", Some("watertight")),
+        ("sphere", "rtg7", Some("watertight")),
+    ] {
+        let mut text = format!("[[robustness]]\nmethod = \"{method}\"\nwhy = \"a test\"\n");
+        match test {
+            Some(t) => text += &format!("test = \"{t}\"\nmax_escapes = 0\n"),
+            None => text += "max_escapes = 0\nmax_self_hits = 0\n",
+        }
+        std::fs::write(d.join("r.toml"), &text).map_err(|e| e.to_string())?;
+        let args = ["audit", "--shape", shape, "--cases", "10", "--tolerances", "r.toml"];
+        run(d, &args, 120)
+            .refused(2, &[method, "could never judge a row"])
+            .map_err(|e| format!("{shape} {method}: {e}"))?;
+    }
+    Ok(())
+}
+
 const ROWS: &[Row] = &[
     (
         "update_beside_an_external_reference",
@@ -1252,6 +1275,10 @@ const ROWS: &[Row] = &[
     ),
     ("outside_routine_that_never_hits", outside_routine_that_never_hits),
     ("routine_names_that_fake_a_row", routine_names_that_fake_a_row),
+    (
+        "robustness_rule_that_never_applies",
+        robustness_rule_that_never_applies,
+    ),
 ];
 
 #[test]

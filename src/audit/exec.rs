@@ -109,6 +109,9 @@ pub struct Exec {
     pub mode: Mode,
     /// The running child and whether it is kept for the run (once decided).
     state: Mutex<(Option<Session>, Option<bool>)>,
+    /// Some child of this command has answered a line (a later deadline is then not a child
+    /// that never flushes).
+    answered: std::sync::atomic::AtomicBool,
 }
 
 /// How many children an `--exec` run starts.
@@ -139,6 +142,7 @@ impl Exec {
             timeout,
             mode,
             state: Mutex::new((None, None)),
+            answered: Default::default(),
         }
     }
 
@@ -196,7 +200,7 @@ impl Exec {
                         Broken::Deadline => format!(
                             "did not answer within {} s (killed){}",
                             self.timeout.as_secs_f64(),
-                            if answers.is_empty() {
+                            if answers.is_empty() && !self.answered.load(std::sync::atomic::Ordering::Relaxed) {
                                 "; no answer line arrived: does the child flush its output after each line? (or give --exec-per-batch)"
                             } else {
                                 ""
@@ -230,6 +234,7 @@ impl Exec {
                     )
                 })?;
                 answers.push(a);
+                self.answered.store(true, std::sync::atomic::Ordering::Relaxed);
             }
         }
         Ok(answers)

@@ -160,7 +160,7 @@ impl Report {
                     r.class,
                     r.verdict
                         .as_ref()
-                        .map(|v| v.reasons.join("; "))
+                        .map(|v| v.reasons.iter().chain(&v.notes).cloned().collect::<Vec<_>>().join("; "))
                         .unwrap_or_default()
                 )
             })

@@ -420,7 +420,18 @@ impl Table {
         Ok(Table {
             rules,
             measured: measured.into_iter().collect(),
-            robustness: robust_rules::parse(robust_texts, file, &methods)?,
+            robustness: robust_rules::parse(
+                robust_texts,
+                file,
+                &methods,
+                &super::robustness::tested_methods(
+                    &known
+                        .shapes
+                        .iter()
+                        .map(|(s, ms, _)| (*s, ms.clone()))
+                        .collect::<Vec<_>>(),
+                ),
+            )?,
         })
     }
 

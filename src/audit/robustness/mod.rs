@@ -72,6 +72,30 @@ fn surfaces_of(shape: &str) -> Vec<&'static str> {
     }
 }
 
+/// The methods that can have rows of each test, of `shapes` as `(shape, its methods: built-in
+/// and outside)`: `(reintersection, watertightness)`. Reintersection runs every built-in method
+/// of the surfaces it knows and outside routines of the sphere and the triangle; watertightness
+/// the triangle's methods, built-in and outside.
+pub fn tested_methods(shapes: &[(&str, Vec<String>)]) -> (Vec<String>, Vec<String>) {
+    let (mut re, mut wt) = (vec![], vec![]);
+    for (shape, methods) in shapes {
+        let builtin: Vec<&str> = crate::shapes::shape_by_name(shape)
+            .map(|s| s.info().methods.iter().map(|m| m.name).collect())
+            .unwrap_or_default();
+        let has_surface = !surfaces_of(shape).is_empty();
+        for m in methods {
+            let outside = !builtin.contains(&m.as_str());
+            if has_surface && (!outside || matches!(*shape, "sphere" | "triangle")) {
+                re.push(m.clone());
+            }
+            if *shape == "triangle" {
+                wt.push(m.clone());
+            }
+        }
+    }
+    (re, wt)
+}
+
 /// Whether an audit of `shape` covers all its built-in methods (by name, in order) and all its
 /// classes: only then do its reintersection and watertightness tests run with it (a narrowed or
 /// outside-method audit is about those methods alone).
@@ -408,7 +432,7 @@ pub fn summary(r: &Robustness) -> String {
     let n = |v: &str| verdicts.iter().filter(|x| **x == v).count();
     if !verdicts.is_empty() {
         s += &format!(
-            "robustness rows: {} — {} within their goal, {} fail it, {} reported only (built-in methods not robust by design), {} controls\n",
+            "robustness rows: {} — {} within their goal, {} fail it, {} reported only (built-in methods not robust by design, or a tolerance file's `reported = true`), {} controls\n",
             verdicts.len(),
             n("pass"),
             n("fail"),

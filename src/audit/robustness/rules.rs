@@ -108,6 +108,7 @@ pub fn parse(
     texts: Vec<RobustRuleText>,
     file: &str,
     known_methods: &[&str],
+    tested: &(Vec<String>, Vec<String>),
 ) -> Result<Vec<RobustRule>, String> {
     texts
         .into_iter()
@@ -146,6 +147,23 @@ pub fn parse(
                         .collect::<Result<Vec<_>, _>>()?,
                 ),
             };
+            // A rule must be able to judge some row: each method has rows of a test it names
+            let has = |m: &str, t: Test| match t {
+                Test::Reintersection => tested.0.iter().any(|x| x == m),
+                Test::Watertight => tested.1.iter().any(|x| x == m),
+            };
+            let tests: Vec<Test> = match test {
+                Some(t) => vec![t],
+                None => vec![Test::Reintersection, Test::Watertight],
+            };
+            if let Some(m) = methods.iter().find(|m| !tests.iter().any(|&t| has(m, t))) {
+                let what = match test {
+                    Some(Test::Reintersection) => "reintersection rows (they run for the built-in methods of the box, sphere, ellipsoid, cylinder, torus and triangle, and for outside sphere and triangle routines)",
+                    Some(Test::Watertight) => "watertightness rows (they run for triangle routines)",
+                    None => "reintersection or watertightness rows",
+                };
+                return bad(format!("method '{m}' has no {what}: the rule could never judge a row"));
+            }
             let reported = r.reported.unwrap_or(false);
             if r.why.trim().is_empty() {
                 return bad("say why (where its numbers came from)".into());
