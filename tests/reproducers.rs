@@ -1199,6 +1199,24 @@ fn robustness_rule_that_never_applies(d: &Path) -> Result<(), String> {
             .refused(2, &[method, "could never judge a row"])
             .map_err(|e| format!("{shape} {method}: {e}"))?;
     }
+    // A rule whose every row an earlier rule takes
+    let text = "[[robustness]]\nmethod = \"watertight\"\nreported = true\nwhy = \"a\"\n\n[[robustness]]\nmethod = \"watertight\"\ntest = \"watertight\"\nmax_escapes = 0\nwhy = \"b\"\n";
+    std::fs::write(d.join("r.toml"), text).map_err(|e| e.to_string())?;
+    let args = ["audit", "--shape", "triangle", "--cases", "10", "--tolerances", "r.toml"];
+    run(d, &args, 120).refused(2, &["robustness rule 2", "shadowed"])?;
+    // `score` runs no robustness test
+    let cases = ["cases", "--shape", "triangle", "--precision", "f32", "--cases", "5", "-o", "c.txt"];
+    run(d, &cases, 60).exited(0)?;
+    let n = std::fs::read_to_string(d.join("c.txt"))
+        .map_err(|e| e.to_string())?
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .count();
+    std::fs::write(d.join("a.txt"), "0\n".repeat(n)).map_err(|e| e.to_string())?;
+    let text = "[[robustness]]\nmethod = \"answers\"\ntest = \"watertight\"\nmax_escapes = 0\nwhy = \"a\"\n";
+    std::fs::write(d.join("r.toml"), text).map_err(|e| e.to_string())?;
+    let score = ["score", "--cases", "c.txt", "--answers", "a.txt", "--tolerances", "r.toml"];
+    run(d, &score, 60).refused(2, &["score runs no reintersection"])?;
     Ok(())
 }
 

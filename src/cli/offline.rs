@@ -110,6 +110,12 @@ pub(super) fn run_score(a: ScoreArgs) -> Result<u8> {
     let plan = score_plan(&cases, answers, &a.method).map_err(|e| anyhow!(e))?;
     // Judged and printed as the audit does
     let table = load_table(&a.out.tolerances, &plan.known())?;
+    if let Some(r) = table.robustness.first() {
+        bail!(
+            "tolerances: {}: score runs no reintersection or watertightness test, so a [[robustness]] rule could never judge a row (give it to `audit`)",
+            r.origin
+        );
+    }
     print_legend(plan.seed, "0/1", &a.out);
     let report = plan.run_shape(0, false)?.report(Some(&table));
     plan.finish()?;

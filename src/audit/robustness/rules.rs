@@ -110,6 +110,35 @@ pub fn parse(
     known_methods: &[&str],
     tested: &(Vec<String>, Vec<String>),
 ) -> Result<Vec<RobustRule>, String> {
+    let rules = parse_each(texts, file, known_methods, tested)?;
+    // A rule every row of which an earlier rule takes judges nothing
+    for (i, r) in rules.iter().enumerate() {
+        let tests = r.test.map_or(vec![Test::Reintersection, Test::Watertight], |t| vec![t]);
+        let precs = r.precisions.clone().unwrap_or(vec![Precision::F32, Precision::F64]);
+        let shadowed = r.methods.iter().all(|m| {
+            tests.iter().all(|&t| {
+                precs
+                    .iter()
+                    .all(|p| rules[..i].iter().any(|e| e.applies(m, t, p.name())))
+            })
+        });
+        if shadowed {
+            return Err(format!(
+                "{}: every row it names is judged by an earlier rule (shadowed): the rule could never judge a row",
+                r.origin
+            ));
+        }
+    }
+    Ok(rules)
+}
+
+/// Each rule checked on its own.
+fn parse_each(
+    texts: Vec<RobustRuleText>,
+    file: &str,
+    known_methods: &[&str],
+    tested: &(Vec<String>, Vec<String>),
+) -> Result<Vec<RobustRule>, String> {
     texts
         .into_iter()
         .enumerate()
