@@ -584,9 +584,16 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
 pub struct ScratchDir(pub PathBuf);
 
 impl ScratchDir {
-    /// Creates `rayproof-TAG-PID-NONCE` under the system's temp directory.
+    /// Creates `rayproof-TAG-PID-NONCE` under the system's temp directory, after removing the
+    /// scratch directories of runs that died without removing theirs (killed by SIGKILL).
     pub fn new(tag: &str) -> Result<ScratchDir> {
-        let p = std::env::temp_dir().join(format!(
+        ScratchDir::new_in(&std::env::temp_dir(), tag)
+    }
+
+    /// [`ScratchDir::new`] under `tmp`.
+    pub fn new_in(tmp: &Path, tag: &str) -> Result<ScratchDir> {
+        remove_dead_runs_scratch(tmp);
+        let p = tmp.join(format!(
             "rayproof-{tag}-{}-{:016x}",
             std::process::id(),
             nonce()
@@ -602,6 +609,46 @@ impl ScratchDir {
     }
 }
 
+/// Removes, under `tmp`, the scratch directories of rayproof runs that are dead: only
+/// rayproof's own, recognised by name (`rayproof-TAG-PID-NONCE`, 16 hex digits), owned by this
+/// user, a real directory (not a link), whose process no longer exists. A live process of that
+/// pid (a run still going, or the pid reused) keeps its directory.
+pub fn remove_dead_runs_scratch(tmp: &Path) {
+    let Ok(entries) = std::fs::read_dir(tmp) else {
+        return;
+    };
+    // SAFETY: geteuid has no arguments and cannot fail
+    let me = unsafe { libc::geteuid() };
+    for e in entries.flatten() {
+        let name = e.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let Some(rest) = name.strip_prefix("rayproof-") else { continue };
+        let mut parts = rest.rsplitn(3, '-');
+        let (Some(nonce), Some(pid), Some(tag)) = (parts.next(), parts.next(), parts.next())
+        else {
+            continue;
+        };
+        let ours = nonce.len() == 16
+            && nonce.bytes().all(|b| b.is_ascii_hexdigit())
+            && !tag.is_empty()
+            && tag.bytes().all(|b| b.is_ascii_lowercase());
+        let Ok(pid) = pid.parse::<i32>() else { continue };
+        if !ours || pid <= 0 || pid as u32 == std::process::id() {
+            continue;
+        }
+        let Ok(meta) = std::fs::symlink_metadata(e.path()) else { continue };
+        if !meta.is_dir() || meta.uid() != me {
+            continue;
+        }
+        // SAFETY: signal 0 only checks that the process exists
+        let dead = unsafe { libc::kill(pid, 0) } != 0
+            && std::io::Error::last_os_error().raw_os_error() == Some(libc::ESRCH);
+        if dead {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
+    }
+}
+
 impl Drop for ScratchDir {
     fn drop(&mut self) {
         discard(&self.0);
@@ -611,6 +658,43 @@ impl Drop for ScratchDir {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Issue 46 (10): the scratch directory of a run killed by SIGKILL is removed by the next
+    /// run; a live run's, another name's, a link and a directory of a live pid are kept.
+    #[test]
+    fn a_dead_runs_scratch_is_removed_and_nothing_else() {
+        let tmp = std::env::temp_dir().join(format!("rayproof-sweep-test-{}", std::process::id()));
+        std::fs::create_dir_all(&tmp).unwrap();
+        let mut gone = std::process::Command::new("true").spawn().unwrap();
+        let dead = gone.id();
+        gone.wait().unwrap();
+        let me = std::process::id();
+        let dead_dir = tmp.join(format!("rayproof-check-{dead}-0123456789abcdef"));
+        let kept = [
+            format!("rayproof-check-{me}-0123456789abcdef"),
+            format!("rayproof-check-1-0123456789abcdef"),
+            format!("rayproof-check-{dead}-0123"),
+            format!("rayproof-{dead}-0123456789abcdef"),
+            format!("other-check-{dead}-0123456789abcdef"),
+        ];
+        std::fs::create_dir_all(dead_dir.join("inner")).unwrap();
+        std::fs::write(dead_dir.join("inner/f"), b"x").unwrap();
+        for k in &kept {
+            std::fs::create_dir_all(tmp.join(k)).unwrap();
+        }
+        let link = tmp.join(format!("rayproof-reference-{dead}-fedcba9876543210"));
+        std::os::unix::fs::symlink(tmp.join(&kept[0]), &link).unwrap();
+        // A new scratch directory sweeps its parent first
+        let made = ScratchDir::new_in(&tmp, "check").unwrap();
+        assert!(made.0.is_dir());
+        assert!(!dead_dir.exists());
+        for k in &kept {
+            assert!(tmp.join(k).is_dir(), "{k} removed");
+        }
+        assert!(link.symlink_metadata().is_ok(), "the link was removed");
+        drop(made);
+        std::fs::remove_dir_all(&tmp).unwrap();
+    }
 
     #[test]
     fn a_failed_write_leaves_the_old_file_and_no_temporary() {

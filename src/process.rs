@@ -11,6 +11,9 @@
 //!   (`PR_SET_CHILD_SUBREAPER`), so a process that left the group (`setsid`) and outlived its
 //!   parent becomes rayproof's child. When the command ends, or at its deadline, its group is
 //!   killed and so is every such orphan, and all are reaped.
+//! - **Nothing outlives rayproof, even killed by SIGKILL**: the group's leader is a guard (a fork
+//!   of the started child that stays behind, [`guard`]) whose parent-death signal
+//!   (`PR_SET_PDEATHSIG`) kills the whole group the moment rayproof dies, however it dies.
 //! - **Capped output**: standard output up to a cap the caller gives (beyond it the command is
 //!   killed and the error says the cap); standard error keeps its first and last 64 KiB.
 //! - **Killed on SIGINT and SIGTERM**: the running groups are registered, and the signal handler
@@ -48,6 +51,72 @@ fn become_subreaper() {
             libc::prctl(libc::PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0);
         }
     });
+}
+
+/// On the parent's death (the guard's `PR_SET_PDEATHSIG`): kill the whole group, the guard too.
+extern "C" fn kill_own_group(_: libc::c_int) {
+    // SAFETY: kill is async-signal-safe
+    unsafe {
+        libc::kill(0, libc::SIGKILL);
+    }
+}
+
+/// The guard, in the forked child before `exec`: forks the command (which returns to `exec`),
+/// then stays as the group's leader, asks the kernel for SIGTERM when rayproof dies (whose
+/// handler kills the whole group), closes every file descriptor (the command's pipes and
+/// `Command`'s exec-error pipe stay the command's alone), waits for the command and ends as it
+/// ended: its exit code, or the same signal. Only async-signal-safe calls: the parent may have
+/// threads.
+///
+/// # Safety
+/// Called only in a child between `fork` and `exec` (a `pre_exec` hook).
+unsafe fn guard(parent: libc::pid_t) -> std::io::Result<()> {
+    let command = libc::fork();
+    if command < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    if command == 0 {
+        // The command: on to exec
+        return Ok(());
+    }
+    let mut sa: libc::sigaction = std::mem::zeroed();
+    sa.sa_sigaction = kill_own_group as *const () as libc::sighandler_t;
+    libc::sigaction(libc::SIGTERM, &sa, std::ptr::null_mut());
+    let mut set: libc::sigset_t = std::mem::zeroed();
+    libc::sigemptyset(&mut set);
+    libc::sigaddset(&mut set, libc::SIGTERM);
+    libc::sigprocmask(libc::SIG_UNBLOCK, &set, std::ptr::null_mut());
+    libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM, 0, 0, 0);
+    // rayproof died before the request took effect
+    if libc::getppid() != parent {
+        libc::kill(0, libc::SIGKILL);
+    }
+    if libc::syscall(libc::SYS_close_range, 0u32, u32::MAX, 0u32) != 0 {
+        for fd in 0..65536 {
+            libc::close(fd);
+        }
+    }
+    let mut st = 0;
+    loop {
+        let r = libc::waitpid(command, &mut st, 0);
+        if r == command {
+            break;
+        }
+        if r < 0 && *libc::__errno_location() != libc::EINTR {
+            libc::_exit(127);
+        }
+    }
+    if libc::WIFSIGNALED(st) {
+        let sig = libc::WTERMSIG(st);
+        let none = libc::rlimit {
+            rlim_cur: 0,
+            rlim_max: 0,
+        };
+        libc::setrlimit(libc::RLIMIT_CORE, &none);
+        libc::signal(sig, libc::SIG_DFL);
+        libc::kill(libc::getpid(), sig);
+    }
+    libc::_exit(libc::WEXITSTATUS(st))
 }
 
 /// Set by [`interrupt`] (the signal handler's first step) before anything else.
@@ -269,6 +338,11 @@ impl Session {
     ) -> Result<Session, String> {
         become_subreaper();
         let mut cmd = Command::new(program);
+        let parent = std::process::id() as libc::pid_t;
+        // SAFETY: the hook calls only async-signal-safe functions (`guard`)
+        unsafe {
+            cmd.pre_exec(move || guard(parent));
+        }
         cmd.args(args)
             .process_group(0)
             .stdin(Stdio::piped())

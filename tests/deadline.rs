@@ -302,3 +302,40 @@ name = "a"
         std::fs::remove_dir_all(&dir).ok();
     }
 }
+
+/// Issue 46 (10): SIGKILL cannot be caught, yet an `--exec` child and what it started in its
+/// group die with rayproof: the group's leader is a guard whose parent-death signal kills the
+/// group. (Before the guard, `sleep` ran on for its 300 s as an orphan.) The renderers of
+/// `check` and `reference` run under the same runner.
+#[test]
+fn sigkill_of_rayproof_kills_the_exec_child_and_its_group() {
+    let dir = scratch("deadline-sigkill");
+    let cmd = "echo $$ > sh.pid; sh -c 'echo $$ > inner.pid; exec sleep 300' & sleep 300";
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(&dir)
+        .args([
+            "audit", "--shape", "sphere", "--class", "random", "--cases", "20", "--exec", cmd,
+            "--exec-timeout", "600",
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while !(dir.join("sh.pid").exists() && dir.join("inner.pid").exists()) {
+        assert!(t0.elapsed().as_secs() < 20, "the child never started");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(100));
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let t0 = Instant::now();
+    while ["sh.pid", "inner.pid"].iter().any(|f| alive(&dir.join(f))) {
+        assert!(
+            t0.elapsed().as_secs() < 10,
+            "the child outlived a SIGKILLed rayproof by 10 s"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
