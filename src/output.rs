@@ -401,12 +401,64 @@ struct Staged {
 pub struct Outputs {
     staged: Vec<Staged>,
     inputs: Vec<(Identity, PathBuf)>,
+    /// Directory locks held until the outputs are committed (or dropped).
+    locks: Vec<DirLock>,
+}
+
+/// An exclusive advisory lock (`flock(2)`) on a directory, released when dropped.
+pub struct DirLock {
+    _held: std::fs::File,
+}
+
+/// How long a run waits for another to release a directory's lock.
+pub const LOCK_WAIT: std::time::Duration = std::time::Duration::from_secs(600);
+
+impl DirLock {
+    /// Locks `dir` (created first if missing), waiting up to [`LOCK_WAIT`] for another run to
+    /// release it, and saying on stderr that it waits.
+    pub fn exclusive(dir: &Path) -> Result<DirLock> {
+        use std::os::fd::AsRawFd;
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        let f = std::fs::File::open(dir).with_context(|| format!("cannot open {}", dir.display()))?;
+        let t0 = std::time::Instant::now();
+        let mut said = false;
+        loop {
+            // SAFETY: flock on a descriptor we own
+            if unsafe { libc::flock(f.as_raw_fd(), libc::LOCK_EX | libc::LOCK_NB) } == 0 {
+                return Ok(DirLock { _held: f });
+            }
+            let e = std::io::Error::last_os_error();
+            if e.raw_os_error() != Some(libc::EWOULDBLOCK) {
+                return Err(anyhow::Error::new(e).context(format!("cannot lock {}", dir.display())));
+            }
+            if t0.elapsed() > LOCK_WAIT {
+                bail!(
+                    "{} stayed locked by another rayproof run for {} s (it writes goldens or references there)",
+                    dir.display(),
+                    LOCK_WAIT.as_secs()
+                );
+            }
+            if !said {
+                eprintln!(
+                    "waiting for {}: another rayproof run is writing goldens or references there",
+                    dir.display()
+                );
+                said = true;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+    }
 }
 
 impl Outputs {
     /// An empty set of staged outputs.
     pub fn new() -> Outputs {
         Outputs::default()
+    }
+
+    /// Holds `lock` until the outputs are committed or dropped.
+    pub fn hold(&mut self, lock: DirLock) {
+        self.locks.push(lock);
     }
 
     /// Declares the run's inputs: no output may be one of them.

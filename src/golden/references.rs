@@ -364,6 +364,9 @@ pub fn bless(records: &mut Records, golden: &Path, bytes: Vec<u8>, b: &Blessing)
     Ok(())
 }
 
+/// The renderers `rayproof reference` runs, as their manifest entries name them.
+pub const OUTSIDE_RENDERERS: &[&str] = &["POV-Ray", "Mitsuba 3"];
+
 /// Image files and the manifest entries that describe them, staged together into one run's
 /// outputs (the one writer of manifests in the crate): every manifest is read and validated,
 /// and every image and manifest staged, before anything is written.
@@ -390,22 +393,47 @@ impl Records {
         ));
     }
 
-    /// Stages every image and, once per directory, its updated manifest.
+    /// Stages every image and, once per directory, its updated manifest. Each directory is
+    /// locked first (an exclusive lock held until the run's outputs are committed, so that two
+    /// runs writing one directory take turns) and its manifest read under the lock: a run
+    /// changes only its own entries, and `check --update` never replaces an entry another
+    /// writer made (a reference of `rayproof reference`).
     pub fn stage(self, out: &mut crate::output::Outputs) -> Result<()> {
         let mut manifests: Vec<(PathBuf, serde_json::Value)> = vec![];
         for (path, bytes, mut entry, scene) in self.files {
             let (dir, file) = dir_and_name(&path);
-            std::fs::create_dir_all(&dir)
-                .with_context(|| format!("cannot create {}", dir.display()))?;
             let k = match manifests.iter().position(|(d, _)| *d == dir) {
                 Some(k) => k,
                 None => {
+                    out.hold(crate::output::DirLock::exclusive(&dir)?);
                     let m = manifest(&dir)?.unwrap_or(serde_json::json!({ "files": {} }));
                     manifests.push((dir.clone(), m));
                     manifests.len() - 1
                 }
             };
             let m = &mut manifests[k].1;
+            let by_update = |e: &serde_json::Value| {
+                e.get("written_by")
+                    .and_then(|w| w.as_str())
+                    .is_some_and(|w| w.ends_with("check --update"))
+            };
+            // Another writer's: said so, or (written before entries said so) an outside
+            // renderer's reference
+            let another = |e: &serde_json::Value| match e.get("written_by").and_then(|w| w.as_str()) {
+                Some(w) => !w.ends_with("check --update"),
+                None => e
+                    .get("renderer")
+                    .and_then(|r| r.as_str())
+                    .is_some_and(|r| OUTSIDE_RENDERERS.contains(&r)),
+            };
+            if let Some(old) = m.get("files").and_then(|f| f.get(&file)) {
+                if by_update(&entry) && another(old) {
+                    bail!(
+                        "{}: its manifest entry was not written by `check --update` (a reference?): --update does not replace it (give the test its own goldens directory)",
+                        path.display()
+                    );
+                }
+            }
             if let (Some(s), None) = (&scene, m.get("scene")) {
                 m["scene"] = serde_json::json!(s.display().to_string());
             }

@@ -234,6 +234,7 @@ pub fn make(req: &Request) -> Result<Vec<PathBuf>> {
             "samples_per_pixel": g * g,
             "seconds": (start.elapsed().as_secs_f64() * 100.0).round() / 100.0,
             "scene_sha256": scene_sha,
+            "written_by": format!("rayproof {} reference", env!("CARGO_PKG_VERSION")),
         });
         records.add(&path, bytes, entry, Some(&req.scene));
         written.push(path);
