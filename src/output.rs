@@ -234,13 +234,16 @@ pub fn remove_stale(path: &Path) {
 
 /// What identifies a file: its device and inode when it exists, else the canonical path of its
 /// directory joined with its name.
-#[derive(Clone, Debug, PartialEq)]
-enum Identity {
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+pub enum Identity {
+    /// Device and inode of an existing file.
     Inode(u64, u64),
+    /// The canonical path of a file that does not exist yet.
     Path(PathBuf),
 }
 
-fn identity(path: &Path) -> Identity {
+/// A path's [`Identity`].
+pub fn identity(path: &Path) -> Identity {
     if let Ok(m) = std::fs::metadata(path) {
         return Identity::Inode(m.dev(), m.ino());
     }

@@ -704,3 +704,48 @@ fn update_never_replaces_a_reference_entry() {
     assert_eq!(code, Some(2), "{err}");
     assert_eq!(std::fs::read_to_string(dir.join("goldens/manifest.json")).unwrap(), text);
 }
+
+/// Issue 46 (1): a test's variance image is an input of the suite: a golden at its path (the
+/// golden of another test) is refused when the suite is read, one line, exit 2, nothing run.
+#[test]
+fn a_variance_image_is_an_input_no_golden_may_be_written_over() {
+    let dir = fixture("variance-input");
+    let text = std::fs::read_to_string(dir.join("suite.toml")).unwrap();
+    let text = text.replacen(
+        "name = \"a\"\n",
+        "name = \"a\"\nvariance = \"goldens/b.exr\"\n",
+        1,
+    );
+    std::fs::write(dir.join("suite.toml"), text).unwrap();
+    let (code, out, err) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(2), "{out}{err}");
+    assert!(
+        err.contains("test 'b': its golden") && err.contains("a file the suite reads"),
+        "{err}"
+    );
+    assert!(!dir.join("goldens").exists());
+}
+
+/// Issue 46 (9): a suite of 10,000 tests is read and validated in under a second (it was
+/// quadratic in file-system calls: 2,000 tests took 72 s), measured with `--test t0`, which
+/// renders one.
+#[test]
+fn a_suite_of_10000_tests_validates_in_under_a_second() {
+    let dir = scratch("follow-10000");
+    std::fs::write(dir.join("a.scene"), "sphere 1\n").unwrap();
+    let mut suite = format!(
+        "[suite]\nname = \"big\"\nrenderer = \"{} {{out}} --width {{width}} --grid {{grid}}\"\ngoldens = \"goldens\"\ntimeout = 20\n",
+        standin()
+    );
+    for i in 0..10_000 {
+        suite += &format!("\n[[test]]\nname = \"t{i}\"\nscene = \"a.scene\"\nwidth = 8\ngrid = 1\n");
+    }
+    std::fs::write(dir.join("suite.toml"), suite).unwrap();
+    // The suite read and validated whole, one test rendered (its golden is new: exit 1)
+    let t0 = std::time::Instant::now();
+    let (code, out, err) = check(&dir, &["--test", "t0"]);
+    let took = t0.elapsed().as_secs_f64();
+    assert_eq!(code, Some(1), "{out}{err}");
+    assert_eq!(status(&out, "t0", "golden"), "NEW", "{out}");
+    assert!(took < 1.0, "validating 10,000 tests (and rendering one) took {took:.2} s");
+}

@@ -495,10 +495,16 @@ impl Suite {
             timeout: Duration::ZERO,
             tests: tests.clone(),
         };
-        let read = suite.inputs();
+        // Each file's identity once (a look-up per golden: linear in the suite's size)
+        let read: std::collections::HashMap<crate::output::Identity, PathBuf> = suite
+            .inputs()
+            .into_iter()
+            .rev()
+            .map(|p| (crate::output::identity(&p), p))
+            .collect();
         for t in &tests {
             if let Some((g, _)) = &t.golden {
-                if let Some(r) = read.iter().find(|r| crate::output::same_file(g, r)) {
+                if let Some(r) = read.get(&crate::output::identity(g)) {
                     bail!(
                         "{}: test '{}': its golden {} is a file the suite reads ({}): --update would write over it",
                         path.display(),
@@ -532,6 +538,10 @@ impl Suite {
                 v.push(p.clone());
             }
             v.extend(t.references.iter().map(|r| r.path.clone()));
+            // A variance image the suite gives (not the renderer's `{variance}`)
+            if let Some(var) = t.variance.as_deref().filter(|v| *v != "{variance}") {
+                v.push(self.dir.join(var.replace("{name}", &t.name)));
+            }
         }
         v
     }
