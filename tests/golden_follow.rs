@@ -749,3 +749,24 @@ fn a_suite_of_10000_tests_validates_in_under_a_second() {
     assert_eq!(status(&out, "t0", "golden"), "NEW", "{out}");
     assert!(took < 1.0, "validating 10,000 tests (and rendering one) took {took:.2} s");
 }
+
+/// Issue 46 (the error): a reference named `povray/linux` passed validation, every test ran, and
+/// then `--report` failed on a file name built from it (exit 2, no JUnit, no JSON). Names from
+/// the suite are checked where they become file names: refused when the suite is read.
+#[test]
+fn a_reference_name_that_cannot_be_a_file_name_is_refused_up_front() {
+    let dir = fixture("ref-name");
+    let text = std::fs::read_to_string(dir.join("suite.toml")).unwrap();
+    for bad in ["povray/linux", "..", "a b"] {
+        let t = text.replacen(
+            "name = \"a\"\n",
+            &format!("name = \"a\"\nreference = [{{ name = \"{bad}\", path = \"a.exr\" }}]\n"),
+            1,
+        );
+        std::fs::write(dir.join("suite.toml"), t).unwrap();
+        let (code, out, err) = check(&dir, &["--report", "rep"]);
+        assert_eq!(code, Some(2), "{bad}: {out}{err}");
+        assert!(err.contains("names the report's files") && err.trim().lines().count() == 1, "{bad}: {err}");
+        assert!(!dir.join("rep").exists() && out.is_empty(), "{bad}: work was done: {out}");
+    }
+}

@@ -310,12 +310,7 @@ impl Suite {
         for t in spec.test {
             let ctx = |what: String| format!("{}: test '{}': {what}", path.display(), t.name);
             // A unique, file-name-safe name
-            if t.name.is_empty()
-                || !t
-                    .name
-                    .chars()
-                    .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
-            {
+            if !file_name_safe(&t.name) {
                 bail!(ctx("a name must be letters, digits, '-', '_' or '.'".into()));
             }
             if tests.iter().any(|o| o.name == t.name) {
@@ -419,6 +414,13 @@ impl Suite {
                     bail!(ctx(format!(
                         "reference name '{}' is empty or repeated",
                         r.name
+                    )));
+                }
+                // It becomes part of the report's file names
+                if !file_name_safe(&r.name) {
+                    bail!(ctx(format!(
+                        "reference name {:?}: a name must be letters, digits, '-', '_' or '.' (it names the report's files)",
+                        r.name.chars().take(80).collect::<String>()
                     )));
                 }
                 references.push(Reference {
@@ -545,6 +547,15 @@ impl Suite {
         }
         v
     }
+}
+
+/// Whether a name from the suite can become part of a file name: letters, digits, `-`, `_`
+/// or `.`, at most 100 of them, and not only dots.
+fn file_name_safe(name: &str) -> bool {
+    !name.is_empty()
+        && name.len() <= 100
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+        && !name.chars().all(|c| c == '.')
 }
 
 /// `rayproof = { method, precision }`.
