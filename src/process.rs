@@ -12,7 +12,7 @@
 //!   parent becomes rayproof's child. When the command ends, or at its deadline, its group is
 //!   killed and so is every such orphan, and all are reaped.
 //! - **Nothing outlives rayproof, even killed by SIGKILL**: the group's leader is a guard (a fork
-//!   of the started child that stays behind, [`guard`]) whose parent-death signal
+//!   of the started child that stays behind, `guard`) whose parent-death signal
 //!   (`PR_SET_PDEATHSIG`) kills the whole group the moment rayproof dies, however it dies.
 //! - **Capped output**: standard output up to a cap the caller gives (beyond it the command is
 //!   killed and the error says the cap); standard error keeps its first and last 64 KiB.
