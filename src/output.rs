@@ -422,7 +422,8 @@ impl DirLock {
     pub fn exclusive(dir: &Path) -> Result<DirLock> {
         use std::os::fd::AsRawFd;
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        let f = std::fs::File::open(dir).with_context(|| format!("cannot open {}", dir.display()))?;
+        let f =
+            std::fs::File::open(dir).with_context(|| format!("cannot open {}", dir.display()))?;
         let t0 = std::time::Instant::now();
         let mut said = false;
         loop {
@@ -677,21 +678,26 @@ pub fn remove_dead_runs_scratch(tmp: &Path) {
     for e in entries.flatten() {
         let name = e.file_name();
         let Some(name) = name.to_str() else { continue };
-        let Some(rest) = name.strip_prefix("rayproof-") else { continue };
+        let Some(rest) = name.strip_prefix("rayproof-") else {
+            continue;
+        };
         let mut parts = rest.rsplitn(3, '-');
-        let (Some(nonce), Some(pid), Some(tag)) = (parts.next(), parts.next(), parts.next())
-        else {
+        let (Some(nonce), Some(pid), Some(tag)) = (parts.next(), parts.next(), parts.next()) else {
             continue;
         };
         let ours = nonce.len() == 16
             && nonce.bytes().all(|b| b.is_ascii_hexdigit())
             && !tag.is_empty()
             && tag.bytes().all(|b| b.is_ascii_lowercase());
-        let Ok(pid) = pid.parse::<i32>() else { continue };
+        let Ok(pid) = pid.parse::<i32>() else {
+            continue;
+        };
         if !ours || pid <= 0 || pid as u32 == std::process::id() {
             continue;
         }
-        let Ok(meta) = std::fs::symlink_metadata(e.path()) else { continue };
+        let Ok(meta) = std::fs::symlink_metadata(e.path()) else {
+            continue;
+        };
         if !meta.is_dir() || meta.uid() != me {
             continue;
         }

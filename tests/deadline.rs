@@ -314,8 +314,17 @@ fn sigkill_of_rayproof_kills_the_exec_child_and_its_group() {
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
         .current_dir(&dir)
         .args([
-            "audit", "--shape", "sphere", "--class", "random", "--cases", "20", "--exec", cmd,
-            "--exec-timeout", "600",
+            "audit",
+            "--shape",
+            "sphere",
+            "--class",
+            "random",
+            "--cases",
+            "20",
+            "--exec",
+            cmd,
+            "--exec-timeout",
+            "600",
         ])
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())

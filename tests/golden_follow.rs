@@ -661,7 +661,10 @@ fn two_updates_at_once_keep_both_entries() {
         let m = manifest(&dir);
         for f in ["a.exr", "b.exr"] {
             let e = &m["files"][f];
-            assert!(e.is_object(), "round {round}: {f} lost from the manifest: {m}");
+            assert!(
+                e.is_object(),
+                "round {round}: {f} lost from the manifest: {m}"
+            );
             assert_eq!(
                 e["sha256"].as_str().unwrap(),
                 sha256_file(&dir.join("goldens").join(f)).unwrap(),
@@ -694,15 +697,24 @@ fn update_never_replaces_a_reference_entry() {
     assert!(err.contains("was not written by `check --update`"), "{err}");
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert_eq!(std::fs::read(dir.join("goldens/a.exr")).unwrap(), before);
-    assert_eq!(std::fs::read_to_string(dir.join("goldens/manifest.json")).unwrap(), text);
+    assert_eq!(
+        std::fs::read_to_string(dir.join("goldens/manifest.json")).unwrap(),
+        text
+    );
     // An entry from before entries named their writer: an outside renderer's is a reference
-    m["files"]["a.exr"].as_object_mut().unwrap().remove("written_by");
+    m["files"]["a.exr"]
+        .as_object_mut()
+        .unwrap()
+        .remove("written_by");
     m["files"]["a.exr"]["renderer"] = serde_json::json!("POV-Ray");
     let text = serde_json::to_string_pretty(&m).unwrap() + "\n";
     std::fs::write(dir.join("goldens/manifest.json"), &text).unwrap();
     let (code, _, err) = check(&dir, &["--update", "--test", "a"]);
     assert_eq!(code, Some(2), "{err}");
-    assert_eq!(std::fs::read_to_string(dir.join("goldens/manifest.json")).unwrap(), text);
+    assert_eq!(
+        std::fs::read_to_string(dir.join("goldens/manifest.json")).unwrap(),
+        text
+    );
 }
 
 /// Issue 46 (1): a test's variance image is an input of the suite: a golden at its path (the
@@ -738,7 +750,8 @@ fn a_suite_of_10000_tests_validates_in_under_a_second() {
         standin()
     );
     for i in 0..10_000 {
-        suite += &format!("\n[[test]]\nname = \"t{i}\"\nscene = \"a.scene\"\nwidth = 8\ngrid = 1\n");
+        suite +=
+            &format!("\n[[test]]\nname = \"t{i}\"\nscene = \"a.scene\"\nwidth = 8\ngrid = 1\n");
     }
     std::fs::write(dir.join("suite.toml"), suite).unwrap();
     // The suite read and validated whole, one test rendered (its golden is new: exit 1)
@@ -747,7 +760,10 @@ fn a_suite_of_10000_tests_validates_in_under_a_second() {
     let took = t0.elapsed().as_secs_f64();
     assert_eq!(code, Some(1), "{out}{err}");
     assert_eq!(status(&out, "t0", "golden"), "NEW", "{out}");
-    assert!(took < 1.0, "validating 10,000 tests (and rendering one) took {took:.2} s");
+    assert!(
+        took < 1.0,
+        "validating 10,000 tests (and rendering one) took {took:.2} s"
+    );
 }
 
 /// Issue 46 (the error): a reference named `povray/linux` passed validation, every test ran, and
@@ -766,7 +782,13 @@ fn a_reference_name_that_cannot_be_a_file_name_is_refused_up_front() {
         std::fs::write(dir.join("suite.toml"), t).unwrap();
         let (code, out, err) = check(&dir, &["--report", "rep"]);
         assert_eq!(code, Some(2), "{bad}: {out}{err}");
-        assert!(err.contains("names the report's files") && err.trim().lines().count() == 1, "{bad}: {err}");
-        assert!(!dir.join("rep").exists() && out.is_empty(), "{bad}: work was done: {out}");
+        assert!(
+            err.contains("names the report's files") && err.trim().lines().count() == 1,
+            "{bad}: {err}"
+        );
+        assert!(
+            !dir.join("rep").exists() && out.is_empty(),
+            "{bad}: work was done: {out}"
+        );
     }
 }

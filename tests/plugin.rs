@@ -668,39 +668,71 @@ fn a_tolerance_file_holds_an_outside_routine_to_its_own_robustness_rule() {
                 .unwrap()
                 .iter()
                 .filter(|r| r["method"] == "triangle_mt")
-                .map(|r| (r["escaped"].as_u64().unwrap(), r["verdict"].as_str().unwrap().to_string()))
+                .map(|r| {
+                    (
+                        r["escaped"].as_u64().unwrap(),
+                        r["verdict"].as_str().unwrap().to_string(),
+                    )
+                })
                 .collect()
         } else {
             vec![]
         };
-        (o.status.code(), String::from_utf8_lossy(&o.stderr).to_string(), rows)
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).to_string(),
+            rows,
+        )
     };
     // The default: escapes fail
     let (code, _, rows) = run(None);
     assert_eq!(code, Some(1));
     let most = rows.iter().map(|r| r.0).max().unwrap();
     assert!(most > 0, "{rows:?}");
-    assert!(rows.iter().all(|(e, v)| (*e > 0) == (v == "fail")), "{rows:?}");
-    let rule = |body: &str| format!("[[robustness]]\nmethod = \"triangle_mt\"\ntest = \"watertight\"\n{body}\nwhy = \"a test\"\n");
+    assert!(
+        rows.iter().all(|(e, v)| (*e > 0) == (v == "fail")),
+        "{rows:?}"
+    );
+    let rule = |body: &str| {
+        format!("[[robustness]]\nmethod = \"triangle_mt\"\ntest = \"watertight\"\n{body}\nwhy = \"a test\"\n")
+    };
     // Allowed as many as the worst row: every row passes (the audit may still fail elsewhere)
     let (_, _, rows) = run(Some(&rule(&format!("max_escapes = {most}"))));
-    assert!(!rows.is_empty() && rows.iter().all(|r| r.1 == "pass"), "{rows:?}");
+    assert!(
+        !rows.is_empty() && rows.iter().all(|r| r.1 == "pass"),
+        "{rows:?}"
+    );
     // One fewer: the worst row fails
     let (code, _, rows) = run(Some(&rule(&format!("max_escapes = {}", most - 1))));
     assert_eq!(code, Some(1));
-    assert!(rows.iter().any(|r| r.0 == most && r.1 == "fail"), "{rows:?}");
+    assert!(
+        rows.iter().any(|r| r.0 == most && r.1 == "fail"),
+        "{rows:?}"
+    );
     // Reported only
     let (_, _, rows) = run(Some(&rule("reported = true")));
-    assert!(!rows.is_empty() && rows.iter().all(|r| r.1 == "reported"), "{rows:?}");
+    assert!(
+        !rows.is_empty() && rows.iter().all(|r| r.1 == "reported"),
+        "{rows:?}"
+    );
     // Refused: an unknown method, a rule that bounds nothing, a bound of the other test
     for (text, want) in [
-        (rule("max_escapes = 1").replace("triangle_mt\"", "nobody\""), "no method 'nobody'"),
+        (
+            rule("max_escapes = 1").replace("triangle_mt\"", "nobody\""),
+            "no method 'nobody'",
+        ),
         (rule(""), "exactly one"),
-        (rule("max_self_hits = 0"), "max_self_hits bounds the reintersection test"),
+        (
+            rule("max_self_hits = 0"),
+            "max_self_hits bounds the reintersection test",
+        ),
     ] {
         let (code, err, _) = run(Some(&text));
         assert_eq!(code, Some(2), "{text}: {err}");
-        assert!(err.contains(want) && err.trim().lines().count() == 1, "{want:?} not in {err:?}");
+        assert!(
+            err.contains(want) && err.trim().lines().count() == 1,
+            "{want:?} not in {err:?}"
+        );
     }
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -1141,8 +1141,19 @@ type Row = (&'static str, fn(&Path) -> Result<(), String>);
 /// reintersection rows (0 rays) were "pass"; now the audit fails on them (exit 1).
 fn outside_routine_that_never_hits(d: &Path) -> Result<(), String> {
     let args = [
-        "audit", "--shape", "sphere", "--precision", "f32", "--cases", "20",
-        "--exec", "awk '{print 0; fflush()}'", "--name", "miss", "--json", "m.json",
+        "audit",
+        "--shape",
+        "sphere",
+        "--precision",
+        "f32",
+        "--cases",
+        "20",
+        "--exec",
+        "awk '{print 0; fflush()}'",
+        "--name",
+        "miss",
+        "--json",
+        "m.json",
     ];
     let r = run(d, &args, 120);
     r.exited(1)?;
@@ -1158,7 +1169,8 @@ fn outside_routine_that_never_hits(d: &Path) -> Result<(), String> {
         .collect();
     ensure!(!rows.is_empty(), "no row of the routine");
     ensure!(
-        rows.iter().all(|r| r["rays"] == 0 && r["verdict"] == "fail"),
+        rows.iter()
+            .all(|r| r["rays"] == 0 && r["verdict"] == "fail"),
         "rows: {rows:?}"
     );
     Ok(())
@@ -1169,8 +1181,17 @@ fn outside_routine_that_never_hits(d: &Path) -> Result<(), String> {
 fn routine_names_that_fake_a_row(d: &Path) -> Result<(), String> {
     for name in ["", "x\ny", "watertight (robust)", "a b"] {
         let args = [
-            "audit", "--shape", "sphere", "--precision", "f32", "--cases", "5",
-            "--exec", "awk '{print 0; fflush()}'", "--name", name,
+            "audit",
+            "--shape",
+            "sphere",
+            "--precision",
+            "f32",
+            "--cases",
+            "5",
+            "--exec",
+            "awk '{print 0; fflush()}'",
+            "--name",
+            name,
         ];
         run(d, &args, 60)
             .refused(2, &["a routine's name is 1 to 64"])
@@ -1194,7 +1215,15 @@ fn robustness_rule_that_never_applies(d: &Path) -> Result<(), String> {
             None => text += "max_escapes = 0\nmax_self_hits = 0\n",
         }
         std::fs::write(d.join("r.toml"), &text).map_err(|e| e.to_string())?;
-        let args = ["audit", "--shape", shape, "--cases", "10", "--tolerances", "r.toml"];
+        let args = [
+            "audit",
+            "--shape",
+            shape,
+            "--cases",
+            "10",
+            "--tolerances",
+            "r.toml",
+        ];
         run(d, &args, 120)
             .refused(2, &[method, "could never judge a row"])
             .map_err(|e| format!("{shape} {method}: {e}"))?;
@@ -1202,10 +1231,28 @@ fn robustness_rule_that_never_applies(d: &Path) -> Result<(), String> {
     // A rule whose every row an earlier rule takes
     let text = "[[robustness]]\nmethod = \"watertight\"\nreported = true\nwhy = \"a\"\n\n[[robustness]]\nmethod = \"watertight\"\ntest = \"watertight\"\nmax_escapes = 0\nwhy = \"b\"\n";
     std::fs::write(d.join("r.toml"), text).map_err(|e| e.to_string())?;
-    let args = ["audit", "--shape", "triangle", "--cases", "10", "--tolerances", "r.toml"];
+    let args = [
+        "audit",
+        "--shape",
+        "triangle",
+        "--cases",
+        "10",
+        "--tolerances",
+        "r.toml",
+    ];
     run(d, &args, 120).refused(2, &["robustness rule 2", "shadowed"])?;
     // `score` runs no robustness test
-    let cases = ["cases", "--shape", "triangle", "--precision", "f32", "--cases", "5", "-o", "c.txt"];
+    let cases = [
+        "cases",
+        "--shape",
+        "triangle",
+        "--precision",
+        "f32",
+        "--cases",
+        "5",
+        "-o",
+        "c.txt",
+    ];
     run(d, &cases, 60).exited(0)?;
     let n = std::fs::read_to_string(d.join("c.txt"))
         .map_err(|e| e.to_string())?
@@ -1215,7 +1262,15 @@ fn robustness_rule_that_never_applies(d: &Path) -> Result<(), String> {
     std::fs::write(d.join("a.txt"), "0\n".repeat(n)).map_err(|e| e.to_string())?;
     let text = "[[robustness]]\nmethod = \"answers\"\ntest = \"watertight\"\nmax_escapes = 0\nwhy = \"a\"\n";
     std::fs::write(d.join("r.toml"), text).map_err(|e| e.to_string())?;
-    let score = ["score", "--cases", "c.txt", "--answers", "a.txt", "--tolerances", "r.toml"];
+    let score = [
+        "score",
+        "--cases",
+        "c.txt",
+        "--answers",
+        "a.txt",
+        "--tolerances",
+        "r.toml",
+    ];
     run(d, &score, 60).refused(2, &["score runs no reintersection"])?;
     Ok(())
 }
@@ -1291,8 +1346,14 @@ const ROWS: &[Row] = &[
         "report_out_over_a_directory_with_a_linked_marker",
         report_out_over_a_directory_with_a_linked_marker,
     ),
-    ("outside_routine_that_never_hits", outside_routine_that_never_hits),
-    ("routine_names_that_fake_a_row", routine_names_that_fake_a_row),
+    (
+        "outside_routine_that_never_hits",
+        outside_routine_that_never_hits,
+    ),
+    (
+        "routine_names_that_fake_a_row",
+        routine_names_that_fake_a_row,
+    ),
     (
         "robustness_rule_that_never_applies",
         robustness_rule_that_never_applies,

@@ -327,18 +327,37 @@ fn the_reflection_bound_is_reached_by_a_constructed_case() {
         .collect();
     let prec = Precision::F32;
     let truth = shape.oracle(&input, prec);
-    let Truth::Answer(e) = &truth else { panic!("a valid case") };
+    let Truth::Answer(e) = &truth else {
+        panic!("a valid case")
+    };
     let table = Table::built_in();
     for name in ["fma", "chapter"] {
-        let m = shape.info().methods.iter().position(|m| m.name == name).unwrap();
+        let m = shape
+            .info()
+            .methods
+            .iter()
+            .position(|m| m.name == name)
+            .unwrap();
         let a = shape.run(m, &input, prec);
-        assert!(judge(&truth, &a, shape.info(), prec).ulps().is_some(), "{name}: a right verdict");
+        assert!(
+            judge(&truth, &a, shape.info(), prec).ulps().is_some(),
+            "{name}: a right verdict"
+        );
         let err = value_error(&e.values, &a.values, shape.info().metric, prec);
         assert_eq!(err, 6, "{name}");
         let rule = table.rule("reflect", name, prec, "unnormalised").unwrap();
-        assert!(rule.max_ulps.unwrap() >= err, "{name}: the rule is below a reached case");
+        assert!(
+            rule.max_ulps.unwrap() >= err,
+            "{name}: the rule is below a reached case"
+        );
     }
-    assert_eq!(table.rule("reflect", "fma", prec, "unnormalised").unwrap().max_ulps, Some(6));
+    assert_eq!(
+        table
+            .rule("reflect", "fma", prec, "unnormalised")
+            .unwrap()
+            .max_ulps,
+        Some(6)
+    );
 }
 
 /// The f64 promote rule follows its analysis, not a sample: a constructed well-posed case
@@ -356,15 +375,28 @@ fn promote_in_f64_is_held_to_its_analysis_not_to_one_ulp() {
         .collect();
     let prec = Precision::F64;
     let truth = shape.oracle(&input, prec);
-    let Truth::Answer(e) = &truth else { panic!("a valid case") };
+    let Truth::Answer(e) = &truth else {
+        panic!("a valid case")
+    };
     assert!(!e.ill_posed);
-    let m = shape.info().methods.iter().position(|m| m.name == "promote").unwrap();
+    let m = shape
+        .info()
+        .methods
+        .iter()
+        .position(|m| m.name == "promote")
+        .unwrap();
     let a = shape.run(m, &input, prec);
     assert!(judge(&truth, &a, shape.info(), prec).ulps().is_some());
     let err = value_error(&e.values, &a.values, shape.info().metric, prec);
     assert_eq!(err, 2);
-    let rule = Table::built_in().rule("sphere", "promote", prec, "on_surface").cloned().unwrap();
+    let rule = Table::built_in()
+        .rule("sphere", "promote", prec, "on_surface")
+        .cloned()
+        .unwrap();
     assert!(rule.max_ulps.unwrap() >= err);
     let cond = e.cond.unwrap();
-    assert!(err as f64 / cond.max(1.0) <= rule.max_err_over_cond.unwrap(), "cond {cond}");
+    assert!(
+        err as f64 / cond.max(1.0) <= rule.max_err_over_cond.unwrap(),
+        "cond {cond}"
+    );
 }

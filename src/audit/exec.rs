@@ -200,7 +200,9 @@ impl Exec {
                         Broken::Deadline => format!(
                             "did not answer within {} s (killed){}",
                             self.timeout.as_secs_f64(),
-                            if answers.is_empty() && !self.answered.load(std::sync::atomic::Ordering::Relaxed) {
+                            if answers.is_empty()
+                                && !self.answered.load(std::sync::atomic::Ordering::Relaxed)
+                            {
                                 "; no answer line arrived: does the child flush its output after each line? (or give --exec-per-batch)"
                             } else {
                                 ""
@@ -234,7 +236,8 @@ impl Exec {
                     )
                 })?;
                 answers.push(a);
-                self.answered.store(true, std::sync::atomic::Ordering::Relaxed);
+                self.answered
+                    .store(true, std::sync::atomic::Ordering::Relaxed);
             }
         }
         Ok(answers)

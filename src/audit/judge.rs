@@ -210,8 +210,17 @@ mod err_over_cond_tests {
         let r = err_over_cond(&e, &got, 10, Metric::Ulps, Precision::F64).unwrap();
         assert_eq!(r, 0.01);
         // One sensitivity for the answer (the other shapes)
-        let one = Expected { cond: Some(4.0), ..e.clone() };
-        let one = Expected { conds: vec![], ..one };
-        assert_eq!(err_over_cond(&one, &got, 10, Metric::Ulps, Precision::F64), Some(2.5));
+        let one = Expected {
+            cond: Some(4.0),
+            ..e.clone()
+        };
+        let one = Expected {
+            conds: vec![],
+            ..one
+        };
+        assert_eq!(
+            err_over_cond(&one, &got, 10, Metric::Ulps, Precision::F64),
+            Some(2.5)
+        );
     }
 }

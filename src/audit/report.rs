@@ -160,7 +160,13 @@ impl Report {
                     r.class,
                     r.verdict
                         .as_ref()
-                        .map(|v| v.reasons.iter().chain(&v.notes).cloned().collect::<Vec<_>>().join("; "))
+                        .map(|v| v
+                            .reasons
+                            .iter()
+                            .chain(&v.notes)
+                            .cloned()
+                            .collect::<Vec<_>>()
+                            .join("; "))
                         .unwrap_or_default()
                 )
             })

@@ -145,7 +145,9 @@ fn sample(
         .filter(|_| right_hit)
         .map(|e| (enclosure_holds(truth, e), exact::ulps(e[0], e[1], prec)));
     let err_over_cond = match (truth, judgement.ulps()) {
-        (Truth::Answer(e), Some(u)) => err_over_cond(e, &answer.values, u, shape.info().metric, prec),
+        (Truth::Answer(e), Some(u)) => {
+            err_over_cond(e, &answer.values, u, shape.info().metric, prec)
+        }
         _ => None,
     };
     let count = answer.count;

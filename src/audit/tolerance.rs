@@ -852,12 +852,26 @@ mod tests {
         use crate::shapes::recip::newton::{bits_bound_ulps, Func};
         let t = Table::built_in();
         let mut seen = 0;
-        for r in t.rules.iter().filter(|r| r.shape == "rcp" || r.shape == "rsqrt") {
-            let func = if r.shape == "rcp" { Func::Rcp } else { Func::Rsqrt };
+        for r in t
+            .rules
+            .iter()
+            .filter(|r| r.shape == "rcp" || r.shape == "rsqrt")
+        {
+            let func = if r.shape == "rcp" {
+                Func::Rcp
+            } else {
+                Func::Rsqrt
+            };
             for m in &r.methods {
-                let Some(steps) = m.strip_prefix("bits+") else { continue };
+                let Some(steps) = m.strip_prefix("bits+") else {
+                    continue;
+                };
                 let steps: u32 = steps.parse().unwrap();
-                for &prec in r.precisions.as_deref().expect("a bits+k rule names its precision") {
+                for &prec in r
+                    .precisions
+                    .as_deref()
+                    .expect("a bits+k rule names its precision")
+                {
                     let want = match prec {
                         Precision::F32 => bits_bound_ulps::<f32>(func, steps),
                         Precision::F64 => bits_bound_ulps::<f64>(func, steps),
@@ -871,7 +885,11 @@ mod tests {
                 }
             }
         }
-        assert_eq!(seen, 2 * 3 * 2 * 2, "rules for rcp and rsqrt × 3 step counts × 2 precisions × 2 input ranges");
+        assert_eq!(
+            seen,
+            2 * 3 * 2 * 2,
+            "rules for rcp and rsqrt × 3 step counts × 2 precisions × 2 input ranges"
+        );
     }
 
     #[test]

@@ -419,7 +419,8 @@ impl Records {
             };
             // Another writer's: said so, or (written before entries said so) an outside
             // renderer's reference
-            let another = |e: &serde_json::Value| match e.get("written_by").and_then(|w| w.as_str()) {
+            let another = |e: &serde_json::Value| match e.get("written_by").and_then(|w| w.as_str())
+            {
                 Some(w) => !w.ends_with("check --update"),
                 None => e
                     .get("renderer")

@@ -37,10 +37,10 @@ pub mod reintersect;
 pub mod rules;
 pub mod watertight;
 
-use rules::{RobustRule, Test};
 use crate::numerics::Precision;
 use crate::shapes::triangle;
 use offset::{ReintersectRow, Rule};
+use rules::{RobustRule, Test};
 use serde::{Deserialize, Serialize};
 pub use watertight::WatertightRow;
 

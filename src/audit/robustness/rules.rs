@@ -113,8 +113,13 @@ pub fn parse(
     let rules = parse_each(texts, file, known_methods, tested)?;
     // A rule every row of which an earlier rule takes judges nothing
     for (i, r) in rules.iter().enumerate() {
-        let tests = r.test.map_or(vec![Test::Reintersection, Test::Watertight], |t| vec![t]);
-        let precs = r.precisions.clone().unwrap_or(vec![Precision::F32, Precision::F64]);
+        let tests = r
+            .test
+            .map_or(vec![Test::Reintersection, Test::Watertight], |t| vec![t]);
+        let precs = r
+            .precisions
+            .clone()
+            .unwrap_or(vec![Precision::F32, Precision::F64]);
         let shadowed = r.methods.iter().all(|m| {
             tests.iter().all(|&t| {
                 precs

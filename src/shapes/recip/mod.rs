@@ -331,9 +331,15 @@ mod tests {
             assert_eq!(RCP.oracle(&[bottom, 0.5], prec), Truth::Invalid, "{prec:?}");
             let floor = bottom + pow2(emin - p + 1);
             assert_eq!(fit(floor, prec), floor);
-            assert!(matches!(RCP.oracle(&[floor, 0.5], prec), Truth::Answer(_)), "{prec:?}");
+            assert!(
+                matches!(RCP.oracle(&[floor, 0.5], prec), Truth::Answer(_)),
+                "{prec:?}"
+            );
             let drawn = RCP.subnormal(1.0, emin - 2, prec);
-            assert!(matches!(RCP.oracle(&[drawn, 0.5], prec), Truth::Answer(_)), "{prec:?}: {drawn:e}");
+            assert!(
+                matches!(RCP.oracle(&[drawn, 0.5], prec), Truth::Answer(_)),
+                "{prec:?}: {drawn:e}"
+            );
         }
     }
 }
