@@ -91,6 +91,9 @@
 //! | channels of one EXR file (every part and layer together) | 1,024: a file of 10,000 layers of 2×2 pixels is far under the sample limit and refused by this |
 //! | an image file | a regular file of at most 1088 MiB (an uncompressed float32 EXR of 2^28 samples and its tables) |
 //! | an EXR's offset table | must fit in the file (a truncated or corrupt header is refused) |
+//! | what a decoder allocates beyond the pixels (a PNG's inflated `iCCP`, `zTXt`, `iTXt`) | 16 MiB ([`images::MAX_ANCILLARY_BYTES`]): a 4×4 PNG whose 1.4 MB `iCCP` inflated to 1.5 GB aborted under a 1 GB limit; the profile is dropped (rayproof reads code values as stored) |
+//! | the union of two data windows compared | walked only where a file holds pixels (two 1×1 windows 10⁹ apart: milliseconds; it was allocated, an abort at 5·10⁷ apart); a per-pixel map over it (ꟻLIP, z-test, heat map, difference image, `check`'s previews) only when it holds at most 4× the files' pixels + 2²⁰ ([`images::align`]), else refused with exit 3 |
+//! | ꟻLIP's memory | bands of about 2²⁰ pixels (≥ 256 rows) with 16 rows of halo, bit for bit the whole image's map: a 2048² RGB float pair took 1.09 GB, now 424 MB (the images 100 MB); a 3840×2160 RGBA pair 758 MB against idiff's 436 MB |
 //! | layers of an EXR test image or reference in `check` (parts, and `LAYER.CHANNEL` groups in a part) | 256: 10,000 parts of 64² took 2.2 s and 537 MB to read one of them, and 10,000 channel groups were refused in a 300 KB line ([`golden::formats::MAX_EXR_LAYERS`]) |
 //! | a message about one image file in a `check` row | 400 characters |
 //! | sub-pixel grid n (`camera.grid`, `--spp` = n², `--grid`, a suite test's `grid`, a manifest's `grid`) | 64 |

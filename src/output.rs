@@ -10,8 +10,12 @@
 //!   ([`Outputs::reading`], [`check_outputs`]); an output that is one of them (the same file by
 //!   path or by inode), or that is named twice, is refused before the work starts. An output path
 //!   that exists and is not a regular file (a directory, a symbolic link, a FIFO, a device) is
-//!   refused; a directory output replaces only a directory that rayproof made (it holds the
-//!   marker file [`MARKER`]).
+//!   refused; a directory output replaces only a directory that rayproof made and that holds
+//!   nothing else: its marker file [`MARKER`] lists what rayproof wrote there, and a file or
+//!   directory put there since (goldens kept in a report directory) refuses the replacement. A
+//!   directory output that is or holds an input or another output of the run, or any output
+//!   inside an input directory, is refused before the work ([`check_outputs`]); paths are
+//!   compared [`canonical`] (`g/../g/x` is `g/x`, links resolved).
 //! - **Temporaries no user file can be mistaken for**: `.NAME.rayproof-PID-NONCE.tmp` (files) and
 //!   `.NAME.rayproof-PID-NONCE.dir` (directories, which hold [`MARKER`]). What a killed run left is
 //!   removed by the next run writing the same output: only regular files of that exact pattern,
@@ -232,8 +236,8 @@ pub fn remove_stale(path: &Path) {
     }
 }
 
-/// What identifies a file: its device and inode when it exists, else the canonical path of its
-/// directory joined with its name.
+/// What identifies a file: its device and inode when it exists, else its [`canonical`] path
+/// (the same however it is spelled, even where its directory does not exist yet).
 #[derive(Clone, Debug, PartialEq, Eq, Hash)]
 pub enum Identity {
     /// Device and inode of an existing file.
@@ -247,12 +251,7 @@ pub fn identity(path: &Path) -> Identity {
     if let Ok(m) = std::fs::metadata(path) {
         return Identity::Inode(m.dev(), m.ino());
     }
-    let dir = path
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    let dir = std::fs::canonicalize(dir).unwrap_or_else(|_| dir.to_path_buf());
-    Identity::Path(dir.join(path.file_name().unwrap_or_default()))
+    Identity::Path(canonical(path))
 }
 
 /// Whether two paths name the same file (by device and inode when both exist, else by the
@@ -313,14 +312,76 @@ fn marked(dir: &Path) -> bool {
     std::fs::symlink_metadata(dir.join(MARKER)).is_ok_and(|m| m.is_file())
 }
 
-/// Refuses a directory output that exists and is not a directory rayproof made.
+/// Everything inside `dir`, as paths relative to it (`/`-separated; a directory ends in `/`),
+/// sorted, without [`MARKER`]; links are listed, never followed.
+fn listing(dir: &Path) -> std::io::Result<Vec<String>> {
+    fn walk(root: &Path, rel: &str, out: &mut Vec<String>) -> std::io::Result<()> {
+        for e in std::fs::read_dir(root.join(rel))? {
+            let e = e?;
+            let name = e.file_name().to_string_lossy().into_owned();
+            let r = format!("{rel}{name}");
+            if r == MARKER {
+                continue;
+            }
+            if e.file_type()?.is_dir() {
+                out.push(format!("{r}/"));
+                walk(root, &format!("{r}/"), out)?;
+            } else {
+                out.push(r);
+            }
+        }
+        Ok(())
+    }
+    let mut out = vec![];
+    walk(dir, "", &mut out)?;
+    out.sort();
+    Ok(out)
+}
+
+/// The first line of [`MARKER`]; the lines after it list what the directory held when
+/// rayproof committed it ([`listing`]).
+const MARKER_HEAD: &str = "made by rayproof; it holds:";
+
+/// Writes `dir`'s [`MARKER`]: its head and the listing of what `dir` holds now.
+fn write_marker(dir: &Path) -> std::io::Result<()> {
+    let mut text = format!("{MARKER_HEAD}\n");
+    for l in listing(dir)? {
+        text.push_str(&l);
+        text.push('\n');
+    }
+    std::fs::write(dir.join(MARKER), text)
+}
+
+/// Refuses to replace a directory rayproof made if it holds anything its marker does not list:
+/// a file put there since (goldens kept in a report directory were deleted with it, issue 46),
+/// or anything in a directory made by a rayproof that did not list its files.
+fn check_holds_only_its_report(path: &Path) -> Result<()> {
+    let marker = std::fs::read_to_string(path.join(MARKER)).unwrap_or_default();
+    let mut lines = marker.lines();
+    let listed: std::collections::HashSet<&str> = match lines.next() {
+        Some(MARKER_HEAD) => lines.collect(),
+        _ => Default::default(),
+    };
+    let now = listing(path).with_context(|| format!("cannot read {}", path.display()))?;
+    if let Some(extra) = now.iter().find(|e| !listed.contains(e.as_str())) {
+        bail!(
+            "{}: holds {}, which rayproof did not write there; rayproof replaces a report directory only when it holds nothing but its own report: move that out or give a new directory",
+            path.display(),
+            path.join(extra).display()
+        );
+    }
+    Ok(())
+}
+
+/// Refuses a directory output that exists and is not a directory rayproof made, or that holds
+/// anything rayproof did not write there.
 fn check_dir_target(path: &Path) -> Result<()> {
     if path.file_name().is_none() {
         bail!("{}: output directory has no name", path.display());
     }
     check_name_length(path)?;
     match std::fs::symlink_metadata(path) {
-        Ok(m) if m.is_dir() && marked(path) => Ok(()),
+        Ok(m) if m.is_dir() && marked(path) => check_holds_only_its_report(path),
         Ok(m) if m.is_dir() => bail!(
             "{}: is a directory rayproof did not make (no {MARKER} in it); rayproof only replaces its own output directories: give a new one",
             path.display()
@@ -333,8 +394,76 @@ fn check_dir_target(path: &Path) -> Result<()> {
     }
 }
 
+/// `path` absolute and without `.` or `..`: its longest existing ancestor canonicalised (links
+/// resolved), the rest joined to it word by word (so `g/../g/x` and `g/x` are one path even
+/// before `x` exists).
+pub fn canonical(path: &Path) -> PathBuf {
+    use std::path::Component;
+    let abs = std::env::current_dir().unwrap_or_default().join(path);
+    for base in abs.ancestors() {
+        if let Ok(mut out) = std::fs::canonicalize(base) {
+            for c in abs.strip_prefix(base).unwrap_or(Path::new("")).components() {
+                match c {
+                    Component::ParentDir => {
+                        out.pop();
+                    }
+                    Component::Normal(n) => out.push(n),
+                    _ => {}
+                }
+            }
+            return out;
+        }
+    }
+    abs
+}
+
+/// Refuses a run's outputs that hold or sit inside another of its paths: a directory output
+/// (a report) that is or contains an input or another output (it would be replaced with the
+/// directory: goldens kept in a report directory were deleted, issue 46), and an output inside
+/// an input that is a directory.
+fn check_containment(outputs: &[(&Path, bool)], inputs: &[&Path]) -> Result<()> {
+    let input_dirs: Vec<(PathBuf, &Path)> = inputs
+        .iter()
+        .filter(|p| p.is_dir())
+        .map(|p| (canonical(p), *p))
+        .collect();
+    if input_dirs.is_empty() && !outputs.iter().any(|(_, d)| *d) {
+        return Ok(());
+    }
+    let outs: Vec<PathBuf> = outputs.iter().map(|(p, _)| canonical(p)).collect();
+    for (k, (o, _)) in outputs.iter().enumerate() {
+        if let Some((_, d)) = input_dirs.iter().find(|(c, _)| outs[k].starts_with(c)) {
+            bail!(
+                "{}: is inside {}, an input of this run; rayproof never writes over its inputs",
+                o.display(),
+                d.display()
+            );
+        }
+    }
+    let others = inputs
+        .iter()
+        .map(|p| (*p, "an input"))
+        .chain(outputs.iter().map(|(p, _)| (*p, "another output")));
+    let others: Vec<(PathBuf, &Path, &str)> = others.map(|(p, w)| (canonical(p), p, w)).collect();
+    for (k, (d, _)) in outputs.iter().enumerate().filter(|(_, (_, dir))| *dir) {
+        let inside = others
+            .iter()
+            .enumerate()
+            .find(|(j, (c, _, _))| *j != inputs.len() + k && c.starts_with(&outs[k]));
+        if let Some((_, (_, p, what))) = inside {
+            bail!(
+                "{}: holds {}, {what} of this run, which replacing the directory would delete: give the report a directory of its own",
+                d.display(),
+                p.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 /// Fails with one line if an output's directory does not exist or cannot take a temporary, if
-/// an output is one of the inputs or is named twice, or if it exists and may not be replaced
+/// an output is one of the inputs or is named twice, if a directory output holds an input or
+/// another output ([`check_containment`]), or if an output exists and may not be replaced
 /// (checked before a long run, so that the run is not wasted). Directory outputs go in `dirs`.
 pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Result<()> {
     let mut seen: Vec<(Identity, &Path)> = inputs.iter().map(|p| (identity(p), *p)).collect();
@@ -381,7 +510,12 @@ pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Resul
         discard(&tmp);
         made.map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
     }
-    Ok(())
+    let outputs: Vec<(&Path, bool)> = files
+        .iter()
+        .map(|p| (*p, false))
+        .chain(dirs.iter().map(|p| (*p, true)))
+        .collect();
+    check_containment(&outputs, inputs)
 }
 
 /// [`check_outputs`] for files of a run that declares no input.
@@ -527,7 +661,7 @@ impl Outputs {
         // fail: nothing in `fill` may create it again, so no create_dir_all of it)
         let made = staging(&tmp, || {
             std::fs::create_dir(&tmp)
-                .and_then(|_| std::fs::write(tmp.join(MARKER), b"made by rayproof\n"))
+                .and_then(|_| std::fs::write(tmp.join(MARKER), format!("{MARKER_HEAD}\n")))
                 .with_context(|| format!("cannot create {}", tmp.display()))
         })
         .and_then(|_| fill(&tmp));
@@ -561,9 +695,11 @@ impl Outputs {
         if interrupted() {
             bail!("interrupted");
         }
-        // Last checks, then the renames
+        // Last checks (each directory's marker lists what it holds), then the renames
         for s in &self.staged {
             if s.dir {
+                write_marker(&s.tmp)
+                    .with_context(|| format!("cannot write {}", s.path.display()))?;
                 check_dir_target(&s.path)?;
             } else {
                 check_target(&s.path)?;

@@ -792,3 +792,107 @@ fn a_reference_name_that_cannot_be_a_file_name_is_refused_up_front() {
         );
     }
 }
+
+/// Issue 46 (2): a report directory is replaced only when it holds nothing but the report
+/// rayproof wrote, and a report directory that is or holds a golden, a manifest or another
+/// output of the run is refused before any work. (Before: `check --report rep` with the goldens
+/// kept in `rep/goldens` compared them, exit 0, and deleted them with the old report.)
+#[test]
+fn a_report_directory_never_takes_goldens_or_a_users_file_with_it() {
+    let dir = fixture("report-holds");
+    let suite = std::fs::read_to_string(dir.join("suite.toml")).unwrap();
+    std::fs::write(
+        dir.join("suite.toml"),
+        suite.replace("goldens = \"goldens\"", "goldens = \"rep/goldens\""),
+    )
+    .unwrap();
+    // The report first, then goldens blessed into it: the next report is refused, goldens kept
+    let (code, out, err) = check(&dir, &["--test", "a", "--report", "rep"]);
+    assert_eq!(code, Some(2), "{out}{err}");
+    assert!(
+        err.contains("give the report a directory of its own"),
+        "{err}"
+    );
+    assert!(err.contains("rep/goldens/a.exr"), "{err}");
+    std::fs::create_dir_all(dir.join("rep")).unwrap();
+    std::fs::write(dir.join("rep/.rayproof-output"), "made by rayproof\n").unwrap();
+    let (code, out, err) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let golden = std::fs::read(dir.join("rep/goldens/a.exr")).unwrap();
+    let (code, out, err) = check(&dir, &["--report", "rep"]);
+    assert_eq!(code, Some(2), "{out}{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("rep/goldens"), "{err}");
+    assert_eq!(
+        std::fs::read(dir.join("rep/goldens/a.exr")).unwrap(),
+        golden
+    );
+    // With --update too (the goldens would be written inside the report being replaced)
+    let (code, out, err) = check(&dir, &["--update", "--report", "rep"]);
+    assert_eq!(code, Some(2), "{out}{err}");
+    assert_eq!(
+        std::fs::read(dir.join("rep/goldens/a.exr")).unwrap(),
+        golden
+    );
+    // A report of its own is replaced, again and again; a user's file put in it is not lost
+    std::fs::write(dir.join("suite.toml"), &suite).unwrap();
+    let (code, out, err) = check(&dir, &["--update", "--report", "own"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let (code, out, err) = check(&dir, &["--report", "own"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    std::fs::create_dir(dir.join("own/notes")).unwrap();
+    std::fs::write(dir.join("own/notes/mine.txt"), "mine\n").unwrap();
+    let (code, out, err) = check(&dir, &["--report", "own"]);
+    assert_eq!(code, Some(2), "{out}{err}");
+    assert!(
+        err.contains("own/notes/") && err.contains("did not write there"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(dir.join("own/notes/mine.txt")).unwrap(),
+        "mine\n"
+    );
+    // An output inside the report directory: refused, nothing written
+    std::fs::remove_dir_all(dir.join("own/notes")).unwrap();
+    let (code, out, err) = check(&dir, &["--report", "own", "--json", "own/rows.json"]);
+    assert_eq!(code, Some(2), "{out}{err}");
+    assert!(err.contains("another output of this run"), "{err}");
+    assert!(!dir.join("own/rows.json").exists());
+}
+
+/// Issue 46 (5): goldens in one directory spelled two ways (`goldens/` and
+/// `goldens/../goldens/`) are one directory: one manifest, locked once, both entries kept. Two
+/// tests that name one golden two ways are refused when the suite is read. (Before: every test
+/// ran, then "named as two outputs", exit 2, nothing written.)
+#[test]
+fn goldens_spelled_two_ways_are_one_directory() {
+    let dir = fixture("two-spellings");
+    let suite = std::fs::read_to_string(dir.join("suite.toml")).unwrap();
+    let two_ways = suite.replace(
+        "name = \"b\"\n",
+        "name = \"b\"\ngolden = \"goldens/../goldens/b.exr\"\n",
+    );
+    assert_ne!(two_ways, suite);
+    std::fs::write(dir.join("suite.toml"), &two_ways).unwrap();
+    let (code, out, err) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    let m = manifest(&dir);
+    for f in ["a.exr", "b.exr"] {
+        assert_eq!(
+            m["files"][f]["sha256"].as_str().unwrap(),
+            sha256_file(&dir.join("goldens").join(f)).unwrap()
+        );
+    }
+    let (code, out, err) = check(&dir, &[]);
+    assert_eq!(code, Some(0), "{out}{err}");
+    // One golden named by two tests
+    std::fs::write(
+        dir.join("suite.toml"),
+        two_ways.replace("goldens/../goldens/b.exr", "goldens/./a.exr"),
+    )
+    .unwrap();
+    let (code, out, err) = check(&dir, &["--update"]);
+    assert_eq!(code, Some(2), "{out}{err}");
+    assert!(err.contains("have one golden"), "{err}");
+    assert!(out.is_empty(), "no test ran: {out}");
+}

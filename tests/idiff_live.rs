@@ -569,6 +569,32 @@ fn oiiotool_pairs(d: &Path) -> Vec<Case> {
         &["--crop", "30x20+20+20", "-d", "float"],
         "exr",
     );
+    // Issue 46 (6): data windows far apart in one display window, compared over their union
+    // (3000 × 2000 pixels, of which the files hold 2 × 40 × 30) by walking only the pixels
+    // the files hold; idiff walks the whole union
+    pair(
+        "far-apart",
+        "s3",
+        "s3t",
+        &crop,
+        &[
+            "--crop",
+            "40x30+8+12",
+            "--origin",
+            "+2960+1970",
+            "-d",
+            "float",
+        ],
+        "exr",
+    );
+    pair(
+        "png8-far-offset",
+        "s3",
+        "s3t",
+        &offs,
+        &["--origin", "+2500-1800", "-d", "uint8"],
+        "png",
+    );
     let display = ["--fullsize", "80x60-8-6", "-d", "float"];
     pair("display", "s3", "s3t", &display, &display, "exr");
     pair(

@@ -1121,8 +1121,13 @@ fn binary_report_note_json_and_errors() {
         s(&d.join("t.png")).to_string(),
     );
 
-    // identical: the full report, then PASS
+    // By default no ꟻLIP (issue 46: it cost 7× idiff's CPU): not in the report
     let o = rayproof_diff(&[&rp, &rp]);
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(!out.contains("FLIP") && out.ends_with("\nPASS\n"), "{out}");
+
+    // identical, ꟻLIP asked for: the full report, then PASS
+    let o = rayproof_diff(&["--flip", &rp, &rp]);
     let out = String::from_utf8_lossy(&o.stdout);
     assert_eq!(o.status.code(), Some(0), "{out}");
     assert!(

@@ -491,9 +491,13 @@ fn signal_during_a_commit(d: &Path) -> Result<(), String> {
         let a = args("old.toml");
         let r = run(d, &a.iter().map(|x| x.as_str()).collect::<Vec<_>>(), 60);
         ensure!(matches!(r.code, Some(0 | 1)), "the old run: {}", r.ended());
+        // (listed in its marker, as a report of 40,000 files that rayproof wrote would be)
+        let mut marker = std::fs::read_to_string(d.join("rep/.rayproof-output")).unwrap();
         for i in 0..40_000 {
             std::fs::write(d.join(format!("rep/old-{i}.txt")), b"x").unwrap();
+            marker += &format!("old-{i}.txt\n");
         }
+        std::fs::write(d.join("rep/.rayproof-output"), marker).unwrap();
         let old: Vec<_> = outputs.iter().map(|f| read(f)).collect();
         let mut child = Command::new(env!("CARGO_BIN_EXE_rayproof"))
             .args(args("new.toml"))
@@ -1275,6 +1279,143 @@ fn robustness_rule_that_never_applies(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// Writes a one-part float RGB EXR: a `w × h` data window at `origin` in a `display × display`
+/// window at (0, 0), pixel (x, y) of channel c being `f(x, y, c)`.
+fn exr_window(
+    path: &Path,
+    (w, h): (usize, usize),
+    origin: (i32, i32),
+    display: usize,
+    f: impl Fn(usize, usize, usize) -> f32,
+) {
+    use exr::prelude::*;
+    let channels: Vec<AnyChannel<FlatSamples>> = ["R", "G", "B"]
+        .iter()
+        .enumerate()
+        .map(|(c, n)| {
+            let plane = (0..w * h).map(|p| f(p % w, p / w, c)).collect();
+            AnyChannel::new(*n, FlatSamples::F32(plane))
+        })
+        .collect();
+    let attributes = LayerAttributes {
+        layer_position: Vec2(origin.0, origin.1),
+        ..Default::default()
+    };
+    let layer = Layer::new(
+        (w, h),
+        attributes,
+        Encoding::FAST_LOSSLESS,
+        AnyChannels::sort(channels.into()),
+    );
+    let frame = IntegerBounds::new(Vec2(0, 0), (display, display));
+    exr::prelude::Image::new(ImageAttributes::new(frame), layer)
+        .write()
+        .to_file(path)
+        .unwrap();
+}
+
+/// Issue 46 (6): two 1×1 data windows 10⁹ pixels apart in one 4×4 display window. Before, the
+/// union was allocated and walked (an abort at 5·10⁷ apart, no end at 2·10⁹). Now the metrics
+/// walk the two pixels (as idiff's would, over the union: mean 2 / (3·(10⁹ + 1))), a map over
+/// the union is refused (exit 3), and `check` refuses the test with the reason, in seconds.
+fn data_windows_far_apart(d: &Path) -> Result<(), String> {
+    exr_window(&d.join("a.exr"), (1, 1), (0, 0), 4, |_, _, c| {
+        (c == 0) as u8 as f32
+    });
+    exr_window(
+        &d.join("b.exr"),
+        (1, 1),
+        (1_000_000_000, 0),
+        4,
+        |_, _, c| (c == 1) as u8 as f32,
+    );
+    let r = run(d, &["diff", "a.exr", "b.exr"], 30);
+    r.exited(2)?;
+    if r.secs > 10.0 || !r.stdout.contains("Mean error = 6.66667e-10") {
+        return Err(format!(
+            "want the union's mean in seconds: {}\n{}",
+            r.ended(),
+            r.stdout
+        ));
+    }
+    let r = run(d, &["diff", "--heatmap", "h.png", "a.exr", "b.exr"], 30);
+    r.refused(3, &["far apart"])?;
+    if d.join("h.png").exists() {
+        return Err("a heat map was written".into());
+    }
+    let suite = "[suite]\nname = \"far\"\n\n[[test]]\nname = \"t\"\nimage = \"a.exr\"\nreference = [{ name = \"r\", path = \"b.exr\" }]\n";
+    std::fs::write(d.join("s.toml"), suite).unwrap();
+    let r = run(d, &["check", "--suite", "s.toml"], 30);
+    r.exited(3)?;
+    if r.secs > 10.0 || !r.stdout.contains("far apart") {
+        return Err(format!(
+            "want the test refused, far apart: {}\n{}",
+            r.ended(),
+            r.stdout
+        ));
+    }
+    Ok(())
+}
+
+/// Issue 46 (7): ꟻLIP in bands. `diff --flip` of a 2048² RGB float pair peaked at 1.09 GB
+/// (ꟻLIP's own buffers of the whole image, about 270 bytes a pixel); in bands it stays within
+/// the images and a band per thread. And plain `diff` computes no ꟻLIP.
+fn flip_of_a_large_pair_in_bands(d: &Path) -> Result<(), String> {
+    let n = 2048;
+    let g = |x: usize, y: usize, c: usize| (x * (c + 1) + y) as f32 / n as f32;
+    exr_window(&d.join("a.exr"), (n, n), (0, 0), n, g);
+    exr_window(&d.join("b.exr"), (n, n), (0, 0), n, |x, y, c| {
+        g(x, y, c)
+            + if (x / 64 + y / 64) % 2 == 0 {
+                0.02
+            } else {
+                0.0
+            }
+    });
+    let r = run(d, &["diff", "--flip", "a.exr", "b.exr"], 120);
+    r.exited(2)?;
+    if !r.stdout.contains("Mean HDR-FLIP") || r.peak > 700 << 20 {
+        return Err(format!("want ꟻLIP within 700 MB: {}", r.ended()));
+    }
+    let r = run(d, &["diff", "a.exr", "b.exr"], 120);
+    r.exited(2)?;
+    if r.stdout.contains("FLIP") || r.peak > 400 << 20 {
+        return Err(format!("want no ꟻLIP, within 400 MB: {}", r.ended()));
+    }
+    Ok(())
+}
+
+/// Issue 46 (8): a 4×4 PNG whose 1.4 MB `iCCP` chunk inflates to 1.5 GB aborted under a 1 GB
+/// address space. The profile is inflated under a 16 MiB cap (and not used): the image is read.
+fn png_whose_icc_profile_inflates_to_gigabytes(d: &Path) -> Result<(), String> {
+    let script = r#"
+import struct, sys, zlib
+def chunk(t, b):
+    return struct.pack(">I", len(b)) + t + b + struct.pack(">I", zlib.crc32(t + b) & 0xffffffff)
+z = zlib.compressobj(9)
+block = bytes(1 << 24)
+profile = b"".join(z.compress(block) for _ in range(90)) + z.flush()
+rows = b"".join(b"\0" + b"\x80" * 12 for _ in range(4))
+png = b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", 4, 4, 8, 2, 0, 0, 0))
+png += chunk(b"iCCP", b"bomb\0\0" + profile)
+png += chunk(b"IDAT", zlib.compress(rows)) + chunk(b"IEND", b"")
+open(sys.argv[1], "wb").write(png)
+"#;
+    let ok = Command::new("python3")
+        .args(["-c", script, s(&d.join("bomb.png"))])
+        .status()
+        .map_err(|e| e.to_string())?;
+    if !ok.success() {
+        return Err("python3 could not write the PNG".into());
+    }
+    let r = run(d, &["diff", "bomb.png", "bomb.png"], 30);
+    r.exited(0)?;
+    if r.peak > 200 << 20 {
+        return Err(format!("want the PNG read within 200 MB: {}", r.ended()));
+    }
+    Ok(())
+}
+
 const ROWS: &[Row] = &[
     (
         "update_beside_an_external_reference",
@@ -1357,6 +1498,15 @@ const ROWS: &[Row] = &[
     (
         "robustness_rule_that_never_applies",
         robustness_rule_that_never_applies,
+    ),
+    ("data_windows_far_apart", data_windows_far_apart),
+    (
+        "flip_of_a_large_pair_in_bands",
+        flip_of_a_large_pair_in_bands,
+    ),
+    (
+        "png_whose_icc_profile_inflates_to_gigabytes",
+        png_whose_icc_profile_inflates_to_gigabytes,
     ),
 ];
 

@@ -61,13 +61,20 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     // Every output checked before the run, none over an input (the suite, a scene, a reference)
     let inputs = suite.inputs();
     let inputs: Vec<&Path> = inputs.iter().map(|p| p.as_path()).collect();
+    // The goldens too: no other output of the run may be one, or hold one
+    let goldens = suite.goldens();
+    let kept: Vec<&Path> = inputs
+        .iter()
+        .copied()
+        .chain(goldens.iter().map(|p| p.as_path()))
+        .collect();
     let files: Vec<&Path> = [&a.json, &a.junit, &a.markdown]
         .into_iter()
         .flatten()
         .map(|p| p.as_path())
         .collect();
     let dirs: Vec<&Path> = a.report.iter().map(|p| p.as_path()).collect();
-    check_outputs(&files, &dirs, &inputs)?;
+    check_outputs(&files, &dirs, &kept)?;
     let mut outputs = Outputs::new().reading(&inputs);
     let report_dir = match &a.report {
         Some(d) => Some(outputs.dir(d)?),

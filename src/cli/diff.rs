@@ -86,7 +86,11 @@ pub struct DiffArgs {
     /// |REF − TEST| × 16, clamped).
     #[arg(long, value_name = "FILE.png")]
     pub heatmap: Option<PathBuf>,
-    /// Skip ꟻLIP (faster).
+    /// Compute HDR-ꟻLIP (LDR-ꟻLIP for two PNGs) and print its mean; by default it is computed
+    /// only for --heatmap (it costs several times the metrics).
+    #[arg(long, conflicts_with = "no_flip")]
+    pub flip: bool,
+    /// Never compute ꟻLIP (a --heatmap then shows |REF − TEST| × 16).
     #[arg(long)]
     pub no_flip: bool,
     /// Write the metrics, thresholds and z-test as JSON ('-': stdout, instead of the text).
@@ -163,7 +167,7 @@ pub fn run_diff(a: DiffArgs) -> u8 {
         idiff_compat: a.idiff_compat,
         thresholds: a.thresholds(),
         z: a.z_params(),
-        flip: !a.no_flip,
+        flip: a.flip || (a.heatmap.is_some() && !a.no_flip),
         diff_exr: a.diff_exr.as_deref(),
         heatmap: a.heatmap.as_deref(),
         json: a.json.as_deref(),

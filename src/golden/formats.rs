@@ -270,9 +270,14 @@ fn read_same(path: &Path, bytes: &[u8]) -> Result<Image, String> {
 
 /// Decodes a format of the `image` crate, its declared size checked first.
 fn decode_other(bytes: &[u8], f: ImageFormat) -> Result<Image, String> {
-    use image::{ColorType, DynamicImage, ImageDecoder};
-    let reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), f);
-    let decoder = reader.into_decoder().map_err(|e| e.to_string())?;
+    use crate::images::{decoder_limits, limit_error, MAX_ANCILLARY_BYTES};
+    use image::{ColorType, ImageDecoder};
+    // The header under the ancillary cap, then the pixels under what the header declares
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), f);
+    reader.limits(decoder_limits(MAX_ANCILLARY_BYTES));
+    let decoder = reader
+        .into_decoder()
+        .map_err(|e| limit_error(e.to_string()))?;
     let (w, h) = decoder.dimensions();
     let color = decoder.color_type();
     let channels = 3 + u64::from(color.has_alpha());
@@ -287,7 +292,12 @@ fn decode_other(bytes: &[u8], f: ImageFormat) -> Result<Image, String> {
             "it declares {w}×{h} pixels × {channels} channels; at most 8192² × 4 samples are read"
         ));
     }
-    let img = DynamicImage::from_decoder(decoder).map_err(|e| e.to_string())?;
+    drop(decoder);
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), f);
+    reader.limits(decoder_limits(
+        w64 * h64 * channels * 4 + MAX_ANCILLARY_BYTES,
+    ));
+    let img = reader.decode().map_err(|e| limit_error(e.to_string()))?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     if w * h == 0 {
         return Err("the image has no pixels".into());

@@ -1029,10 +1029,13 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
             Ok(mut c) => {
                 // Both over the union of their data windows (one display window: compare
                 // refused anything else), for the z-test, ꟻLIP and the previews
-                let Ok((reference, image)) = images::align(reference, &made.image) else {
-                    (r.status, r.note) = (Status::Refused, "the images do not align".into());
-                    rows.push(r);
-                    continue;
+                let (reference, image) = match images::align(reference, &made.image) {
+                    Ok(pair) => pair,
+                    Err(e) => {
+                        (r.status, r.note) = (Status::Refused, format!("{e}"));
+                        rows.push(r);
+                        continue;
+                    }
                 };
                 let reference = &reference;
                 // The z-test, when a variance is given

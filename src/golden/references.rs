@@ -399,19 +399,22 @@ impl Records {
     /// changes only its own entries, and `check --update` never replaces an entry another
     /// writer made (a reference of `rayproof reference`).
     pub fn stage(self, out: &mut crate::output::Outputs) -> Result<()> {
-        let mut manifests: Vec<(PathBuf, serde_json::Value)> = vec![];
+        // One manifest per directory, however the directory is spelled (`g/`, `g/../g/`):
+        // spelled twice, it was locked twice (a wait on itself) and written as two outputs
+        let mut manifests: Vec<(PathBuf, PathBuf, serde_json::Value)> = vec![];
         for (path, bytes, mut entry, scene) in self.files {
             let (dir, file) = dir_and_name(&path);
-            let k = match manifests.iter().position(|(d, _)| *d == dir) {
+            let same = crate::output::canonical(&dir);
+            let k = match manifests.iter().position(|(_, c, _)| *c == same) {
                 Some(k) => k,
                 None => {
                     out.hold(crate::output::DirLock::exclusive(&dir)?);
                     let m = manifest(&dir)?.unwrap_or(serde_json::json!({ "files": {} }));
-                    manifests.push((dir.clone(), m));
+                    manifests.push((dir.clone(), same, m));
                     manifests.len() - 1
                 }
             };
-            let m = &mut manifests[k].1;
+            let m = &mut manifests[k].2;
             let by_update = |e: &serde_json::Value| {
                 e.get("written_by")
                     .and_then(|w| w.as_str())
@@ -450,7 +453,7 @@ impl Records {
             m["files"][file] = entry;
             out.write(&path, &bytes)?;
         }
-        for (dir, m) in manifests {
+        for (dir, _, m) in manifests {
             let text = serde_json::to_string_pretty(&m)? + "\n";
             out.write(&dir.join("manifest.json"), text.as_bytes())?;
         }

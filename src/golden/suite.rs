@@ -504,9 +504,22 @@ impl Suite {
             .rev()
             .map(|p| (crate::output::identity(&p), p))
             .collect();
+        let mut goldens: std::collections::HashMap<crate::output::Identity, &str> =
+            Default::default();
         for t in &tests {
             if let Some((g, _)) = &t.golden {
-                if let Some(r) = read.get(&crate::output::identity(g)) {
+                let id = crate::output::identity(g);
+                // One golden, two tests (`g/a.exr` and `g/../g/a.exr`): --update would write
+                // it twice
+                if let Some(other) = goldens.insert(id.clone(), &t.name) {
+                    bail!(
+                        "{}: tests '{other}' and '{}' have one golden, {}: give each its own",
+                        path.display(),
+                        t.name,
+                        g.display()
+                    );
+                }
+                if let Some(r) = read.get(&id) {
                     bail!(
                         "{}: test '{}': its golden {} is a file the suite reads ({}): --update would write over it",
                         path.display(),
@@ -545,6 +558,22 @@ impl Suite {
                 v.push(self.dir.join(var.replace("{name}", &t.name)));
             }
         }
+        v
+    }
+}
+
+impl Suite {
+    /// The goldens and the manifests beside them: read by `check`, written only by `--update`,
+    /// never replaced (nor held in a report directory) by another output of a run.
+    pub fn goldens(&self) -> Vec<PathBuf> {
+        let mut v = vec![];
+        for (g, _) in self.tests.iter().filter_map(|t| t.golden.as_ref()) {
+            v.push(g.clone());
+            let dir = g.parent().unwrap_or(Path::new("."));
+            v.push(dir.join("manifest.json"));
+        }
+        v.sort();
+        v.dedup();
         v
     }
 }

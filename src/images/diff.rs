@@ -2,8 +2,8 @@
 
 use super::{
     abs_diff, abs_error_map, align, compare_as, exr_to, flip_error, heatmap_rgb8, png_rgb8_to,
-    read_image_layer, z_test, DiffReport, LayerSelect, Semantics, SizeMismatch, Thresholds,
-    ZParams, ZTestError,
+    read_image_layer, z_test, AlignError, DiffReport, LayerSelect, Semantics, SizeMismatch,
+    Thresholds, ZParams, ZTestError,
 };
 use std::path::Path;
 
@@ -113,8 +113,13 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
         Semantics::Rayproof
     };
     let c = compare_as(&reference, &test, &t, semantics).map_err(mismatch)?;
+    let per_pixel = a.flip || a.heatmap.is_some() || a.diff_exr.is_some() || variance.is_some();
     let (reference, test) = match align(&reference, &test) {
         Ok(pair) => pair,
+        // Windows far apart: the metrics above are all there is, unless a map is asked for
+        Err(e @ AlignError::FarApart { .. }) if per_pixel => {
+            return Err(DiffError::new(3, format!("{rn} and {tn}: {e}")))
+        }
         Err(_) => (reference, test),
     };
     let mut c = c;

@@ -48,39 +48,43 @@ fn aces_input_for_085() -> f64 {
     d1 + (d1 * d1 - c / a).sqrt()
 }
 
-/// R, G, B per pixel with non-finite values and negatives replaced by 0 (ꟻLIP only).
-fn sanitized_rgb(img: &Image) -> Vec<[f64; 3]> {
+/// R, G, B of pixel `p` with non-finite values and negatives replaced by 0 (ꟻLIP only).
+fn sanitized(img: &Image, idx: [usize; 3], p: usize) -> [f64; 3] {
     let n = img.channels.len().max(1);
-    let idx = img.rgb_indices();
-    let clean = |v: f32| {
-        if v.is_finite() {
-            (v as f64).max(0.0)
-        } else {
-            0.0
-        }
-    };
-    img.data
-        .chunks(n)
-        .map(|p| idx.map(|i| p.get(i).map_or(0.0, |&v| clean(v))))
-        .collect()
+    let px = &img.data[p * n..(p + 1) * n];
+    idx.map(|i| match px.get(i) {
+        Some(&v) if v.is_finite() => (v as f64).max(0.0),
+        _ => 0.0,
+    })
 }
 
 /// (start, stop) exposures in stops, as ꟻLIP's `computeExposures`:
 /// start = log2(x₀.₈₅ / Y_max), stop = log2(x₀.₈₅ / Y_median), Y = 0.2126R + 0.7152G + 0.0722B,
 /// Y_median = mean of the sorted luminances at n/2 − 1 and n/2 (ꟻLIP's), floored at f32::EPSILON
-/// as OIIO does (ꟻLIP itself would divide by 0 when most pixels are black).
-fn exposure_range(rgb: &[[f64; 3]]) -> (f64, f64) {
+/// as OIIO does (ꟻLIP itself would divide by 0 when most pixels are black). Found by selection,
+/// not a sort: linear in the pixels.
+fn exposure_range(rgb: impl Iterator<Item = [f64; 3]>) -> (f64, f64) {
     let mut y: Vec<f64> = rgb
-        .iter()
         .map(|p| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2])
         .collect();
-    y.sort_by(f64::total_cmp);
     let n = y.len();
-    let y_max = y.last().copied().unwrap_or(0.0).max(f32::EPSILON as f64);
+    let y_max = y
+        .iter()
+        .copied()
+        .fold(0f64, f64::max)
+        .max(f32::EPSILON as f64);
     let y_median = match n {
         0 => 0.0,
         1 => y[0],
-        _ => 0.5 * (y[n / 2 - 1] + y[n / 2]),
+        _ => {
+            let (below, upper, _) = y.select_nth_unstable_by(n / 2, f64::total_cmp);
+            let lower = below
+                .iter()
+                .copied()
+                .max_by(f64::total_cmp)
+                .unwrap_or(*upper);
+            0.5 * (lower + *upper)
+        }
     }
     .max(f32::EPSILON as f64);
     let x = aces_input_for_085();
@@ -98,84 +102,164 @@ fn mean(v: &[f32]) -> f64 {
     v.iter().map(|&x| x as f64).sum::<f64>() / v.len().max(1) as f64
 }
 
+/// Rows above and below a band that ꟻLIP reads but does not keep: at least the radius of its
+/// spatial filter (⌈3·√(0.04 / 2π²)·67⌉ = 10 at 67 pixels per degree) and of its feature filter
+/// (⌈3 · ½ · 0.082 · 67⌉ = 9). Its filters clamp at the image's edge and reach no further than
+/// their radius, so a band's rows come out bit for bit as over the whole image
+/// (`banded_flip_is_the_whole_image_flip` checks it).
+const HALO: usize = 16;
+
+/// The rows of one band: about 2²⁰ pixels (ꟻLIP keeps some 200 bytes per pixel it is given, so
+/// its memory is a band's, not the image's), and at least 256 rows, so that the halo costs at
+/// most 1/8 more work.
+fn band_rows(w: usize) -> usize {
+    ((1 << 20) / w.max(1)).max(256)
+}
+
+/// The per-pixel maximum over `count` LDR-ꟻLIP maps of a `w × h` image, the k-th made from the
+/// 8-bit sRGB rows `enc(k, y0, y1)` gives for both images (rows `y0..y1`). Computed in bands of
+/// `rows` rows (each with [`HALO`] rows more above and below), spread over threads: by band
+/// when there are enough bands, else by exposure within each band.
+fn banded_flip<E>(w: usize, h: usize, rows: usize, count: usize, enc: E) -> Vec<f32>
+where
+    E: Fn(usize, usize, usize) -> (Vec<u8>, Vec<u8>) + Sync,
+{
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let rows = rows.max(1);
+    // One band's maximum map, its exposures over `split` threads
+    let band = |b: usize, out: &mut [f32], split: usize| {
+        let (y0, y1) = (b * rows, ((b + 1) * rows).min(h));
+        let (lo, hi) = (y0.saturating_sub(HALO), (y1 + HALO).min(h));
+        let one = |k: usize| {
+            let (r, t) = enc(k, lo, hi);
+            flip_ldr8(w, hi - lo, &r, &t)
+        };
+        let keep = |out: &mut [f32], m: &[f32]| {
+            let m = &m[(y0 - lo) * w..(y1 - lo) * w];
+            for (a, &e) in out.iter_mut().zip(m) {
+                *a = a.max(e);
+            }
+        };
+        let split = split.clamp(1, count.max(1));
+        if split == 1 {
+            for k in 0..count {
+                keep(out, &one(k));
+            }
+            return;
+        }
+        let maps: Vec<Vec<f32>> = std::thread::scope(|s| {
+            let workers: Vec<_> = (0..split)
+                .map(|j| {
+                    let (one, keep) = (&one, &keep);
+                    s.spawn(move || {
+                        let mut acc = vec![0f32; (y1 - y0) * w];
+                        for k in (j..count).step_by(split) {
+                            let m = one(k);
+                            keep(&mut acc, &m);
+                        }
+                        acc
+                    })
+                })
+                .collect();
+            workers
+                .into_iter()
+                .map(|h| h.join().expect("FLIP worker"))
+                .collect()
+        });
+        for m in maps {
+            for (a, e) in out.iter_mut().zip(m) {
+                *a = a.max(e);
+            }
+        }
+    };
+    let mut map = vec![0f32; w * h];
+    let mut bands: Vec<(usize, &mut [f32])> = map.chunks_mut(rows * w.max(1)).enumerate().collect();
+    if bands.len() < threads {
+        for (b, out) in bands {
+            band(b, out, threads);
+        }
+    } else {
+        // Bands dealt round-robin to the threads
+        let mut per: Vec<Vec<(usize, &mut [f32])>> = (0..threads).map(|_| vec![]).collect();
+        for (k, item) in bands.drain(..).enumerate() {
+            per[k % threads].push(item);
+        }
+        std::thread::scope(|s| {
+            for mine in per {
+                let band = &band;
+                s.spawn(move || {
+                    for (b, out) in mine {
+                        band(b, out, 1);
+                    }
+                });
+            }
+        });
+    }
+    map
+}
+
 /// HDR-ꟻLIP of two scene-linear images (R, G, B; non-finite and negative values count as 0):
 /// the mean and the per-pixel error map in [0, 1]. The exposure range follows the reference
-/// (the test if the reference is black); 0 when both are black.
+/// (the test if the reference is black); 0 when both are black. Its memory is the map, the
+/// reference's luminances and a band per thread ([`banded_flip`]), not ꟻLIP's of the image.
 /// Panics if the sizes differ (check with [`compare`](crate::images::compare) first).
 pub fn hdr_flip(reference: &Image, test: &Image) -> (f64, Vec<f32>) {
+    hdr_flip_in_bands(reference, test, band_rows(reference.width))
+}
+
+/// Every pixel's sanitised R, G, B.
+fn pixels(img: &Image, idx: [usize; 3]) -> impl Iterator<Item = [f64; 3]> + '_ {
+    (0..img.pixels()).map(move |p| sanitized(img, idx, p))
+}
+
+fn hdr_flip_in_bands(reference: &Image, test: &Image, rows: usize) -> (f64, Vec<f32>) {
     assert!(reference.width == test.width && reference.height == test.height);
     let (w, h) = (reference.width, reference.height);
-    // Sanitise both images; two black images have no error
-    let (r, t) = (sanitized_rgb(reference), sanitized_rgb(test));
-    let black = |v: &[[f64; 3]]| v.iter().all(|p| p.iter().all(|&c| c == 0.0));
-    if black(&r) && black(&t) {
+    let (ri, ti) = (reference.rgb_indices(), test.rgb_indices());
+    // Two black images have no error
+    let black = |img: &Image, idx| pixels(img, idx).all(|p| p.iter().all(|&c| c == 0.0));
+    let (rb, tb) = (black(reference, ri), black(test, ti));
+    if rb && tb {
         return (0.0, vec![0.0; w * h]);
     }
-    // Choose the exposures: from the reference, or the test if the reference is black
-    let (start, stop) = exposure_range(if black(&r) { &t } else { &r });
+    // The exposures: from the reference, or the test if the reference is black
+    let (start, stop) = match rb {
+        true => exposure_range(pixels(test, ti)),
+        false => exposure_range(pixels(reference, ri)),
+    };
     let count = ((stop - start).ceil() as usize).max(2);
     let step = (stop - start) / (count - 1) as f64;
-
-    // One LDR-ꟻLIP per exposure, spread over threads; keep the per-pixel maximum
-    let one = |k: usize| {
+    // Exposure k of rows y0..y1: sRGB8(ACES(2^e · x))
+    let enc = |k: usize, y0: usize, y1: usize| {
         let m = (start + k as f64 * step).exp2();
-        let enc = |v: &[[f64; 3]]| -> Vec<u8> {
-            v.iter()
-                .flat_map(|p| p.map(|c| srgb8(aces(c * m))))
+        let rows = |img: &Image, idx| -> Vec<u8> {
+            (y0 * w..y1 * w)
+                .flat_map(|p| sanitized(img, idx, p).map(|c| srgb8(aces(c * m))))
                 .collect()
         };
-        flip_ldr8(w, h, &enc(&r), &enc(&t))
+        (rows(reference, ri), rows(test, ti))
     };
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |n| n.get())
-        .min(count);
-    let maps: Vec<Vec<f32>> = std::thread::scope(|s| {
-        let workers: Vec<_> = (0..threads)
-            .map(|j| {
-                let one = &one;
-                s.spawn(move || {
-                    let mut acc = vec![0f32; w * h];
-                    for k in (j..count).step_by(threads) {
-                        for (a, e) in acc.iter_mut().zip(one(k)) {
-                            *a = a.max(e);
-                        }
-                    }
-                    acc
-                })
-            })
-            .collect();
-        workers
-            .into_iter()
-            .map(|h| h.join().expect("FLIP worker"))
-            .collect()
-    });
-    // Merge the workers' maps: the per-pixel maximum again
-    let mut map = vec![0f32; w * h];
-    for m in maps {
-        for (a, e) in map.iter_mut().zip(m) {
-            *a = a.max(e);
-        }
-    }
+    let map = banded_flip(w, h, rows, count, enc);
     (mean(&map), map)
 }
 
-/// LDR-ꟻLIP of two display-referred images (the stored values, clamped, as 8-bit sRGB).
+/// LDR-ꟻLIP of two display-referred images (the stored values, clamped, as 8-bit sRGB), in
+/// bands as [`hdr_flip`].
 pub fn ldr_flip(reference: &Image, test: &Image) -> (f64, Vec<f32>) {
     assert!(reference.width == test.width && reference.height == test.height);
-    let enc = |img: &Image| -> Vec<u8> {
-        let n = img.channels.len().max(1);
-        let idx = img.rgb_indices();
-        img.data
-            .chunks(n)
-            .flat_map(|p| idx.map(|i| (p[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u8))
-            .collect()
+    let w = reference.width;
+    let enc = |_: usize, y0: usize, y1: usize| {
+        let rows = |img: &Image| -> Vec<u8> {
+            let n = img.channels.len().max(1);
+            let idx = img.rgb_indices();
+            img.data[y0 * w * n..y1 * w * n]
+                .chunks(n)
+                .flat_map(|p| idx.map(|i| (p[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u8))
+                .collect()
+        };
+        (rows(reference), rows(test))
     };
-    let map = flip_ldr8(
-        reference.width,
-        reference.height,
-        &enc(reference),
-        &enc(test),
-    );
+    let map = banded_flip(w, reference.height, band_rows(w), 1, enc);
     (mean(&map), map)
 }
 
@@ -224,12 +308,37 @@ mod tests {
         // Grey pixels: Y = value; sorted Y = [0.5, 1, 2, 8]: median (1+2)/2 = 1.5, max 8
         let px = |v: f64| [v, v, v];
         let rgb = [px(2.0), px(0.5), px(8.0), px(1.0)];
-        let (start, stop) = exposure_range(&rgb);
+        let (start, stop) = exposure_range(rgb.into_iter());
         let x = aces_input_for_085();
         assert!((start - (x / 8.0).log2()).abs() < 1e-12);
         assert!((stop - (x / 1.5).log2()).abs() < 1e-12);
         // Mostly black: the median is floored at f32::EPSILON, not 0
-        let (_, stop) = exposure_range(&[px(0.0), px(0.0), px(0.0), px(1.0)]);
+        let (_, stop) = exposure_range([px(0.0), px(0.0), px(0.0), px(1.0)].into_iter());
         assert!((stop - (x / f32::EPSILON as f64).log2()).abs() < 1e-9);
+    }
+
+    /// The bands' map is the whole image's, bit for bit: bands of 1, 7 and 37 rows (each with
+    /// its halo) against one band holding the image, on noise with edges and a bright spot.
+    #[test]
+    fn banded_flip_is_the_whole_image_flip() {
+        let (w, h) = (29, 83);
+        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 40) as f32 / (1u64 << 24) as f32
+        };
+        let mut a: Vec<f32> = (0..w * h * 3).map(|_| rnd() * 2.0).collect();
+        let b: Vec<f32> = a.iter().map(|&v| v + 0.2 * rnd() - 0.1).collect();
+        a[(40 * w + 10) * 3] = 60.0;
+        let (a, b) = (Image::rgb(w, h, a), Image::rgb(w, h, b));
+        let (m, whole) = hdr_flip_in_bands(&a, &b, h);
+        assert!(m > 0.01, "{m}");
+        for rows in [1, 7, 37] {
+            let (mb, banded) = hdr_flip_in_bands(&a, &b, rows);
+            assert_eq!(mb, m, "bands of {rows} rows");
+            assert!(banded == whole, "bands of {rows} rows");
+        }
     }
 }

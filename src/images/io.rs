@@ -427,6 +427,31 @@ fn quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
     })
 }
 
+/// The most bytes a decoder may allocate for what is not pixels: a PNG's ICC profile (`iCCP`)
+/// and compressed text (`zTXt`, `iTXt`), inflated. 16 MiB: real ICC profiles are kilobytes to
+/// a few megabytes; a 1.5 MB `iCCP` chunk that inflated to 1.5 GB aborted rayproof.
+pub const MAX_ANCILLARY_BYTES: u64 = 16 << 20;
+
+/// The `image` crate's limits with `max_alloc = bytes` (its decoders hand it on: the PNG
+/// decoder bounds every chunk it inflates by it).
+pub fn decoder_limits(bytes: u64) -> image::Limits {
+    let mut l = image::Limits::default();
+    l.max_alloc = Some(bytes);
+    l
+}
+
+/// A decoder's error, said plainly when it is the memory limit.
+pub fn limit_error(e: String) -> String {
+    if e.to_lowercase().contains("limit") {
+        format!(
+            "it needs more memory than its pixels and {} MiB of other data: refused ({e})",
+            MAX_ANCILLARY_BYTES >> 20
+        )
+    } else {
+        e
+    }
+}
+
 /// The most channels rayproof reads from one EXR file, every part together: 1024 (Blender's
 /// multilayer files with every pass and Cryptomatte hold about 100). A file of 10,000 layers of
 /// a few pixels stays within `MAX_SAMPLES` but is refused by this.
@@ -818,8 +843,11 @@ fn decode_png(bytes: &[u8], associate_alpha: bool) -> Result<Image, String> {
     use image::{ColorType, DynamicImage, ImageDecoder};
     // The declared size against the limits, from the header alone (channels as decoded: Y,
     // YA, RGB or RGBA)
-    let header = image::codecs::png::PngDecoder::new(std::io::Cursor::new(bytes))
-        .map_err(|e| e.to_string())?;
+    let header = image::codecs::png::PngDecoder::with_limits(
+        std::io::Cursor::new(bytes),
+        decoder_limits(MAX_ANCILLARY_BYTES),
+    )
+    .map_err(|e| limit_error(e.to_string()))?;
     let (w, h) = header.dimensions();
     let color = header.color_type();
     let grey = matches!(
@@ -829,9 +857,14 @@ fn decode_png(bytes: &[u8], associate_alpha: bool) -> Result<Image, String> {
     let channels = if grey { 1 } else { 3 } + u64::from(color.has_alpha());
     check_declared(w as u64, h as u64, channels)?;
     drop(header);
-    // Decode, noting grey, alpha and 16-bit samples
-    let img = image::load_from_memory_with_format(bytes, image::ImageFormat::Png)
-        .map_err(|e| e.to_string())?;
+    // Decode, noting grey, alpha and 16-bit samples: allocations bounded by the pixels the
+    // header declares (2 bytes per sample) and the ancillary chunks' cap
+    let mut reader =
+        image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
+    reader.limits(decoder_limits(
+        w as u64 * h as u64 * channels * 2 + MAX_ANCILLARY_BYTES,
+    ));
+    let img = reader.decode().map_err(|e| limit_error(e.to_string()))?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     let alpha = img.color().has_alpha();
     let wide = matches!(

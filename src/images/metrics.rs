@@ -220,10 +220,45 @@ pub(super) fn same_shape(a: &Image, b: &Image) -> Result<(), SizeMismatch> {
 /// ([`abs_diff`], [`z_test`](crate::images::z_test), ꟻLIP, the previews) sees them aligned.
 /// Refused (exit 3) unless they show the same frame: one display window, the same channels, the
 /// same layer.
-pub fn align(reference: &Image, test: &Image) -> Result<(Image, Image), SizeMismatch> {
-    same_frame(reference, test)?;
+/// Refused too (with [`AlignError::FarApart`]) when the union holds more than
+/// [`MAX_UNION_FACTOR`] times the pixels the two images hold (plus 2²⁰): padding two 1×1
+/// windows far apart would allocate their whole union. The metrics ([`compare`]) need no
+/// alignment; only the per-pixel products (ꟻLIP, the z-test, maps, previews) do.
+pub fn align(reference: &Image, test: &Image) -> Result<(Image, Image), AlignError> {
+    same_frame(reference, test).map_err(AlignError::Frame)?;
     let window = reference.data_window().union(&test.data_window());
+    let held = reference.pixels() as u128 + test.pixels() as u128;
+    let union = window.width as u128 * window.height as u128;
+    if union > MAX_UNION_FACTOR as u128 * held + (1 << 20) {
+        return Err(AlignError::FarApart {
+            reference: reference.data_window(),
+            test: test.data_window(),
+            union,
+        });
+    }
     Ok((reference.padded(window), test.padded(window)))
+}
+
+/// How many times the pixels two images hold their data windows' union may hold, for
+/// [`align`] to pad both to it.
+pub const MAX_UNION_FACTOR: u64 = 4;
+
+/// Why two images cannot be stored over one window.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum AlignError {
+    /// They do not show one frame.
+    #[error(transparent)]
+    Frame(SizeMismatch),
+    /// Their data windows are so far apart that their union is mostly empty.
+    #[error("the data windows {reference} and {test} are far apart: their union holds {union} pixels, more than {MAX_UNION_FACTOR}× the pixels the images hold; per-pixel maps (ꟻLIP, the z-test, heat map, difference image, previews) are not made over it (the metrics are)")]
+    FarApart {
+        /// The reference's data window.
+        reference: Window,
+        /// The test's.
+        test: Window,
+        /// The pixels of their union.
+        union: u128,
+    },
 }
 
 /// Every metric of one comparison.
@@ -362,8 +397,39 @@ pub fn compare_as(
     let (mut max_error, mut max_at) = (0f64, (window.x, window.y, 0));
     let mut peak = 1f32;
     let (mut n_warn, mut n_fail, mut n_nonfinite) = (0u64, 0u64, 0u64);
-    for p in 0..w * h {
-        let (x, y) = (window.x + (p % w) as i64, window.y + (p / w) as i64);
+    // Only the pixels a data window holds are walked (two 1×1 windows 2·10⁹ pixels apart are
+    // two pixels of work, not a walk of their union). A pixel neither holds is 0 against 0:
+    // it adds nothing to a sum or a count, and skipping a run of them changes no result
+    // bit: the batch sums flush at most once in it (the next flushes would add 0), and only
+    // idiff's NaN maximum is reset by one (`!(0 <= NaN)`), done here as its first would.
+    // Indices in u128: a union of two windows of i32 coordinates can hold 2⁶⁴ pixels
+    let wide = w as u128;
+    let at_pixel = |p: u128| {
+        let (x, y) = ((p % wide) as i64, (p / wide) as i64);
+        (window.x + x, window.y + y, 0)
+    };
+    let mut next = 0u128;
+    let skip_to = |p: u128,
+                   next: u128,
+                   (sum, sum2, batch, batch2): (&mut f64, &mut f64, &mut f64, &mut f64),
+                   (max_error, max_at): (&mut f64, &mut (i64, i64, usize))| {
+        if p > next {
+            if max_error.is_nan() {
+                (*max_error, *max_at) = (0.0, at_pixel(next));
+            }
+            if p / 4096 > next / 4096 {
+                (*sum, *sum2, *batch, *batch2) = (*sum + *batch, *sum2 + *batch2, 0.0, 0.0);
+            }
+        }
+    };
+    for (p, x, y) in held_pixels(window, reference.data_window(), test.data_window()) {
+        skip_to(
+            p,
+            next,
+            (&mut sum, &mut sum2, &mut batch, &mut batch2),
+            (&mut max_error, &mut max_at),
+        );
+        next = p + 1;
         let (mut warned, mut failed, mut nonfinite) = (false, false, false);
         for c in 0..nch {
             let (a, b) = (value(reference, x, y, c), value(test, x, y, c));
@@ -430,12 +496,18 @@ pub fn compare_as(
             (sum, sum2, batch, batch2) = (sum + batch, sum2 + batch2, 0.0, 0.0);
         }
     }
+    skip_to(
+        wide * h as u128,
+        next,
+        (&mut sum, &mut sum2, &mut batch, &mut batch2),
+        (&mut max_error, &mut max_at),
+    );
     (sum, sum2) = (sum + batch, sum2 + batch2);
 
     // Means over pixels × channels, PSNR against the peak, the verdict over the reference's
     // pixels (idiff's npels)
-    let pixels = (w * h) as u64;
-    let n = (pixels as usize * nch) as f64;
+    let pixels = (w as u128 * h as u128).min(u64::MAX as u128) as u64;
+    let n = w as f64 * h as f64 * nch as f64;
     let per = |s: f64| if n > 0.0 { s / n } else { 0.0 };
     let rms_error = per(sum2).sqrt();
     let (mx, my, mc) = max_at;
@@ -483,6 +555,43 @@ pub fn compare_as(
     })
 }
 
+/// The pixels of `window` that `a` or `b` holds, in row-major order: (index in `window`, x, y).
+/// Linear in the pixels the two hold, whatever the size of `window`.
+fn held_pixels(window: Window, a: Window, b: Window) -> impl Iterator<Item = (u128, i64, i64)> {
+    // The row ranges, merged: each row once
+    let rows = |v: Window| (v.y, v.y + v.height as i64);
+    let spans = |v: [(i64, i64); 2]| {
+        let [mut p, mut q] = v;
+        if q.0 < p.0 {
+            std::mem::swap(&mut p, &mut q);
+        }
+        match (p.0 >= p.1, q.0 >= q.1) {
+            (true, _) => vec![q],
+            (_, true) => vec![p],
+            _ if q.0 <= p.1 => vec![(p.0, p.1.max(q.1))],
+            _ => vec![p, q],
+        }
+    };
+    let cols = move |y: i64| {
+        let c = |v: Window| match (v.y..v.y + v.height as i64).contains(&y) {
+            true => (v.x, v.x + v.width as i64),
+            false => (0, 0),
+        };
+        spans([c(a), c(b)])
+    };
+    spans([rows(a), rows(b)])
+        .into_iter()
+        .flat_map(|(y0, y1)| y0..y1)
+        .flat_map(move |y| {
+            cols(y).into_iter().flat_map(move |(x0, x1)| {
+                (x0..x1).map(move |x| {
+                    let p = (y - window.y) as u128 * window.width as u128 + (x - window.x) as u128;
+                    (p, x, y)
+                })
+            })
+        })
+}
+
 /// |REF − TEST| per channel (0 where NaN meets NaN or Inf the same Inf; Inf for other
 /// non-finite mismatches), scene-linear.
 pub fn abs_diff(reference: &Image, test: &Image) -> Result<Image, SizeMismatch> {
@@ -518,6 +627,62 @@ pub fn abs_error_map(reference: &Image, test: &Image) -> Result<Vec<f32>, SizeMi
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Walking only the pixels the files hold gives every metric bit for bit as walking the
+    /// whole union (the images padded to it): windows apart, overlapping and nested, with
+    /// batches of 4,096 pixels crossed in the skipped runs, under both semantics, and with
+    /// idiff's NaN maximum (reset by the next pixel, a skipped one included).
+    #[test]
+    fn the_sparse_walk_is_the_walk_of_the_union() {
+        let img = |w: usize, h: usize, at: (i64, i64), k: f32| {
+            let data = (0..w * h * 3)
+                .map(|i| ((i as f32 * 0.37 + k).sin() * 0.5 + 0.5) * (1.0 + k))
+                .collect();
+            let mut m = Image::rgb(w, h, data);
+            m.origin = at;
+            m.display = Window::at_origin(4, 4);
+            m
+        };
+        let mut nan = img(3, 2, (0, 0), 0.5);
+        // The last pixel of its row (2, 0): G then B NaN, so that under idiff's rules the
+        // maximum is NaN when the skipped run after it starts
+        nan.data[7] = f32::NAN;
+        nan.data[8] = f32::NAN;
+        let cases = [
+            (img(7, 5, (0, 0), 0.1), img(9, 4, (150, 90), 0.2)),
+            (img(70, 50, (-3, 2), 0.1), img(40, 60, (20, 30), 0.3)),
+            (img(100, 80, (0, 0), 0.1), img(10, 8, (40, 40), 0.4)),
+            (img(5, 5, (200, 0), 0.6), img(5, 5, (0, 100), 0.7)),
+            (nan.clone(), img(3, 2, (300, 50), 0.8)),
+            (img(3, 2, (300, 50), 0.8), nan),
+        ];
+        for (a, b) in cases {
+            let window = a.data_window().union(&b.data_window());
+            let (pa, pb) = (a.padded(window), b.padded(window));
+            for sem in [Semantics::Rayproof, Semantics::Idiff] {
+                let t = Thresholds::default();
+                let sparse = compare_as(&a, &b, &t, sem).unwrap();
+                let dense = compare_as(&pa, &pb, &t, sem).unwrap();
+                let bits = |c: &Comparison| {
+                    [
+                        c.mean_error,
+                        c.rms_error,
+                        c.psnr,
+                        c.rel_mse,
+                        c.max_error,
+                        c.peak,
+                    ]
+                    .map(f64::to_bits)
+                };
+                assert_eq!(bits(&sparse), bits(&dense), "{sem:?} {window}");
+                assert_eq!(sparse.max_at, dense.max_at, "{sem:?} {window}");
+                assert_eq!(
+                    (sparse.n_warn, sparse.n_fail, sparse.pixels),
+                    (dense.n_warn, dense.n_fail, dense.pixels)
+                );
+            }
+        }
+    }
 
     #[test]
     fn thresholds_serde_accepts_partial_and_inf() {

@@ -115,14 +115,14 @@ mod ztest;
 pub use flip::{flip_error, hdr_flip, heatmap_rgb8, ldr_flip, FlipKind};
 pub use io::one_line;
 pub use io::{
-    exr_planes_to, exr_to, png_rgb8_to, read_image, read_image_layer, srgb8, tonemap_rgb8,
-    write_exr_rgb, write_png_rgb8, Image, ImageError, LayerInfo, LayerPick, LayerSelect, Window,
-    MAX_CHANNELS, MAX_IMAGE_BYTES, MAX_PIXELS,
+    decoder_limits, exr_planes_to, exr_to, limit_error, png_rgb8_to, read_image, read_image_layer,
+    srgb8, tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError, LayerInfo, LayerPick,
+    LayerSelect, Window, MAX_ANCILLARY_BYTES, MAX_CHANNELS, MAX_IMAGE_BYTES, MAX_PIXELS,
 };
 pub use maps::{diff_map, diff_map_rgb8, fail_mask, mask_rgb8, DiffMap};
 pub use metrics::{
-    abs_diff, abs_error_map, align, compare, compare_as, verdict, Comparison, Semantics,
-    SizeMismatch, Thresholds, Verdict,
+    abs_diff, abs_error_map, align, compare, compare_as, verdict, AlignError, Comparison,
+    Semantics, SizeMismatch, Thresholds, Verdict,
 };
 pub use report::{fmt_g, report_text, DiffReport};
 pub use ztest::{erfc, sidak_alpha, z_test, ZParams, ZTest, ZTestError};

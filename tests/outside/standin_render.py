@@ -5,7 +5,7 @@ Draws a disc over a gradient; each pixel is the mean of grid x grid sub-samples,
 edge depends on the sampling grid as a real renderer's would. Writes an uncompressed float32
 OpenEXR by hand (no OpenEXR module needed).
 
-usage: standin_render.py OUT --width W --grid G [--perturb D] [--variance VAR] [--nan]
+usage: standin_render.py OUT --width W --grid G [--perturb D] [--variance VAR] [--nan] [--sleep S]
        [--fail] [--hang] [--no-output]
 """
 import argparse
@@ -51,6 +51,7 @@ def main():
     p.add_argument("--nan", action="store_true")
     p.add_argument("--fail", action="store_true")
     p.add_argument("--hang", action="store_true")
+    p.add_argument("--sleep", type=float, default=0.0)
     p.add_argument("--no-output", action="store_true")
     a = p.parse_args()
     if a.fail:
@@ -58,6 +59,7 @@ def main():
         sys.exit(3)
     if a.hang:
         time.sleep(3600)
+    time.sleep(a.sleep)
     if a.no_output:
         return
     w, g = a.width, a.grid
