@@ -1357,6 +1357,23 @@ fn data_windows_far_apart(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// Issue 46, the hostile run's F5: a 1×1 window at (4095, 4095) against a full 2048² frame.
+/// Plain `diff` padded both images to their 4096² union (400 MB) though no map was asked for;
+/// now it reads the two images and walks their pixels.
+fn diff_of_a_window_far_from_a_full_frame(d: &Path) -> Result<(), String> {
+    let n = 2048;
+    exr_window(&d.join("full.exr"), (n, n), (0, 0), n, |x, y, c| {
+        (x + y + c) as f32 / n as f32
+    });
+    exr_window(&d.join("far.exr"), (1, 1), (4095, 4095), n, |_, _, _| 0.5);
+    let r = run(d, &["diff", "full.exr", "far.exr"], 60);
+    r.exited(2)?;
+    if r.peak > 250 << 20 {
+        return Err(format!("want no padding, under 250 MB: {}", r.ended()));
+    }
+    Ok(())
+}
+
 /// Issue 46 (7): ꟻLIP in bands. `diff --flip` of a 2048² RGB float pair peaked at 1.09 GB
 /// (ꟻLIP's own buffers of the whole image, about 270 bytes a pixel); in bands it stays within
 /// the images and a band per thread. And plain `diff` computes no ꟻLIP.
@@ -1500,6 +1517,10 @@ const ROWS: &[Row] = &[
         robustness_rule_that_never_applies,
     ),
     ("data_windows_far_apart", data_windows_far_apart),
+    (
+        "diff_of_a_window_far_from_a_full_frame",
+        diff_of_a_window_far_from_a_full_frame,
+    ),
     (
         "flip_of_a_large_pair_in_bands",
         flip_of_a_large_pair_in_bands,

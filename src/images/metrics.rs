@@ -221,7 +221,9 @@ pub(super) fn same_shape(a: &Image, b: &Image) -> Result<(), SizeMismatch> {
 /// Refused (exit 3) unless they show the same frame: one display window, the same channels, the
 /// same layer.
 /// Refused too (with [`AlignError::FarApart`]) when the union holds more than
-/// [`MAX_UNION_FACTOR`] times the pixels the two images hold (plus 2²⁰): padding two 1×1
+/// [`MAX_UNION_FACTOR`] times the pixels the two images hold (plus 2²⁰), or more than
+/// [`MAX_PIXELS`](super::MAX_PIXELS) (an 8192² image and a 1×1 window at (16383, 16383) were
+/// padded to 16384², 4 GiB a channel set, found by a hostile run): padding two 1×1
 /// windows far apart would allocate their whole union. The metrics ([`compare`]) need no
 /// alignment; only the per-pixel products (ꟻLIP, the z-test, maps, previews) do.
 pub fn align(reference: &Image, test: &Image) -> Result<(Image, Image), AlignError> {
@@ -229,7 +231,7 @@ pub fn align(reference: &Image, test: &Image) -> Result<(Image, Image), AlignErr
     let window = reference.data_window().union(&test.data_window());
     let held = reference.pixels() as u128 + test.pixels() as u128;
     let union = window.width as u128 * window.height as u128;
-    if union > MAX_UNION_FACTOR as u128 * held + (1 << 20) {
+    if union > MAX_UNION_FACTOR as u128 * held + (1 << 20) || union > super::MAX_PIXELS as u128 {
         return Err(AlignError::FarApart {
             reference: reference.data_window(),
             test: test.data_window(),
@@ -250,7 +252,7 @@ pub enum AlignError {
     #[error(transparent)]
     Frame(SizeMismatch),
     /// Their data windows are so far apart that their union is mostly empty.
-    #[error("the data windows {reference} and {test} are far apart: their union holds {union} pixels, more than {MAX_UNION_FACTOR}× the pixels the images hold; per-pixel maps (ꟻLIP, the z-test, heat map, difference image, previews) are not made over it (the metrics are)")]
+    #[error("the data windows {reference} and {test} are far apart: their union holds {union} pixels, more than {MAX_UNION_FACTOR}× the pixels the images hold or 8192²; per-pixel maps (ꟻLIP, the z-test, heat map, difference image, previews) are not made over it (the metrics are)")]
     FarApart {
         /// The reference's data window.
         reference: Window,
@@ -648,6 +650,9 @@ mod tests {
         // maximum is NaN when the skipped run after it starts
         nan.data[7] = f32::NAN;
         nan.data[8] = f32::NAN;
+        let mut nan_last = img(3, 2, (300, 50), 0.5);
+        nan_last.data[16] = f32::NAN;
+        nan_last.data[17] = f32::NAN;
         let cases = [
             (img(7, 5, (0, 0), 0.1), img(9, 4, (150, 90), 0.2)),
             (img(70, 50, (-3, 2), 0.1), img(40, 60, (20, 30), 0.3)),
@@ -655,6 +660,8 @@ mod tests {
             (img(5, 5, (200, 0), 0.6), img(5, 5, (0, 100), 0.7)),
             (nan.clone(), img(3, 2, (300, 50), 0.8)),
             (img(3, 2, (300, 50), 0.8), nan),
+            // The NaN maximum at the last held pixel, only skipped pixels after it
+            (img(3, 2, (400, 0), 0.9), nan_last),
         ];
         for (a, b) in cases {
             let window = a.data_window().union(&b.data_window());
