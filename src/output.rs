@@ -463,7 +463,7 @@ fn check_containment(outputs: &[(&Path, bool)], inputs: &[&Path]) -> Result<()> 
 
 /// Fails with one line if an output's directory does not exist or cannot take a temporary, if
 /// an output is one of the inputs or is named twice, if a directory output holds an input or
-/// another output ([`check_containment`]), or if an output exists and may not be replaced
+/// another output (`check_containment`), or if an output exists and may not be replaced
 /// (checked before a long run, so that the run is not wasted). Directory outputs go in `dirs`.
 pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Result<()> {
     let mut seen: Vec<(Identity, &Path)> = inputs.iter().map(|p| (identity(p), *p)).collect();

@@ -201,7 +201,7 @@ where
 /// HDR-ꟻLIP of two scene-linear images (R, G, B; non-finite and negative values count as 0):
 /// the mean and the per-pixel error map in [0, 1]. The exposure range follows the reference
 /// (the test if the reference is black); 0 when both are black. Its memory is the map, the
-/// reference's luminances and a band per thread ([`banded_flip`]), not ꟻLIP's of the image.
+/// reference's luminances and a band per thread (`banded_flip`), not ꟻLIP's of the image.
 /// Panics if the sizes differ (check with [`compare`](crate::images::compare) first).
 pub fn hdr_flip(reference: &Image, test: &Image) -> (f64, Vec<f32>) {
     hdr_flip_in_bands(reference, test, band_rows(reference.width))

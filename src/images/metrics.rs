@@ -221,7 +221,7 @@ pub(super) fn same_shape(a: &Image, b: &Image) -> Result<(), SizeMismatch> {
 /// Refused (exit 3) unless they show the same frame: one display window, the same channels, the
 /// same layer.
 /// Refused too (with [`AlignError::FarApart`]) when the union holds more than
-/// [`MAX_UNION_FACTOR`] times the pixels the two images hold (plus 2²⁰), or more than
+/// `MAX_UNION_FACTOR` (4) times the pixels the two images hold (plus 2²⁰), or more than
 /// [`MAX_PIXELS`](super::MAX_PIXELS) (an 8192² image and a 1×1 window at (16383, 16383) were
 /// padded to 16384², 4 GiB a channel set, found by a hostile run): padding two 1×1
 /// windows far apart would allocate their whole union. The metrics ([`compare`]) need no
