@@ -114,6 +114,39 @@ fn an_exec_child_that_floods_stdout_is_stopped_at_the_cap() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// Starts `rayproof audit --exec CMD` (20 random sphere cases, a 600 s exec timeout) in `dir`
+/// and waits until CMD has written each of `pids` (its processes are running).
+fn audit_exec_started(dir: &Path, cmd: &str, pids: &[&str]) -> std::process::Child {
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(dir)
+        .args([
+            "audit",
+            "--shape",
+            "sphere",
+            "--class",
+            "random",
+            "--cases",
+            "20",
+            "--exec",
+            cmd,
+            "--exec-timeout",
+            "600",
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while !pids.iter().all(|f| dir.join(f).exists()) {
+        assert!(
+            t0.elapsed().as_secs() < 20,
+            "{cmd}: the child never started"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    child
+}
+
 #[test]
 fn sigterm_and_sigint_kill_the_exec_child_and_all_it_started() {
     let dir = scratch("deadline-signal");
@@ -121,36 +154,11 @@ fn sigterm_and_sigint_kill_the_exec_child_and_all_it_started() {
         let cmd = format!(
             "echo $$ > {tag}.pid; setsid sh -c 'echo $$ > {tag}-away.pid; exec sleep 300' & sleep 300"
         );
-        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
-            .current_dir(&dir)
-            .args([
-                "audit",
-                "--shape",
-                "sphere",
-                "--class",
-                "random",
-                "--cases",
-                "20",
-                "--exec",
-                &cmd,
-                "--exec-timeout",
-                "600",
-            ])
-            .stdout(std::process::Stdio::null())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .unwrap();
-        // Wait until both have started
-        let t0 = Instant::now();
-        while !(dir.join(format!("{tag}.pid")).exists()
-            && dir.join(format!("{tag}-away.pid")).exists())
-        {
-            assert!(
-                t0.elapsed().as_secs() < 20,
-                "{tag}: the child never started"
-            );
-            std::thread::sleep(std::time::Duration::from_millis(50));
-        }
+        let mut child = audit_exec_started(
+            &dir,
+            &cmd,
+            &[&format!("{tag}.pid"), &format!("{tag}-away.pid")],
+        );
         // SAFETY: kill(2) on the rayproof process this test started
         unsafe {
             libc::kill(child.id() as i32, sig);
@@ -311,30 +319,7 @@ name = "a"
 fn sigkill_of_rayproof_kills_the_exec_child_and_its_group() {
     let dir = scratch("deadline-sigkill");
     let cmd = "echo $$ > sh.pid; sh -c 'echo $$ > inner.pid; exec sleep 300' & sleep 300";
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
-        .current_dir(&dir)
-        .args([
-            "audit",
-            "--shape",
-            "sphere",
-            "--class",
-            "random",
-            "--cases",
-            "20",
-            "--exec",
-            cmd,
-            "--exec-timeout",
-            "600",
-        ])
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let t0 = Instant::now();
-    while !(dir.join("sh.pid").exists() && dir.join("inner.pid").exists()) {
-        assert!(t0.elapsed().as_secs() < 20, "the child never started");
-        std::thread::sleep(std::time::Duration::from_millis(50));
-    }
+    let mut child = audit_exec_started(&dir, cmd, &["sh.pid", "inner.pid"]);
     std::thread::sleep(std::time::Duration::from_millis(100));
     child.kill().unwrap();
     child.wait().unwrap();

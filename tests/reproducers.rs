@@ -1288,30 +1288,15 @@ fn exr_window(
     display: usize,
     f: impl Fn(usize, usize, usize) -> f32,
 ) {
-    use exr::prelude::*;
-    let channels: Vec<AnyChannel<FlatSamples>> = ["R", "G", "B"]
-        .iter()
-        .enumerate()
-        .map(|(c, n)| {
-            let plane = (0..w * h).map(|p| f(p % w, p / w, c)).collect();
-            AnyChannel::new(*n, FlatSamples::F32(plane))
-        })
-        .collect();
-    let attributes = LayerAttributes {
-        layer_position: Vec2(origin.0, origin.1),
-        ..Default::default()
-    };
-    let layer = Layer::new(
+    let plane = |c: usize| (0..w * h).map(|p| f(p % w, p / w, c)).collect();
+    let channels = [("R", plane(0)), ("G", plane(1)), ("B", plane(2))];
+    crate::common::write_exr(
+        path,
         (w, h),
-        attributes,
-        Encoding::FAST_LOSSLESS,
-        AnyChannels::sort(channels.into()),
+        origin,
+        ((0, 0), (display, display)),
+        &channels,
     );
-    let frame = IntegerBounds::new(Vec2(0, 0), (display, display));
-    exr::prelude::Image::new(ImageAttributes::new(frame), layer)
-        .write()
-        .to_file(path)
-        .unwrap();
 }
 
 /// Issue 46 (6): two 1×1 data windows 10⁹ pixels apart in one 4×4 display window. Before, the

@@ -270,34 +270,14 @@ fn read_same(path: &Path, bytes: &[u8]) -> Result<Image, String> {
 
 /// Decodes a format of the `image` crate, its declared size checked first.
 fn decode_other(bytes: &[u8], f: ImageFormat) -> Result<Image, String> {
-    use crate::images::{decoder_limits, limit_error, MAX_ANCILLARY_BYTES};
-    use image::{ColorType, ImageDecoder};
-    // The header under the ancillary cap, then the pixels under what the header declares
-    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), f);
-    reader.limits(decoder_limits(MAX_ANCILLARY_BYTES));
-    let decoder = reader
-        .into_decoder()
-        .map_err(|e| limit_error(e.to_string()))?;
-    let (w, h) = decoder.dimensions();
-    let color = decoder.color_type();
-    let channels = 3 + u64::from(color.has_alpha());
-    let (w64, h64) = (w as u64, h as u64);
-    if w64 * h64 > MAX_PIXELS {
-        return Err(format!(
-            "it declares {w}×{h} pixels; at most {MAX_PIXELS} (8192²) are read"
-        ));
-    }
-    if w64 * h64 * channels > 4 * MAX_PIXELS {
-        return Err(format!(
-            "it declares {w}×{h} pixels × {channels} channels; at most 8192² × 4 samples are read"
-        ));
-    }
-    drop(decoder);
-    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), f);
-    reader.limits(decoder_limits(
-        w64 * h64 * channels * 4 + MAX_ANCILLARY_BYTES,
-    ));
-    let img = reader.decode().map_err(|e| limit_error(e.to_string()))?;
+    use image::ColorType;
+    // The declared size against the limits (RGB or RGBA as decoded), then the pixels, every
+    // allocation bounded (4 bytes a sample: the float formats)
+    let img = crate::images::decode_bounded(bytes, f, 4, |w, h, color| {
+        let channels = 3 + u64::from(color.has_alpha());
+        crate::images::check_declared(w as u64, h as u64, channels)?;
+        Ok(w as u64 * h as u64 * channels)
+    })?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     if w * h == 0 {
         return Err("the image has no pixels".into());

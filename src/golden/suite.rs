@@ -560,9 +560,7 @@ impl Suite {
         }
         v
     }
-}
 
-impl Suite {
     /// The goldens and the manifests beside them: read by `check`, written only by `--update`,
     /// never replaced (nor held in a report directory) by another output of a run.
     pub fn goldens(&self) -> Vec<PathBuf> {

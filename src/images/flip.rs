@@ -116,6 +116,13 @@ fn band_rows(w: usize) -> usize {
     ((1 << 20) / w.max(1)).max(256)
 }
 
+/// `out[i] = max(out[i], m[i])`.
+fn max_into(out: &mut [f32], m: &[f32]) {
+    for (a, &e) in out.iter_mut().zip(m) {
+        *a = a.max(e);
+    }
+}
+
 /// The per-pixel maximum over `count` LDR-ꟻLIP maps of a `w × h` image, the k-th made from the
 /// 8-bit sRGB rows `enc(k, y0, y1)` gives for both images (rows `y0..y1`). Computed in bands of
 /// `rows` rows (each with [`HALO`] rows more above and below), spread over threads: by band
@@ -134,12 +141,7 @@ where
             let (r, t) = enc(k, lo, hi);
             flip_ldr8(w, hi - lo, &r, &t)
         };
-        let keep = |out: &mut [f32], m: &[f32]| {
-            let m = &m[(y0 - lo) * w..(y1 - lo) * w];
-            for (a, &e) in out.iter_mut().zip(m) {
-                *a = a.max(e);
-            }
-        };
+        let keep = |out: &mut [f32], m: &[f32]| max_into(out, &m[(y0 - lo) * w..(y1 - lo) * w]);
         let split = split.clamp(1, count.max(1));
         if split == 1 {
             for k in 0..count {
@@ -167,9 +169,7 @@ where
                 .collect()
         });
         for m in maps {
-            for (a, e) in out.iter_mut().zip(m) {
-                *a = a.max(e);
-            }
+            max_into(out, &m);
         }
     };
     let mut map = vec![0f32; w * h];

@@ -432,24 +432,40 @@ fn quietly<T>(f: impl FnOnce() -> T) -> Result<T, String> {
 /// a few megabytes; a 1.5 MB `iCCP` chunk that inflated to 1.5 GB aborted rayproof.
 pub const MAX_ANCILLARY_BYTES: u64 = 16 << 20;
 
-/// The `image` crate's limits with `max_alloc = bytes` (its decoders hand it on: the PNG
-/// decoder bounds every chunk it inflates by it).
-pub fn decoder_limits(bytes: u64) -> image::Limits {
-    let mut l = image::Limits::default();
-    l.max_alloc = Some(bytes);
-    l
-}
-
-/// A decoder's error, said plainly when it is the memory limit.
-pub fn limit_error(e: String) -> String {
-    if e.to_lowercase().contains("limit") {
-        format!(
+/// Decodes `bytes` as `format` with the `image` crate, every allocation bounded: the header
+/// under [`MAX_ANCILLARY_BYTES`]; then `declared(width, height, colour type)` checks the size it
+/// declares against rayproof's limits and gives the samples it holds; then the pixels, under
+/// those samples × `bytes_per_sample` + [`MAX_ANCILLARY_BYTES`] (the PNG decoder bounds every
+/// chunk it inflates by that).
+pub fn decode_bounded(
+    bytes: &[u8],
+    format: image::ImageFormat,
+    bytes_per_sample: u64,
+    declared: impl FnOnce(u32, u32, image::ColorType) -> Result<u64, String>,
+) -> Result<image::DynamicImage, String> {
+    use image::ImageDecoder;
+    let reader = |cap: u64| {
+        let mut r = image::ImageReader::with_format(std::io::Cursor::new(bytes), format);
+        let mut l = image::Limits::default();
+        l.max_alloc = Some(cap);
+        r.limits(l);
+        r
+    };
+    // A decoder's error, said plainly when it is the memory limit
+    let said = |e: image::ImageError| match e {
+        image::ImageError::Limits(e) => format!(
             "it needs more memory than its pixels and {} MiB of other data: refused ({e})",
             MAX_ANCILLARY_BYTES >> 20
-        )
-    } else {
-        e
-    }
+        ),
+        e => e.to_string(),
+    };
+    let header = reader(MAX_ANCILLARY_BYTES).into_decoder().map_err(said)?;
+    let (w, h) = header.dimensions();
+    let samples = declared(w, h, header.color_type())?;
+    drop(header);
+    reader(samples * bytes_per_sample + MAX_ANCILLARY_BYTES)
+        .decode()
+        .map_err(said)
 }
 
 /// The most channels rayproof reads from one EXR file, every part together: 1024 (Blender's
@@ -469,7 +485,7 @@ pub const MAX_IMAGE_BYTES: u64 = 4 * MAX_SAMPLES + (64 << 20);
 
 /// Checks an image's declared size against [`MAX_PIXELS`] and [`MAX_SAMPLES`]: one line if it
 /// is too large.
-fn check_declared(w: u64, h: u64, channels: u64) -> Result<(), String> {
+pub(crate) fn check_declared(w: u64, h: u64, channels: u64) -> Result<(), String> {
     if w * h > MAX_PIXELS {
         return Err(format!(
             "it declares {w}×{h} pixels; at most {MAX_PIXELS} (8192²) are read"
@@ -840,31 +856,19 @@ fn associate<T: Copy + Into<u32> + TryFrom<u32>>(data: &mut [T], n: usize, gamma
 }
 
 fn decode_png(bytes: &[u8], associate_alpha: bool) -> Result<Image, String> {
-    use image::{ColorType, DynamicImage, ImageDecoder};
+    use image::{ColorType, DynamicImage};
     // The declared size against the limits, from the header alone (channels as decoded: Y,
-    // YA, RGB or RGBA)
-    let header = image::codecs::png::PngDecoder::with_limits(
-        std::io::Cursor::new(bytes),
-        decoder_limits(MAX_ANCILLARY_BYTES),
-    )
-    .map_err(|e| limit_error(e.to_string()))?;
-    let (w, h) = header.dimensions();
-    let color = header.color_type();
-    let grey = matches!(
-        color,
-        ColorType::L8 | ColorType::La8 | ColorType::L16 | ColorType::La16
-    );
-    let channels = if grey { 1 } else { 3 } + u64::from(color.has_alpha());
-    check_declared(w as u64, h as u64, channels)?;
-    drop(header);
-    // Decode, noting grey, alpha and 16-bit samples: allocations bounded by the pixels the
-    // header declares (2 bytes per sample) and the ancillary chunks' cap
-    let mut reader =
-        image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png);
-    reader.limits(decoder_limits(
-        w as u64 * h as u64 * channels * 2 + MAX_ANCILLARY_BYTES,
-    ));
-    let img = reader.decode().map_err(|e| limit_error(e.to_string()))?;
+    // YA, RGB or RGBA); then decoded, noting grey, alpha and 16-bit samples (2 bytes each)
+    let mut grey = false;
+    let img = decode_bounded(bytes, image::ImageFormat::Png, 2, |w, h, color| {
+        grey = matches!(
+            color,
+            ColorType::L8 | ColorType::La8 | ColorType::L16 | ColorType::La16
+        );
+        let channels = if grey { 1 } else { 3 } + u64::from(color.has_alpha());
+        check_declared(w as u64, h as u64, channels)?;
+        Ok(w as u64 * h as u64 * channels)
+    })?;
     let (w, h) = (img.width() as usize, img.height() as usize);
     let alpha = img.color().has_alpha();
     let wide = matches!(

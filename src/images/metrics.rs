@@ -406,31 +406,22 @@ pub fn compare_as(
     // idiff's NaN maximum is reset by one (`!(0 <= NaN)`), done here as its first would.
     // Indices in u128: a union of two windows of i32 coordinates can hold 2⁶⁴ pixels
     let wide = w as u128;
-    let at_pixel = |p: u128| {
-        let (x, y) = ((p % wide) as i64, (p / wide) as i64);
-        (window.x + x, window.y + y, 0)
-    };
+    let end = (wide * h as u128, 0, 0);
     let mut next = 0u128;
-    let skip_to = |p: u128,
-                   next: u128,
-                   (sum, sum2, batch, batch2): (&mut f64, &mut f64, &mut f64, &mut f64),
-                   (max_error, max_at): (&mut f64, &mut (i64, i64, usize))| {
+    // The held pixels, then the end of the window: each preceded by the run skipped before it
+    for (p, x, y) in held_pixels(window, reference.data_window(), test.data_window()).chain([end]) {
         if p > next {
             if max_error.is_nan() {
-                (*max_error, *max_at) = (0.0, at_pixel(next));
+                let (x, y) = ((next % wide) as i64, (next / wide) as i64);
+                (max_error, max_at) = (0.0, (window.x + x, window.y + y, 0));
             }
             if p / 4096 > next / 4096 {
-                (*sum, *sum2, *batch, *batch2) = (*sum + *batch, *sum2 + *batch2, 0.0, 0.0);
+                (sum, sum2, batch, batch2) = (sum + batch, sum2 + batch2, 0.0, 0.0);
             }
         }
-    };
-    for (p, x, y) in held_pixels(window, reference.data_window(), test.data_window()) {
-        skip_to(
-            p,
-            next,
-            (&mut sum, &mut sum2, &mut batch, &mut batch2),
-            (&mut max_error, &mut max_at),
-        );
+        if p == end.0 {
+            break;
+        }
         next = p + 1;
         let (mut warned, mut failed, mut nonfinite) = (false, false, false);
         for c in 0..nch {
@@ -498,12 +489,6 @@ pub fn compare_as(
             (sum, sum2, batch, batch2) = (sum + batch, sum2 + batch2, 0.0, 0.0);
         }
     }
-    skip_to(
-        wide * h as u128,
-        next,
-        (&mut sum, &mut sum2, &mut batch, &mut batch2),
-        (&mut max_error, &mut max_at),
-    );
     (sum, sum2) = (sum + batch, sum2 + batch2);
 
     // Means over pixels × channels, PSNR against the peak, the verdict over the reference's

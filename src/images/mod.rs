@@ -113,10 +113,11 @@ mod report;
 mod ztest;
 
 pub use flip::{flip_error, hdr_flip, heatmap_rgb8, ldr_flip, FlipKind};
+pub(crate) use io::check_declared;
 pub use io::one_line;
 pub use io::{
-    decoder_limits, exr_planes_to, exr_to, limit_error, png_rgb8_to, read_image, read_image_layer,
-    srgb8, tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError, LayerInfo, LayerPick,
+    decode_bounded, exr_planes_to, exr_to, png_rgb8_to, read_image, read_image_layer, srgb8,
+    tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError, LayerInfo, LayerPick,
     LayerSelect, Window, MAX_ANCILLARY_BYTES, MAX_CHANNELS, MAX_IMAGE_BYTES, MAX_PIXELS,
 };
 pub use maps::{diff_map, diff_map_rgb8, fail_mask, mask_rgb8, DiffMap};

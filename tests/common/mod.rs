@@ -124,3 +124,42 @@ pub fn in_own_process(name: &str) -> bool {
     );
     false
 }
+
+/// Writes a one-part EXR: `w × h` float channels (name, one value per pixel or a plane) with
+/// its data window at `origin` in the display window `display` ((x, y), (w, h)).
+pub fn write_exr(
+    path: &Path,
+    (w, h): (usize, usize),
+    origin: (i32, i32),
+    display: ((i32, i32), (usize, usize)),
+    channels: &[(&str, Vec<f32>)],
+) {
+    use exr::prelude::*;
+    let list: Vec<AnyChannel<FlatSamples>> = channels
+        .iter()
+        .map(|(n, v)| {
+            let plane = if v.len() == 1 {
+                vec![v[0]; w * h]
+            } else {
+                v.clone()
+            };
+            assert_eq!(plane.len(), w * h);
+            AnyChannel::new(*n, FlatSamples::F32(plane))
+        })
+        .collect();
+    let attributes = LayerAttributes {
+        layer_position: Vec2(origin.0, origin.1),
+        ..Default::default()
+    };
+    let layer = Layer::new(
+        (w, h),
+        attributes,
+        Encoding::UNCOMPRESSED,
+        AnyChannels::sort(list.into()),
+    );
+    let display = IntegerBounds::new(Vec2(display.0 .0, display.0 .1), display.1);
+    exr::prelude::Image::new(ImageAttributes::new(display), layer)
+        .write()
+        .to_file(path)
+        .unwrap();
+}
