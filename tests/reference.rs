@@ -191,3 +191,60 @@ exec python3 -c "import sys; sys.path.insert(0, '{o}'); import standin_render as
         );
     }
 }
+
+/// Issue 46's hostile run (F3): `check --update` never replaces a reference's entry, and now
+/// the other way too: `rayproof reference` never writes over a golden (and its manifest entry)
+/// that a suite blessed in the same directory. (Before: exit 0, the golden replaced silently,
+/// and the suite then failed as stale and could not re-bless it.)
+#[test]
+fn a_reference_never_replaces_a_blessed_golden() {
+    let d = scratch("over-golden");
+    let scene = d.join("scenes/diffuse.toml");
+    let img = d.join("mine.exr");
+    let (code, out, err) = rayproof(
+        &[
+            "render",
+            scene.to_str().unwrap(),
+            "--width",
+            "16",
+            "-o",
+            img.to_str().unwrap(),
+        ],
+        None,
+    );
+    assert_eq!(code, Some(0), "{out}{err}");
+    let suite = d.join("suite.toml");
+    std::fs::write(
+        &suite,
+        "[suite]\ngoldens = \"diffuse\"\n\n[[test]]\nname = \"povray\"\nimage = \"mine.exr\"\n",
+    )
+    .unwrap();
+    let (code, out, err) = rayproof(
+        &["check", "--suite", suite.to_str().unwrap(), "--update"],
+        None,
+    );
+    assert_eq!(code, Some(0), "{out}{err}");
+    let golden = std::fs::read(d.join("diffuse/povray.exr")).unwrap();
+    let manifest = std::fs::read(d.join("diffuse/manifest.json")).unwrap();
+    let (code, out, err) = rayproof(
+        &[
+            "reference",
+            scene.to_str().unwrap(),
+            "--with",
+            "povray",
+            "--width",
+            "16",
+            "--grid",
+            "1",
+        ],
+        None,
+    );
+    assert_ne!(code, Some(0), "{out}{err}");
+    assert!(err.contains("written by `check --update`"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert_eq!(std::fs::read(d.join("diffuse/povray.exr")).unwrap(), golden);
+    assert_eq!(
+        std::fs::read(d.join("diffuse/manifest.json")).unwrap(),
+        manifest
+    );
+}

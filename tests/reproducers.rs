@@ -499,11 +499,12 @@ fn signal_during_a_commit(d: &Path) -> Result<(), String> {
         }
         std::fs::write(d.join("rep/.rayproof-output"), marker).unwrap();
         let old: Vec<_> = outputs.iter().map(|f| read(f)).collect();
+        let err = d.join("new.err");
         let mut child = Command::new(env!("CARGO_BIN_EXE_rayproof"))
             .args(args("new.toml"))
             .current_dir(d)
             .stdout(Stdio::null())
-            .stderr(Stdio::null())
+            .stderr(std::fs::File::create(&err).unwrap())
             .spawn()
             .unwrap();
         let t0 = Instant::now();
@@ -540,6 +541,13 @@ fn signal_during_a_commit(d: &Path) -> Result<(), String> {
         ensure!(
             matches!(st.code(), Some(0 | 1 | 130)),
             "SIGINT during the commit: {st}"
+        );
+        // What it says is what happened (issue 46's hostile run: "no output replaced" after a
+        // commit had replaced every output)
+        let said = std::fs::read_to_string(&err).unwrap_or_default();
+        ensure!(
+            !(same.is_empty() && said.contains("no output replaced")),
+            "every output new, yet it said: {said}"
         );
         return Ok(());
     }
@@ -1359,6 +1367,24 @@ fn diff_of_a_window_far_from_a_full_frame(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// Issue 46, the hostile run's F6: a 1024² checker against a 1×1 window at (2047, 2047) in its
+/// frame. Their union, 2048², was within 4× the pixels held, so `--flip` padded both to it; the
+/// padded reference was three quarters black, its median luminance 0, and HDR-ꟻLIP took some 25
+/// exposures: 31 s of CPU (682 s at 4096²). A union over 2× the pixels held is not padded.
+fn flip_over_a_mostly_empty_union(d: &Path) -> Result<(), String> {
+    let n = 1024;
+    exr_window(&d.join("a.exr"), (n, n), (0, 0), n, |x, y, _| {
+        ((x / 64 + y / 64) % 2) as f32
+    });
+    exr_window(&d.join("b.exr"), (1, 1), (2047, 2047), n, |_, _, _| 0.5);
+    let r = run(d, &["diff", "--flip", "a.exr", "b.exr"], 120);
+    r.refused(3, &["far apart"])?;
+    if r.secs > 10.0 {
+        return Err(format!("want a refusal in seconds: {}", r.ended()));
+    }
+    Ok(())
+}
+
 /// Issue 46 (7): ꟻLIP in bands. `diff --flip` of a 2048² RGB float pair peaked at 1.09 GB
 /// (ꟻLIP's own buffers of the whole image, about 270 bytes a pixel); in bands it stays within
 /// the images and a band per thread. And plain `diff` computes no ꟻLIP.
@@ -1505,6 +1531,10 @@ const ROWS: &[Row] = &[
     (
         "diff_of_a_window_far_from_a_full_frame",
         diff_of_a_window_far_from_a_full_frame,
+    ),
+    (
+        "flip_over_a_mostly_empty_union",
+        flip_over_a_mostly_empty_union,
     ),
     (
         "flip_of_a_large_pair_in_bands",

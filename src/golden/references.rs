@@ -437,6 +437,13 @@ impl Records {
                         path.display()
                     );
                 }
+                // And the other way: a reference never replaces a golden a suite blessed
+                if !by_update(&entry) && by_update(old) {
+                    bail!(
+                        "{}: its manifest entry was written by `check --update` (a golden): `rayproof reference` does not replace it (write the reference elsewhere, or remove the golden first)",
+                        path.display()
+                    );
+                }
             }
             if let (Some(s), None) = (&scene, m.get("scene")) {
                 m["scene"] = serde_json::json!(s.display().to_string());

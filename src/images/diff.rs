@@ -5,6 +5,7 @@ use super::{
     read_image_layer, z_test, AlignError, DiffReport, LayerSelect, Semantics, SizeMismatch,
     Thresholds, ZParams, ZTestError,
 };
+use std::borrow::Cow;
 use std::path::Path;
 
 /// What to compare, under which rules, and which files to write.
@@ -121,13 +122,13 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
         false => None,
     };
     let (reference, test) = match aligned {
-        None => (reference, test),
+        None => (Cow::Borrowed(&reference), Cow::Borrowed(&test)),
         Some(Ok(pair)) => pair,
         // Windows far apart: the metrics above are all there is, unless a map is asked for
         Some(Err(e @ AlignError::FarApart { .. })) => {
             return Err(DiffError::new(3, format!("{rn} and {tn}: {e}")))
         }
-        Some(Err(_)) => (reference, test),
+        Some(Err(_)) => (Cow::Borrowed(&reference), Cow::Borrowed(&test)),
     };
     let mut c = c;
     let same_shape =

@@ -742,32 +742,36 @@ fn decode_exr(bytes: &[u8], select: LayerSelect) -> Result<Image, String> {
     }
     let layer = &parts[part];
     let (w, h) = (layer.size.width(), layer.size.height());
-    let mut planes = Vec::new();
+    // Each channel written straight into the interleaved samples (no planar f32 copy: an
+    // 8192² RGBA file held its half samples, four float planes and the interleaved copy at once)
+    let n = picked.len();
+    let mut data = vec![0f32; w * h * n];
     let mut uint = Vec::new();
-    for &i in &picked {
+    for (k, &i) in picked.iter().enumerate() {
         let ch = &layer.channel_data.list[chans[i].1];
+        if ch.sample_data.len() != w * h {
+            return Err("channel size does not match the data window".into());
+        }
+        let slots = data.iter_mut().skip(k).step_by(n);
         // UINT: kept exactly, and scaled to [0, 1] as OpenImageIO reads it: the integer to
         // float first, then times the float 1/(2³² − 1) (so 16777216 and 16777217 are one
         // value there, as the real idiff says; tests/read_as_written.rs)
-        let (plane, ints): (Vec<f32>, Option<Vec<u32>>) = match &ch.sample_data {
-            exr::prelude::FlatSamples::U32(v) => (
-                v.iter()
-                    .map(|&x| x as f32 * (1.0 / u32::MAX as f32))
-                    .collect(),
-                Some(v.clone()),
-            ),
-            other => (other.values_as_f32().collect(), None),
-        };
-        if plane.len() != w * h {
-            return Err("channel size does not match the data window".into());
+        match &ch.sample_data {
+            exr::prelude::FlatSamples::U32(v) => {
+                for (d, &x) in slots.zip(v) {
+                    *d = x as f32 * (1.0 / u32::MAX as f32);
+                }
+                uint.push(Some(v.clone()));
+            }
+            other => {
+                for (d, x) in slots.zip(other.values_as_f32()) {
+                    *d = x;
+                }
+                uint.push(None);
+            }
         }
-        planes.push(plane);
-        uint.push(ints);
     }
-    // Interleave the planes; name the channels within their layer (in full: all of them)
-    let data = (0..w * h)
-        .flat_map(|i| planes.iter().map(move |p| p[i]))
-        .collect();
+    // Name the channels within their layer (in full: all of them)
     let channel_names: Vec<&str> = picked
         .iter()
         .map(|&i| match pick {
