@@ -24,13 +24,18 @@
 //!   ([`crate::process`]), waits for a commit in progress to finish whole (a commit that has not
 //!   started never starts), removes every temporary and exits with 130. So an interrupted run
 //!   leaves every old output byte-identical, or the run's new outputs all in place; never a mix.
-//!   (A SIGKILL cannot be caught: its temporaries are removed by the next run.)
+//!   A SIGKILL cannot be caught: a commit of two or more outputs is decided in a journal
+//!   before its first rename, and the next run finishes it ([`recover`], `journal.rs`); the
+//!   temporaries of a run killed before its commit are removed by the next run.
 
 use crate::process::{interrupted, wait_if_interrupted};
 use anyhow::{bail, Context, Result};
 use std::os::unix::fs::MetadataExt;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
+
+mod journal;
+pub use journal::recover;
 
 /// The file inside every directory rayproof makes as an output (a report): a directory without
 /// it is never replaced, and a stale temporary directory without it is never removed.
@@ -222,6 +227,8 @@ pub fn remove_stale(path: &Path) {
     } else {
         dir
     };
+    // A killed run's decided commit is finished before its temporaries could look stale
+    journal::recover(dir);
     let name = name.to_string_lossy();
     for e in std::fs::read_dir(dir).into_iter().flatten().flatten() {
         let file = e.file_name().to_string_lossy().into_owned();
@@ -238,7 +245,7 @@ pub fn remove_stale(path: &Path) {
         let Some(pid) = pid else {
             continue;
         };
-        if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+        if journal::dead(pid) {
             remove_temporary(&e.path());
         }
     }
@@ -713,13 +720,39 @@ impl Outputs {
                 check_target(&s.path)?;
             }
         }
-        let mut staged = std::mem::take(&mut self.staged).into_iter();
-        while let Some(s) = staged.next() {
-            let r = if s.dir && s.path.exists() {
+        // Two or more: decided in a journal first, so that a SIGKILL between two renames
+        // leaves the next run a commit to finish (journal.rs)
+        let staged = std::mem::take(&mut self.staged);
+        let journal = if staged.len() > 1 {
+            let pid = std::process::id();
+            let entries: Vec<journal::Entry> = staged
+                .iter()
+                .map(|s| journal::Entry {
+                    tmp: absolute(&s.tmp),
+                    path: absolute(&s.path),
+                    aside: s.dir.then(|| absolute(&tmp_for(&s.path, "old"))),
+                })
+                .collect();
+            match journal::begin(&entries, pid, nonce()) {
+                Ok(j) => Some((j, entries)),
+                Err(e) => {
+                    for s in &staged {
+                        discard(&s.tmp);
+                    }
+                    return Err(anyhow::Error::new(e).context("cannot write the commit journal"));
+                }
+            }
+        } else {
+            None
+        };
+        for (i, s) in staged.iter().enumerate() {
+            let r = match &journal {
+                Some((_, entries)) => journal::put_in_place(&entries[i]),
                 // The old version out and the new in, in one step; then the old one goes
-                exchange(&s.tmp, &s.path).map(|_| remove_temporary(&s.tmp))
-            } else {
-                std::fs::rename(&s.tmp, &s.path)
+                None if s.dir && s.path.exists() => {
+                    exchange(&s.tmp, &s.path).map(|_| remove_temporary(&s.tmp))
+                }
+                None => std::fs::rename(&s.tmp, &s.path),
             };
             live(|v| v.retain(|p| p != &s.tmp));
             if r.is_ok() {
@@ -727,15 +760,35 @@ impl Outputs {
             }
             if let Err(e) = r {
                 // No temporary is left: this one's and the rest's (a failed rename left them)
-                for t in std::iter::once(&s).chain(staged.as_slice()) {
+                for t in &staged[i..] {
                     discard(&t.tmp);
+                }
+                if let Some((j, _)) = journal {
+                    j.finish();
                 }
                 return Err(
                     anyhow::Error::new(e).context(format!("cannot write {}", s.path.display()))
                 );
             }
         }
+        if let Some((j, _)) = journal {
+            j.finish();
+        }
         Ok(())
+    }
+}
+
+/// `path` with its directory [`canonical`]: the same file from any working directory (a
+/// journal is read by another run).
+fn absolute(path: &Path) -> PathBuf {
+    match (path.parent(), path.file_name()) {
+        (Some(d), Some(n)) => canonical(if d.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            d
+        })
+        .join(n),
+        _ => canonical(path),
     }
 }
 
@@ -836,10 +889,10 @@ pub fn remove_dead_runs_scratch(tmp: &Path) {
             && nonce.bytes().all(|b| b.is_ascii_hexdigit())
             && !tag.is_empty()
             && tag.bytes().all(|b| b.is_ascii_lowercase());
-        let Ok(pid) = pid.parse::<i32>() else {
+        let Ok(pid) = pid.parse::<u32>() else {
             continue;
         };
-        if !ours || pid <= 0 || pid as u32 == std::process::id() {
+        if !ours || !journal::dead(pid) {
             continue;
         }
         let Ok(meta) = std::fs::symlink_metadata(e.path()) else {
@@ -848,12 +901,7 @@ pub fn remove_dead_runs_scratch(tmp: &Path) {
         if !meta.is_dir() || meta.uid() != me {
             continue;
         }
-        // SAFETY: signal 0 only checks that the process exists
-        let dead = unsafe { libc::kill(pid, 0) } != 0
-            && std::io::Error::last_os_error().raw_os_error() == Some(libc::ESRCH);
-        if dead {
-            let _ = std::fs::remove_dir_all(e.path());
-        }
+        let _ = std::fs::remove_dir_all(e.path());
     }
 }
 

@@ -1444,6 +1444,145 @@ open(sys.argv[1], "wb").write(png)
     Ok(())
 }
 
+/// The goldens of `dir/g` as a row sees them: each image's bytes (hashed) and the manifest's
+/// hashes (its dates differ from run to run).
+fn goldens_of(dir: &Path) -> Result<Vec<(String, String)>, String> {
+    let mut v = vec![];
+    for e in std::fs::read_dir(dir.join("g"))
+        .map_err(|e| e.to_string())?
+        .flatten()
+    {
+        let n = e.file_name().to_string_lossy().into_owned();
+        if n.ends_with(".exr") && !n.starts_with('.') {
+            let b = std::fs::read(e.path()).map_err(|e| e.to_string())?;
+            let h = b.iter().fold(0xcbf2_9ce4_8422_2325u64, |h, &x| {
+                (h ^ x as u64).wrapping_mul(0x100_0000_01b3)
+            });
+            v.push((n, format!("{h:016x}")));
+        }
+    }
+    let text = std::fs::read_to_string(dir.join("g/manifest.json")).map_err(|e| e.to_string())?;
+    let m: serde_json::Value = serde_json::from_str(&text).map_err(|e| e.to_string())?;
+    for (k, e) in m["files"].as_object().ok_or("a manifest without files")? {
+        v.push((format!("manifest {k}"), e["sha256"].to_string()));
+    }
+    v.sort();
+    Ok(v)
+}
+
+/// Waits on inotify descriptor `fd` for a golden (`*.exr`, not a temporary) renamed into the
+/// watched directory.
+fn wait_for_a_golden(fd: i32) -> Result<(), String> {
+    let mut buf = [0u8; 4096];
+    loop {
+        // SAFETY: reads inotify events into a buffer this row owns
+        let n = unsafe { libc::read(fd, buf.as_mut_ptr().cast(), buf.len()) };
+        if n <= 0 {
+            return Err("inotify read failed".into());
+        }
+        let mut at = 0;
+        while at < n as usize {
+            let len = u32::from_ne_bytes(buf[at + 12..at + 16].try_into().unwrap()) as usize;
+            let name = String::from_utf8_lossy(&buf[at + 16..at + 16 + len]);
+            let name = name.trim_end_matches('\0');
+            if name.ends_with(".exr") && !name.starts_with('.') {
+                return Ok(());
+            }
+            at += 16 + len;
+        }
+    }
+}
+
+/// Issue 46, F1 (the hostile run: 8 of about 70 SIGKILLs of `check --update`): killed between
+/// two renames of its commit, `check --update` left some goldens new and the rest, with the
+/// manifest, old; every later `check` refused the suite (exit 3). Here the kill is sent the
+/// moment the first golden lands (inotify), 12 times over a suite of 32 goldens. The commit is
+/// now decided in a journal before its first rename (`src/output/journal.rs`), and the next
+/// run, a plain `check`, finishes it: every golden and the manifest new, exit 0, nothing left
+/// behind. The row fails if no kill landed inside a commit (it would prove nothing).
+fn sigkill_between_two_renames_of_a_commit(d: &Path) -> Result<(), String> {
+    const TRIALS: usize = 12;
+    for (name, perturb) in [("old.exr", "0"), ("new.exr", "0.25")] {
+        let st = Command::new("python3")
+            .arg(outside("standin_render.py"))
+            .args([s(&d.join(name)), "--width", "16", "--grid", "1"])
+            .args(["--perturb", perturb])
+            .status()
+            .map_err(|e| e.to_string())?;
+        if !st.success() {
+            return Err("the stand-in renderer failed".into());
+        }
+    }
+    let suite = |image: &str| {
+        let mut s = "[suite]\ngoldens = \"g\"\n\n".to_string();
+        for i in 0..32 {
+            s += &format!("[[test]]\nname = \"t{i}\"\nimage = \"{image}\"\n\n");
+        }
+        s
+    };
+    std::fs::write(d.join("old.toml"), suite("old.exr")).map_err(|e| e.to_string())?;
+    std::fs::write(d.join("new.toml"), suite("new.exr")).map_err(|e| e.to_string())?;
+    let update =
+        |s: &str| ["check", "--suite", s, "--update", "--json", "c.json"].map(String::from);
+    run(d, &update("new.toml").each_ref().map(|a| a.as_str()), 60).exited(0)?;
+    let new = goldens_of(d)?;
+    let mut inside = 0;
+    for trial in 0..TRIALS {
+        std::fs::remove_dir_all(d.join("g")).map_err(|e| e.to_string())?;
+        run(d, &update("old.toml").each_ref().map(|a| a.as_str()), 60).exited(0)?;
+        let old = goldens_of(d)?;
+        // SAFETY: inotify on a directory this row made; the descriptor is closed below
+        let fd = unsafe { libc::inotify_init1(libc::IN_CLOEXEC) };
+        let g = std::ffi::CString::new(s(&d.join("g"))).unwrap();
+        if fd < 0 || unsafe { libc::inotify_add_watch(fd, g.as_ptr(), libc::IN_MOVED_TO) } < 0 {
+            return Err("inotify unavailable".into());
+        }
+        let mut child = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+            .current_dir(d)
+            .args(update("new.toml"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .map_err(|e| e.to_string())?;
+        let seen = wait_for_a_golden(fd);
+        // SAFETY: kill(2) on the child this row started; close(2) on the descriptor above
+        unsafe {
+            libc::kill(child.id() as i32, libc::SIGKILL);
+            libc::close(fd);
+        }
+        let _ = child.wait();
+        seen?;
+        let at_kill = goldens_of(d)?;
+        let now_new = at_kill.iter().filter(|e| !old.contains(e)).count();
+        if now_new > 0 && at_kill != new {
+            inside += 1;
+        }
+        // The next run, a plain check, finds every golden new
+        let r = run(d, &["check", "--suite", "new.toml"], 60);
+        if goldens_of(d)? != new {
+            return Err(format!(
+                "trial {trial}: killed with {now_new} entries new, the next run left them mixed: {}",
+                r.ended()
+            ));
+        }
+        r.exited(0)?;
+        let left: Vec<String> = std::fs::read_dir(d.join("g"))
+            .map_err(|e| e.to_string())?
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.contains(".rayproof-"))
+            .collect();
+        if !left.is_empty() {
+            return Err(format!("trial {trial}: left behind {left:?}"));
+        }
+    }
+    eprintln!("  {inside} of {TRIALS} kills landed between two renames of a commit");
+    if inside == 0 {
+        return Err("no kill landed inside a commit: the row proved nothing".into());
+    }
+    Ok(())
+}
+
 const ROWS: &[Row] = &[
     (
         "update_beside_an_external_reference",
@@ -1543,6 +1682,10 @@ const ROWS: &[Row] = &[
     (
         "png_whose_icc_profile_inflates_to_gigabytes",
         png_whose_icc_profile_inflates_to_gigabytes,
+    ),
+    (
+        "sigkill_between_two_renames_of_a_commit",
+        sigkill_between_two_renames_of_a_commit,
     ),
 ];
 
