@@ -35,6 +35,7 @@
 pub mod offset;
 pub mod reintersect;
 pub mod rules;
+pub mod spawn;
 pub mod watertight;
 
 use crate::numerics::Precision;

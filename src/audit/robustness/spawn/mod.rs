@@ -1,0 +1,556 @@
+//! The spawned ray audited both ways (issue 47): a spawn rule must keep the new ray off its own
+//! surface (no **self-hit**) without starting it past a nearby one (no **skipped neighbour**).
+//!
+//! **Instances.** Per precision, scale `s = 10^e` (`e` in [`SCALES`], scene sizes 1e-4 to 1e7)
+//! and placement ([`PLACEMENTS`]: `near`, within 4 sizes of the origin; `far`, 10³–10⁵ sizes
+//! away), `per_cell` triangles of size `s`, vertices rounded to the precision. One primary ray
+//! per triangle, from outside, aimed at a random point of it. The renderer's intersector is
+//! pbrt-v4's watertight test in the working precision; its hit gives the point a renderer
+//! really has, reprojected from its barycentrics, with pbrt's bound `γ(7)·Σ|bᵢpᵢ|`
+//! (`triangle::hit_point`). From it, [`SPAWNED`] directions: half to the side the primary ray
+//! came from (reflection), half through (transmission), uniform on each hemisphere, rounded.
+//!
+//! **The rule's answer** for each (its [`rules`]): an origin `o'` and a `t_min`.
+//!
+//! **Self-hit, judged exactly.** The ideal spawned ray leaves the exact hit `p*` (the exact
+//! root, [`triangle::exact_tri`]) along `w`; off a flat triangle it never meets the triangle
+//! again. So the rule's ray self-hits when the exact oracle finds a hit of `(o', w)` on the
+//! triangle at `t > t_min`: its origin was left on or behind the surface. The renderer's
+//! intersector on the same ray (`t > t_min`) is counted beside it: it can add false hits or
+//! hide true ones.
+//!
+//! **Skipped neighbour, judged exactly.** A second surface parallel to the triangle at a gap
+//! `g` on the side `w` leaves to (a thin slab, a parallel triangle above a triangle) is met by
+//! the ideal ray at `t = g/(ŵ·n̂)`. The rule's ray takes hits only from `o' + t_min·w` on, whose
+//! height above the triangle's plane is the rule's **reach** `r = n̂·(o' + t_min·w − p₀)` (`n̂`
+//! turned to `w`'s side; the numerator exact in rationals, divided by `|n|` in `f64`). A
+//! neighbour at `g < r` is skipped (the new ray starts past it), one at `g > r` is found. So the
+//! **smallest gap the rule resolves** over a set of rays is the largest reach among them: the
+//! exact answer of a bisection over `g`, without the bisection (a unit test runs the bisection
+//! with the exact oracle on a real neighbour triangle and finds the same value). It is reported
+//! in scene units and in ulps of `max|p*ᵢ|` in the precision.
+//!
+//! A rule that leaves no self-hit at every scale and a gap of a few ulps of `|p|` is what a
+//! renderer wants; the table shows where each rule stands.
+
+pub mod rules;
+
+pub use rules::{BuiltIn, ExecRule, SpawnRule, Spawned, BUILT_IN, PROTOCOL, QUERY_LEN};
+
+use crate::numerics::exact::{q, ulp};
+use crate::numerics::real::{Real, Scalar};
+use crate::numerics::Precision;
+use crate::shapes::oracle::sample;
+use crate::shapes::shape::{case_rng, hex_text};
+use crate::shapes::triangle::{self, exact_tri, ExactTri};
+use rand::Rng;
+use rug::Rational;
+use serde::{Deserialize, Serialize};
+
+/// The scales' exponents: scene sizes `10^-4` to `10^7`.
+pub const SCALES: std::ops::RangeInclusive<i32> = -4..=7;
+/// Where the triangles sit: within 4 sizes of the origin, or 10³–10⁵ sizes away.
+pub const PLACEMENTS: [&str; 2] = ["near", "far"];
+/// Spawned rays per triangle (half reflection side, half transmission side).
+pub const SPAWNED: usize = 8;
+/// The intersector a renderer runs on the spawned ray (pbrt-v4's watertight test).
+const INTERSECTOR: usize = 2;
+
+/// One spawned ray: the triangle (9 values), the rule's query, the exact hit.
+#[derive(Clone)]
+pub struct Ray {
+    tri: [[f64; 3]; 3],
+    /// The rule's query ([`QUERY_LEN`] values).
+    pub query: Vec<f64>,
+    /// One ulp of `max|p*ᵢ|` in the precision.
+    hit_ulp: f64,
+}
+
+/// The rays of one cell (precision × scale × placement).
+pub struct Cell {
+    /// The precision.
+    pub prec: Precision,
+    /// The scale's exponent.
+    pub scale: i32,
+    /// `near` or `far`.
+    pub placement: &'static str,
+    /// Its spawned rays.
+    pub rays: Vec<Ray>,
+}
+
+/// One row: a rule in one cell.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct SpawnRow {
+    /// The rule.
+    pub rule: String,
+    /// `f32` or `f64`.
+    pub precision: String,
+    /// The scale's exponent (scene size `10^scale`).
+    pub scale: i32,
+    /// `near` or `far`.
+    pub placement: String,
+    /// Spawned rays judged.
+    pub rays: u64,
+    /// Rays that re-hit their own triangle (the exact oracle).
+    pub self_hits: u64,
+    /// Rays on which the renderer's intersector (pbrt-v4's watertight test) re-hits it.
+    pub self_hits_intersector: u64,
+    /// The smallest gap to a parallel neighbour that every ray resolves (the largest reach;
+    /// 0 when no ray starts above the surface), in scene units.
+    pub gap: f64,
+    /// The same in ulps of the hit point's largest component.
+    pub gap_ulps: f64,
+    /// A replay line of a self-hit, if any.
+    pub self_hit_replay: Option<String>,
+    /// A replay line of the ray with the largest reach.
+    pub gap_replay: Option<String>,
+}
+
+fn v3(v: &[f64], k: usize) -> [f64; 3] {
+    [v[k], v[k + 1], v[k + 2]]
+}
+
+/// The rays of one cell, from the seed (the same for every rule).
+pub fn cell(seed: u64, prec: Precision, scale: i32, placement: &'static str, n: u64) -> Cell {
+    let rays = crate::in_precision!(prec, F => cell_in::<F>(seed, scale, placement, n));
+    Cell {
+        prec,
+        scale,
+        placement,
+        rays,
+    }
+}
+
+fn cell_in<F: Real>(seed: u64, scale: i32, placement: &str, n: u64) -> Vec<Ray> {
+    let prec = prec_of::<F>();
+    let s = 10f64.powi(scale);
+    let mut out = vec![];
+    for i in 0..n {
+        let class = format!("spawn-{placement}-{scale}");
+        let mut rng = case_rng(seed, "spawn", &class, prec, i);
+        let at = match placement {
+            "near" => sample::mul(sample::ball(&mut rng), 4.0 * s),
+            _ => sample::mul(sample::unit(&mut rng), s * sample::lu(&mut rng, 3.0, 5.0)),
+        };
+        // A triangle of size s, not degenerate in the precision
+        let tri = loop {
+            let t: [[f64; 3]; 3] = std::array::from_fn(|_| {
+                sample::rpv(
+                    prec,
+                    sample::add(at, sample::mul(sample::ball(&mut rng), s)),
+                )
+            });
+            let n = sample::cross(sample::sub(t[1], t[0]), sample::sub(t[2], t[0]));
+            if sample::norm(n) > 0.05 * s * s {
+                break t;
+            }
+        };
+        // A primary ray from outside at a random point of it
+        let (u, v): (f64, f64) = (rng.random_range(0.02..0.96), rng.random_range(0.02..0.96));
+        let (u, v) = if u + v > 0.95 {
+            (1.0 - u, 1.0 - v)
+        } else {
+            (u, v)
+        };
+        let aim: [f64; 3] = std::array::from_fn(|k| {
+            tri[0][k] + u * (tri[1][k] - tri[0][k]) + v * (tri[2][k] - tri[0][k])
+        });
+        let o = sample::rpv(
+            prec,
+            sample::add(aim, sample::mul(sample::unit(&mut rng), 3.0 * s)),
+        );
+        let d = sample::rpv(prec, sample::sub(aim, o));
+        let input: Vec<f64> = [o, d, tri[0], tri[1], tri[2]].concat();
+        // The exact hit
+        let Some(t_exact) = exact_tri(&input).t() else {
+            continue;
+        };
+        let p_star: [f64; 3] =
+            std::array::from_fn(|k| (q(o[k]) + t_exact.clone() * q(d[k])).to_f64());
+        let hit_ulp = ulp(p_star.iter().fold(0.0f64, |m, x| m.max(x.abs())), prec);
+        // The renderer's hit and point
+        let f = |a: [f64; 3]| a.map(F::from_f64);
+        let (of, df, tf) = (f(o), f(d), tri.map(f));
+        let Some(h) = triangle::method::<F>(INTERSECTOR)(of, df, tf) else {
+            continue;
+        };
+        let (p, err) = triangle::hit_point(INTERSECTOR, of, df, &tf, &h);
+        let nrm = unit(sample::cross(
+            sample::sub(tri[1], tri[0]),
+            sample::sub(tri[2], tri[0]),
+        ));
+        let nf = f(nrm);
+        let towards_o = sample::dot(nrm, d) < 0.0;
+        for k in 0..SPAWNED {
+            // Half to the side the primary ray came from, half through
+            let reflect = k % 2 == 0;
+            let w = loop {
+                let w = sample::unit(&mut rng);
+                let side = sample::dot(w, nrm) > 0.0;
+                if w.iter().any(|x| *x != 0.0) && (side == towards_o) == reflect {
+                    break sample::rpv(prec, w);
+                }
+            };
+            if sample::dot(w, nrm) == 0.0 {
+                continue;
+            }
+            let query: Vec<f64> = [
+                p.map(|x| x.to_f64()),
+                err.map(|x| x.to_f64()),
+                nf.map(|x| x.to_f64()),
+                w,
+                [h.t.to_f64(), o[0], o[1]],
+                [o[2], d[0], d[1]],
+                [d[2], 0.0, 0.0],
+            ]
+            .concat()[..QUERY_LEN]
+                .to_vec();
+            out.push(Ray {
+                tri,
+                query,
+                hit_ulp,
+            });
+        }
+    }
+    out
+}
+
+fn unit(v: [f64; 3]) -> [f64; 3] {
+    sample::normalize(v)
+}
+
+fn prec_of<F: Real>() -> Precision {
+    if F::MANT_BITS == 24 {
+        Precision::F32
+    } else {
+        Precision::F64
+    }
+}
+
+/// What a rule's answer does on one ray.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Verdict {
+    /// The exact oracle finds the new ray on its own triangle at `t > t_min`.
+    pub self_hit: bool,
+    /// The exact `t` of that hit.
+    pub self_hit_t: Option<f64>,
+    /// The renderer's intersector finds it there.
+    pub self_hit_intersector: bool,
+    /// The height of the first point the new ray takes hits from above the triangle's plane,
+    /// on the side it leaves to (scene units; negative: behind the surface).
+    pub reach: f64,
+}
+
+/// Judges a rule's answer `s` on `ray` in `prec`.
+pub fn judge(ray: &Ray, s: &Spawned, prec: Precision) -> Verdict {
+    let w = v3(&ray.query, 9);
+    let input: Vec<f64> = [s.origin, w, ray.tri[0], ray.tri[1], ray.tri[2]].concat();
+    let t_min = q(s.t_min);
+    let exact = match exact_tri(&input) {
+        ExactTri::Hit { .. } => exact_tri(&input).t().filter(|t| *t > t_min),
+        _ => None,
+    };
+    let intersector = crate::in_precision!(prec, F => {
+        let f = |a: [f64; 3]| a.map(F::from_f64);
+        triangle::method::<F>(INTERSECTOR)(f(s.origin), f(w), ray.tri.map(f))
+            .is_some_and(|h| h.t.to_f64() > s.t_min)
+    });
+    // The reach: n·(o' + t_min·w − p0) / |n|, n turned to w's side
+    let [a, b, c] = ray.tri.map(|p| p.map(q));
+    let e1: [Rational; 3] = std::array::from_fn(|i| b[i].clone() - &a[i]);
+    let e2: [Rational; 3] = std::array::from_fn(|i| c[i].clone() - &a[i]);
+    let n: [Rational; 3] = std::array::from_fn(|i| {
+        let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+        e1[j].clone() * &e2[k] - e1[k].clone() * &e2[j]
+    });
+    let dot = |x: &[Rational; 3], y: &[Rational; 3]| -> Rational {
+        x.iter().zip(y).map(|(u, v)| u.clone() * v).sum()
+    };
+    let wq = w.map(q);
+    let start: [Rational; 3] =
+        std::array::from_fn(|i| q(s.origin[i]) + t_min.clone() * &wq[i] - &a[i]);
+    let mut h = dot(&n, &start);
+    if dot(&n, &wq) < 0 {
+        h = -h;
+    }
+    let reach = h.to_f64() / dot(&n, &n).to_f64().sqrt();
+    Verdict {
+        self_hit: exact.is_some(),
+        self_hit_t: exact.map(|t| t.to_f64()),
+        self_hit_intersector: intersector,
+        reach,
+    }
+}
+
+/// The replay line of `ray` under `rule`: `rayproof spawn … --replay -- VALUES` (the query,
+/// then the triangle's 9 values).
+pub fn replay_line(rule: &dyn SpawnRule, prec: Precision, ray: &Ray) -> String {
+    let how = rule
+        .replay()
+        .unwrap_or_else(|| format!("--rule {}", rule.name()));
+    let values: Vec<String> = ray
+        .query
+        .iter()
+        .chain(ray.tri.iter().flatten())
+        .map(|x| hex_text(*x))
+        .collect();
+    format!(
+        "rayproof spawn {how} --precision {} --replay -- {}",
+        prec.name(),
+        values.join(" ")
+    )
+}
+
+/// A ray from a replay line's values (the query, then the triangle).
+pub fn ray_of(values: &[f64], prec: Precision) -> Result<Ray, String> {
+    if values.len() != QUERY_LEN + 9 {
+        return Err(format!(
+            "a spawn replay takes {} values (the {QUERY_LEN} of the query, then the triangle's 9); got {}",
+            QUERY_LEN + 9,
+            values.len()
+        ));
+    }
+    if values.iter().any(|x| !x.is_finite()) {
+        return Err("a spawn replay's values must be finite".into());
+    }
+    let t = &values[QUERY_LEN..];
+    let p = v3(values, 0);
+    Ok(Ray {
+        tri: [v3(t, 0), v3(t, 3), v3(t, 6)],
+        query: values[..QUERY_LEN].to_vec(),
+        hit_ulp: ulp(p.iter().fold(0.0f64, |m, x| m.max(x.abs())), prec),
+    })
+}
+
+/// The rows of `rule` over `cells`: one call of the rule for all their rays.
+pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, String> {
+    let mut out = vec![];
+    for prec in [Precision::F32, Precision::F64] {
+        let mine: Vec<&Cell> = cells.iter().filter(|c| c.prec == prec).collect();
+        let queries: Vec<Vec<f64>> = mine
+            .iter()
+            .flat_map(|c| c.rays.iter().map(|r| r.query.clone()))
+            .collect();
+        if queries.is_empty() {
+            continue;
+        }
+        let answers = rule.spawn(prec, &queries)?;
+        if answers.len() != queries.len() {
+            return Err(format!(
+                "spawn rule '{}': {} answers to {} queries",
+                rule.name(),
+                answers.len(),
+                queries.len()
+            ));
+        }
+        let mut at = 0;
+        for c in mine {
+            let mut row = SpawnRow {
+                rule: rule.name().to_string(),
+                precision: prec.name().to_string(),
+                scale: c.scale,
+                placement: c.placement.to_string(),
+                rays: 0,
+                self_hits: 0,
+                self_hits_intersector: 0,
+                gap: 0.0,
+                gap_ulps: 0.0,
+                self_hit_replay: None,
+                gap_replay: None,
+            };
+            for ray in &c.rays {
+                let v = judge(ray, &answers[at], prec);
+                at += 1;
+                row.rays += 1;
+                if v.self_hit {
+                    row.self_hits += 1;
+                    if row.self_hit_replay.is_none() {
+                        row.self_hit_replay = Some(replay_line(rule, prec, ray));
+                    }
+                }
+                row.self_hits_intersector += v.self_hit_intersector as u64;
+                if v.reach > row.gap {
+                    row.gap = v.reach;
+                    row.gap_ulps = v.reach / ray.hit_ulp;
+                    row.gap_replay = Some(replay_line(rule, prec, ray));
+                }
+            }
+            out.push(row);
+        }
+    }
+    Ok(out)
+}
+
+/// The cells of a run: every precision of `precs`, scale and placement, `n` triangles each.
+pub fn cells(seed: u64, precs: &[Precision], n: u64) -> Vec<Cell> {
+    use rayon::prelude::*;
+    let keys: Vec<(Precision, i32, &'static str)> = precs
+        .iter()
+        .flat_map(|&p| SCALES.flat_map(move |s| PLACEMENTS.map(|pl| (p, s, pl))))
+        .collect();
+    keys.into_par_iter()
+        .map(|(p, s, pl)| cell(seed, p, s, pl, n))
+        .collect()
+}
+
+/// The rows as a Markdown table.
+pub fn markdown(rows: &[SpawnRow]) -> String {
+    let mut t = String::from(
+        "| rule | precision | placement | scene size | rays | self-hits (exact) | self-hits (watertight) | smallest resolved gap | in ulps of max\\|p\\| |\n|---|---|---|---|---:|---:|---:|---:|---:|\n",
+    );
+    for r in rows {
+        t += &format!(
+            "| {} | {} | {} | 1e{} | {} | {} | {} | {:.3e} | {:.1} |\n",
+            r.rule,
+            r.precision,
+            r.placement,
+            r.scale,
+            r.rays,
+            r.self_hits,
+            r.self_hits_intersector,
+            r.gap,
+            r.gap_ulps
+        );
+    }
+    t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A rule broken by hand: pbrt's with the offset's sign flipped, or with its error bound
+    /// 1000× too small (issue 47, "a deliberately broken rule caught").
+    struct Broken {
+        flip: bool,
+        weak: f64,
+    }
+
+    impl SpawnRule for Broken {
+        fn name(&self) -> &str {
+            "broken"
+        }
+        fn spawn(&self, prec: Precision, queries: &[Vec<f64>]) -> Result<Vec<Spawned>, String> {
+            let mut q2 = queries.to_vec();
+            for q in &mut q2 {
+                for k in 3..6 {
+                    q[k] *= self.weak;
+                }
+                if self.flip {
+                    for k in 9..12 {
+                        q[k] = -q[k];
+                    }
+                }
+            }
+            BuiltIn(0).spawn(prec, &q2)
+        }
+    }
+
+    fn total(rows: &[SpawnRow]) -> (u64, u64) {
+        rows.iter()
+            .fold((0, 0), |(r, s), x| (r + x.rays, s + x.self_hits))
+    }
+
+    /// pbrt's rule leaves no self-hit at any scale; no offset at all re-hits; the rule with its
+    /// sign flipped or its bound 1000× too small re-hits: the test has teeth.
+    #[test]
+    fn pbrts_rule_never_self_hits_and_broken_rules_do() {
+        let cells = cells(7, &[Precision::F32, Precision::F64], 6);
+        let (rays, hits) = total(&rows(&BuiltIn(0), &cells).unwrap());
+        assert!(rays > 1000);
+        assert_eq!(hits, 0);
+        let none = total(&rows(&BuiltIn(4), &cells).unwrap()).1;
+        assert!(none > rays / 10, "no offset: {none} of {rays}");
+        let flipped = total(
+            &rows(
+                &Broken {
+                    flip: true,
+                    weak: 1.0,
+                },
+                &cells,
+            )
+            .unwrap(),
+        )
+        .1;
+        assert!(flipped > rays / 4, "sign flipped: {flipped} of {rays}");
+        let weak = total(
+            &rows(
+                &Broken {
+                    flip: false,
+                    weak: 1e-3,
+                },
+                &cells,
+            )
+            .unwrap(),
+        )
+        .1;
+        assert!(weak > 0, "bound 1000x too small: no self-hit");
+    }
+
+    /// The reach is the answer of a bisection over the gap with the exact oracle: a neighbour
+    /// triangle parallel to the first just below the reach is skipped, just above it is hit.
+    #[test]
+    fn the_reach_is_where_a_real_neighbour_starts_to_be_found() {
+        let cells = cells(11, &[Precision::F32], 2);
+        let mut checked = 0;
+        for c in cells.iter().filter(|c| c.scale == 0 || c.scale == 5) {
+            let answers = BuiltIn(2)
+                .spawn(
+                    c.prec,
+                    &c.rays.iter().map(|r| r.query.clone()).collect::<Vec<_>>(),
+                )
+                .unwrap();
+            for (ray, s) in c.rays.iter().zip(&answers).take(4) {
+                let v = judge(ray, s, c.prec);
+                if v.reach <= 0.0 {
+                    continue;
+                }
+                let w = v3(&ray.query, 9);
+                let n = unit(sample::cross(
+                    sample::sub(ray.tri[1], ray.tri[0]),
+                    sample::sub(ray.tri[2], ray.tri[0]),
+                ));
+                let n = if sample::dot(n, w) < 0.0 {
+                    sample::mul(n, -1.0)
+                } else {
+                    n
+                };
+                // The neighbour: the triangle scaled up 1000× about its centroid, lifted by g
+                let found = |g: f64| {
+                    let centre = sample::mul(
+                        sample::add(sample::add(ray.tri[0], ray.tri[1]), ray.tri[2]),
+                        1.0 / 3.0,
+                    );
+                    let big: Vec<f64> = ray
+                        .tri
+                        .iter()
+                        .flat_map(|p| {
+                            sample::add(
+                                sample::add(centre, sample::mul(sample::sub(*p, centre), 1e3)),
+                                sample::mul(n, g),
+                            )
+                        })
+                        .collect();
+                    let input: Vec<f64> = [s.origin.to_vec(), w.to_vec(), big].concat();
+                    exact_tri(&input).t().is_some_and(|t| t > q(s.t_min))
+                };
+                // Bisection over g in [0, 4·reach]
+                let (mut lo, mut hi) = (0.0, 4.0 * v.reach);
+                assert!(!found(lo + v.reach * 1e-3) && found(hi));
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if found(mid) {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                let rel = (hi - v.reach).abs() / v.reach;
+                // (the neighbour's vertices are rounded to f64 far from the origin)
+                assert!(rel < 1e-4, "bisection {hi:e}, reach {:e}", v.reach);
+                checked += 1;
+            }
+        }
+        assert!(checked >= 4, "{checked}");
+    }
+}
