@@ -60,6 +60,9 @@
 //! | 4 | `audit` or `probe` with `--exec` or `--plugin`: the outside routine failed (the child crashed, hung past `--timeout`, wrote more than its output cap, answered a line that is not an answer — not a count and numbers — or the wrong number of lines; the library routine, in its worker process, crashed, aborted, overflowed its stack, called `exit()`, hung past `--timeout`, returned non-zero or left a count unwritten; the line names the batch and, where one case does it, the case); no report is written. An answer that parses but breaks the answer contract ([`audit::contract`]) is not a failure of the routine's run but a wrong answer, counted in its row |
 //! | 130 | interrupted by SIGINT or SIGTERM: the temporaries of outputs being written are removed, no output is replaced |
 //!
+//! `spawn` uses them too: 0 when no rule given by `--exec` self-hits (the built-in rules are
+//! reported), 1 when one does (and for `--replay`, when the replayed ray self-hits), 2 for bad
+//! usage, 4 when an `--exec` rule's child fails or answers a line that is not `1 OX OY OZ TMIN`.
 //! `implicit-check` uses them too: 0 when the certified mode matches per-pixel tracing pixel for
 //! pixel, 1 when it loses or adds a pixel, 2 for bad input. `downsample` exits 4 when its input
 //! image is unreadable or too large, as `diff` does. `check` uses 0 when every comparison

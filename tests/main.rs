@@ -45,6 +45,7 @@ mod routines;
 mod sacred;
 mod shard;
 mod signals;
+mod spawn;
 mod sphere;
 mod suite;
 mod torus;

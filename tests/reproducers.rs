@@ -1583,6 +1583,191 @@ fn sigkill_between_two_renames_of_a_commit(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// A child for `rayproof spawn --exec` that answers each query with its own hit point and a
+/// t_min of 1e30 (a rule that never self-hits), then does `end` once its input closes.
+fn spawn_child(d: &Path, end: &str) -> String {
+    let script = format!(
+        "import sys, os, signal\nfor l in sys.stdin:\n    v = [float.fromhex(x) for x in l.split()[1:]]\n    a = '1 ' + ' '.join(x.hex() for x in v[:3]) + ' 1e30'\n    print(a, flush=True)\n    if '{end}' == 'more': print(a, flush=True)\n{}\n",
+        match end {
+            "trail" => "print('garbage', flush=True)",
+            "exit3" => "sys.exit(3)",
+            "segv" => "os.kill(os.getpid(), signal.SIGSEGV)",
+            _ => "pass",
+        }
+    );
+    let f = d.join(format!("child_{end}.py"));
+    std::fs::write(&f, script).unwrap();
+    format!("python3 {}", s(&f))
+}
+
+/// Issue 47, hostile run F1: a spawn rule's child that answered two lines per query, wrote a
+/// line after its input closed, exited 3 or was killed by SIGSEGV after answering got `verdict:
+/// pass`, exit 0 (the second line of each pair was taken as the next query's answer). The
+/// child's end is now checked as `audit --exec` checks it: exit 4, one line.
+fn spawn_child_that_breaks_the_protocols_end(d: &Path) -> Result<(), String> {
+    for end in ["more", "trail", "exit3", "segv"] {
+        let cmd = spawn_child(d, end);
+        let r = run(d, &["spawn", "--per-cell", "2", "--exec", &cmd], 60);
+        r.refused(4, &["exec"]).map_err(|e| format!("{end}: {e}"))?;
+    }
+    Ok(())
+}
+
+/// Issue 47, hostile run F2: a rule that put the origin 1000·|p| behind the surface passed with
+/// 0 self-hits and a gap of 0 everywhere (the ray misses the finite triangle, the negative
+/// reach was shown as 0). Rays that start behind the surface are now counted and fail a rule.
+fn spawn_rule_behind_the_surface(d: &Path) -> Result<(), String> {
+    let script = "import sys\nfor l in sys.stdin:\n    v = [float.fromhex(x) for x in l.split()[1:]]\n    P, N, W = v[0:3], v[6:9], v[9:12]\n    s = -1 if sum(N[i] * W[i] for i in range(3)) > 0 else 1\n    o = 1e3 * max(map(abs, P))\n    print('1 ' + ' '.join((P[i] + s * o * N[i]).hex() for i in range(3)) + ' 0', flush=True)\n";
+    std::fs::write(d.join("wf.py"), script).unwrap();
+    let r = run(
+        d,
+        &[
+            "spawn",
+            "--per-cell",
+            "4",
+            "--exec",
+            "python3 wf.py",
+            "--name",
+            "wf",
+        ],
+        60,
+    );
+    r.exited(1)?;
+    if !r.stdout.contains("wf: FAIL") || r.stdout.contains("0 behind the surface in") {
+        return Err(format!(
+            "want wf to FAIL with rays behind the surface: {}",
+            r.stdout
+        ));
+    }
+    Ok(())
+}
+
+/// Issue 47, hostile run F4, F5, F7: replay lines quoted for the shell (a name or command with a
+/// space, a quote or a newline broke them), an error naming `rayproof probe spawn` (no such
+/// shape) now names the query, and a name with a newline (which printed a fake `verdict: pass`
+/// line) or an empty one is refused.
+fn spawn_replay_lines_and_names(d: &Path) -> Result<(), String> {
+    let cmd = "python3 -c 'import sys\nfor l in sys.stdin:\n    w = l.split()\n    print(1, w[1], w[2], w[3], 0, flush=True)'";
+    let r = run(
+        d,
+        &[
+            "spawn",
+            "--per-cell",
+            "2",
+            "--precision",
+            "f32",
+            "--exec",
+            cmd,
+            "--name",
+            "mine",
+        ],
+        60,
+    );
+    r.exited(1)?;
+    let line = r
+        .stdout
+        .lines()
+        .find(|l| l.starts_with("mine: FAIL"))
+        .ok_or("no summary line of mine")?;
+    let replay = line
+        .split("replay: ")
+        .nth(1)
+        .ok_or("no replay")?
+        .trim_end_matches(')');
+    let o = Command::new("bash")
+        .arg("-c")
+        .arg(replay.replacen("rayproof", env!("CARGO_BIN_EXE_rayproof"), 1))
+        .current_dir(d)
+        .output()
+        .map_err(|e| e.to_string())?;
+    let out = String::from_utf8_lossy(&o.stdout);
+    if o.status.code() != Some(1) || !out.contains("self-hit: the exact oracle finds") {
+        return Err(format!(
+            "the replay line did not replay ({:?}): {replay}\n{out}{}",
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr)
+        ));
+    }
+    for bad in ["a\nverdict: pass", "", "my rule"] {
+        run(d, &["spawn", "--exec", "cat", "--name", bad], 30).refused(2, &["--name"])?;
+    }
+    let r = run(
+        d,
+        &[
+            "spawn",
+            "--per-cell",
+            "1",
+            "--precision",
+            "f32",
+            "--exec",
+            "head -n 3",
+        ],
+        30,
+    );
+    r.refused(4, &["the query f32"])?;
+    if r.stderr.contains("probe spawn") {
+        return Err(format!("names a probe that does not exist: {}", r.ended()));
+    }
+    Ok(())
+}
+
+/// Issue 47, hostile run F8: `--replay` of a degenerate triangle printed `reach: NaN`, exit 0; a
+/// zero normal or direction, a negative error bound and an f64 value under `--precision f32`
+/// were taken; `--json` with `--replay` was ignored.
+fn spawn_replay_of_bad_values(d: &Path) -> Result<(), String> {
+    let good: Vec<String> = [
+        "0x1p+0", "0x1p+0", "0x0p+0", "0x1p-20", "0x1p-20", "0x1p-20", "0x0p+0", "0x0p+0",
+        "0x1p+0", "0x0p+0", "0x0p+0", "0x1p+0", "0x1p+0", "0x1p+0", "0x1p+0", "-0x1p+0", "0x0p+0",
+        "0x0p+0", "0x1p+0", "0x0p+0", "0x0p+0", "0x0p+0", "0x1p+1", "0x0p+0", "0x0p+0", "0x0p+0",
+        "0x1p+1", "0x0p+0",
+    ]
+    .map(String::from)
+    .to_vec();
+    let replay = |v: &[String]| {
+        let mut a = vec![
+            "spawn",
+            "--rule",
+            "pbrt",
+            "--precision",
+            "f32",
+            "--replay",
+            "--",
+        ];
+        a.extend(v.iter().map(String::as_str));
+        run(d, &a, 30)
+    };
+    replay(&good).exited(0)?;
+    let with = |k: usize, x: &str| {
+        let mut v = good.clone();
+        v[k] = x.to_string();
+        v
+    };
+    let mut degenerate = good.clone();
+    for k in 22..28 {
+        degenerate[k] = good[19 + (k - 22) % 3].clone();
+    }
+    replay(&degenerate).refused(2, &["degenerate"])?;
+    let mut no_normal = good.clone();
+    no_normal[8] = "0x0p+0".into();
+    replay(&no_normal).refused(2, &["normal"])?;
+    replay(&with(3, "-0x1p-20")).refused(2, &["error bound"])?;
+    replay(&with(0, "0x1.0000000000001p+0")).refused(2, &["not a value of f32"])?;
+    let mut a = vec![
+        "spawn",
+        "--rule",
+        "pbrt",
+        "--precision",
+        "f32",
+        "--json",
+        "r.json",
+        "--replay",
+        "--",
+    ];
+    a.extend(good.iter().map(String::as_str));
+    run(d, &a, 30).refused(2, &["--json"])?;
+    Ok(())
+}
+
 const ROWS: &[Row] = &[
     (
         "update_beside_an_external_reference",
@@ -1687,6 +1872,16 @@ const ROWS: &[Row] = &[
         "sigkill_between_two_renames_of_a_commit",
         sigkill_between_two_renames_of_a_commit,
     ),
+    (
+        "spawn_child_that_breaks_the_protocols_end",
+        spawn_child_that_breaks_the_protocols_end,
+    ),
+    (
+        "spawn_rule_behind_the_surface",
+        spawn_rule_behind_the_surface,
+    ),
+    ("spawn_replay_lines_and_names", spawn_replay_lines_and_names),
+    ("spawn_replay_of_bad_values", spawn_replay_of_bad_values),
 ];
 
 #[test]

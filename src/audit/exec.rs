@@ -92,6 +92,31 @@ pub fn protocol(shapes: &[&'static dyn crate::shapes::shape::Shape]) -> String {
     out
 }
 
+/// `s` as one word of a POSIX shell line: as it is when it holds only safe characters, else in
+/// single quotes (a quote in it as `'\\''`); one line always: a newline or another control
+/// character makes it a bash `$'…'` word instead.
+pub fn shell_word(s: &str) -> String {
+    let safe = |c: char| c.is_ascii_alphanumeric() || "_-.,/:=+@%".contains(c);
+    if !s.is_empty() && s.chars().all(safe) {
+        return s.to_string();
+    }
+    if s.chars().any(|c| c.is_control()) {
+        let mut w = String::from("$'");
+        for c in s.chars() {
+            match c {
+                '\\' => w.push_str("\\\\"),
+                '\'' => w.push_str("\\'"),
+                '\n' => w.push_str("\\n"),
+                '\t' => w.push_str("\\t"),
+                c if c.is_control() => w.push_str(&format!("\\x{:02x}", c as u32)),
+                c => w.push(c),
+            }
+        }
+        return w + "'";
+    }
+    format!("'{}'", s.replace('\'', "'\\''"))
+}
+
 /// Standard output an `--exec` child may write per batch: 16 MiB.
 pub const STDOUT_CAP: usize = 16 << 20;
 
@@ -171,6 +196,10 @@ impl Exec {
     }
 
     fn replay_line(&self, prec: Precision, x: &[f64]) -> String {
+        if self.shape == "spawn" {
+            // A spawn rule's query (a replay needs its triangle too: `rayproof spawn` prints it)
+            return format!("the query {}", case_line(prec, x).trim_end());
+        }
         probe_line_with(&self.shape, prec, self.replay().as_deref(), x)
     }
 
@@ -368,11 +397,10 @@ impl Method for Exec {
         &self.command
     }
     fn replay(&self) -> Option<String> {
-        // A replay line is one line: a command with newlines is shown with `\n`
         Some(format!(
-            "--exec '{}' --name {}",
-            self.command.replace('\n', "\\n"),
-            self.name
+            "--exec {} --name {}",
+            shell_word(&self.command),
+            shell_word(&self.name)
         ))
     }
     fn identity(&self) -> Option<String> {

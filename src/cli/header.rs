@@ -5,7 +5,9 @@ use anyhow::Result;
 
 pub(super) fn run_header(a: HeaderArgs) -> Result<u8> {
     let shapes = rayproof::shapes::registry();
-    if a.exec {
+    if a.spawn {
+        say_raw!("{}", rayproof::audit::robustness::spawn::PROTOCOL);
+    } else if a.exec {
         say_raw!("{}", rayproof::audit::exec::protocol(&shapes));
     } else {
         say_raw!("{}", rayproof::audit::plugin::header(&shapes));
@@ -19,4 +21,7 @@ pub struct HeaderArgs {
     /// contract) instead of the C header.
     #[arg(long)]
     pub exec: bool,
+    /// Print the line protocol of a spawn rule run by `rayproof spawn --exec`.
+    #[arg(long, conflicts_with = "exec")]
+    pub spawn: bool,
 }

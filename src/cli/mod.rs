@@ -45,6 +45,7 @@ mod probe;
 mod reference;
 mod render;
 mod report;
+mod spawn;
 
 use args::*;
 use audit::{AuditArgs, MergeArgs};
@@ -56,6 +57,7 @@ use probe::ProbeCommand;
 use reference::ReferenceArgs;
 use render::{DownsampleArgs, ExportArgs, RenderArgs};
 use report::ReportArgs;
+use spawn::SpawnArgs;
 
 /// Proves how accurate ray–sphere intersection methods are, against an exact MPFR oracle.
 #[derive(Parser, Debug)]
@@ -95,6 +97,9 @@ pub enum Command {
     /// Make references for a scene with the real POV-Ray and Mitsuba, each with its manifest
     /// entry (hashes, commands, width, sampling grid).
     Reference(ReferenceArgs),
+    /// Audit spawn rules both ways: self-hits (judged exactly) and the smallest gap to a
+    /// neighbour each resolves, at scene sizes 1e-4 to 1e7 (exit 1 if a rule of yours self-hits).
+    Spawn(SpawnArgs),
     /// Measure what accuracy costs in time: write DIR/index.html, report.md, report.json and figures.
     Report(ReportArgs),
     /// Render an implicit scene per pixel and by image-space subdivision (seed 004), shadows off
@@ -188,6 +193,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Check(c) => check::run_check(c),
         Command::Reference(r) => reference::run_reference(r),
         Command::Report(r) => report::run_report(r),
+        Command::Spawn(a) => spawn::run_spawn(a),
         Command::ImplicitCheck(a) => implicit::run_implicit_check(a),
         Command::PluginWorker {
             path,

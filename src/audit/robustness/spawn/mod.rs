@@ -95,6 +95,10 @@ pub struct SpawnRow {
     pub self_hits: u64,
     /// Rays on which the renderer's intersector (pbrt-v4's watertight test) re-hits it.
     pub self_hits_intersector: u64,
+    /// Rays whose first point taking hits lies behind the surface's plane (a negative reach:
+    /// the rule sent the ray through its own surface, whether or not it meets the triangle).
+    #[serde(default)]
+    pub behind: u64,
     /// The smallest gap to a parallel neighbour that every ray resolves (the largest reach;
     /// 0 when no ray starts above the surface), in scene units.
     pub gap: f64,
@@ -314,6 +318,23 @@ pub fn ray_of(values: &[f64], prec: Precision) -> Result<Ray, String> {
         return Err("a spawn replay's values must be finite".into());
     }
     let t = &values[QUERY_LEN..];
+    let zero = |k: usize| values[k..k + 3].iter().all(|x| *x == 0.0);
+    if zero(6) || zero(9) {
+        return Err(
+            "a spawn replay's normal (values 7-9) and direction (10-12) must not be zero".into(),
+        );
+    }
+    if values[3..6].iter().any(|x| *x < 0.0) {
+        return Err("a spawn replay's error bound (values 4-6) must not be negative".into());
+    }
+    let tri: Vec<f64> = [values[0], values[0], values[0], 1.0, 0.0, 0.0]
+        .iter()
+        .chain(t)
+        .copied()
+        .collect();
+    if matches!(exact_tri(&tri), ExactTri::Invalid) {
+        return Err("a spawn replay's triangle (the last 9 values) is degenerate".into());
+    }
     let p = v3(values, 0);
     Ok(Ray {
         tri: [v3(t, 0), v3(t, 3), v3(t, 6)],
@@ -353,6 +374,7 @@ pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, Strin
                 rays: 0,
                 self_hits: 0,
                 self_hits_intersector: 0,
+                behind: 0,
                 gap: 0.0,
                 gap_ulps: 0.0,
                 self_hit_replay: None,
@@ -369,9 +391,10 @@ pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, Strin
                     }
                 }
                 row.self_hits_intersector += v.self_hit_intersector as u64;
+                row.behind += (v.reach < 0.0) as u64;
                 if v.reach > row.gap {
                     row.gap = v.reach;
-                    row.gap_ulps = v.reach / ray.hit_ulp;
+                    row.gap_ulps = (v.reach / ray.hit_ulp).min(f64::MAX);
                     row.gap_replay = Some(replay_line(rule, prec, ray));
                 }
             }
@@ -396,20 +419,25 @@ pub fn cells(seed: u64, precs: &[Precision], n: u64) -> Vec<Cell> {
 /// The rows as a Markdown table.
 pub fn markdown(rows: &[SpawnRow]) -> String {
     let mut t = String::from(
-        "| rule | precision | placement | scene size | rays | self-hits (exact) | self-hits (watertight) | smallest resolved gap | in ulps of max\\|p\\| |\n|---|---|---|---|---:|---:|---:|---:|---:|\n",
+        "| rule | precision | placement | scene size | rays | self-hits (exact) | self-hits (watertight) | behind the surface | smallest resolved gap | in ulps of max\\|p\\| |\n|---|---|---|---|---:|---:|---:|---:|---:|---:|\n",
     );
     for r in rows {
+        // A cell with no ray says nothing of the rule
+        let (gap, ulps) = if r.rays == 0 {
+            ("—".to_string(), "—".to_string())
+        } else {
+            (format!("{:.3e}", r.gap), format!("{:.1}", r.gap_ulps))
+        };
         t += &format!(
-            "| {} | {} | {} | 1e{} | {} | {} | {} | {:.3e} | {:.1} |\n",
-            r.rule,
+            "| {} | {} | {} | 1e{} | {} | {} | {} | {} | {gap} | {ulps} |\n",
+            r.rule.replace('|', "\\|"),
             r.precision,
             r.placement,
             r.scale,
             r.rays,
             r.self_hits,
             r.self_hits_intersector,
-            r.gap,
-            r.gap_ulps
+            r.behind,
         );
     }
     t

@@ -227,6 +227,9 @@ impl SpawnRule for ExecRule {
                 });
             }
         }
+        // Its input closed, the child must end well with nothing more to say (as for `audit
+        // --exec`: a line too many shifts every later answer onto the wrong query)
+        self.0.finish()?;
         Ok(out)
     }
 }

@@ -1,0 +1,286 @@
+//! `rayproof spawn`: spawn rules audited both ways (issue 47; the method in
+//! `rayproof::audit::robustness::spawn`).
+
+use super::*;
+use anyhow::{anyhow, bail, Result};
+use rayproof::audit::robustness::spawn::{self, BuiltIn, ExecRule, SpawnRow, SpawnRule, BUILT_IN};
+use rayproof::numerics::Precision;
+use rayproof::output::{check_outputs, Outputs};
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Debug)]
+pub struct SpawnArgs {
+    /// A built-in rule (repeatable): pbrt, wachter_binder, tmin_1e-4, mitsuba2_epsilon, none.
+    /// Default: all five, unless --exec gives rules of your own.
+    #[arg(long, value_name = "NAME")]
+    pub rule: Vec<String>,
+    /// A rule run by this command (`sh -c CMD`): one query per line on its stdin, one answer
+    /// line per query on its stdout (`rayproof header --spawn`). Repeatable.
+    #[arg(long, value_name = "CMD")]
+    pub exec: Vec<String>,
+    /// The --exec rules' names, in order (default `exec`, `exec2`, …).
+    #[arg(long)]
+    pub name: Vec<String>,
+    /// Seconds a batch of queries may take before an --exec child is killed (exit 4).
+    #[arg(long, default_value_t = 60.0)]
+    pub timeout: f64,
+    /// Precisions (comma-separated).
+    #[arg(long, value_delimiter = ',', default_value = "f32,f64", value_parser = parse_precision)]
+    pub precision: Vec<Precision>,
+    /// Triangles per precision × scene size × placement (each with 8 spawned rays).
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(1..=4096))]
+    pub per_cell: u64,
+    /// The seed of the triangles and rays.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// A rule of yours also fails when, in some cell, the smallest gap it resolves is over this
+    /// many ulps of the hit point (it starts past neighbours that close: light leaks). Default:
+    /// the gap is reported, not judged.
+    #[arg(long, value_name = "ULPS", value_parser = parse_ulps)]
+    pub max_gap_ulps: Option<f64>,
+    /// Write the rows as JSON.
+    #[arg(long, conflicts_with = "replay")]
+    pub json: Option<PathBuf>,
+    /// Write the table as Markdown.
+    #[arg(long, conflicts_with = "replay")]
+    pub markdown: Option<PathBuf>,
+    /// Replay one spawned ray (the values of a replay line, after `--`): the rule's origin and
+    /// t_min, the exact self-hit and the reach.
+    #[arg(long)]
+    pub replay: bool,
+    /// The replay's values: the 19 of the query, then the triangle's 9.
+    #[arg(last = true, allow_hyphen_values = true)]
+    pub values: Vec<String>,
+}
+
+fn parse_ulps(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x >= 0.0 && x.is_finite() => Ok(x),
+        _ => Err(format!("'{s}' is not a number of ulps (finite, >= 0)")),
+    }
+}
+
+/// The rules the arguments name: built-ins, then --exec commands.
+fn rules(a: &SpawnArgs) -> Result<Vec<Box<dyn SpawnRule>>> {
+    let mut out: Vec<Box<dyn SpawnRule>> = vec![];
+    let names: Vec<&str> = if a.rule.is_empty() && a.exec.is_empty() {
+        BUILT_IN.iter().map(|(n, _)| *n).collect()
+    } else {
+        a.rule.iter().map(String::as_str).collect()
+    };
+    for n in names {
+        let r = BuiltIn::named(n).ok_or_else(|| {
+            anyhow!(
+                "unknown spawn rule '{n}' (built-in: {})",
+                BUILT_IN.map(|(n, _)| n).join(", ")
+            )
+        })?;
+        out.push(Box::new(r));
+    }
+    if a.name.len() > a.exec.len() {
+        bail!(
+            "--name given {} times for {} --exec rule(s)",
+            a.name.len(),
+            a.exec.len()
+        );
+    }
+    for (i, cmd) in a.exec.iter().enumerate() {
+        if let Some(n) = a.name.get(i) {
+            if n.is_empty()
+                || !n
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c))
+            {
+                bail!(
+                    "--name '{}': a rule's name is letters, digits, '_', '-' and '.'",
+                    n.escape_debug()
+                );
+            }
+        }
+        let name = a.name.get(i).cloned().unwrap_or_else(|| {
+            if i == 0 {
+                "exec".into()
+            } else {
+                format!("exec{}", i + 1)
+            }
+        });
+        if BuiltIn::named(&name).is_some() {
+            bail!("--name {name}: a built-in rule's name; give another");
+        }
+        let timeout = std::time::Duration::from_secs_f64(a.timeout.clamp(0.001, 86_400.0));
+        let e = rayproof::audit::exec::Exec::new(
+            &name,
+            cmd,
+            "spawn",
+            timeout,
+            rayproof::audit::exec::Mode::Auto,
+        );
+        out.push(Box::new(ExecRule(e)));
+    }
+    for (i, r) in out.iter().enumerate() {
+        if out[..i].iter().any(|x| x.name() == r.name()) {
+            bail!("the rule {} is named twice", r.name());
+        }
+    }
+    Ok(out)
+}
+
+pub(super) fn run_spawn(a: SpawnArgs) -> Result<u8> {
+    if !(a.timeout > 0.0 && a.timeout <= 86_400.0) {
+        bail!(
+            "--timeout {}: not a number of seconds in (0, 86400]",
+            a.timeout
+        );
+    }
+    let rules = rules(&a)?;
+    if a.replay {
+        return replay(&a, &rules);
+    }
+    if !a.values.is_empty() {
+        bail!("values after `--` are for --replay");
+    }
+    let files: Vec<&Path> = [&a.json, &a.markdown]
+        .into_iter()
+        .flatten()
+        .map(|p| p.as_path())
+        .collect();
+    check_outputs(&files, &[], &[])?;
+    let mut precs = a.precision.clone();
+    precs.dedup();
+    let cells = spawn::cells(a.seed, &precs, a.per_cell);
+    let mut rows: Vec<SpawnRow> = vec![];
+    for r in &rules {
+        rows.extend(
+            spawn::rows(r.as_ref(), &cells)
+                .map_err(|e| anyhow!(rayproof::audit::run::MethodFailed(e)))?,
+        );
+    }
+    say_raw!("{}", spawn::markdown(&rows));
+    // Verdicts: a rule of your own fails on any self-hit; the built-ins are reported
+    let mut failed = vec![];
+    say!();
+    for r in &rules {
+        let mine: Vec<&SpawnRow> = rows.iter().filter(|x| x.rule == r.name()).collect();
+        let rays: u64 = mine.iter().map(|x| x.rays).sum();
+        let hits: u64 = mine.iter().map(|x| x.self_hits).sum();
+        let behind: u64 = mine.iter().map(|x| x.behind).sum();
+        let widest = mine
+            .iter()
+            .filter(|x| x.rays > 0)
+            .max_by(|a, b| a.gap_ulps.total_cmp(&b.gap_ulps));
+        let too_wide = match (a.max_gap_ulps, widest) {
+            (Some(m), Some(w)) => w.gap_ulps > m,
+            _ => false,
+        };
+        let worst = mine
+            .iter()
+            .filter(|x| x.self_hits > 0)
+            .max_by_key(|x| x.self_hits);
+        let verdict = if r.replay().is_none() {
+            "reported"
+        } else if hits > 0 || behind > 0 || too_wide {
+            failed.push(r.name().to_string());
+            "FAIL"
+        } else {
+            "pass"
+        };
+        let gap = widest.map_or(String::new(), |w| {
+            format!(
+                "; widest gap {:.3e} ({:.1} ulps of |p|) at {} scene size 1e{} {}{}",
+                w.gap,
+                w.gap_ulps,
+                w.precision,
+                w.scale,
+                w.placement,
+                if too_wide {
+                    ", over --max-gap-ulps"
+                } else {
+                    ""
+                }
+            )
+        });
+        say!(
+            "{}: {verdict}: {hits} self-hits, {behind} behind the surface in {rays} spawned rays{gap}{}",
+            r.name(),
+            worst.map_or(String::new(), |w| format!(
+                " (most: {} of {} at {} scene size 1e{} {}; replay: {})",
+                w.self_hits,
+                w.rays,
+                w.precision,
+                w.scale,
+                w.placement,
+                w.self_hit_replay.as_deref().unwrap_or("")
+            ))
+        );
+    }
+    let mut out = Outputs::new();
+    if let Some(p) = &a.json {
+        out.write(p, (serde_json::to_string_pretty(&rows)? + "\n").as_bytes())?;
+    }
+    if let Some(p) = &a.markdown {
+        out.write(p, spawn::markdown(&rows).as_bytes())?;
+    }
+    out.commit()?;
+    if failed.is_empty() {
+        say!("verdict: pass");
+        Ok(0)
+    } else {
+        say!(
+            "verdict: FAIL ({}: self-hits, rays behind the surface or a gap over --max-gap-ulps)",
+            failed.join(", ")
+        );
+        Ok(1)
+    }
+}
+
+fn replay(a: &SpawnArgs, rules: &[Box<dyn SpawnRule>]) -> Result<u8> {
+    let [rule] = rules else {
+        bail!("--replay takes one rule (--rule NAME or --exec CMD)");
+    };
+    let [prec] = a.precision[..] else {
+        bail!("--replay takes one --precision");
+    };
+    let values: Vec<f64> = a
+        .values
+        .iter()
+        .map(|s| {
+            // Read exactly (as f64) first: a value the precision cannot hold is refused, not rounded
+            let v = rayproof::numerics::real::parse_number_in(s, "f64").map_err(|e| anyhow!(e))?;
+            if prec == Precision::F32 && v as f32 as f64 != v {
+                bail!("{s}: not a value of f32 (a replay's values are exact in its precision)");
+            }
+            Ok(v)
+        })
+        .collect::<Result<_>>()?;
+    let ray = spawn::ray_of(&values, prec).map_err(|e| anyhow!(e))?;
+    let s = rule
+        .spawn(prec, &[ray.query.clone()])
+        .map_err(|e| anyhow!(rayproof::audit::run::MethodFailed(e)))?[0];
+    let v = spawn::judge(&ray, &s, prec);
+    let hex = |x: f64| rayproof::shapes::shape::hex_text(x);
+    say!(
+        "rule {}: origin {} {} {}, t_min {}",
+        rule.name(),
+        hex(s.origin[0]),
+        hex(s.origin[1]),
+        hex(s.origin[2]),
+        hex(s.t_min)
+    );
+    match v.self_hit_t {
+        Some(t) => say!(
+            "self-hit: the exact oracle finds the triangle again at t = {} (> t_min)",
+            hex(t)
+        ),
+        None => say!("self-hit: none (the exact oracle)"),
+    }
+    say!(
+        "self-hit by the watertight intersector: {}",
+        if v.self_hit_intersector { "yes" } else { "no" }
+    );
+    say!(
+        "reach: {:e} ({}) above the surface: a parallel neighbour nearer than that is skipped",
+        v.reach,
+        hex(v.reach)
+    );
+    Ok(if v.self_hit { 1 } else { 0 })
+}
