@@ -219,6 +219,81 @@ pub fn bits_histogram_svg(title: &str, series: &[(String, Vec<f64>)]) -> String 
     svg
 }
 
+/// A log–log line plot, one line (with markers) per series of `(x, y)` points (points with a
+/// y at or below 0 are left out: a log scale cannot show them).
+pub fn lines_svg(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[(String, Vec<(f64, f64)>)],
+) -> String {
+    let mut svg = String::new();
+    let pts = || {
+        series
+            .iter()
+            .flat_map(|(_, v)| v.iter())
+            .filter(|p| p.1 > 0.0)
+    };
+    let (xmin, xmax) = min_max(pts().map(|p| p.0));
+    let (ymin, ymax) = min_max(pts().map(|p| p.1));
+    if !(xmin.is_finite() && ymin.is_finite()) {
+        return "<!-- nothing to plot -->".into();
+    }
+    let xr = (xmin / 2.0)..(xmax * 2.0);
+    let yr = (ymin / 3.0)..(ymax * 3.0);
+    {
+        let root = SVGBackend::with_string(&mut svg, (760, 460)).into_drawing_area();
+        let draw = || -> Result<(), Box<dyn std::error::Error + '_>> {
+            root.fill(&WHITE)?;
+            let mut chart = ChartBuilder::on(&root)
+                .caption(title, ("sans-serif", 18))
+                .margin(12)
+                .x_label_area_size(42)
+                .y_label_area_size(70)
+                .build_cartesian_2d(xr.log_scale(), yr.log_scale())?;
+            chart
+                .configure_mesh()
+                .x_desc(x_label)
+                .y_desc(y_label)
+                .x_label_formatter(&|v| format!("{v:.0e}"))
+                .y_label_formatter(&|v| format!("{v:.0e}"))
+                .draw()?;
+            for (i, (name, v)) in series.iter().enumerate() {
+                let colour = COLOURS[i % COLOURS.len()];
+                let v: Vec<(f64, f64)> = v.iter().copied().filter(|p| p.1 > 0.0).collect();
+                chart
+                    .draw_series(LineSeries::new(
+                        v.iter().copied(),
+                        ShapeStyle::from(colour).stroke_width(2),
+                    ))?
+                    .label(name.clone())
+                    .legend(move |(x, y)| {
+                        PathElement::new(
+                            [(x, y), (x + 16, y)],
+                            ShapeStyle::from(colour).stroke_width(2),
+                        )
+                    });
+                chart.draw_series(
+                    v.iter()
+                        .map(|&p| Circle::new(p, 3, ShapeStyle::from(colour).filled())),
+                )?;
+            }
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .position(SeriesLabelPosition::UpperLeft)
+                .draw()?;
+            root.present()?;
+            Ok(())
+        };
+        if let Err(e) = draw() {
+            return format!("<!-- plot failed: {e} -->");
+        }
+    }
+    svg
+}
+
 fn min_max(v: impl Iterator<Item = f64>) -> (f64, f64) {
     v.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
         (a.min(x), b.max(x))
