@@ -1723,19 +1723,14 @@ fn spawn_replay_of_bad_values(d: &Path) -> Result<(), String> {
     ]
     .map(String::from)
     .to_vec();
-    let replay = |v: &[String]| {
-        let mut a = vec![
-            "spawn",
-            "--rule",
-            "pbrt",
-            "--precision",
-            "f32",
-            "--replay",
-            "--",
-        ];
+    let replay_with = |flags: &[&str], v: &[String]| {
+        let mut a = vec!["spawn", "--rule", "pbrt", "--precision", "f32"];
+        a.extend(flags);
+        a.extend(["--replay", "--"]);
         a.extend(v.iter().map(String::as_str));
         run(d, &a, 30)
     };
+    let replay = |v: &[String]| replay_with(&[], v);
     replay(&good).exited(0)?;
     let with = |k: usize, x: &str| {
         let mut v = good.clone();
@@ -1752,19 +1747,7 @@ fn spawn_replay_of_bad_values(d: &Path) -> Result<(), String> {
     replay(&no_normal).refused(2, &["normal"])?;
     replay(&with(3, "-0x1p-20")).refused(2, &["error bound"])?;
     replay(&with(0, "0x1.0000000000001p+0")).refused(2, &["not a value of f32"])?;
-    let mut a = vec![
-        "spawn",
-        "--rule",
-        "pbrt",
-        "--precision",
-        "f32",
-        "--json",
-        "r.json",
-        "--replay",
-        "--",
-    ];
-    a.extend(good.iter().map(String::as_str));
-    run(d, &a, 30).refused(2, &["--json"])?;
+    replay_with(&["--json", "r.json"], &good).refused(2, &["--json"])?;
     Ok(())
 }
 

@@ -45,7 +45,10 @@ fn sum(rows: &[serde_json::Value], rule: &str, key: &str) -> u64 {
 #[test]
 fn the_built_in_rules_at_every_scale() {
     let d = scratch("spawn-built-in");
-    let o = spawn(&d, &["--per-cell", "8", "--json", "s.json", "--plots", "figs"]);
+    let o = spawn(
+        &d,
+        &["--per-cell", "8", "--json", "s.json", "--plots", "figs"],
+    );
     let (out, err) = text(&o);
     assert_eq!(o.status.code(), Some(0), "{err}");
     let r = rows(&d.join("s.json"));
@@ -53,7 +56,12 @@ fn the_built_in_rules_at_every_scale() {
     // The figures: a line per rule and precision, near and far; the Pareto of the ten
     for f in ["gap-near.svg", "gap-far.svg", "pareto.svg"] {
         let svg = std::fs::read_to_string(d.join("figs").join(f)).unwrap();
-        for label in ["pbrt f32", "wachter_binder f64", "tmin_1e-4 f32", "mitsuba2_epsilon f64"] {
+        for label in [
+            "pbrt f32",
+            "wachter_binder f64",
+            "tmin_1e-4 f32",
+            "mitsuba2_epsilon f64",
+        ] {
             assert!(svg.contains(label), "{f}: no {label}");
         }
     }
