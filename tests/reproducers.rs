@@ -1751,6 +1751,45 @@ fn spawn_replay_of_bad_values(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// Issue 47, hostile run F6: a child that never reads its batch was killed at `--timeout` and
+/// reported as "failed (signal: 9 (SIGKILL)) after 0 of 376 answers", as if it had crashed.
+/// It is said to be a timeout now (`spawn` and `audit --exec` share the path).
+fn exec_child_that_never_reads_its_batch(d: &Path) -> Result<(), String> {
+    let r = run(
+        d,
+        &[
+            "spawn",
+            "--per-cell",
+            "2",
+            "--timeout",
+            "1",
+            "--exec",
+            "sleep 1000",
+        ],
+        30,
+    );
+    r.refused(4, &["did not finish within 1 s"])?;
+    let r = run(
+        d,
+        &[
+            "audit",
+            "--shape",
+            "sphere",
+            "--cases",
+            "3000",
+            "--timeout",
+            "1",
+            "--exec",
+            "sleep 1000",
+        ],
+        60,
+    );
+    if r.code != Some(4) || !r.stderr.contains("did not finish within 1 s") {
+        return Err(format!("audit: {}", r.ended()));
+    }
+    Ok(())
+}
+
 const ROWS: &[Row] = &[
     (
         "update_beside_an_external_reference",
@@ -1865,6 +1904,10 @@ const ROWS: &[Row] = &[
     ),
     ("spawn_replay_lines_and_names", spawn_replay_lines_and_names),
     ("spawn_replay_of_bad_values", spawn_replay_of_bad_values),
+    (
+        "exec_child_that_never_reads_its_batch",
+        exec_child_that_never_reads_its_batch,
+    ),
 ];
 
 #[test]

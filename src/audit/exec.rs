@@ -437,6 +437,15 @@ impl Method for Exec {
                 // still open flushes its lines, and is kept for the run
                 let n = inputs.len();
                 let first = child.exchange(batch.as_bytes(), false, Some(&|_| Some(0)), deadline);
+                if let Err(Broken::Deadline) = first {
+                    // It never read its batch (killed at the deadline): a timeout, not a crash
+                    let said = Self::said(child);
+                    state.0 = None;
+                    return Err(format!(
+                        "{what} did not finish within {} s (killed){said}",
+                        self.timeout.as_secs_f64()
+                    ));
+                }
                 let whole = first.ok().and_then(|_| {
                     let window = FIRST_LINE.min(self.timeout / 2);
                     child.wait_for(&|b| answered(b, n).map(|_| 0), Instant::now() + window)

@@ -195,10 +195,14 @@ pub fn put_in_place(e: &Entry) -> Result<()> {
     std::fs::rename(&e.tmp, &e.path)
 }
 
-/// Whether process `pid` no longer exists (and is not this one).
+/// Whether process `pid` no longer exists (and is not this one). A pid no process can have (0,
+/// or over `i32::MAX`: Linux pids stay under 2²²) is dead.
 pub fn dead(pid: u32) -> bool {
-    if pid == std::process::id() || pid == 0 || pid > i32::MAX as u32 {
+    if pid == std::process::id() {
         return false;
+    }
+    if pid == 0 || pid > i32::MAX as u32 {
+        return true;
     }
     // SAFETY: signal 0 only checks that the process exists
     let gone = unsafe { libc::kill(pid as i32, 0) } != 0;
