@@ -124,7 +124,7 @@ pub fn shard_len(cases: u64, (k, n): (u64, u64)) -> u64 {
 }
 
 /// Cases per batch: each method answers this many at once.
-const CHUNK: u64 = 4096;
+pub(crate) const CHUNK: u64 = 4096;
 
 /// The samples of one case from the methods' answers (residual and enclosure for a
 /// right-verdict hit).

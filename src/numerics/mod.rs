@@ -25,6 +25,14 @@ pub enum Precision {
 impl Precision {
     /// Both precisions, `f32` first.
     pub const ALL: [Precision; 2] = [Precision::F32, Precision::F64];
+    /// The precision of the float type `F`.
+    pub fn of<F: real::Real>() -> Precision {
+        if F::MANT_BITS == 24 {
+            Precision::F32
+        } else {
+            Precision::F64
+        }
+    }
     /// `"f32"` or `"f64"`.
     pub fn name(self) -> &'static str {
         match self {

@@ -110,14 +110,6 @@ impl std::ops::AddAssign for Count {
     }
 }
 
-fn prec_of<F: Real>() -> Precision {
-    if F::MANT_BITS == 24 {
-        Precision::F32
-    } else {
-        Precision::F64
-    }
-}
-
 fn to_f64<F: Real>(v: &[F]) -> Vec<f64> {
     v.iter().map(|x| x.to_f64()).collect()
 }
@@ -258,7 +250,7 @@ fn spawn_and_test<K: Surface, F: PickPrecision>(
 
 /// Every method of one surface on one instance, per rule.
 fn trial<K: Surface, F: PickPrecision>(k: &K, seed: u64, index: u64) -> Vec<[Count; 3]> {
-    let prec = prec_of::<F>();
+    let prec = Precision::of::<F>();
     let mut rng = crate::shapes::shape::case_rng(seed, k.name(), "reintersect", prec, index);
     // Size by decade, placement near or far
     let decade = (index % DECADES as u64) as f64 - 4.0;

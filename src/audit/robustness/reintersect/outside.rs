@@ -90,7 +90,7 @@ impl Outside<'_> {
         let per = self.parts(&asked[0]).len();
         let inputs: Vec<Vec<f64>> = asked.iter().flat_map(|c| self.parts(c)).collect();
         let mut got = Vec::with_capacity(inputs.len());
-        for chunk in inputs.chunks(4096) {
+        for chunk in inputs.chunks(crate::audit::run::CHUNK as usize) {
             let mut a = crate::audit::run::answers(&[self.method], self.prec, chunk)?;
             got.append(&mut a[0]);
         }

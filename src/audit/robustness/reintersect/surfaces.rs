@@ -92,13 +92,9 @@ fn v3<F: Copy>(v: &[F], k: usize) -> [F; 3] {
     [v[k], v[k + 1], v[k + 2]]
 }
 
-fn prec_of<F: Real>() -> Precision {
-    super::prec_of::<F>()
-}
-
 /// A routine's method as `Option<t>`.
 fn shape_run<F: Real>(shape: &dyn Shape, m: usize, input: &[F]) -> Option<F> {
-    let a = shape.run(m, &super::to_f64(input), prec_of::<F>());
+    let a = shape.run(m, &super::to_f64(input), Precision::of::<F>());
     (a.count > 0).then(|| F::from_f64(a.values[0]))
 }
 

@@ -126,7 +126,7 @@ pub fn cell(seed: u64, prec: Precision, scale: i32, placement: &'static str, n: 
 }
 
 fn cell_in<F: Real>(seed: u64, scale: i32, placement: &str, n: u64) -> Vec<Ray> {
-    let prec = prec_of::<F>();
+    let prec = Precision::of::<F>();
     let s = 10f64.powi(scale);
     let mut out = vec![];
     for i in 0..n {
@@ -179,7 +179,7 @@ fn cell_in<F: Real>(seed: u64, scale: i32, placement: &str, n: u64) -> Vec<Ray> 
             continue;
         };
         let (p, err) = triangle::hit_point(INTERSECTOR, of, df, &tf, &h);
-        let nrm = unit(sample::cross(
+        let nrm = sample::normalize(sample::cross(
             sample::sub(tri[1], tri[0]),
             sample::sub(tri[2], tri[0]),
         ));
@@ -219,18 +219,6 @@ fn cell_in<F: Real>(seed: u64, scale: i32, placement: &str, n: u64) -> Vec<Ray> 
     out
 }
 
-fn unit(v: [f64; 3]) -> [f64; 3] {
-    sample::normalize(v)
-}
-
-fn prec_of<F: Real>() -> Precision {
-    if F::MANT_BITS == 24 {
-        Precision::F32
-    } else {
-        Precision::F64
-    }
-}
-
 /// What a rule's answer does on one ray.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Verdict {
@@ -250,10 +238,7 @@ pub fn judge(ray: &Ray, s: &Spawned, prec: Precision) -> Verdict {
     let w = v3(&ray.query, 9);
     let input: Vec<f64> = [s.origin, w, ray.tri[0], ray.tri[1], ray.tri[2]].concat();
     let t_min = q(s.t_min);
-    let exact = match exact_tri(&input) {
-        ExactTri::Hit { .. } => exact_tri(&input).t().filter(|t| *t > t_min),
-        _ => None,
-    };
+    let exact = exact_tri(&input).t().filter(|t| *t > t_min);
     let intersector = crate::in_precision!(prec, F => {
         let f = |a: [f64; 3]| a.map(F::from_f64);
         triangle::method::<F>(INTERSECTOR)(f(s.origin), f(w), ray.tri.map(f))
@@ -534,7 +519,7 @@ mod tests {
                     continue;
                 }
                 let w = v3(&ray.query, 9);
-                let n = unit(sample::cross(
+                let n = sample::normalize(sample::cross(
                     sample::sub(ray.tri[1], ray.tri[0]),
                     sample::sub(ray.tri[2], ray.tri[0]),
                 ));

@@ -197,16 +197,9 @@ impl SpawnRule for ExecRule {
     }
     fn spawn(&self, prec: Precision, queries: &[Vec<f64>]) -> Result<Vec<Spawned>, String> {
         let mut out = Vec::with_capacity(queries.len());
-        for chunk in queries.chunks(4096) {
-            let answers = self.0.answer(prec, chunk)?;
-            if answers.len() != chunk.len() {
-                return Err(format!(
-                    "spawn rule '{}': {} answers to {} queries",
-                    self.0.name,
-                    answers.len(),
-                    chunk.len()
-                ));
-            }
+        for chunk in queries.chunks(crate::audit::run::CHUNK as usize) {
+            // Checked for their number, as every outside routine's answers are
+            let answers = crate::audit::run::answers(&[&self.0], prec, chunk)?.remove(0);
             for (a, q) in answers.iter().zip(chunk) {
                 let ok = a.count == 1
                     && a.values.len() == 4
