@@ -354,7 +354,7 @@ fn shard_files_hold_no_decimal_floats() {
     write_shard(&selection(1, 40), 1, 2, &shard);
     let v: Value = serde_json::from_slice(&std::fs::read(&shard).unwrap()).unwrap();
     assert_eq!(v["format"], "rayproof-audit-shard");
-    assert_eq!(v["format_version"], 6);
+    assert_eq!(v["format_version"], 7);
     assert_eq!(v["shard"]["k"], 1);
     assert_eq!(v["shard"]["n"], 2);
     // Every number is an integer; floats are hex text, so they round-trip exactly

@@ -69,11 +69,17 @@ fn the_built_in_rules_at_every_scale() {
     assert!(sum(&r, "pbrt", "rays") > 1500);
     let none = sum(&r, "none", "self_hits");
     assert!(none * 3 > sum(&r, "none", "rays"), "none: {none}");
-    // pbrt: a gap under 32 ulps of |p| everywhere; in scene units it grows with the scene
+    // pbrt: held to its goal, a positive gap everywhere (bounded by twice its error bound:
+    // the unit test `pbrts_gap_is_bounded_by_twice_its_error_bound`); in scene units it grows
+    // with the scene
     for x in r.iter().filter(|x| x["rule"] == "pbrt") {
-        let u = x["gap_ulps"].as_f64().unwrap();
-        assert!(u > 0.0 && u < 32.0, "{x}");
+        assert!(x["gap_ulps"].as_f64().unwrap() > 0.0, "{x}");
+        assert_eq!(x["verdict"], "pass", "{x}");
     }
+    assert!(r
+        .iter()
+        .filter(|x| x["rule"] != "pbrt")
+        .all(|x| x["verdict"] == "reported"));
     let gap = |rule: &str, prec: &str, pl: &str, scale: i64| {
         r.iter()
             .find(|x| {
@@ -97,7 +103,7 @@ fn the_built_in_rules_at_every_scale() {
     assert_eq!(tmin_hits(-2), 0);
     assert!(tmin_hits(5) > 10);
     // The summary says each rule's count, and a self-hit's replay line replays it
-    assert!(out.contains("pbrt: reported: 0 self-hits"), "{out}");
+    assert!(out.contains("pbrt: pass: 0 self-hits"), "{out}");
     let line = out
         .lines()
         .find(|l| l.starts_with("none: reported:"))
@@ -122,7 +128,7 @@ fn an_outside_rule_that_self_hits_fails_and_a_malformed_answer_stops_the_run() {
     let o = spawn(&d, &["--per-cell", "2", "--exec", same, "--name", "mine"]);
     let (out, err) = text(&o);
     assert_eq!(o.status.code(), Some(1), "{out}{err}");
-    assert!(out.contains("mine: FAIL:"), "{out}");
+    assert!(out.contains("mine: FAIL in "), "{out}");
     assert!(out.contains("verdict: FAIL (mine:"), "{out}");
     for bad in [
         "2 0 0 0 0",
@@ -191,4 +197,168 @@ fn mitsuba_spawn_ray_beside_pbrts_rule() {
         .find(|x| x["rule"] == "mitsuba3" && x["scale"] == -4 && x["placement"] == "near")
         .unwrap();
     assert!(tiny["gap"].as_f64().unwrap() > 5e-5, "{tiny}");
+}
+
+fn audit(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(dir)
+        .args([
+            "audit",
+            "--shape",
+            "sphere",
+            "--method",
+            "geometric",
+            "--cases",
+            "64",
+        ])
+        .args(["--precision", "f32"])
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// The rule "the hit point itself" through --exec (awk).
+const SAME_POINT: &str = "awk '{print 1, $2, $3, $4, 0; fflush()}'";
+
+/// `audit --spawn-rule` (issue 47 item 4): rows judged by the tolerance table. A rule of yours
+/// that self-hits fails the audit (exit 1) with a line per failing cell and a replay line that
+/// replays its self-hit; pbrt is held to its goal and passes; the other built-ins are reported;
+/// a tolerance rule turns a row reported, or bounds pbrt's gap (then its gap's replay line is
+/// printed).
+#[test]
+fn audit_spawn_rule_rows_are_judged_by_the_tolerance_table() {
+    let d = scratch("spawn-audit");
+    let exec = format!("exec:{SAME_POINT}");
+    let o = audit(
+        &d,
+        &[
+            "--spawn-rule",
+            "pbrt",
+            "--spawn-rule",
+            "none",
+            "--spawn-rule",
+            &exec,
+            "--spawn-name",
+            "mine",
+            "--json",
+            "a.json",
+        ],
+    );
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{out}{err}");
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("a.json")).unwrap()).unwrap();
+    let rows = j["robustness"]["spawn"].as_array().unwrap().clone();
+    assert_eq!(rows.len(), 3 * 12 * 2);
+    let verdicts = |rule: &str| -> Vec<String> {
+        let mut v: Vec<String> = rows
+            .iter()
+            .filter(|x| x["rule"] == rule)
+            .map(|x| x["verdict"].as_str().unwrap().to_string())
+            .collect();
+        v.dedup();
+        v
+    };
+    assert_eq!(verdicts("pbrt"), ["pass"]);
+    assert_eq!(verdicts("none"), ["reported"]);
+    assert!(verdicts("mine").contains(&"fail".to_string()));
+    assert!(sum(&rows, "mine", "self_hits") > 0);
+    assert_eq!(
+        sum(&rows, "mine", "self_hits"),
+        sum(&rows, "none", "self_hits")
+    );
+    let line = out
+        .lines()
+        .find(|l| l.contains("spawn rule mine f32") && l.contains("replay of a self-hit: "))
+        .unwrap_or_else(|| panic!("{out}"));
+    let replay = line.split("replay of a self-hit: ").nth(1).unwrap();
+    assert!(replay.contains("--exec 'awk"), "{replay}");
+    let o = Command::new("sh")
+        .current_dir(&d)
+        .arg("-c")
+        .arg(replay.replacen("rayproof", env!("CARGO_BIN_EXE_rayproof"), 1))
+        .output()
+        .unwrap();
+    let (rout, rerr) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{replay}: {rout}{rerr}");
+    assert!(
+        rout.contains("self-hit: the exact oracle finds the triangle again"),
+        "{rout}"
+    );
+    // The tolerance table: mine reported, pbrt held to a gap of 4 ulps (it resolves 3-11)
+    std::fs::write(
+        d.join("t.toml"),
+        "[[robustness]]\nmethod = \"mine\"\ntest = \"spawn\"\nreported = true\nwhy = \"a control\"\n\n\
+         [[robustness]]\nmethod = \"pbrt\"\ntest = \"spawn\"\nmax_self_hits = 0\nmax_gap_ulps = 4\nwhy = \"tight\"\n",
+    )
+    .unwrap();
+    let o = audit(
+        &d,
+        &[
+            "--spawn-rule",
+            "pbrt",
+            "--spawn-rule",
+            &exec,
+            "--spawn-name",
+            "mine",
+            "--tolerances",
+            "t.toml",
+        ],
+    );
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{out}{err}");
+    assert!(!out.contains("spawn rule mine f32 scene"), "{out}");
+    let gap_line = out
+        .lines()
+        .find(|l| {
+            l.contains("spawn rule pbrt f32")
+                && l.contains("replay of the widest reach: rayproof spawn --rule pbrt")
+        })
+        .unwrap_or_else(|| panic!("{out}"));
+    assert!(gap_line.contains("0 self-hits"), "{gap_line}");
+    // A rule naming a spawn rule the audit does not run is refused before the run
+    let o = audit(&d, &["--tolerances", "t.toml"]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("no spawn rule 'mine' in this audit"), "{err}");
+}
+
+/// Shards and merge carry spawn rows: shard 0 runs them whole (an --exec rule too), the merge
+/// judges them, and its JSON is byte-identical to the unsharded audit's.
+#[test]
+fn audit_spawn_rows_go_through_shards_and_merge() {
+    let d = scratch("spawn-shards");
+    let exec = format!("exec:{SAME_POINT}");
+    let args = [
+        "--spawn-rule",
+        "tmin_1e-4",
+        "--spawn-rule",
+        &exec,
+        "--spawn-name",
+        "mine",
+    ];
+    let o = audit(&d, &[&args[..], &["--json", "whole.json"]].concat());
+    assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
+    for k in ["0/2", "1/2"] {
+        let f = format!("s{}.json", &k[..1]);
+        let o = audit(
+            &d,
+            &[&args[..], &["--shard", k, "--shard-out", &f]].concat(),
+        );
+        assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
+    }
+    let shard1 = std::fs::read_to_string(d.join("s1.json")).unwrap();
+    assert!(!shard1.contains("tmin_1e-4"), "shard 1 carries spawn rows");
+    let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+        .current_dir(&d)
+        .args(["merge", "s1.json", "s0.json", "--json", "merged.json"])
+        .output()
+        .unwrap();
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{out}{err}");
+    assert!(out.contains("spawn rule mine f32 scene size"), "{out}");
+    assert_eq!(
+        std::fs::read(d.join("whole.json")).unwrap(),
+        std::fs::read(d.join("merged.json")).unwrap()
+    );
 }

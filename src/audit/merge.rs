@@ -34,7 +34,13 @@ impl Merged {
             .iter()
             .flat_map(|t| t.methods.iter().map(|x| (t.shape.name(), x.name.clone())))
             .collect();
-        super::plan::known_names(extra)
+        let mut k = super::plan::known_names(extra);
+        for r in &self.outside.spawn {
+            if !k.spawn_rules.contains(&r.rule) {
+                k.spawn_rules.push(r.rule.clone());
+            }
+        }
+        k
     }
 
     /// The report of the unsharded audit: each shape judged by `table` (told to `each` as it is

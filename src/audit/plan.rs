@@ -78,6 +78,9 @@ pub struct Plan {
     pub shard: (u64, u64),
     /// Every shape is audited: the reintersection and watertightness tests run too.
     pub every_shape: bool,
+    /// Spawn rules audited beside the shapes (`audit --spawn-rule`): their rows are run whole
+    /// with the outside routines' robustness rows.
+    pub spawn_rules: Vec<Box<dyn robustness::spawn::SpawnRule>>,
 }
 
 /// Resolves names against a list, or all when empty.
@@ -165,6 +168,7 @@ impl Plan {
             seed: o.seed,
             shard: o.shard,
             every_shape,
+            spawn_rules: vec![],
         })
     }
 
@@ -305,13 +309,17 @@ impl Plan {
                 );
             }
         }
+        let rules: Vec<&dyn robustness::spawn::SpawnRule> =
+            self.spawn_rules.iter().map(|r| r.as_ref()).collect();
+        rows.spawn = robustness::spawn_rows(self.seed, &self.precisions, &rules)
+            .map_err(super::run::MethodFailed)?;
         Ok(rows)
     }
 
     /// The names a tolerance table may use: every registered shape with its methods and
     /// classes, and the methods of this audit.
     pub fn known(&self) -> Known<'static> {
-        known_names(
+        let mut k = known_names(
             self.shapes
                 .iter()
                 .flat_map(|p| {
@@ -320,7 +328,13 @@ impl Plan {
                         .map(|m| (p.shape.name(), m.name().to_string()))
                 })
                 .collect(),
-        )
+        );
+        k.spawn_rules = self
+            .spawn_rules
+            .iter()
+            .map(|r| r.name().to_string())
+            .collect();
+        k
     }
 }
 
@@ -346,6 +360,7 @@ pub fn known_names(extra: Vec<(&'static str, String)>) -> Known<'static> {
             .filter(|s| s.info().reports_cond)
             .map(|s| s.info().name)
             .collect(),
+        spawn_rules: vec![],
     }
 }
 

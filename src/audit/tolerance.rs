@@ -198,6 +198,8 @@ pub struct Known<'a> {
     /// The shapes whose oracle gives each case's sensitivity: the only ones a
     /// `max_err_over_cond` rule can judge.
     pub with_cond: Vec<&'a str>,
+    /// The audit's spawn rules (`--spawn-rule`): what a `test = "spawn"` rule may name.
+    pub spawn_rules: Vec<String>,
 }
 
 /// The ordered rules of the user's file (if any) and the built-in table, and the measured
@@ -430,6 +432,7 @@ impl Table {
                         .iter()
                         .map(|(s, ms, _)| (*s, ms.clone()))
                         .collect::<Vec<_>>(),
+                    &known.spawn_rules,
                 ),
             )?,
         })

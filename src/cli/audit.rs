@@ -44,6 +44,16 @@ pub struct AuditArgs {
     /// the merge, not here).
     #[arg(long, value_name = "FILE")]
     pub shard_out: Option<PathBuf>,
+    /// Audit a spawn rule beside the shapes (repeatable): a built-in (pbrt, wachter_binder,
+    /// tmin_1e-4, mitsuba2_epsilon, none) or `exec:CMD`, a command speaking `rayproof header
+    /// --spawn`. Its rows (precision × scene size × placement, as `rayproof spawn`'s) are judged
+    /// by the tolerance file's `test = "spawn"` rules, else: yours and pbrt held to no self-hit
+    /// and no ray behind the surface, the other built-ins reported.
+    #[arg(long, value_name = "RULE")]
+    pub spawn_rule: Vec<String>,
+    /// The `exec:` spawn rules' names, in order (default `exec`, `exec2`, …).
+    #[arg(long, value_name = "NAME")]
+    pub spawn_name: Vec<String>,
     #[command(flatten)]
     pub outside: OutsideArgs,
     #[command(flatten)]
@@ -377,6 +387,23 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     if !outside_named.is_empty() {
         narrow_to(&mut plan, &builtin, &outside_named)?;
     }
+    let (execs, builtins): (Vec<&String>, Vec<&String>) =
+        a.spawn_rule.iter().partition(|r| r.starts_with("exec:"));
+    let execs: Vec<String> = execs
+        .iter()
+        .map(|r| r["exec:".len()..].to_string())
+        .collect();
+    if let Some(e) = execs.iter().find(|c| c.trim().is_empty()) {
+        bail!("--spawn-rule 'exec:{e}': give the command after exec:");
+    }
+    let builtins: Vec<String> = builtins.into_iter().cloned().collect();
+    plan.spawn_rules = super::spawn::spawn_rules(
+        &builtins,
+        &execs,
+        &a.spawn_name,
+        a.outside.exec_timeout,
+        "--spawn-name",
+    )?;
     let user_table = read_user_table(&a.out.tolerances)?;
     let table = table_of(&user_table, &plan.known())?;
     let inputs: Vec<PathBuf> = a.out.tolerances.iter().cloned().collect();
@@ -388,7 +415,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     // Each shape printed as it finishes; progress on stderr, off the report (after the run when
     // an outside routine is in it: its errors can come until its child is closed, and an error
     // is one line)
-    let outside = a.outside.any();
+    let outside = a.outside.any() || a.spawn_rule.iter().any(|r| r.starts_with("exec:"));
     let mut progress: Vec<String> = vec![];
     let mut each = |p: Progress| {
         let line = match p {
@@ -405,7 +432,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
                 )
             }
             Progress::Robustness(secs) => format!(
-                "robustness: reintersection and watertightness in {secs:.1} s on {} threads",
+                "robustness tests in {secs:.1} s on {} threads",
                 rayon::current_num_threads()
             ),
         };

@@ -41,14 +41,18 @@ pub mod watertight;
 use crate::numerics::Precision;
 use crate::shapes::triangle;
 use offset::{ReintersectRow, Rule};
-use rules::{RobustRule, Test};
+use rules::{RobustRule, Test, Tested};
 use serde::{Deserialize, Serialize};
+use spawn::SpawnRow;
 pub use watertight::WatertightRow;
 
 /// Instances per decade of scale (1e-4 … 1e4) in the reintersection test.
 pub const PER_SCALE: u64 = 24;
 /// Rays per mesh and kind in the watertightness test.
 pub const WATERTIGHT_RAYS: u64 = 3000;
+/// Triangles per precision × scene size × placement of an `audit --spawn-rule` rule (each with
+/// [`spawn::SPAWNED`] spawned rays: 6,144 rays per rule in both precisions).
+pub const SPAWN_PER_CELL: u64 = 16;
 
 /// Both tests' rows.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -59,6 +63,9 @@ pub struct Robustness {
     pub reintersection: Vec<ReintersectRow>,
     /// One row per method × precision × mesh × ray kind.
     pub watertight: Vec<WatertightRow>,
+    /// One row per spawn rule (`audit --spawn-rule`) × precision × scene size × placement.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub spawn: Vec<SpawnRow>,
 }
 
 /// The reintersection surfaces of an audited shape (the triangle has two: alone and hinged).
@@ -74,10 +81,10 @@ fn surfaces_of(shape: &str) -> Vec<&'static str> {
 }
 
 /// The methods that can have rows of each test, of `shapes` as `(shape, its methods: built-in
-/// and outside)`: `(reintersection, watertightness)`. Reintersection runs every built-in method
-/// of the surfaces it knows and outside routines of the sphere and the triangle; watertightness
-/// the triangle's methods, built-in and outside.
-pub fn tested_methods(shapes: &[(&str, Vec<String>)]) -> (Vec<String>, Vec<String>) {
+/// and outside)`, and the audit's spawn rules. Reintersection runs every built-in method of the
+/// surfaces it knows and outside routines of the sphere and the triangle; watertightness the
+/// triangle's methods, built-in and outside.
+pub fn tested_methods(shapes: &[(&str, Vec<String>)], spawn_rules: &[String]) -> Tested {
     let (mut re, mut wt) = (vec![], vec![]);
     for (shape, methods) in shapes {
         let builtin: Vec<&str> = crate::shapes::shape_by_name(shape)
@@ -94,7 +101,11 @@ pub fn tested_methods(shapes: &[(&str, Vec<String>)]) -> (Vec<String>, Vec<Strin
             }
         }
     }
-    (re, wt)
+    Tested {
+        reintersection: re,
+        watertight: wt,
+        spawn: spawn_rules.to_vec(),
+    }
 }
 
 /// Whether an audit of `shape` covers all its built-in methods (by name, in order) and all its
@@ -148,13 +159,35 @@ pub fn outside_reintersection(
     Ok(rows)
 }
 
-/// The rows of routines from outside the crate: reintersection and watertightness.
+/// The rows of routines from outside the crate: reintersection and watertightness, and the
+/// rows of the audit's spawn rules (`--spawn-rule`, built-in or outside).
 #[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct Outside {
     /// Reintersection rows of outside sphere and triangle routines.
     pub reintersection: Vec<ReintersectRow>,
     /// Watertightness rows of outside triangle routines.
     pub watertight: Vec<WatertightRow>,
+    /// Rows of the spawn rules (`audit --spawn-rule`).
+    #[serde(default)]
+    pub spawn: Vec<SpawnRow>,
+}
+
+/// The rows of the spawn rules `rules` over the audit's precisions (the seed's cells,
+/// [`SPAWN_PER_CELL`] triangles each): what `audit --spawn-rule` adds.
+pub fn spawn_rows(
+    seed: u64,
+    precisions: &[Precision],
+    rules: &[&dyn spawn::SpawnRule],
+) -> Result<Vec<SpawnRow>, String> {
+    if rules.is_empty() {
+        return Ok(vec![]);
+    }
+    let cells = spawn::cells(seed, precisions, SPAWN_PER_CELL);
+    let mut rows = vec![];
+    for r in rules {
+        rows.extend(spawn::rows(*r, &cells)?);
+    }
+    Ok(rows)
 }
 
 /// The built-in tests `r` with the rows of outside routines after them, judged by the tolerance
@@ -165,7 +198,7 @@ pub fn with_outside(
     outside: Outside,
     rules: &[RobustRule],
 ) -> Option<Robustness> {
-    if outside.reintersection.is_empty() && outside.watertight.is_empty() {
+    if outside == Outside::default() {
         return r.map(|r| {
             let n = (r.reintersection.len(), r.watertight.len());
             judge(r, n, rules)
@@ -175,10 +208,12 @@ pub fn with_outside(
         seed,
         reintersection: vec![],
         watertight: vec![],
+        spawn: vec![],
     });
     let built_in = (r.reintersection.len(), r.watertight.len());
     r.reintersection.extend(outside.reintersection);
     r.watertight.extend(outside.watertight);
+    r.spawn.extend(outside.spawn);
     Some(judge(r, built_in, rules))
 }
 
@@ -197,7 +232,7 @@ fn watertight_by_design() -> Vec<&'static str> {
 /// controls (weak, off) and the built-in methods not robust by design (the chapter's,
 /// Möller–Trumbore: they show the tests' teeth) are reported. The first `built_in.0`
 /// reintersection and `built_in.1` watertightness rows are the built-in methods'; the rest are
-/// outside routines'.
+/// outside routines'. Spawn rows: [`spawn::default_goal`] unless a rule names them.
 pub fn judge(mut r: Robustness, built_in: (usize, usize), rules: &[RobustRule]) -> Robustness {
     let by_design = watertight_by_design();
     let rule = |method: &str, test: Test, precision: &str| {
@@ -235,7 +270,20 @@ pub fn judge(mut r: Robustness, built_in: (usize, usize), rules: &[RobustRule]) 
         }
         .into();
     }
+    spawn::judge_rows(&mut r.spawn, &|x| spawn_goal(x, rules));
     r
+}
+
+/// The goal of a spawn row: the first tolerance rule's that names it, else the default (a
+/// rule not built in is the user's).
+fn spawn_goal(x: &SpawnRow, rules: &[RobustRule]) -> Option<spawn::Goal> {
+    match rules
+        .iter()
+        .find(|u| u.applies(&x.rule, Test::Spawn, &x.precision))
+    {
+        Some(u) => u.spawn_goal(),
+        None => spawn::default_goal(&x.rule, spawn::BuiltIn::named(&x.rule).is_none()),
+    }
 }
 
 /// Runs the tests that belong to the audited `shapes` in the given precisions: reintersection
@@ -261,6 +309,7 @@ pub fn run(seed: u64, shapes: &[&str], precisions: &[Precision]) -> Option<Robus
         seed,
         reintersection,
         watertight,
+        spawn: vec![],
     })
 }
 
@@ -313,6 +362,9 @@ pub fn check(r: &Robustness) -> Vec<String> {
                 ));
             }
         }
+    }
+    for row in r.spawn.iter().filter(|x| x.verdict == "fail") {
+        out.push(spawn::failure(row));
     }
     for row in r.watertight.iter().filter(|x| x.verdict == "fail") {
         out.push(format!(
@@ -423,12 +475,14 @@ pub fn summary(r: &Robustness) -> String {
             outside_summary(w)
         );
     }
+    s += &spawn_summary(&r.spawn);
     // How many rows were held to a goal, and how many only reported
     let verdicts: Vec<&str> = r
         .reintersection
         .iter()
         .map(|x| x.verdict.as_str())
         .chain(r.watertight.iter().map(|x| x.verdict.as_str()))
+        .chain(r.spawn.iter().map(|x| x.verdict.as_str()))
         .collect();
     let n = |v: &str| verdicts.iter().filter(|x| **x == v).count();
     if !verdicts.is_empty() {
@@ -444,6 +498,43 @@ pub fn summary(r: &Robustness) -> String {
     s
 }
 
+/// One line per spawn rule: its rays, self-hits, rays behind the surface, widest gap and
+/// verdicts (empty without spawn rows).
+fn spawn_summary(rows: &[SpawnRow]) -> String {
+    let mut names: Vec<&str> = vec![];
+    for x in rows {
+        if !names.contains(&x.rule.as_str()) {
+            names.push(&x.rule);
+        }
+    }
+    let mut s = String::new();
+    for n in names {
+        let mine: Vec<&SpawnRow> = rows.iter().filter(|x| x.rule == n).collect();
+        let sum = |f: fn(&SpawnRow) -> u64| mine.iter().map(|x| f(x)).sum::<u64>();
+        let widest = mine
+            .iter()
+            .filter(|x| x.rays > 0)
+            .max_by(|a, b| a.gap_ulps.total_cmp(&b.gap_ulps));
+        let failed = mine.iter().filter(|x| x.verdict == "fail").count();
+        let verdict = match mine.first().map(|x| x.verdict.as_str()) {
+            Some("reported") => "reported".to_string(),
+            _ if failed > 0 => format!("{failed} of {} cells fail", mine.len()),
+            _ => "pass".to_string(),
+        };
+        s += &format!(
+            "spawn rule       {n}: {} spawned rays, {} self-hits, {} behind the surface; widest resolved gap {}: {verdict}\n",
+            sum(|x| x.rays),
+            sum(|x| x.self_hits),
+            sum(|x| x.behind),
+            widest.map_or("-".into(), |w| format!(
+                "{:.1} ulps of max|p| ({} 1e{} {})",
+                w.gap_ulps, w.precision, w.scale, w.placement
+            )),
+        );
+    }
+    s
+}
+
 /// The terminal / Markdown table (Markdown when `md`).
 pub fn table(r: &Robustness, md: bool) -> String {
     let mut s = String::new();
@@ -452,6 +543,14 @@ pub fn table(r: &Robustness, md: bool) -> String {
     }
     if !r.watertight.is_empty() {
         s += &watertight_table(r, md);
+    }
+    if !r.spawn.is_empty() {
+        s += if md {
+            "\n### Spawn rules: self-hits and the smallest resolved gap (`--spawn-rule`)\n\n"
+        } else {
+            "\nspawn rules (self-hits judged exactly; the smallest gap to a parallel neighbour the rule resolves)\n"
+        };
+        s += &spawn::markdown(&r.spawn);
     }
     s
 }

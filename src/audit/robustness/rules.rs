@@ -1,14 +1,20 @@
-//! A tolerance file's `[[robustness]]` rules: what a user holds a routine's reintersection and
-//! watertightness rows to, instead of the default (no self-hit under the offset rule, no escape
-//! through a closed mesh or a fold, for robust built-in methods and every outside routine).
+//! A tolerance file's `[[robustness]]` rules: what a user holds a routine's reintersection,
+//! watertightness and spawn-rule rows to, instead of the default (no self-hit under the offset
+//! rule, no escape through a closed mesh or a fold, for robust built-in methods and every
+//! outside routine; no self-hit and no ray behind the surface for `audit --spawn-rule` rules of
+//! the user's and for `pbrt`).
 //!
 //! ```toml
 //! [[robustness]]
-//! method = "mine"            # one name or a list: built-in or outside (`--name`)
-//! test = "watertight"        # or "reintersection"; left out: both
+//! method = "mine"            # one name or a list: built-in or outside (`--name`, `--spawn-name`)
+//! test = "watertight"        # or "reintersection" or "spawn"; left out: reintersection and
+//!                            # watertightness
 //! precision = "f32"          # left out: both
 //! max_escapes = 3            # watertightness: escapes allowed per row
-//! max_self_hits = 0          # reintersection: self-hits allowed per row (beyond the neighbour's)
+//! max_self_hits = 0          # reintersection: self-hits allowed per row (beyond the neighbour's);
+//!                            # spawn: self-hits, and rays behind the surface, allowed per row
+//! max_gap_ulps = 64          # spawn only: the widest resolved gap allowed per row, in ulps of
+//!                            # max|p| (left out: the gap is reported)
 //! # reported = true          # instead of a bound: the rows are reported only
 //! why = "where the numbers came from"
 //! ```
@@ -25,6 +31,31 @@ pub enum Test {
     Reintersection,
     /// Rays through a closed mesh or a fold must not escape.
     Watertight,
+    /// A spawn rule's rays must not re-hit their surface nor start behind it (`audit
+    /// --spawn-rule`).
+    Spawn,
+}
+
+/// The names that have rows of each test in an audit.
+#[derive(Clone, Debug, Default)]
+pub struct Tested {
+    /// Methods with reintersection rows.
+    pub reintersection: Vec<String>,
+    /// Methods with watertightness rows.
+    pub watertight: Vec<String>,
+    /// Spawn rules (`audit --spawn-rule`).
+    pub spawn: Vec<String>,
+}
+
+impl Tested {
+    fn has(&self, name: &str, t: Test) -> bool {
+        let list = match t {
+            Test::Reintersection => &self.reintersection,
+            Test::Watertight => &self.watertight,
+            Test::Spawn => &self.spawn,
+        };
+        list.iter().any(|x| x == name)
+    }
 }
 
 /// A rule as written in the file.
@@ -36,6 +67,7 @@ pub struct RobustRuleText {
     precision: Option<OneOrMany>,
     max_escapes: Option<u64>,
     max_self_hits: Option<u64>,
+    max_gap_ulps: Option<f64>,
     reported: Option<bool>,
     why: String,
 }
@@ -70,8 +102,11 @@ pub struct RobustRule {
     pub precisions: Option<Vec<Precision>>,
     /// Escapes allowed per watertightness row.
     pub max_escapes: Option<u64>,
-    /// Self-hits allowed per reintersection row, beyond those at a neighbouring triangle.
+    /// Self-hits allowed per reintersection row, beyond those at a neighbouring triangle; per
+    /// spawn row, self-hits and rays behind the surface.
     pub max_self_hits: Option<u64>,
+    /// The widest resolved gap allowed per spawn row, in ulps of `max|p|`.
+    pub max_gap_ulps: Option<f64>,
     /// The rows are reported, not judged.
     pub reported: bool,
 }
@@ -91,7 +126,7 @@ impl RobustRule {
     pub fn verdict(&self, test: Test, count: u64) -> &'static str {
         let bound = match test {
             Test::Watertight => self.max_escapes,
-            Test::Reintersection => self.max_self_hits,
+            Test::Reintersection | Test::Spawn => self.max_self_hits,
         };
         match bound {
             _ if self.reported => "reported",
@@ -101,21 +136,34 @@ impl RobustRule {
             None => "reported",
         }
     }
+
+    /// The goal of a spawn row (`None`: reported).
+    pub fn spawn_goal(&self) -> Option<super::spawn::Goal> {
+        match (self.reported, self.max_self_hits) {
+            (false, Some(m)) => Some(super::spawn::Goal {
+                max_self_hits: m,
+                max_gap_ulps: self.max_gap_ulps,
+            }),
+            _ => None,
+        }
+    }
 }
+
+/// The tests a rule without `test` names: reintersection and watertightness (a spawn rule's
+/// rows are named explicitly).
+const BOTH: [Test; 2] = [Test::Reintersection, Test::Watertight];
 
 /// Checks the rules of `file` against the methods the audit knows. Errors are one line.
 pub fn parse(
     texts: Vec<RobustRuleText>,
     file: &str,
     known_methods: &[&str],
-    tested: &(Vec<String>, Vec<String>),
+    tested: &Tested,
 ) -> Result<Vec<RobustRule>, String> {
     let rules = parse_each(texts, file, known_methods, tested)?;
     // A rule every row of which an earlier rule takes judges nothing
     for (i, r) in rules.iter().enumerate() {
-        let tests = r
-            .test
-            .map_or(vec![Test::Reintersection, Test::Watertight], |t| vec![t]);
+        let tests = r.test.map_or(BOTH.to_vec(), |t| vec![t]);
         let precs = r
             .precisions
             .clone()
@@ -142,7 +190,7 @@ fn parse_each(
     texts: Vec<RobustRuleText>,
     file: &str,
     known_methods: &[&str],
-    tested: &(Vec<String>, Vec<String>),
+    tested: &Tested,
 ) -> Result<Vec<RobustRule>, String> {
     texts
         .into_iter()
@@ -154,20 +202,30 @@ fn parse_each(
             if methods.is_empty() {
                 return bad("name at least one method".into());
             }
-            if let Some(m) = methods.iter().find(|m| !known_methods.contains(&m.as_str())) {
+            let test = match r.test.as_deref() {
+                None => None,
+                Some("reintersection") => Some(Test::Reintersection),
+                Some("watertight") => Some(Test::Watertight),
+                Some("spawn") => Some(Test::Spawn),
+                Some(t) => {
+                    return bad(format!(
+                        "test = \"{t}\" (\"reintersection\", \"watertight\" or \"spawn\")"
+                    ))
+                }
+            };
+            if test == Some(Test::Spawn) {
+                if let Some(m) = methods.iter().find(|m| !tested.spawn.contains(m)) {
+                    return bad(format!(
+                        "no spawn rule '{m}' in this audit (give it with --spawn-rule; this audit's: {})",
+                        if tested.spawn.is_empty() { "none".into() } else { tested.spawn.join(", ") }
+                    ));
+                }
+            } else if let Some(m) = methods.iter().find(|m| !known_methods.contains(&m.as_str())) {
                 return bad(format!(
                     "no method '{m}' in this audit (known: {})",
                     known_methods.join(", ")
                 ));
             }
-            let test = match r.test.as_deref() {
-                None => None,
-                Some("reintersection") => Some(Test::Reintersection),
-                Some("watertight") => Some(Test::Watertight),
-                Some(t) => {
-                    return bad(format!("test = \"{t}\" (\"reintersection\" or \"watertight\")"))
-                }
-            };
             let precisions = match &r.precision {
                 None => None,
                 Some(n) => Some(
@@ -182,19 +240,13 @@ fn parse_each(
                 ),
             };
             // A rule must be able to judge some row: each method has rows of a test it names
-            let has = |m: &str, t: Test| match t {
-                Test::Reintersection => tested.0.iter().any(|x| x == m),
-                Test::Watertight => tested.1.iter().any(|x| x == m),
-            };
-            let tests: Vec<Test> = match test {
-                Some(t) => vec![t],
-                None => vec![Test::Reintersection, Test::Watertight],
-            };
-            if let Some(m) = methods.iter().find(|m| !tests.iter().any(|&t| has(m, t))) {
+            let tests: Vec<Test> = test.map_or(BOTH.to_vec(), |t| vec![t]);
+            if let Some(m) = methods.iter().find(|m| !tests.iter().any(|&t| tested.has(m, t))) {
                 let what = match test {
                     Some(Test::Reintersection) => "reintersection rows (they run for the built-in methods of the box, sphere, ellipsoid, cylinder, torus and triangle, and for outside sphere and triangle routines)",
                     Some(Test::Watertight) => "watertightness rows (they run for triangle routines)",
-                    None => "reintersection or watertightness rows",
+                    Some(Test::Spawn) => "spawn rows",
+                    None => "reintersection or watertightness rows (a spawn rule's rule says test = \"spawn\")",
                 };
                 return bad(format!("method '{m}' has no {what}: the rule could never judge a row"));
             }
@@ -208,6 +260,20 @@ fn parse_each(
             if test == Some(Test::Watertight) && r.max_self_hits.is_some() {
                 return bad("max_self_hits bounds the reintersection test, not watertightness".into());
             }
+            if test == Some(Test::Spawn) && r.max_escapes.is_some() {
+                return bad("max_escapes bounds the watertightness test, not spawn rules".into());
+            }
+            if let Some(g) = r.max_gap_ulps {
+                if test != Some(Test::Spawn) {
+                    return bad("max_gap_ulps bounds a spawn rule's rows (test = \"spawn\")".into());
+                }
+                if !(g >= 0.0 && g.is_finite()) {
+                    return bad(format!("max_gap_ulps = {g}: a number of ulps (finite, >= 0)"));
+                }
+                if r.max_self_hits.is_none() {
+                    return bad("max_gap_ulps goes with max_self_hits (the self-hits a row may have)".into());
+                }
+            }
             let bounds = r.max_escapes.is_some() || r.max_self_hits.is_some();
             if reported == bounds {
                 return bad(
@@ -215,7 +281,7 @@ fn parse_each(
                 );
             }
             // Every test the rule names is bounded: a rule for both needs both bounds
-            let needs_escapes = test != Some(Test::Reintersection);
+            let needs_escapes = test.is_none() || test == Some(Test::Watertight);
             let needs_self_hits = test != Some(Test::Watertight);
             if bounds
                 && ((needs_escapes && r.max_escapes.is_none())
@@ -232,6 +298,7 @@ fn parse_each(
                 precisions,
                 max_escapes: r.max_escapes,
                 max_self_hits: r.max_self_hits,
+                max_gap_ulps: r.max_gap_ulps,
                 reported,
             })
         })

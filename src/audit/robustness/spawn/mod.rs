@@ -108,6 +108,80 @@ pub struct SpawnRow {
     pub self_hit_replay: Option<String>,
     /// A replay line of the ray with the largest reach.
     pub gap_replay: Option<String>,
+    /// `pass` or `fail` against its [`Goal`], `reported` without one (set by [`judge_rows`]).
+    #[serde(default)]
+    pub verdict: String,
+}
+
+/// What a rule's rows are held to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Goal {
+    /// Self-hits (exact oracle) allowed per row, and as many rays behind the surface.
+    pub max_self_hits: u64,
+    /// The widest resolved gap allowed per row, in ulps of `max|p|` (`None`: reported).
+    pub max_gap_ulps: Option<f64>,
+}
+
+impl Goal {
+    /// The default goal of a rule from outside the crate and of pbrt-v4's rule (the crate's
+    /// own): no self-hit, no ray behind the surface; the gap reported.
+    pub const NO_SELF_HIT: Goal = Goal {
+        max_self_hits: 0,
+        max_gap_ulps: None,
+    };
+
+    /// A row's verdict: `fail` when it has no ray (it shows nothing), a ray behind the surface,
+    /// more self-hits than allowed or a gap over the bound; else `pass`.
+    pub fn verdict(&self, r: &SpawnRow) -> &'static str {
+        let too_wide = self.max_gap_ulps.is_some_and(|m| !(r.gap_ulps <= m));
+        let wrong_side = r.self_hits.max(r.behind) > self.max_self_hits;
+        if r.rays == 0 || wrong_side || too_wide {
+            "fail"
+        } else {
+            "pass"
+        }
+    }
+}
+
+/// The default goal of a rule named `rule`: [`Goal::NO_SELF_HIT`] for a rule from outside the
+/// crate (`outside`) and for `pbrt` (the rule the crate's own reintersection test uses); the
+/// other built-ins (and the `none` control) are reported.
+pub fn default_goal(rule: &str, outside: bool) -> Option<Goal> {
+    (outside || rule == BUILT_IN[0].0).then_some(Goal::NO_SELF_HIT)
+}
+
+/// Sets every row's verdict from `goal_of(row)` (`None`: `reported`).
+pub fn judge_rows(rows: &mut [SpawnRow], goal_of: &dyn Fn(&SpawnRow) -> Option<Goal>) {
+    for r in rows {
+        r.verdict = goal_of(r).map_or("reported", |g| g.verdict(r)).into();
+    }
+}
+
+/// A failed row in one line: its counts, its widest gap and the replay line that shows it.
+pub fn failure(r: &SpawnRow) -> String {
+    let at = format!(
+        "spawn rule {} {} scene size 1e{} {}",
+        r.rule, r.precision, r.scale, r.placement
+    );
+    if r.rays == 0 {
+        return format!("{at}: no spawned ray in the cell (it shows nothing)");
+    }
+    let replay = if r.self_hits > 0 {
+        format!(
+            "replay of a self-hit: {}",
+            r.self_hit_replay.as_deref().unwrap_or("-")
+        )
+    } else {
+        format!(
+            "replay of the widest reach: {}",
+            r.gap_replay.as_deref().unwrap_or("-")
+        )
+    };
+    format!(
+        "{at}: {} self-hits and {} rays behind the surface of {}; smallest resolved gap {:.3e} \
+         ({:.1} ulps of max|p|); {replay}",
+        r.self_hits, r.behind, r.rays, r.gap, r.gap_ulps
+    )
 }
 
 fn v3(v: &[f64], k: usize) -> [f64; 3] {
@@ -364,6 +438,7 @@ pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, Strin
                 gap_ulps: 0.0,
                 self_hit_replay: None,
                 gap_replay: None,
+                verdict: String::new(),
             };
             for ray in &c.rays {
                 let v = judge(ray, &answers[at], prec);
@@ -404,7 +479,7 @@ pub fn cells(seed: u64, precs: &[Precision], n: u64) -> Vec<Cell> {
 /// The rows as a Markdown table.
 pub fn markdown(rows: &[SpawnRow]) -> String {
     let mut t = String::from(
-        "| rule | precision | placement | scene size | rays | self-hits (exact) | self-hits (watertight) | behind the surface | smallest resolved gap | in ulps of max\\|p\\| |\n|---|---|---|---|---:|---:|---:|---:|---:|---:|\n",
+        "| rule | precision | placement | scene size | rays | self-hits (exact) | self-hits (watertight) | behind the surface | smallest resolved gap | in ulps of max\\|p\\| | verdict |\n|---|---|---|---|---:|---:|---:|---:|---:|---:|---|\n",
     );
     for r in rows {
         // A cell with no ray says nothing of the rule
@@ -414,7 +489,7 @@ pub fn markdown(rows: &[SpawnRow]) -> String {
             (format!("{:.3e}", r.gap), format!("{:.1}", r.gap_ulps))
         };
         t += &format!(
-            "| {} | {} | {} | 1e{} | {} | {} | {} | {} | {gap} | {ulps} |\n",
+            "| {} | {} | {} | 1e{} | {} | {} | {} | {} | {gap} | {ulps} | {} |\n",
             r.rule.replace('|', "\\|"),
             r.precision,
             r.placement,
@@ -423,6 +498,7 @@ pub fn markdown(rows: &[SpawnRow]) -> String {
             r.self_hits,
             r.self_hits_intersector,
             r.behind,
+            r.verdict,
         );
     }
     t
@@ -498,6 +574,48 @@ mod tests {
         )
         .1;
         assert!(weak > 0, "bound 1000x too small: no self-hit");
+    }
+
+    /// pbrt-v4's gap, by its error analysis rather than a sample: the computed point is within
+    /// `err` of the exact hit (`|pᵢ − p*ᵢ| ≤ errᵢ`, pbrt's γ₇ bound), so its height over the
+    /// plane is at most `d = Σ|n̂ᵢ|·errᵢ` either way; the rule moves it by `d` along `n̂` (`d`
+    /// and `d·nᵢ` rounded: relative `η = 16u` covers them, the normal's rounding to the
+    /// precision and the reach's own division) and each component's sum is rounded, then moved
+    /// one ulp further: at most 2 ulps of `max(|pᵢ|, |o'ᵢ|)`. So for every ray, every seed and
+    /// every scale `0 < reach ≤ (1 + η)·(2d + Σ|nᵢ|·2·ulp(max(|pᵢ|, |o'ᵢ|)))`: the smallest gap
+    /// pbrt resolves is twice its error bound plus rounding, in scene units growing with |p|.
+    #[test]
+    fn pbrts_gap_is_bounded_by_twice_its_error_bound() {
+        let mut checked = 0;
+        for seed in [1, 2, 3, 99] {
+            for c in cells(seed, &[Precision::F32, Precision::F64], 4) {
+                let queries: Vec<Vec<f64>> = c.rays.iter().map(|r| r.query.clone()).collect();
+                let answers = BuiltIn(0).spawn(c.prec, &queries).unwrap();
+                let u = match c.prec {
+                    Precision::F32 => 2f64.powi(-24),
+                    Precision::F64 => 2f64.powi(-53),
+                };
+                for (ray, s) in c.rays.iter().zip(&answers) {
+                    let v = judge(ray, s, c.prec);
+                    let (p, err, n) = (v3(&ray.query, 0), v3(&ray.query, 3), v3(&ray.query, 6));
+                    let d: f64 = (0..3).map(|i| n[i].abs() * err[i]).sum();
+                    let rounding: f64 = (0..3)
+                        .map(|i| n[i].abs() * 2.0 * ulp(p[i].abs().max(s.origin[i].abs()), c.prec))
+                        .sum();
+                    let bound = (1.0 + 16.0 * u) * (2.0 * d + rounding);
+                    assert!(
+                        v.reach > 0.0 && v.reach <= bound,
+                        "seed {seed} {} 1e{} {}: reach {:e}, bound {bound:e} (d {d:e})",
+                        c.prec.name(),
+                        c.scale,
+                        c.placement,
+                        v.reach
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 2000, "{checked}");
     }
 
     /// The reach is the answer of a bisection over the gap with the exact oracle: a neighbour
