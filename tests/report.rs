@@ -48,6 +48,9 @@ fn quick_report_has_every_part_with_measured_numbers() {
         "render-fan30.svg",
         "img/seed1996-geometric-f64.png",
         "img/floor-rtg7-f32.png",
+        "spawn-gap-near.svg",
+        "spawn-gap-far.svg",
+        "spawn-pareto.svg",
     ] {
         assert!(out.join(f).is_file(), "{f} missing");
     }
@@ -106,6 +109,23 @@ fn quick_report_has_every_part_with_measured_numbers() {
     assert!((4.0..6.0).contains(&d), "d = {d}");
     // Newton: rows with measured max ulps
     assert!(!json["newton"].as_array().unwrap().is_empty());
+    // Spawn rules: five rules × 2 precisions × 12 sizes × 2 placements; pbrt passes with no
+    // self-hit, the rule with no offset self-hits
+    let spawn = json["spawn"].as_array().unwrap();
+    assert_eq!(spawn.len(), 5 * 2 * 12 * 2);
+    let hits = |rule: &str| -> u64 {
+        spawn
+            .iter()
+            .filter(|r| r["rule"] == rule)
+            .map(|r| r["self_hits"].as_u64().unwrap())
+            .sum()
+    };
+    assert_eq!(hits("pbrt"), 0);
+    assert!(hits("none") > 0);
+    assert!(spawn
+        .iter()
+        .filter(|r| r["rule"] == "pbrt")
+        .all(|r| r["verdict"] == "pass"));
     // The Markdown and HTML carry the paper's figures and the plots
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
     assert!(md.contains("3.43× (2 h ÷ 35 min)") && md.contains("pareto-max-ulps.svg"));
