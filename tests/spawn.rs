@@ -362,3 +362,64 @@ fn audit_spawn_rows_go_through_shards_and_merge() {
         std::fs::read(d.join("merged.json")).unwrap()
     );
 }
+
+/// Embree's own spawn convention (its path tracer tutorial: `eps = 32·FLT_EPSILON·max(|P|,
+/// tfar)`, the origin moved `eps` along the face-forwarded normal, `tnear = eps`), built from
+/// `scripts/embree_tnear_spawn.c` exactly as its comment tells a user, through --exec: no
+/// self-hit, and where the scene is far from the origin (`|P| > tfar`) a gap its analysis
+/// bounds: the offset and `tnear` each add at most `eps` to the height, `eps` is 32 to 64 ulps
+/// of `max|P|`, and the point `o + t·d` is off by a few ulps more, so 32 ≤ gap ≤ 160 ulps.
+#[test]
+fn embrees_tutorial_convention_through_exec() {
+    let d = scratch("spawn-embree");
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/embree_tnear_spawn.c");
+    let bin = d.join("embree_tnear_spawn");
+    let o = Command::new("cc")
+        .args(["-O2", "-ffp-contract=off", "-o"])
+        .arg(&bin)
+        .arg(&src)
+        .arg("-lm")
+        .output()
+        .expect("a C compiler (cc)");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = spawn(
+        &d,
+        &[
+            "--precision",
+            "f32",
+            "--per-cell",
+            "8",
+            "--exec",
+            bin.to_str().unwrap(),
+            "--name",
+            "embree_tutorial",
+            "--json",
+            "e.json",
+        ],
+    );
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{out}{err}");
+    let r = rows(&d.join("e.json"));
+    assert_eq!(r.len(), 12 * 2);
+    assert_eq!(sum(&r, "embree_tutorial", "self_hits"), 0);
+    assert_eq!(sum(&r, "embree_tutorial", "behind"), 0);
+    for x in r.iter().filter(|x| x["placement"] == "far") {
+        let u = x["gap_ulps"].as_f64().unwrap();
+        assert!((32.0..=160.0).contains(&u), "{x}");
+    }
+    // f64 queries: the child refuses them (Embree is single precision): exit 4, one line
+    let o = spawn(
+        &d,
+        &[
+            "--precision",
+            "f64",
+            "--per-cell",
+            "1",
+            "--exec",
+            bin.to_str().unwrap(),
+        ],
+    );
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(4), "{err}");
+    assert!(err.contains("Embree is single precision"), "{err}");
+}
