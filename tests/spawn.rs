@@ -407,6 +407,56 @@ fn embrees_tutorial_convention_through_exec() {
         let u = x["gap_ulps"].as_f64().unwrap();
         assert!((32.0..=160.0).contains(&u), "{x}");
     }
+    // The same file through its C ABI (--plugin): the same rows, replay lines aside
+    let lib = d.join("libembree_tnear_spawn.so");
+    let o = Command::new("cc")
+        .args(["-O2", "-ffp-contract=off", "-shared", "-fPIC", "-o"])
+        .arg(&lib)
+        .arg(&src)
+        .arg("-lm")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let spec = format!("{}:embree_tutorial_spawn_f32", lib.display());
+    let o = spawn(
+        &d,
+        &[
+            "--precision",
+            "f32",
+            "--per-cell",
+            "8",
+            "--plugin",
+            &spec,
+            "--name",
+            "embree_tutorial",
+            "--json",
+            "p.json",
+        ],
+    );
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{out}{err}");
+    let strip = |rows: Vec<serde_json::Value>| -> Vec<serde_json::Value> {
+        rows.into_iter()
+            .map(|mut x| {
+                x["gap_replay"] = serde_json::Value::Null;
+                x
+            })
+            .collect()
+    };
+    assert_eq!(strip(rows(&d.join("p.json"))), strip(r));
+    // A plugin answers through audit --spawn-rule plugin:… too
+    let o = audit(
+        &d,
+        &[
+            "--spawn-rule",
+            &format!("plugin:{spec}"),
+            "--spawn-name",
+            "emb",
+        ],
+    );
+    let (out, err) = text(&o);
+    assert_eq!(o.status.code(), Some(0), "{out}{err}");
+    assert!(out.contains("spawn rule       emb: "), "{out}");
     // f64 queries: the child refuses them (Embree is single precision): exit 4, one line
     let o = spawn(
         &d,

@@ -196,11 +196,7 @@ impl Exec {
     }
 
     fn replay_line(&self, prec: Precision, x: &[f64]) -> String {
-        if self.shape == "spawn" {
-            // A spawn rule's query (a replay needs its triangle too: `rayproof spawn` prints it)
-            return format!("the query {}", case_line(prec, x).trim_end());
-        }
-        probe_line_with(&self.shape, prec, self.replay().as_deref(), x)
+        case_text(&self.shape, prec, self.replay().as_deref(), x)
     }
 
     /// The answers of a child kept for the run: `batch` written (or already written), one answer
@@ -355,6 +351,15 @@ impl Exec {
 pub fn case_line(prec: Precision, input: &[f64]) -> String {
     let vals: Vec<String> = input.iter().map(|&x| hex_text(x)).collect();
     format!("{} {}\n", prec.name(), vals.join(" "))
+}
+
+/// How an error names an outside routine's case: its `rayproof probe` line, or for a spawn
+/// rule its query (a spawn replay needs the triangle too: `rayproof spawn` prints it).
+pub fn case_text(shape: &str, prec: Precision, replay: Option<&str>, x: &[f64]) -> String {
+    if shape == "spawn" {
+        return format!("the query {}", case_line(prec, x).trim_end());
+    }
+    probe_line_with(shape, prec, replay, x)
 }
 
 /// Whether `b` holds `n` non-blank lines (the answers of `n` cases): the byte length they end at.

@@ -73,7 +73,7 @@
 
 use crate::numerics::Precision;
 use crate::process::{Broken, Session};
-use crate::shapes::shape::{probe_line_with, Answer, Method};
+use crate::shapes::shape::{Answer, Method};
 use std::ffi::CString;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
@@ -496,8 +496,9 @@ impl Method for Plugin {
         }
         let spec = &s.spec;
         let batch = s.batches.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-        let at =
-            |i: usize| probe_line_with(&self.shape, prec, self.replay().as_deref(), &inputs[i]);
+        let at = |i: usize| {
+            crate::audit::exec::case_text(&self.shape, prec, self.replay().as_deref(), &inputs[i])
+        };
         let (status, nanos, count, values) = match self.call(s, inputs) {
             Ok(r) => r,
             Err(Failure::Reported(e)) => return Err(e),

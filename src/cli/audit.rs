@@ -45,13 +45,14 @@ pub struct AuditArgs {
     #[arg(long, value_name = "FILE")]
     pub shard_out: Option<PathBuf>,
     /// Audit a spawn rule beside the shapes (repeatable): a built-in (pbrt, wachter_binder,
-    /// tmin_1e-4, mitsuba2_epsilon, none) or `exec:CMD`, a command speaking `rayproof header
-    /// --spawn`. Its rows (precision × scene size × placement, as `rayproof spawn`'s) are judged
+    /// tmin_1e-4, mitsuba2_epsilon, none), `exec:CMD` (a command speaking `rayproof header
+    /// --spawn`) or `plugin:PATH:SYMBOL` (its C ABI, the same header). Its rows (precision × scene size × placement, as `rayproof spawn`'s) are judged
     /// by the tolerance file's `test = "spawn"` rules, else: yours and pbrt held to no self-hit
     /// and no ray behind the surface, the other built-ins reported.
     #[arg(long, value_name = "RULE")]
     pub spawn_rule: Vec<String>,
-    /// The `exec:` spawn rules' names, in order (default `exec`, `exec2`, …).
+    /// The `plugin:` then the `exec:` spawn rules' names, in order (default: the symbol without
+    /// its precision suffix; `exec`, `exec2`, …).
     #[arg(long, value_name = "NAME")]
     pub spawn_name: Vec<String>,
     #[command(flatten)]
@@ -105,8 +106,9 @@ impl OutsideArgs {
         !self.plugin.is_empty() || !self.exec.is_empty()
     }
 
-    /// The outside routines, for a shape, in order: plugins, then commands.
-    pub fn methods(&self, shape: &dyn rayproof::audit::Shape) -> Result<Vec<Outside>> {
+    /// The outside routines, for a shape (or spawn rules: `rayproof::audit::robustness::spawn::INFO`),
+    /// in order: plugins, then commands.
+    pub fn methods(&self, shape: &rayproof::shapes::shape::ShapeInfo) -> Result<Vec<Outside>> {
         self.methods_with(shape, false)
     }
 
@@ -114,7 +116,7 @@ impl OutsideArgs {
     /// the batch and the end of its input at once (unless `--exec-keep`).
     pub fn methods_with(
         &self,
-        shape: &dyn rayproof::audit::Shape,
+        shape: &rayproof::shapes::shape::ShapeInfo,
         one_batch: bool,
     ) -> Result<Vec<Outside>> {
         use rayproof::audit::plugin::{parse_spec, Plugin};
@@ -148,7 +150,7 @@ impl OutsideArgs {
             let worker =
                 std::env::current_exe().context("cannot find rayproof's own executable")?;
             for (_, specs) in &groups {
-                let p = Plugin::load(&specs[..], names.next(), shape.info(), &worker, timeout)
+                let p = Plugin::load(&specs[..], names.next(), shape, &worker, timeout)
                     .map_err(|e| anyhow!(e))?;
                 let has = p.precisions();
                 out.push((Box::new(p), Some(has)));
@@ -164,7 +166,7 @@ impl OutsideArgs {
             let m = rayproof::audit::exec::Exec::new(
                 &name,
                 cmd,
-                shape.name(),
+                shape.name,
                 timeout,
                 match (self.exec_keep, self.exec_per_batch || one_batch) {
                     (true, _) => rayproof::audit::exec::Mode::Keep,
@@ -173,6 +175,17 @@ impl OutsideArgs {
                 },
             );
             out.push((Box::new(m), None));
+        }
+        // A name is a table's row label and a tolerance rule's key: one plain word
+        for (m, _) in &out {
+            let name = m.name();
+            let plain = |c: char| c.is_ascii_alphanumeric() || "_.+-".contains(c);
+            if name.is_empty() || name.len() > 64 || !name.chars().all(plain) {
+                bail!(
+                    "--name {:?}: a routine's name is 1 to 64 letters, digits or _ . + - (it labels table rows and tolerance rules)",
+                    name.chars().take(70).collect::<String>()
+                );
+            }
         }
         // Names are unique among them
         for (i, (m, _)) in out.iter().enumerate() {
@@ -204,7 +217,7 @@ pub(super) fn add_outside(plan: &mut Plan, o: &OutsideArgs, precisions_given: bo
     if plan.shapes.len() != 1 {
         bail!("--exec and --plugin audit one shape's routines: give a single --shape");
     }
-    let outside = o.methods(plan.shapes[0].shape)?;
+    let outside = o.methods(plan.shapes[0].shape.info())?;
     for (m, has) in &outside {
         let Some(has) = has else { continue };
         if !precisions_given {
@@ -223,15 +236,6 @@ pub(super) fn add_outside(plan: &mut Plan, o: &OutsideArgs, precisions_given: bo
     }
     let p = &mut plan.shapes[0];
     for (m, _) in outside {
-        // A name is a table's row label and a tolerance rule's key: one plain word
-        let name = m.name();
-        let plain = |c: char| c.is_ascii_alphanumeric() || "_.+-".contains(c);
-        if name.is_empty() || name.len() > 64 || !name.chars().all(plain) {
-            bail!(
-                "--name {:?}: a routine's name is 1 to 64 letters, digits or _ . + - (it labels table rows and tolerance rules)",
-                name.chars().take(70).collect::<String>()
-            );
-        }
         if p.methods.iter().any(|x| x.name() == m.name()) {
             bail!(
                 "--name {}: a built-in method of {} has that name",
@@ -387,23 +391,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     if !outside_named.is_empty() {
         narrow_to(&mut plan, &builtin, &outside_named)?;
     }
-    let (execs, builtins): (Vec<&String>, Vec<&String>) =
-        a.spawn_rule.iter().partition(|r| r.starts_with("exec:"));
-    let execs: Vec<String> = execs
-        .iter()
-        .map(|r| r["exec:".len()..].to_string())
-        .collect();
-    if let Some(e) = execs.iter().find(|c| c.trim().is_empty()) {
-        bail!("--spawn-rule 'exec:{e}': give the command after exec:");
-    }
-    let builtins: Vec<String> = builtins.into_iter().cloned().collect();
-    plan.spawn_rules = super::spawn::spawn_rules(
-        &builtins,
-        &execs,
-        &a.spawn_name,
-        a.outside.exec_timeout,
-        "--spawn-name",
-    )?;
+    plan.spawn_rules = spawn_rules_of(&a)?;
     let user_table = read_user_table(&a.out.tolerances)?;
     let table = table_of(&user_table, &plan.known())?;
     let inputs: Vec<PathBuf> = a.out.tolerances.iter().cloned().collect();
@@ -415,7 +403,10 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     // Each shape printed as it finishes; progress on stderr, off the report (after the run when
     // an outside routine is in it: its errors can come until its child is closed, and an error
     // is one line)
-    let outside = a.outside.any() || a.spawn_rule.iter().any(|r| r.starts_with("exec:"));
+    let outside = a.outside.any()
+        || a.spawn_rule
+            .iter()
+            .any(|r| r.starts_with("exec:") || r.starts_with("plugin:"));
     let mut progress: Vec<String> = vec![];
     let mut each = |p: Progress| {
         let line = match p {
@@ -485,6 +476,42 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     let report = plan.run(&table, progress_bar, &mut each)?;
     progress.iter().for_each(|l| eprintln!("{l}"));
     finish(report, judge, outputs, &a.out)
+}
+
+/// The spawn rules `--spawn-rule` names: built-ins, then `plugin:` and `exec:` rules (named by
+/// `--spawn-name`), each batch under the audit's `--timeout`.
+fn spawn_rules_of(
+    a: &AuditArgs,
+) -> Result<Vec<Box<dyn rayproof::audit::robustness::spawn::SpawnRule>>> {
+    let mut builtin = vec![];
+    let mut theirs = OutsideArgs {
+        plugin: vec![],
+        exec: vec![],
+        name: a.spawn_name.clone(),
+        exec_per_batch: false,
+        exec_keep: false,
+        exec_timeout: a.outside.exec_timeout,
+    };
+    for r in &a.spawn_rule {
+        if let Some(cmd) = r.strip_prefix("exec:") {
+            if cmd.trim().is_empty() {
+                bail!("--spawn-rule '{r}': give the command after exec:");
+            }
+            theirs.exec.push(cmd.to_string());
+        } else if let Some(spec) = r.strip_prefix("plugin:") {
+            theirs.plugin.push(spec.to_string());
+        } else {
+            builtin.push(r.clone());
+        }
+    }
+    if theirs.name.len() > theirs.plugin.len() + theirs.exec.len() {
+        bail!(
+            "--spawn-name given {} times for {} plugin: or exec: spawn rule(s)",
+            theirs.name.len(),
+            theirs.plugin.len() + theirs.exec.len()
+        );
+    }
+    super::spawn::spawn_rules(&builtin, &theirs)
 }
 
 /// Prints the reintersection and watertightness tests' summary (with `--verbose`, tables).

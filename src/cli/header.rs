@@ -7,6 +7,10 @@ pub(super) fn run_header(a: HeaderArgs) -> Result<u8> {
     let shapes = rayproof::shapes::registry();
     if a.spawn {
         say_raw!("{}", rayproof::audit::robustness::spawn::PROTOCOL);
+        say_raw!(
+            "\n{}",
+            rayproof::audit::robustness::spawn::rules::C_SIGNATURE
+        );
     } else if a.exec {
         say_raw!("{}", rayproof::audit::exec::protocol(&shapes));
     } else {

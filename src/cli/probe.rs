@@ -79,7 +79,7 @@ pub(super) fn run_probe(p: ProbeCommand) -> Result<u8> {
     // The oracle and every built-in method on the case
     let input = parse_values(shape, p.precision, &p.values).map_err(|e| anyhow!("{e}"))?;
     let builtins = Builtin::all(shape);
-    let outside = p.outside.methods_with(shape, true)?;
+    let outside = p.outside.methods_with(shape.info(), true)?;
     let methods: Vec<&dyn Method> = builtins
         .iter()
         .map(|m| m as &dyn Method)

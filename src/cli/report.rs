@@ -32,7 +32,7 @@ pub struct ReportArgs {
 pub(super) fn run_report(r: ReportArgs) -> Result<u8> {
     // An outside routine answers both precisions
     let sphere = rayproof::shapes::shape_by_name("sphere").expect("registered");
-    let mut routines = r.outside.methods(sphere)?;
+    let mut routines = r.outside.methods(sphere.info())?;
     if routines.len() > 1 {
         anyhow::bail!("report puts one outside ray–sphere routine beside the built-in methods: give one --plugin routine or one --exec");
     }

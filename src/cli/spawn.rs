@@ -3,7 +3,9 @@
 
 use super::*;
 use anyhow::{anyhow, bail, Result};
-use rayproof::audit::robustness::spawn::{self, BuiltIn, ExecRule, SpawnRow, SpawnRule, BUILT_IN};
+use rayproof::audit::robustness::spawn::{
+    self, BuiltIn, OutsideRule, SpawnRow, SpawnRule, BUILT_IN,
+};
 use rayproof::numerics::Precision;
 use rayproof::output::{check_outputs, Outputs};
 use std::path::{Path, PathBuf};
@@ -14,16 +16,11 @@ pub struct SpawnArgs {
     /// Default: all five, unless --exec gives rules of your own.
     #[arg(long, value_name = "NAME")]
     pub rule: Vec<String>,
-    /// A rule run by this command (`sh -c CMD`): one query per line on its stdin, one answer
-    /// line per query on its stdout (`rayproof header --spawn`). Repeatable.
-    #[arg(long, value_name = "CMD")]
-    pub exec: Vec<String>,
-    /// The --exec rules' names, in order (default `exec`, `exec2`, …).
-    #[arg(long)]
-    pub name: Vec<String>,
-    /// Seconds a batch of queries may take before an --exec child is killed (exit 4).
-    #[arg(long, default_value_t = 60.0)]
-    pub timeout: f64,
+    /// Rules of yours: `--exec CMD` (one query per line, `rayproof header --spawn`), `--plugin
+    /// PATH:SYMBOL` (its C ABI, the same header), named by `--name` (plugins first, then
+    /// commands), each batch under `--timeout` seconds.
+    #[command(flatten)]
+    pub outside: super::audit::OutsideArgs,
     /// Precisions (comma-separated).
     #[arg(long, value_delimiter = ',', default_value = "f32,f64", value_parser = parse_precision)]
     pub precision: Vec<Precision>,
@@ -65,25 +62,21 @@ fn parse_ulps(s: &str) -> Result<f64, String> {
     }
 }
 
-/// The rules the arguments name: built-ins, then --exec commands.
+/// The rules the arguments name: built-ins, then yours.
 fn rules(a: &SpawnArgs) -> Result<Vec<Box<dyn SpawnRule>>> {
-    let names: Vec<String> = if a.rule.is_empty() && a.exec.is_empty() {
+    let names: Vec<String> = if a.rule.is_empty() && !a.outside.any() {
         BUILT_IN.iter().map(|(n, _)| n.to_string()).collect()
     } else {
         a.rule.clone()
     };
-    spawn_rules(&names, &a.exec, &a.name, a.timeout, "--name")
+    spawn_rules(&names, &a.outside)
 }
 
-/// Spawn rules: the built-ins `builtin` names, then one per command of `exec` named by `names`
-/// in order (default `exec`, `exec2`, …; `flag` is the option that gives them, for errors),
-/// each child under `timeout` seconds per batch. Names are checked and unique.
+/// Spawn rules: the built-ins `builtin` names, then the routines of `outside` (plugins, then
+/// commands, made for [`spawn::INFO`]). Names are checked and unique.
 pub(super) fn spawn_rules(
     builtin: &[String],
-    exec: &[String],
-    names: &[String],
-    timeout: f64,
-    flag: &str,
+    outside: &super::audit::OutsideArgs,
 ) -> Result<Vec<Box<dyn SpawnRule>>> {
     let mut out: Vec<Box<dyn SpawnRule>> = vec![];
     for n in builtin {
@@ -95,46 +88,11 @@ pub(super) fn spawn_rules(
         })?;
         out.push(Box::new(r));
     }
-    if names.len() > exec.len() {
-        bail!(
-            "{flag} given {} times for {} --exec rule(s)",
-            names.len(),
-            exec.len()
-        );
-    }
-    for (i, cmd) in exec.iter().enumerate() {
-        if let Some(n) = names.get(i) {
-            if n.is_empty()
-                || n.len() > 64
-                || !n
-                    .chars()
-                    .all(|c| c.is_ascii_alphanumeric() || "_-.".contains(c))
-            {
-                bail!(
-                    "{flag} '{}': a rule's name is 1 to 64 letters, digits, '_', '-' and '.'",
-                    n.escape_debug()
-                );
-            }
+    for (m, _) in outside.methods(&spawn::INFO)? {
+        if BuiltIn::named(m.name()).is_some() {
+            bail!("--name {}: a built-in rule's name; give another", m.name());
         }
-        let name = names.get(i).cloned().unwrap_or_else(|| {
-            if i == 0 {
-                "exec".into()
-            } else {
-                format!("exec{}", i + 1)
-            }
-        });
-        if BuiltIn::named(&name).is_some() {
-            bail!("{flag} {name}: a built-in rule's name; give another");
-        }
-        let timeout = std::time::Duration::from_secs_f64(timeout.clamp(0.001, 86_400.0));
-        let e = rayproof::audit::exec::Exec::new(
-            &name,
-            cmd,
-            "spawn",
-            timeout,
-            rayproof::audit::exec::Mode::Auto,
-        );
-        out.push(Box::new(ExecRule(e)));
+        out.push(Box::new(OutsideRule(m)));
     }
     for (i, r) in out.iter().enumerate() {
         if out[..i].iter().any(|x| x.name() == r.name()) {
@@ -145,12 +103,6 @@ pub(super) fn spawn_rules(
 }
 
 pub(super) fn run_spawn(a: SpawnArgs) -> Result<u8> {
-    if !(a.timeout > 0.0 && a.timeout <= 86_400.0) {
-        bail!(
-            "--timeout {}: not a number of seconds in (0, 86400]",
-            a.timeout
-        );
-    }
     let rules = rules(&a)?;
     if a.replay {
         return replay(&a, &rules);
@@ -269,7 +221,7 @@ pub(super) fn run_spawn(a: SpawnArgs) -> Result<u8> {
 
 fn replay(a: &SpawnArgs, rules: &[Box<dyn SpawnRule>]) -> Result<u8> {
     let [rule] = rules else {
-        bail!("--replay takes one rule (--rule NAME or --exec CMD)");
+        bail!("--replay takes one rule (--rule NAME, --exec CMD or --plugin PATH:SYMBOL)");
     };
     let [prec] = a.precision[..] else {
         bail!("--replay takes one --precision");

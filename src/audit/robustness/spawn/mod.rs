@@ -35,7 +35,7 @@
 
 pub mod rules;
 
-pub use rules::{BuiltIn, ExecRule, SpawnRule, Spawned, BUILT_IN, PROTOCOL, QUERY_LEN};
+pub use rules::{BuiltIn, OutsideRule, SpawnRule, Spawned, BUILT_IN, INFO, PROTOCOL, QUERY_LEN};
 
 use crate::numerics::exact::{q, ulp};
 use crate::numerics::real::{Real, Scalar};

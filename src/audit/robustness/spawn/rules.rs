@@ -16,11 +16,10 @@
 //! as Rust (implement [`SpawnRule`]) or as an outside command (`--exec`, one query per line,
 //! [`PROTOCOL`]).
 
-use crate::audit::exec::Exec;
 use crate::audit::robustness::offset::spawn_origin;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
-use crate::shapes::shape::Method;
+use crate::shapes::shape::{Method, ShapeInfo};
 
 /// How many values a query holds.
 pub const QUERY_LEN: usize = 19;
@@ -185,21 +184,47 @@ pub const PROTOCOL: &str = "# The spawn-rule line protocol: rayproof spawn --exe
 # seconds per batch, output capped; a child that dies or hangs stops the run (exit 4).
 ";
 
-/// A rule run by an outside command (`--exec`), through the `audit --exec` machinery.
-pub struct ExecRule(pub Exec);
+/// What a spawn rule is to the outside-routine machinery (`--exec` and `--plugin`): 19 values
+/// in, 4 out (`OX OY OZ TMIN`), count 1.
+pub const INFO: ShapeInfo = ShapeInfo {
+    name: "spawn",
+    about: "a spawn rule: the new ray's origin and t_min from a hit",
+    args: &[
+        "px", "py", "pz", "ex", "ey", "ez", "nx", "ny", "nz", "wx", "wy", "wz", "t", "ox", "oy",
+        "oz", "dx", "dy", "dz",
+    ],
+    values: &["ox", "oy", "oz", "tmin"],
+    ..ShapeInfo::DEFAULTS
+};
 
-impl SpawnRule for ExecRule {
+/// The C signatures of a spawn rule given as `--plugin PATH:SYMBOL` (for `rayproof header
+/// --spawn`).
+pub const C_SIGNATURE: &str =
+    "/* A spawn rule through its C ABI: rayproof spawn --plugin PATH:SYMBOL (or audit
+ * --spawn-rule plugin:PATH:SYMBOL). in[i] is query i (the 19 values above, in the precision),
+ * it sets count[i] = 1 and out[i] = origin x y z, t_min, and returns 0. Build with -shared
+ * -fPIC; it runs in a worker process, in batches of up to 4096, under --timeout. */
+typedef int rayproof_spawn_f32(size_t n, const float in[][19], uint32_t count[], float out[][4]);
+typedef int rayproof_spawn_f64(size_t n, const double in[][19], uint32_t count[], double out[][4]);
+";
+
+/// A rule from outside the crate: a command (`--exec`, [`crate::audit::exec::Exec`]) or a
+/// library's symbol (`--plugin`, [`crate::audit::plugin::Plugin`]) made for [`INFO`], through
+/// the machinery that runs outside intersectors.
+pub struct OutsideRule(pub Box<dyn Method + Send>);
+
+impl SpawnRule for OutsideRule {
     fn name(&self) -> &str {
-        &self.0.name
+        self.0.name()
     }
     fn replay(&self) -> Option<String> {
-        Method::replay(&self.0)
+        self.0.replay()
     }
     fn spawn(&self, prec: Precision, queries: &[Vec<f64>]) -> Result<Vec<Spawned>, String> {
         let mut out = Vec::with_capacity(queries.len());
         for chunk in queries.chunks(crate::audit::run::CHUNK as usize) {
             // Checked for their number, as every outside routine's answers are
-            let answers = crate::audit::run::answers(&[&self.0], prec, chunk)?.remove(0);
+            let answers = crate::audit::run::answers(&[self.0.as_ref()], prec, chunk)?.remove(0);
             for (a, q) in answers.iter().zip(chunk) {
                 let ok = a.count == 1
                     && a.values.len() == 4
@@ -207,8 +232,8 @@ impl SpawnRule for ExecRule {
                     && a.values[3] >= 0.0;
                 if !ok {
                     return Err(format!(
-                        "spawn rule '{}': answered {} {:?} to the query {}; want `1 OX OY OZ TMIN`, finite, TMIN >= 0",
-                        self.0.name,
+                        "spawn rule '{}': answered {} {:?} to the query {}; want count 1 and OX OY OZ TMIN, finite, TMIN >= 0",
+                        self.0.name(),
                         a.count,
                         a.values,
                         crate::audit::exec::case_line(prec, q).trim_end()
