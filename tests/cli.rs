@@ -263,7 +263,9 @@ fn shards_cover_the_case_space() {
         "f32",
     ]);
     assert!(full.status.code().is_some_and(|c| c <= 1));
+    let dir = crate::common::scratch("shards-cover");
     for shard in ["0/2", "1/2"] {
+        let file = dir.join(format!("s{}.json", &shard[..1]));
         let o = rayproof(&[
             "audit",
             "--cases",
@@ -276,10 +278,15 @@ fn shards_cover_the_case_space() {
             "f32",
             "--shard",
             shard,
+            "--shard-out",
+            file.to_str().unwrap(),
         ]);
         let text = String::from_utf8_lossy(&o.stderr);
         assert!(text.contains("sphere: 25 cases × 1 methods"), "{text}");
     }
+    // A shard without its file would end unjudged: refused (exit 2, one line)
+    let o = rayproof(&["audit", "--cases", "50", "--shard", "0/2"]);
+    assert_one_line_error(&o, "without --shard-out");
 }
 
 /// An instruction-set cap the kernels cannot follow is bad usage: one line, exit 2, nothing run.

@@ -1147,6 +1147,182 @@ fn report_out_over_a_directory_with_a_linked_marker(d: &Path) -> Result<(), Stri
 }
 
 /// The reproducers: a name and the row.
+/// The hit point itself as a spawn rule (about half its rays self-hit), and a fixed t_min.
+const ECHO_RULE: &str = "import sys\nfor l in sys.stdin:\n    v = [float.fromhex(x) for x in l.split()[1:]]\n    print('1 %s %s %s 0' % (v[0].hex(), v[1].hex(), v[2].hex()), flush=True)\n";
+const TMIN_RULE: &str = "import sys\nt = sys.argv[1]\nfor l in sys.stdin:\n    v = [float.fromhex(x) for x in l.split()[1:]]\n    print('1 %s %s %s %s' % (v[0].hex(), v[1].hex(), v[2].hex(), t), flush=True)\n";
+
+/// A small sphere audit with spawn rules (`extra`).
+fn spawn_audit<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+    let mut a = vec![
+        "audit",
+        "--shape",
+        "sphere",
+        "--method",
+        "geometric",
+        "--cases",
+        "64",
+        "--precision",
+        "f32",
+    ];
+    a.extend_from_slice(extra);
+    a
+}
+
+/// Issue 47, hostile run 2 F1/F2: a shard edited by hand merged to "verdict: pass" (self-hit
+/// counts zeroed with their replay lines left, the rows or the key removed, a partial grid),
+/// and shards run with different --spawn-rule sets merged without complaint.
+fn spawn_shards_edited_or_mismatched(d: &Path) -> Result<(), String> {
+    std::fs::write(d.join("echo.py"), ECHO_RULE).unwrap();
+    let rule = [
+        "--spawn-rule",
+        "exec:python3 echo.py",
+        "--spawn-name",
+        "echo",
+    ];
+    for k in ["0/2", "1/2"] {
+        let out = format!("s{}", &k[..1]);
+        run(
+            d,
+            &spawn_audit(&[&rule[..], &["--shard", k, "--shard-out", &out]].concat()),
+            60,
+        )
+        .exited(0)?;
+    }
+    run(d, &["merge", "s0", "s1"], 60).exited(1)?;
+    let s0: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("s0")).unwrap()).unwrap();
+    let edits: [(&str, &dyn Fn(&mut serde_json::Value)); 4] = [
+        ("zeroed", &|v| {
+            for r in v["outside"]["spawn"].as_array_mut().unwrap() {
+                r["self_hits"] = 0.into();
+                r["behind"] = 0.into();
+            }
+        }),
+        ("emptied", &|v| {
+            v["outside"]["spawn"] = serde_json::json!([])
+        }),
+        ("removed", &|v| {
+            v["outside"].as_object_mut().unwrap().remove("spawn");
+        }),
+        ("partial", &|v| {
+            v["outside"]["spawn"].as_array_mut().unwrap().truncate(2);
+        }),
+    ];
+    for (name, edit) in edits {
+        let mut v = s0.clone();
+        edit(&mut v);
+        std::fs::write(d.join(name), v.to_string()).unwrap();
+        run(d, &["merge", name, "s1"], 60).refused(2, &["corrupt shard"])?;
+    }
+    // Shard 0 run without the spawn rule, shard 1 with it
+    run(
+        d,
+        &spawn_audit(&["--shard", "0/2", "--shard-out", "n0"]),
+        60,
+    )
+    .exited(0)?;
+    run(d, &["merge", "n0", "s1"], 60).refused(3, &["spawn rules"])
+}
+
+/// Issue 47, hostile run 2 F3: a shard without --shard-out printed failing spawn cells and
+/// exited 0 (a shard is not judged): refused.
+fn spawn_shard_without_its_file(d: &Path) -> Result<(), String> {
+    run(
+        d,
+        &spawn_audit(&["--spawn-rule", "none", "--shard", "1/2"]),
+        60,
+    )
+    .refused(2, &["without --shard-out"])
+}
+
+/// Issue 47, hostile run 2 F4 and the weakness beside it: t_min = 1e308 (f64) made the gap
+/// overflow to inf, written as `null`, and the merge called rayproof's own shard corrupt; and a
+/// t_min of 1e30 passed (the gap was not judged by default). Now the gap is finite, the shard
+/// merges, and a gap as wide as the scene fails.
+fn spawn_huge_tmin(d: &Path) -> Result<(), String> {
+    std::fs::write(d.join("tmin.py"), TMIN_RULE).unwrap();
+    let mut a = spawn_audit(&[
+        "--spawn-rule",
+        "exec:python3 tmin.py 1e308",
+        "--spawn-name",
+        "t308",
+        "--shard",
+        "0/1",
+        "--shard-out",
+        "g0",
+    ]);
+    a[8] = "f64";
+    run(d, &a, 60).exited(0)?;
+    let r = run(d, &["merge", "g0"], 60);
+    r.exited(1)?;
+    if !r.stdout.contains("spawn rule t308 f64") {
+        return Err(format!("want t308's cells to fail: {}", r.stdout));
+    }
+    let r = run(
+        d,
+        &[
+            "spawn",
+            "--precision",
+            "f32",
+            "--per-cell",
+            "2",
+            "--exec",
+            "python3 tmin.py 1e30",
+            "--name",
+            "t30",
+        ],
+        60,
+    );
+    r.exited(1)?;
+    if !r.stdout.contains("t30: FAIL") || r.stdout.contains("inf") {
+        return Err(format!("want t30 to FAIL with finite gaps: {}", r.stdout));
+    }
+    Ok(())
+}
+
+/// Issue 47, hostile run 2 F5: a replay of a ray started behind the surface exited 0 and said
+/// nothing of it; --max-gap-ulps was ignored by --replay.
+fn spawn_replay_behind_and_wide(d: &Path) -> Result<(), String> {
+    let tri = ["-1", "-1", "0", "1", "-1", "0", "0", "1", "0"];
+    let query = [
+        "0", "0", "0", "0", "0", "0", "0", "0", "1", "0", "0", "1", "1", "0", "0", "1", "0", "0",
+        "-1",
+    ];
+    let values: Vec<&str> = query.iter().chain(&tri).copied().collect();
+    let replay = |cmd: &str, extra: &[&str]| {
+        let mut a = vec!["spawn", "--precision", "f32", "--exec", cmd];
+        a.extend_from_slice(extra);
+        a.extend(["--replay", "--"]);
+        a.extend(&values);
+        run(d, &a, 60)
+    };
+    let r = replay("while read l; do echo 1 0 0 -1 0; done", &[]);
+    r.exited(1)?;
+    if !r.stdout.contains("behind the surface") {
+        return Err(format!("want 'behind the surface': {}", r.stdout));
+    }
+    let r = replay(
+        "while read l; do echo 1 0 0 1000 0; done",
+        &["--max-gap-ulps", "1"],
+    );
+    r.exited(1)?;
+    if !r.stdout.contains("over --max-gap-ulps") {
+        return Err(format!("want 'over --max-gap-ulps': {}", r.stdout));
+    }
+    replay("while read l; do echo 1 0 0 1000 0; done", &[]).exited(0)
+}
+
+/// Issue 47, hostile run 2 F7: a name starting with '-' was accepted and printed replay lines
+/// that do not replay (`--name --x`).
+fn spawn_name_like_an_option(d: &Path) -> Result<(), String> {
+    run(
+        d,
+        &["spawn", "--precision", "f32", "--exec", "cat", "--name=--x"],
+        60,
+    )
+    .refused(2, &["starting with a letter or digit"])
+}
+
 type Row = (&'static str, fn(&Path) -> Result<(), String>);
 
 /// Issue 45's hostile run: a sphere routine that always answers "miss" spawns no ray, and its
@@ -1908,6 +2084,14 @@ const ROWS: &[Row] = &[
         "exec_child_that_never_reads_its_batch",
         exec_child_that_never_reads_its_batch,
     ),
+    (
+        "spawn_shards_edited_or_mismatched",
+        spawn_shards_edited_or_mismatched,
+    ),
+    ("spawn_shard_without_its_file", spawn_shard_without_its_file),
+    ("spawn_huge_tmin", spawn_huge_tmin),
+    ("spawn_replay_behind_and_wide", spawn_replay_behind_and_wide),
+    ("spawn_name_like_an_option", spawn_name_like_an_option),
 ];
 
 #[test]

@@ -151,7 +151,9 @@ fn an_outside_rule_that_self_hits_fails_and_a_malformed_answer_stops_the_run() {
 /// Mitsuba 3's own `spawn_ray` (the real Mitsuba, `scalar_rgb`), side by side with pbrt-v4's
 /// rule: no self-hit; its offset, (1 + max|p|)·RayEpsilon along the normal, costs a gap of
 /// hundreds of ulps of |p| where pbrt's costs a few, and in a scene of size 1e-4 near the
-/// origin about 1e6 ulps (a neighbour 1e-4 away is skipped).
+/// origin about 1e6 ulps. Far from the origin (|p| over 1.1e4 triangle sizes) the offset is
+/// wider than the triangle itself: those cells fail (exit 1), near ones pass (there the
+/// offset, (1 + 4s)·8.9e-5, stays under the size s from s = 1e-4 up).
 #[test]
 fn mitsuba_spawn_ray_beside_pbrts_rule() {
     let d = scratch("spawn-mitsuba");
@@ -175,9 +177,22 @@ fn mitsuba_spawn_ray_beside_pbrts_rule() {
         ],
     );
     let (out, err) = text(&o);
-    assert_eq!(o.status.code(), Some(0), "{out}{err}");
+    assert_eq!(o.status.code(), Some(1), "{out}{err}");
+    assert!(out.contains("mitsuba3: FAIL in "), "{out}");
     let r = rows(&d.join("m.json"));
     assert_eq!(sum(&r, "mitsuba3", "self_hits"), 0);
+    assert_eq!(sum(&r, "mitsuba3", "behind"), 0);
+    let verdict = |pl: &str, v: &str| {
+        r.iter()
+            .filter(|x| x["rule"] == "mitsuba3" && x["placement"] == pl && x["verdict"] == v)
+            .count()
+    };
+    assert_eq!(verdict("near", "pass"), 12);
+    assert!(verdict("far", "fail") >= 6, "{out}");
+    assert!(r
+        .iter()
+        .filter(|x| x["rule"] == "pbrt")
+        .all(|x| x["verdict"] == "pass"));
     assert_eq!(sum(&r, "mitsuba3", "rays"), sum(&r, "pbrt", "rays"));
     for m in r.iter().filter(|x| x["rule"] == "mitsuba3") {
         let p = r
@@ -347,8 +362,14 @@ fn audit_spawn_rows_go_through_shards_and_merge() {
         );
         assert_eq!(o.status.code(), Some(0), "{:?}", text(&o));
     }
-    let shard1 = std::fs::read_to_string(d.join("s1.json")).unwrap();
-    assert!(!shard1.contains("tmin_1e-4"), "shard 1 carries spawn rows");
+    let shard1: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("s1.json")).unwrap()).unwrap();
+    assert_eq!(
+        shard1["outside"]["spawn"],
+        serde_json::json!([]),
+        "shard 1 carries spawn rows"
+    );
+    assert_eq!(shard1["spawn_rules"][0], "tmin_1e-4");
     let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
         .current_dir(&d)
         .args(["merge", "s1.json", "s0.json", "--json", "merged.json"])

@@ -163,6 +163,10 @@ pub struct Shard {
     pub tolerances: Option<UserTable>,
     /// One entry per shape, in audit order.
     pub shapes: Vec<ShapeShard>,
+    /// The spawn rules the audit was run with (`--spawn-rule`), each as its name and, for a
+    /// rule from outside the crate, how it was given: every shard names the same, and shard 0
+    /// holds their rows.
+    pub spawn_rules: Vec<String>,
     /// The reintersection and watertightness rows of routines from outside the crate: run whole
     /// by shard 0 (the built-in methods' are run by the merge; an outside routine may be gone by
     /// then).
@@ -185,6 +189,7 @@ impl Shard {
         (k, n): (u64, u64),
         tolerances: Option<UserTable>,
         parts: &[Tallies],
+        spawn_rules: Vec<String>,
         outside: Outside,
     ) -> Shard {
         let shapes = parts
@@ -230,6 +235,7 @@ impl Shard {
             shard: ShardId { k, n },
             tolerances,
             shapes,
+            spawn_rules,
             outside,
         }
     }
@@ -321,11 +327,56 @@ impl Shard {
                 || !(r.gap >= 0.0 && r.gap.is_finite())
                 || !(r.gap_ulps >= 0.0)
                 || !r.verdict.is_empty()
+                // A replay line is kept exactly when its kind of ray was counted
+                || (r.self_hits > 0) != r.self_hit_replay.is_some()
+                || (r.behind > 0) != r.behind_replay.is_some()
+                || (r.gap > 0.0) != r.gap_replay.is_some()
         }) {
             return corrupt(format!(
                 "spawn row {} {} 1e{} {}: counts a run cannot make",
                 r.rule, r.precision, r.scale, r.placement
             ));
+        }
+        // Shard 0 holds a row per spawn rule × precision × scene size × placement, in order
+        if k == 0 {
+            let precisions = file.shapes[0].precisions.clone();
+            let want: Vec<(String, String, i32, String)> = file
+                .spawn_rules
+                .iter()
+                .map(|r| r.split(' ').next().unwrap_or_default().to_string())
+                .flat_map(|rule| {
+                    let precisions = precisions.clone();
+                    precisions.into_iter().flat_map(move |p| {
+                        let rule = rule.clone();
+                        crate::audit::robustness::spawn::SCALES.flat_map(move |e| {
+                            let rule = rule.clone();
+                            crate::audit::robustness::spawn::PLACEMENTS.map(move |pl| {
+                                (rule.clone(), p.name().to_string(), e, pl.to_string())
+                            })
+                        })
+                    })
+                })
+                .collect();
+            let have: Vec<(String, String, i32, String)> = file
+                .outside
+                .spawn
+                .iter()
+                .map(|r| {
+                    (
+                        r.rule.clone(),
+                        r.precision.clone(),
+                        r.scale,
+                        r.placement.clone(),
+                    )
+                })
+                .collect();
+            if have != want {
+                return corrupt(format!(
+                    "its spawn rows ({}) are not one per spawn rule ({}) × precision × scene size × placement",
+                    have.len(),
+                    file.spawn_rules.len()
+                ));
+            }
         }
         if let Some(t) = &file.tolerances {
             if UserTable::new(&t.file, &t.text).sha256 != t.sha256 {
@@ -452,6 +503,7 @@ fn check_one_audit(tool: &str, shards: &[(String, Shard)]) -> Result<(), Incompa
             ("classes", sel(&|x| x.classes.join(","))),
             ("shard count N", s.shard.n.to_string()),
             ("tolerance table", UserTable::label(&s.tolerances)),
+            ("spawn rules", s.spawn_rules.join("; ")),
         ]
     };
     let want = key(first);

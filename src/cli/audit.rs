@@ -180,9 +180,10 @@ impl OutsideArgs {
         for (m, _) in &out {
             let name = m.name();
             let plain = |c: char| c.is_ascii_alphanumeric() || "_.+-".contains(c);
-            if name.is_empty() || name.len() > 64 || !name.chars().all(plain) {
+            let first = name.starts_with(|c: char| c.is_ascii_alphanumeric());
+            if !first || name.len() > 64 || !name.chars().all(plain) {
                 bail!(
-                    "--name {:?}: a routine's name is 1 to 64 letters, digits or _ . + - (it labels table rows and tolerance rules)",
+                    "--name {:?}: a routine's name is 1 to 64 letters, digits or _ . + -, starting with a letter or digit (it labels table rows and tolerance rules)",
                     name.chars().take(70).collect::<String>()
                 );
             }
@@ -392,6 +393,14 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         narrow_to(&mut plan, &builtin, &outside_named)?;
     }
     plan.spawn_rules = spawn_rules_of(&a)?;
+    // A shard is judged by its merge: without its file it would end unjudged (exit 0)
+    if a.shard.1 > 1 && a.shard_out.is_none() {
+        bail!(
+            "--shard {}/{} without --shard-out: a shard is judged by `rayproof merge` of every shard's file; give --shard-out FILE",
+            a.shard.0,
+            a.shard.1
+        );
+    }
     let user_table = read_user_table(&a.out.tolerances)?;
     let table = table_of(&user_table, &plan.known())?;
     let inputs: Vec<PathBuf> = a.out.tolerances.iter().cloned().collect();
@@ -461,6 +470,13 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
             a.shard,
             user_table,
             &runs,
+            plan.spawn_rules
+                .iter()
+                .map(|r| match r.replay() {
+                    Some(how) => format!("{} ({how})", r.name()),
+                    None => r.name().to_string(),
+                })
+                .collect(),
             outside,
         );
         outputs.write(p, file.to_json().as_bytes())?;

@@ -163,9 +163,9 @@ pub(super) fn run_spawn(a: SpawnArgs) -> Result<u8> {
         };
         let gap = widest.map_or(String::new(), |w| {
             format!(
-                "; widest gap {:.3e} ({:.1} ulps of |p|) at {} scene size 1e{} {}{}",
+                "; widest gap {:.3e} ({} ulps of |p|) at {} scene size 1e{} {}{}",
                 w.gap,
-                w.gap_ulps,
+                spawn::ulps_text(w.gap_ulps),
                 w.precision,
                 w.scale,
                 w.placement,
@@ -189,6 +189,9 @@ pub(super) fn run_spawn(a: SpawnArgs) -> Result<u8> {
                 w.self_hit_replay.as_deref().unwrap_or("")
             ))
         );
+        if let Some(f) = mine.iter().find(|x| x.verdict == "fail") {
+            say!("  first failing cell: {}", spawn::failure(f));
+        }
     }
     let mut out = Outputs::new();
     if let Some(p) = &a.json {
@@ -263,10 +266,26 @@ fn replay(a: &SpawnArgs, rules: &[Box<dyn SpawnRule>]) -> Result<u8> {
         "self-hit by the watertight intersector: {}",
         if v.self_hit_intersector { "yes" } else { "no" }
     );
-    say!(
-        "reach: {:e} ({}) above the surface: a parallel neighbour nearer than that is skipped",
-        v.reach,
-        hex(v.reach)
-    );
-    Ok(if v.self_hit { 1 } else { 0 })
+    let ulps = v.reach / ray.hit_ulp;
+    let too_wide = a.max_gap_ulps.is_some_and(|m| !(ulps <= m));
+    if v.reach < 0.0 {
+        say!(
+            "behind the surface: the new ray starts taking hits {:e} ({}) behind its own surface",
+            -v.reach,
+            hex(-v.reach)
+        );
+    } else {
+        say!(
+            "reach: {:e} ({}, {} ulps of max|p|) above the surface: a parallel neighbour nearer than that is skipped{}",
+            v.reach,
+            hex(v.reach),
+            spawn::ulps_text(ulps),
+            if too_wide { "; over --max-gap-ulps" } else { "" }
+        );
+    }
+    Ok(if v.self_hit || v.reach < 0.0 || too_wide {
+        1
+    } else {
+        0
+    })
 }

@@ -527,8 +527,11 @@ fn spawn_summary(rows: &[SpawnRow]) -> String {
             sum(|x| x.self_hits),
             sum(|x| x.behind),
             widest.map_or("-".into(), |w| format!(
-                "{:.1} ulps of max|p| ({} 1e{} {})",
-                w.gap_ulps, w.precision, w.scale, w.placement
+                "{} ulps of max|p| ({} 1e{} {})",
+                spawn::ulps_text(w.gap_ulps),
+                w.precision,
+                w.scale,
+                w.placement
             )),
         );
     }

@@ -216,7 +216,7 @@ fn parse_each(
             if test == Some(Test::Spawn) {
                 if let Some(m) = methods.iter().find(|m| !tested.spawn.contains(m)) {
                     return bad(format!(
-                        "no spawn rule '{m}' in this audit (give it with --spawn-rule; this audit's: {})",
+                        "no spawn rule '{m}' in this audit (an audit's --spawn-rule gives one; this audit's: {})",
                         if tested.spawn.is_empty() { "none".into() } else { tested.spawn.join(", ") }
                     ));
                 }

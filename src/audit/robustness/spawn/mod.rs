@@ -62,8 +62,8 @@ pub struct Ray {
     tri: [[f64; 3]; 3],
     /// The rule's query ([`QUERY_LEN`] values).
     pub query: Vec<f64>,
-    /// One ulp of `max|p*ᵢ|` in the precision.
-    hit_ulp: f64,
+    /// One ulp of `max|p*ᵢ|` in the precision (the unit of a gap in ulps).
+    pub hit_ulp: f64,
 }
 
 /// The rays of one cell (precision × scale × placement).
@@ -108,6 +108,9 @@ pub struct SpawnRow {
     pub self_hit_replay: Option<String>,
     /// A replay line of the ray with the largest reach.
     pub gap_replay: Option<String>,
+    /// A replay line of a ray started behind the surface, if any.
+    #[serde(default)]
+    pub behind_replay: Option<String>,
     /// `pass` or `fail` against its [`Goal`], `reported` without one (set by [`judge_rows`]).
     #[serde(default)]
     pub verdict: String,
@@ -118,9 +121,16 @@ pub struct SpawnRow {
 pub struct Goal {
     /// Self-hits (exact oracle) allowed per row, and as many rays behind the surface.
     pub max_self_hits: u64,
-    /// The widest resolved gap allowed per row, in ulps of `max|p|` (`None`: reported).
+    /// The widest resolved gap allowed per row, in ulps of `max|p|` (`None`: only the
+    /// scene-size bound).
     pub max_gap_ulps: Option<f64>,
 }
+
+/// Every judged row's gap bound, whatever its goal: a rule whose new ray starts as far above
+/// the surface as the triangle is wide (the cell's scene size) skips a neighbour at the scale
+/// of the scene itself, a light leak no renderer wants. (pbrt's rule stays under a seventh of
+/// it in the worst cell: f32, 10⁵ sizes from the origin.)
+pub const MAX_GAP_SCENES: f64 = 1.0;
 
 impl Goal {
     /// The default goal of a rule from outside the crate and of pbrt-v4's rule (the crate's
@@ -131,9 +141,11 @@ impl Goal {
     };
 
     /// A row's verdict: `fail` when it has no ray (it shows nothing), a ray behind the surface,
-    /// more self-hits than allowed or a gap over the bound; else `pass`.
+    /// more self-hits than allowed, a gap over the bound or as wide as the scene
+    /// ([`MAX_GAP_SCENES`]); else `pass`.
     pub fn verdict(&self, r: &SpawnRow) -> &'static str {
-        let too_wide = self.max_gap_ulps.is_some_and(|m| !(r.gap_ulps <= m));
+        let too_wide = self.max_gap_ulps.is_some_and(|m| !(r.gap_ulps <= m))
+            || !(r.gap < MAX_GAP_SCENES * 10f64.powi(r.scale));
         let wrong_side = r.self_hits.max(r.behind) > self.max_self_hits;
         if r.rays == 0 || wrong_side || too_wide {
             "fail"
@@ -171,6 +183,11 @@ pub fn failure(r: &SpawnRow) -> String {
             "replay of a self-hit: {}",
             r.self_hit_replay.as_deref().unwrap_or("-")
         )
+    } else if r.behind > 0 {
+        format!(
+            "replay of a ray behind the surface: {}",
+            r.behind_replay.as_deref().unwrap_or("-")
+        )
     } else {
         format!(
             "replay of the widest reach: {}",
@@ -179,8 +196,13 @@ pub fn failure(r: &SpawnRow) -> String {
     };
     format!(
         "{at}: {} self-hits and {} rays behind the surface of {}; smallest resolved gap {:.3e} \
-         ({:.1} ulps of max|p|); {replay}",
-        r.self_hits, r.behind, r.rays, r.gap, r.gap_ulps
+         ({} ulps of max|p|; the scene is 1e{} wide); {replay}",
+        r.self_hits,
+        r.behind,
+        r.rays,
+        r.gap,
+        ulps_text(r.gap_ulps),
+        r.scale
     )
 }
 
@@ -336,7 +358,16 @@ pub fn judge(ray: &Ray, s: &Spawned, prec: Precision) -> Verdict {
     if dot(&n, &wq) < 0 {
         h = -h;
     }
-    let reach = h.to_f64() / dot(&n, &n).to_f64().sqrt();
+    // h/|n| without overflow: h over the normal's largest component (exact), then over the
+    // length of the normal so scaled (in [1, √3]); clamped to the largest finite value
+    let big = n
+        .iter()
+        .map(|x| x.clone().abs())
+        .max()
+        .expect("three components");
+    let scaled: [Rational; 3] = std::array::from_fn(|i| n[i].clone() / &big);
+    let reach =
+        ((h / &big).to_f64() / dot(&scaled, &scaled).to_f64().sqrt()).clamp(-f64::MAX, f64::MAX);
     Verdict {
         self_hit: exact.is_some(),
         self_hit_t: exact.map(|t| t.to_f64()),
@@ -438,6 +469,7 @@ pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, Strin
                 gap_ulps: 0.0,
                 self_hit_replay: None,
                 gap_replay: None,
+                behind_replay: None,
                 verdict: String::new(),
             };
             for ray in &c.rays {
@@ -451,7 +483,12 @@ pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, Strin
                     }
                 }
                 row.self_hits_intersector += v.self_hit_intersector as u64;
-                row.behind += (v.reach < 0.0) as u64;
+                if v.reach < 0.0 {
+                    row.behind += 1;
+                    if row.behind_replay.is_none() {
+                        row.behind_replay = Some(replay_line(rule, prec, ray));
+                    }
+                }
                 if v.reach > row.gap {
                     row.gap = v.reach;
                     row.gap_ulps = (v.reach / ray.hit_ulp).min(f64::MAX);
@@ -476,6 +513,15 @@ pub fn cells(seed: u64, precs: &[Precision], n: u64) -> Vec<Cell> {
         .collect()
 }
 
+/// A number of ulps as a table shows it: one decimal, or three digits and an exponent from 1e6.
+pub fn ulps_text(x: f64) -> String {
+    if x < 1e6 {
+        format!("{x:.1}")
+    } else {
+        format!("{x:.3e}")
+    }
+}
+
 /// The rows as a Markdown table.
 pub fn markdown(rows: &[SpawnRow]) -> String {
     let mut t = String::from(
@@ -486,7 +532,7 @@ pub fn markdown(rows: &[SpawnRow]) -> String {
         let (gap, ulps) = if r.rays == 0 {
             ("—".to_string(), "—".to_string())
         } else {
-            (format!("{:.3e}", r.gap), format!("{:.1}", r.gap_ulps))
+            (format!("{:.3e}", r.gap), ulps_text(r.gap_ulps))
         };
         t += &format!(
             "| {} | {} | {} | 1e{} | {} | {} | {} | {} | {gap} | {ulps} | {} |\n",
