@@ -326,6 +326,8 @@ impl Shard {
                 || r.behind > r.rays
                 || !(r.gap >= 0.0 && r.gap.is_finite())
                 || !(r.gap_ulps >= 0.0)
+                || !(r.gap_tilted >= r.gap && r.gap_tilted.is_finite())
+                || !(r.gap_tilted_ulps >= 0.0)
                 || !r.verdict.is_empty()
                 // A replay line is kept exactly when its kind of ray was counted
                 || (r.self_hits > 0) != r.self_hit_replay.is_some()

@@ -30,6 +30,13 @@
 //! with the exact oracle on a real neighbour triangle and finds the same value). It is reported
 //! in scene units and in ulps of `max|p*ᵢ|` in the precision.
 //!
+//! **A tilted neighbour** (a slightly tilted triangle above the hit, or locally the underside
+//! of a sphere resting on the surface near it): a plane through `p* + g·n̂` tilted by
+//! [`TILT_DEGREES`] toward where the new ray starts is skipped below `reach + tan(tilt)·along`,
+//! `along` the start's distance from `p*` along the surface (exact, then rounded). A rule that
+//! moves the start along the surface or along the new ray (a `t_min`) skips it sooner; a unit
+//! test bisects over `g` with the exact oracle on such a plane and finds the same value.
+//!
 //! A rule that leaves no self-hit at every scale and a gap of a few ulps of `|p|` is what a
 //! renderer wants; the table shows where each rule stands.
 
@@ -104,6 +111,13 @@ pub struct SpawnRow {
     pub gap: f64,
     /// The same in ulps of the hit point's largest component.
     pub gap_ulps: f64,
+    /// The smallest gap resolved to a neighbour tilted by [`TILT_DEGREES`] (the largest
+    /// `reach + tan(tilt)·along`), in scene units.
+    #[serde(default)]
+    pub gap_tilted: f64,
+    /// The same in ulps of the hit point's largest component.
+    #[serde(default)]
+    pub gap_tilted_ulps: f64,
     /// A replay line of a self-hit, if any.
     pub self_hit_replay: Option<String>,
     /// A replay line of the ray with the largest reach.
@@ -327,7 +341,17 @@ pub struct Verdict {
     /// The height of the first point the new ray takes hits from above the triangle's plane,
     /// on the side it leaves to (scene units; negative: behind the surface).
     pub reach: f64,
+    /// How far that point lies from the exact hit along the surface (scene units): what a
+    /// tilted neighbour adds to the reach ([`TILT_DEGREES`]).
+    pub along: f64,
 }
+
+/// The tilt of the second neighbour: a plane through the point `g` above the hit, tilted by
+/// this angle toward where the new ray starts (the worst direction). Its smallest resolved gap
+/// is `reach + tan(tilt)·along`: a rule that moves the origin along the surface or along the
+/// new ray (a `t_min`) skips a tilted neighbour, or the underside of a sphere resting on the
+/// surface near the hit (locally such a plane), well before a parallel one.
+pub const TILT_DEGREES: f64 = 10.0;
 
 /// Judges a rule's answer `s` on `ray` in `prec`.
 pub fn judge(ray: &Ray, s: &Spawned, prec: Precision) -> Verdict {
@@ -366,13 +390,47 @@ pub fn judge(ray: &Ray, s: &Spawned, prec: Precision) -> Verdict {
         .max()
         .expect("three components");
     let scaled: [Rational; 3] = std::array::from_fn(|i| n[i].clone() / &big);
-    let reach =
-        ((h / &big).to_f64() / dot(&scaled, &scaled).to_f64().sqrt()).clamp(-f64::MAX, f64::MAX);
+    let reach = ((h.clone() / &big).to_f64() / dot(&scaled, &scaled).to_f64().sqrt())
+        .clamp(-f64::MAX, f64::MAX);
+    // Along the surface: |Δ|² − (n·Δ)²/(n·n), Δ = start − p*, p* the exact primary hit (the
+    // start's height over the plane is the same from p0 and from p*)
+    let primary: Vec<f64> = [
+        v3(&ray.query, 13),
+        v3(&ray.query, 16),
+        ray.tri[0],
+        ray.tri[1],
+        ray.tri[2],
+    ]
+    .concat();
+    let along = match exact_tri(&primary).t() {
+        Some(t) => {
+            let p_star: [Rational; 3] = std::array::from_fn(|i| {
+                q(ray.query[13 + i]) + t.clone() * q(ray.query[16 + i]) - &a[i]
+            });
+            let delta: [Rational; 3] = std::array::from_fn(|i| start[i].clone() - &p_star[i]);
+            // Scaled by the largest component so that no square overflows
+            let m = delta
+                .iter()
+                .map(|x| x.clone().abs())
+                .max()
+                .expect("three components");
+            if m == 0 {
+                0.0
+            } else {
+                let u: [Rational; 3] = std::array::from_fn(|i| delta[i].clone() / &m);
+                let hn = dot(&n, &u);
+                let t2 = dot(&u, &u) - hn.clone() * &hn / dot(&n, &n);
+                (t2.to_f64().max(0.0).sqrt() * m.to_f64()).min(f64::MAX)
+            }
+        }
+        None => 0.0,
+    };
     Verdict {
         self_hit: exact.is_some(),
         self_hit_t: exact.map(|t| t.to_f64()),
         self_hit_intersector: intersector,
         reach,
+        along,
     }
 }
 
@@ -467,6 +525,8 @@ pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, Strin
                 behind: 0,
                 gap: 0.0,
                 gap_ulps: 0.0,
+                gap_tilted: 0.0,
+                gap_tilted_ulps: 0.0,
                 self_hit_replay: None,
                 gap_replay: None,
                 behind_replay: None,
@@ -488,6 +548,11 @@ pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, Strin
                     if row.behind_replay.is_none() {
                         row.behind_replay = Some(replay_line(rule, prec, ray));
                     }
+                }
+                let tilted = (v.reach + TILT_DEGREES.to_radians().tan() * v.along).min(f64::MAX);
+                if tilted > row.gap_tilted {
+                    row.gap_tilted = tilted;
+                    row.gap_tilted_ulps = (tilted / ray.hit_ulp).min(f64::MAX);
                 }
                 if v.reach > row.gap {
                     row.gap = v.reach;
@@ -525,17 +590,21 @@ pub fn ulps_text(x: f64) -> String {
 /// The rows as a Markdown table.
 pub fn markdown(rows: &[SpawnRow]) -> String {
     let mut t = String::from(
-        "| rule | precision | placement | scene size | rays | self-hits (exact) | self-hits (watertight) | behind the surface | smallest resolved gap | in ulps of max\\|p\\| | verdict |\n|---|---|---|---|---:|---:|---:|---:|---:|---:|---|\n",
+        "| rule | precision | placement | scene size | rays | self-hits (exact) | self-hits (watertight) | behind the surface | smallest resolved gap | in ulps of max\\|p\\| | tilted 10°, ulps | verdict |\n|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|\n",
     );
     for r in rows {
         // A cell with no ray says nothing of the rule
-        let (gap, ulps) = if r.rays == 0 {
-            ("—".to_string(), "—".to_string())
+        let (gap, ulps, tilted) = if r.rays == 0 {
+            ("—".to_string(), "—".to_string(), "—".to_string())
         } else {
-            (format!("{:.3e}", r.gap), ulps_text(r.gap_ulps))
+            (
+                format!("{:.3e}", r.gap),
+                ulps_text(r.gap_ulps),
+                ulps_text(r.gap_tilted_ulps),
+            )
         };
         t += &format!(
-            "| {} | {} | {} | 1e{} | {} | {} | {} | {} | {gap} | {ulps} | {} |\n",
+            "| {} | {} | {} | 1e{} | {} | {} | {} | {} | {gap} | {ulps} | {tilted} | {} |\n",
             r.rule.replace('|', "\\|"),
             r.precision,
             r.placement,
@@ -725,6 +794,88 @@ mod tests {
                 let rel = (hi - v.reach).abs() / v.reach;
                 // (the neighbour's vertices are rounded to f64 far from the origin)
                 assert!(rel < 1e-4, "bisection {hi:e}, reach {:e}", v.reach);
+                checked += 1;
+            }
+        }
+        assert!(checked >= 4, "{checked}");
+    }
+
+    /// The tilted gap is the answer of a bisection too: a plane through `p* + g·n̂` tilted by
+    /// [`TILT_DEGREES`] toward where the new ray starts, built as a large triangle, is skipped
+    /// below `reach + tan(tilt)·along` and found above (a fixed t_min moves the start along the
+    /// new ray, so its tilted gap is wider than its parallel one).
+    #[test]
+    fn the_tilted_gap_is_where_a_tilted_neighbour_starts_to_be_found() {
+        let cells = cells(5, &[Precision::F64], 2);
+        let mut checked = 0;
+        for c in cells.iter().filter(|c| c.scale == 0) {
+            let answers = BuiltIn(2)
+                .spawn(
+                    c.prec,
+                    &c.rays.iter().map(|r| r.query.clone()).collect::<Vec<_>>(),
+                )
+                .unwrap();
+            for (ray, s) in c.rays.iter().zip(&answers) {
+                let v = judge(ray, s, c.prec);
+                if v.reach <= 0.0 || v.along <= 0.0 {
+                    continue;
+                }
+                let w = v3(&ray.query, 9);
+                let (o, d) = (v3(&ray.query, 13), v3(&ray.query, 16));
+                let t = exact_tri(&[o.to_vec(), d.to_vec(), ray.tri.concat()].concat())
+                    .t()
+                    .unwrap()
+                    .to_f64();
+                let p = sample::add(o, sample::mul(d, t));
+                let n = sample::normalize(sample::cross(
+                    sample::sub(ray.tri[1], ray.tri[0]),
+                    sample::sub(ray.tri[2], ray.tri[0]),
+                ));
+                let n = if sample::dot(n, w) < 0.0 {
+                    sample::mul(n, -1.0)
+                } else {
+                    n
+                };
+                // ê: the start's offset from p* along the surface, normalised
+                let start = sample::add(s.origin, sample::mul(w, s.t_min));
+                let delta = sample::sub(start, p);
+                let e =
+                    sample::normalize(sample::sub(delta, sample::mul(n, sample::dot(n, delta))));
+                let th = TILT_DEGREES.to_radians();
+                let m = sample::add(sample::mul(n, th.cos()), sample::mul(e, th.sin()));
+                if sample::dot(m, w) < 0.2 {
+                    continue; // the new ray must run into the tilted plane
+                }
+                let u1 = sample::normalize(sample::cross(m, e));
+                let u2 = sample::cross(m, u1);
+                let found = |g: f64| {
+                    let x = sample::add(p, sample::mul(n, g));
+                    let big = 1e3;
+                    let vs: Vec<f64> = [
+                        sample::add(x, sample::mul(u1, big)),
+                        sample::add(x, sample::add(sample::mul(u1, -big), sample::mul(u2, big))),
+                        sample::add(x, sample::add(sample::mul(u1, -big), sample::mul(u2, -big))),
+                    ]
+                    .concat();
+                    let input: Vec<f64> = [s.origin.to_vec(), w.to_vec(), vs].concat();
+                    exact_tri(&input).t().is_some_and(|t| t > q(s.t_min))
+                };
+                let want = v.reach + th.tan() * v.along;
+                let (mut lo, mut hi) = (0.0, 4.0 * want);
+                assert!(!found(want * 0.5) && found(hi));
+                for _ in 0..60 {
+                    let mid = 0.5 * (lo + hi);
+                    if found(mid) {
+                        hi = mid;
+                    } else {
+                        lo = mid;
+                    }
+                }
+                assert!(
+                    (hi - want).abs() < 1e-6 * want,
+                    "bisection {hi:e}, tilted gap {want:e}"
+                );
+                assert!(want > v.reach);
                 checked += 1;
             }
         }
