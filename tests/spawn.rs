@@ -494,3 +494,63 @@ fn embrees_tutorial_convention_through_exec() {
     assert_eq!(o.status.code(), Some(4), "{err}");
     assert!(err.contains("Embree is single precision"), "{err}");
 }
+
+/// The renderer's own intersector on the spawned rays (`--intersector`): Möller–Trumbore
+/// built in and the same formula in C through its ABI (`tests/outside/routines.c`) re-hit the
+/// same rays; pbrt's watertight test (the default) hides some of a fixed t_min's self-hits that
+/// Möller–Trumbore shows (the exact count is the same under both).
+#[test]
+fn the_renderers_own_intersector_on_the_spawned_rays() {
+    let d = scratch("spawn-intersector");
+    let lib = crate::common::build_library("routines.c", &d);
+    let run = |isect: &str, out: &str| {
+        let o = spawn(
+            &d,
+            &[
+                "--precision",
+                "f32",
+                "--per-cell",
+                "8",
+                "--rule",
+                "tmin_1e-4",
+                "--rule",
+                "none",
+                "--intersector",
+                isect,
+                "--json",
+                out,
+            ],
+        );
+        let (out_text, err) = text(&o);
+        assert_eq!(o.status.code(), Some(0), "{out_text}{err}");
+        rows(&d.join(out))
+    };
+    let mt = run("moller_trumbore", "mt.json");
+    let c = run(
+        &format!("plugin:{}:triangle_mt_f32", lib.display()),
+        "c.json",
+    );
+    let wt = run("watertight", "wt.json");
+    let col = |r: &[serde_json::Value], k: &str| -> Vec<u64> {
+        r.iter().map(|x| x[k].as_u64().unwrap()).collect()
+    };
+    assert_eq!(
+        col(&mt, "self_hits_intersector"),
+        col(&c, "self_hits_intersector")
+    );
+    assert_eq!(col(&mt, "self_hits"), col(&wt, "self_hits"));
+    assert_eq!(c[0]["intersector"], "triangle_mt");
+    assert_eq!(wt[0]["intersector"], "watertight");
+    let hidden = |r: &[serde_json::Value]| sum(r, "tmin_1e-4", "self_hits_intersector");
+    assert!(
+        hidden(&wt) < hidden(&mt),
+        "{} vs {}",
+        hidden(&wt),
+        hidden(&mt)
+    );
+    // An unknown intersector is one line, exit 2
+    let o = spawn(&d, &["--intersector", "nope"]);
+    let (_, err) = text(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("not a triangle method"), "{err}");
+}

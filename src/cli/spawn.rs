@@ -24,6 +24,12 @@ pub struct SpawnArgs {
     /// Precisions (comma-separated).
     #[arg(long, value_delimiter = ',', default_value = "f32,f64", value_parser = parse_precision)]
     pub precision: Vec<Precision>,
+    /// The triangle routine run on the spawned rays beside the exact oracle (the renderer's
+    /// intersector): a built-in triangle method (default `watertight`, pbrt-v4's; `rayproof
+    /// probe --help` lists them), `exec:CMD` or `plugin:PATH:SYMBOL` (a triangle routine as
+    /// `audit --shape triangle` takes one, `rayproof header`).
+    #[arg(long, value_name = "METHOD", default_value = "watertight")]
+    pub intersector: String,
     /// Triangles per precision × scene size × placement (each with 8 spawned rays).
     #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(1..=4096))]
     pub per_cell: u64,
@@ -70,6 +76,44 @@ fn rules(a: &SpawnArgs) -> Result<Vec<Box<dyn SpawnRule>>> {
         a.rule.clone()
     };
     spawn_rules(&names, &a.outside)
+}
+
+/// The intersector `--intersector` names: a built-in triangle method, `exec:CMD` or
+/// `plugin:PATH:SYMBOL` (a triangle routine, through the outside-routine machinery).
+fn intersector(a: &SpawnArgs) -> Result<Box<dyn rayproof::audit::Method>> {
+    let triangle = rayproof::shapes::shape_by_name("triangle").expect("registered");
+    let info = triangle.info();
+    let mut theirs = super::audit::OutsideArgs {
+        plugin: vec![],
+        exec: vec![],
+        name: vec![],
+        exec_per_batch: false,
+        exec_keep: false,
+        exec_timeout: a.outside.exec_timeout,
+    };
+    if let Some(cmd) = a.intersector.strip_prefix("exec:") {
+        theirs.exec.push(cmd.to_string());
+    } else if let Some(spec) = a.intersector.strip_prefix("plugin:") {
+        theirs.plugin.push(spec.to_string());
+    } else {
+        let index = info
+            .methods
+            .iter()
+            .position(|m| m.name == a.intersector)
+            .ok_or_else(|| {
+                anyhow!(
+                    "--intersector '{}': not a triangle method (built-in: {}; or exec:CMD, plugin:PATH:SYMBOL)",
+                    a.intersector,
+                    info.methods.iter().map(|m| m.name).collect::<Vec<_>>().join(", ")
+                )
+            })?;
+        return Ok(Box::new(rayproof::shapes::shape::Builtin {
+            shape: triangle,
+            index,
+        }));
+    }
+    let (m, _) = theirs.methods(info)?.remove(0);
+    Ok(m)
 }
 
 /// Spawn rules: the built-ins `builtin` names, then the routines of `outside` (plugins, then
@@ -121,12 +165,12 @@ pub(super) fn run_spawn(a: SpawnArgs) -> Result<u8> {
     precs.dedup();
     let cells = spawn::cells(a.seed, &precs, a.per_cell);
     let mut rows: Vec<SpawnRow> = vec![];
+    let intersector = intersector(&a)?;
+    let failed = |e| anyhow!(rayproof::audit::run::MethodFailed(e));
     for r in &rules {
-        rows.extend(
-            spawn::rows(r.as_ref(), &cells)
-                .map_err(|e| anyhow!(rayproof::audit::run::MethodFailed(e)))?,
-        );
+        rows.extend(spawn::rows_with(r.as_ref(), &cells, intersector.as_ref()).map_err(failed)?);
     }
+    intersector.finish().map_err(failed)?;
     // Verdicts: a rule of yours and pbrt's (the crate's own) are held to no self-hit, no ray
     // behind the surface (and --max-gap-ulps); the other built-ins are reported
     let goal = |x: &SpawnRow| {
@@ -245,7 +289,11 @@ fn replay(a: &SpawnArgs, rules: &[Box<dyn SpawnRule>]) -> Result<u8> {
     let s = rule
         .spawn(prec, &[ray.query.clone()])
         .map_err(|e| anyhow!(rayproof::audit::run::MethodFailed(e)))?[0];
-    let v = spawn::judge(&ray, &s, prec);
+    let intersector = intersector(a)?;
+    let t = spawn::intersect(intersector.as_ref(), prec, &[(&ray, &s)])
+        .and_then(|t| intersector.finish().map(|_| t[0]))
+        .map_err(|e| anyhow!(rayproof::audit::run::MethodFailed(e)))?;
+    let v = spawn::judge(&ray, &s, t);
     let hex = |x: f64| rayproof::shapes::shape::hex_text(x);
     say!(
         "rule {}: origin {} {} {}, t_min {}",
@@ -263,7 +311,8 @@ fn replay(a: &SpawnArgs, rules: &[Box<dyn SpawnRule>]) -> Result<u8> {
         None => say!("self-hit: none (the exact oracle)"),
     }
     say!(
-        "self-hit by the watertight intersector: {}",
+        "self-hit by the intersector {}: {}",
+        intersector.name(),
         if v.self_hit_intersector { "yes" } else { "no" }
     );
     let ulps = v.reach / ray.hit_ulp;

@@ -45,7 +45,7 @@ pub mod rules;
 pub use rules::{BuiltIn, OutsideRule, SpawnRule, Spawned, BUILT_IN, INFO, PROTOCOL, QUERY_LEN};
 
 use crate::numerics::exact::{q, ulp};
-use crate::numerics::real::{Real, Scalar};
+use crate::numerics::real::Real;
 use crate::numerics::Precision;
 use crate::shapes::oracle::sample;
 use crate::shapes::shape::{case_rng, hex_text};
@@ -60,8 +60,17 @@ pub const SCALES: std::ops::RangeInclusive<i32> = -4..=7;
 pub const PLACEMENTS: [&str; 2] = ["near", "far"];
 /// Spawned rays per triangle (half reflection side, half transmission side).
 pub const SPAWNED: usize = 8;
-/// The intersector a renderer runs on the spawned ray (pbrt-v4's watertight test).
+/// The intersector that finds the primary hits (pbrt-v4's watertight test), and by default
+/// the one run on the spawned rays ([`watertight`]).
 const INTERSECTOR: usize = 2;
+
+/// The default intersector of the spawned rays: pbrt-v4's watertight triangle test, built in.
+pub fn watertight() -> crate::shapes::shape::Builtin {
+    crate::shapes::shape::Builtin {
+        shape: crate::shapes::shape_by_name("triangle").expect("the triangle is registered"),
+        index: INTERSECTOR,
+    }
+}
 
 /// One spawned ray: the triangle (9 values), the rule's query, the exact hit.
 #[derive(Clone)]
@@ -100,8 +109,12 @@ pub struct SpawnRow {
     pub rays: u64,
     /// Rays that re-hit their own triangle (the exact oracle).
     pub self_hits: u64,
-    /// Rays on which the renderer's intersector (pbrt-v4's watertight test) re-hits it.
+    /// Rays on which the renderer's intersector (`intersector`) re-hits it.
     pub self_hits_intersector: u64,
+    /// The triangle routine run on the spawned rays: a built-in method's name (default
+    /// `watertight`, pbrt-v4's) or a routine of the user's (`--intersector`).
+    #[serde(default)]
+    pub intersector: String,
     /// Rays whose first point taking hits lies behind the surface's plane (a negative reach:
     /// the rule sent the ray through its own surface, whether or not it meets the triangle).
     #[serde(default)]
@@ -353,17 +366,48 @@ pub struct Verdict {
 /// surface near the hit (locally such a plane), well before a parallel one.
 pub const TILT_DEGREES: f64 = 10.0;
 
-/// Judges a rule's answer `s` on `ray` in `prec`.
-pub fn judge(ray: &Ray, s: &Spawned, prec: Precision) -> Verdict {
+/// The spawned ray of `s` against its own triangle: the triangle audit's 15 inputs
+/// `o' w p0 p1 p2`.
+fn spawned_input(ray: &Ray, s: &Spawned) -> Vec<f64> {
+    [
+        s.origin,
+        v3(&ray.query, 9),
+        ray.tri[0],
+        ray.tri[1],
+        ray.tri[2],
+    ]
+    .concat()
+}
+
+/// The `t` the intersector `method` (a triangle routine: built-in or the user's, through the
+/// outside-routine machinery, in batches) finds on each spawned ray (`None`: a miss).
+pub fn intersect(
+    method: &dyn crate::shapes::shape::Method,
+    prec: Precision,
+    rays: &[(&Ray, &Spawned)],
+) -> Result<Vec<Option<f64>>, String> {
+    let mut out = Vec::with_capacity(rays.len());
+    let inputs: Vec<Vec<f64>> = rays.iter().map(|(r, s)| spawned_input(r, s)).collect();
+    for chunk in inputs.chunks(crate::audit::run::CHUNK as usize) {
+        let answers = crate::audit::run::answers(&[method], prec, chunk)?.remove(0);
+        out.extend(
+            answers
+                .iter()
+                .map(|a| (a.count == 1).then(|| a.values.first().copied()).flatten()),
+        );
+    }
+    Ok(out)
+}
+
+/// Judges a rule's answer `s` on `ray`, with the intersector's `t` on the spawned ray
+/// ([`intersect`]).
+pub fn judge(ray: &Ray, s: &Spawned, intersector_t: Option<f64>) -> Verdict {
     let w = v3(&ray.query, 9);
-    let input: Vec<f64> = [s.origin, w, ray.tri[0], ray.tri[1], ray.tri[2]].concat();
+    let input = spawned_input(ray, s);
     let t_min = q(s.t_min);
     let exact = exact_tri(&input).t().filter(|t| *t > t_min);
-    let intersector = crate::in_precision!(prec, F => {
-        let f = |a: [f64; 3]| a.map(F::from_f64);
-        triangle::method::<F>(INTERSECTOR)(f(s.origin), f(w), ray.tri.map(f))
-            .is_some_and(|h| h.t.to_f64() > s.t_min)
-    });
+    // A NaN t is no hit; any other t past t_min is one
+    let intersector = intersector_t.is_some_and(|t| t > s.t_min);
     // The reach: n·(o' + t_min·w − p0) / |n|, n turned to w's side
     let [a, b, c] = ray.tri.map(|p| p.map(q));
     let e1: [Rational; 3] = std::array::from_fn(|i| b[i].clone() - &a[i]);
@@ -491,8 +535,18 @@ pub fn ray_of(values: &[f64], prec: Precision) -> Result<Ray, String> {
     })
 }
 
-/// The rows of `rule` over `cells`: one call of the rule for all their rays.
+/// The rows of `rule` over `cells`, with pbrt-v4's watertight test as the intersector.
 pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, String> {
+    rows_with(rule, cells, &watertight())
+}
+
+/// The rows of `rule` over `cells`: one call of the rule for all their rays, then one of the
+/// `intersector` (a triangle routine) for all the spawned rays.
+pub fn rows_with(
+    rule: &dyn SpawnRule,
+    cells: &[Cell],
+    intersector: &dyn crate::shapes::shape::Method,
+) -> Result<Vec<SpawnRow>, String> {
     let mut out = vec![];
     for prec in [Precision::F32, Precision::F64] {
         let mine: Vec<&Cell> = cells.iter().filter(|c| c.prec == prec).collect();
@@ -512,6 +566,12 @@ pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, Strin
                 queries.len()
             ));
         }
+        let rays: Vec<(&Ray, &Spawned)> = mine
+            .iter()
+            .flat_map(|c| c.rays.iter())
+            .zip(&answers)
+            .collect();
+        let ts = intersect(intersector, prec, &rays)?;
         let mut at = 0;
         for c in mine {
             let mut row = SpawnRow {
@@ -522,6 +582,7 @@ pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, Strin
                 rays: 0,
                 self_hits: 0,
                 self_hits_intersector: 0,
+                intersector: intersector.name().to_string(),
                 behind: 0,
                 gap: 0.0,
                 gap_ulps: 0.0,
@@ -533,7 +594,7 @@ pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, Strin
                 verdict: String::new(),
             };
             for ray in &c.rays {
-                let v = judge(ray, &answers[at], prec);
+                let v = judge(ray, &answers[at], ts[at]);
                 at += 1;
                 row.rays += 1;
                 if v.self_hit {
@@ -589,8 +650,12 @@ pub fn ulps_text(x: f64) -> String {
 
 /// The rows as a Markdown table.
 pub fn markdown(rows: &[SpawnRow]) -> String {
-    let mut t = String::from(
-        "| rule | precision | placement | scene size | rays | self-hits (exact) | self-hits (watertight) | behind the surface | smallest resolved gap | in ulps of max\\|p\\| | tilted 10°, ulps | verdict |\n|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|\n",
+    let intersector = rows
+        .first()
+        .map_or("intersector", |r| r.intersector.as_str());
+    let mut t = format!(
+        "| rule | precision | placement | scene size | rays | self-hits (exact) | self-hits ({}) | behind the surface | smallest resolved gap | in ulps of max\\|p\\| | tilted 10°, ulps | verdict |\n|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|\n",        intersector.replace('|', "\\|"),
+
     );
     for r in rows {
         // A cell with no ray says nothing of the rule
@@ -711,7 +776,7 @@ mod tests {
                     Precision::F64 => 2f64.powi(-53),
                 };
                 for (ray, s) in c.rays.iter().zip(&answers) {
-                    let v = judge(ray, s, c.prec);
+                    let v = judge(ray, s, None);
                     let (p, err, n) = (v3(&ray.query, 0), v3(&ray.query, 3), v3(&ray.query, 6));
                     let d: f64 = (0..3).map(|i| n[i].abs() * err[i]).sum();
                     let rounding: f64 = (0..3)
@@ -747,7 +812,7 @@ mod tests {
                 )
                 .unwrap();
             for (ray, s) in c.rays.iter().zip(&answers).take(4) {
-                let v = judge(ray, s, c.prec);
+                let v = judge(ray, s, None);
                 if v.reach <= 0.0 {
                     continue;
                 }
@@ -816,7 +881,7 @@ mod tests {
                 )
                 .unwrap();
             for (ray, s) in c.rays.iter().zip(&answers) {
-                let v = judge(ray, s, c.prec);
+                let v = judge(ray, s, None);
                 if v.reach <= 0.0 || v.along <= 0.0 {
                     continue;
                 }
