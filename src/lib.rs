@@ -74,9 +74,11 @@
 //! |---|---|
 //! | 0 | PASS |
 //! | 1 | WARNING |
-//! | 2 | FAILURE (also bad usage, and an output that cannot be written) |
+//! | 2 | FAILURE |
 //! | 3 | the images differ in display window, channels or layer (with `--idiff-compat`, which compares them over the union of their data windows as idiff does, only when `--diff-exr` or `--variance` needs them to show one frame) |
 //! | 4 | an input is unreadable: missing, empty, truncated, corrupt, not EXR/PNG, or over a limit; or it has no layer `--layer` names, or several layers and none the default takes (a `Combined` layer, else one with `R`, `G`, `B`) |
+//! | 64 | bad usage: an unknown option or a bad value, or an idiff option rayproof refuses (`-p`, `-a`, `-od`; sysexits' `EX_USAGE`): never a verdict's code, so a CI tells a typo from a regression |
+//! | 73 | an output that cannot be written: its directory missing, not writable, or an input (sysexits' `EX_CANTCREAT`) |
 //!
 //! How output files are written, and what an interrupted command leaves: [`output`].
 //!

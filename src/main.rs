@@ -8,8 +8,22 @@ use cli::{error_exit_code, one_line, parse, run};
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    // Usage errors: one line naming the argument, exit 2
-    let cli = match parse() {
+    // Usage errors: one line naming the argument, exit 2 (`diff`: 64, never a verdict's code);
+    // idiff's spellings of `diff` taken
+    let args: Vec<std::ffi::OsString> = std::env::args_os().collect();
+    let usage = if args.get(1).is_some_and(|a| a == "diff") {
+        cli::diff::EXIT_USAGE
+    } else {
+        2
+    };
+    let args = match cli::diff::idiff_spellings(args) {
+        Ok(a) => a,
+        Err(e) => {
+            eprintln!("{e}");
+            return ExitCode::from(usage);
+        }
+    };
+    let cli = match parse(args) {
         Ok(cli) => cli,
         Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => {
             // A closed pipe (`rayproof --help | head`) is not an error
@@ -19,7 +33,7 @@ fn main() -> ExitCode {
         }
         Err(e) => {
             eprintln!("{}", one_line(&e));
-            return ExitCode::from(2);
+            return ExitCode::from(usage);
         }
     };
     // An instruction-set cap the kernels cannot follow (RAYPROOF_ISA): one line, exit 2

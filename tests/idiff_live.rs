@@ -862,3 +862,122 @@ fn rayproof_diff_agrees_with_the_real_idiff() {
     );
     assert_eq!(agree + compat_refused, runs);
 }
+
+/// `rayproof diff` as a drop-in for idiff (issue 48 item 1): the command lines of render test
+/// scripts (Blender's `-fail X -failpercent Y`, OpenUSD's, `-q`, `-v`, `-o FILE -abs`) run
+/// unchanged, with idiff's exit code on the same files; the difference image of `-o d.exr
+/// -abs` matches idiff's; what rayproof does not do (`-p`, `-a`, `-od`, a signed or scaled or
+/// PNG `-o`) and a typo are usage errors, exit 64 with one line, never a verdict's 0-4.
+#[test]
+fn idiff_command_lines_run_unchanged() {
+    version("idiff");
+    let d = crate::common::scratch("idiff-drop-in");
+    let d = d.as_path();
+    oiio(
+        d,
+        &[
+            "--pattern",
+            "noise:seed=1",
+            "64x48",
+            "3",
+            "-d",
+            "float",
+            "-o",
+            "a.exr",
+        ],
+    );
+    oiio(
+        d,
+        &["a.exr", "--addc", "0.005", "-d", "float", "-o", "b.exr"],
+    );
+    let run = |prog: &str, argv: &[&str]| -> i32 {
+        let mut c = if prog == "idiff" {
+            Command::new("idiff")
+        } else {
+            let mut c = Command::new(env!("CARGO_BIN_EXE_rayproof"));
+            c.arg("diff");
+            c
+        };
+        c.args(argv)
+            .current_dir(d)
+            .output()
+            .expect("runs")
+            .status
+            .code()
+            .expect("an exit code")
+    };
+    let lines: [&[&str]; 9] = [
+        &["-fail", "0.01", "-failpercent", "1", "a.exr", "b.exr"],
+        &["-fail", "0.001", "a.exr", "b.exr"],
+        &["-fail", "0.001", "-failpercent", "99.9", "a.exr", "b.exr"],
+        &[
+            "-warn",
+            "0.001",
+            "-warnpercent",
+            "1",
+            "-fail",
+            "0.1",
+            "a.exr",
+            "b.exr",
+        ],
+        &["-hardfail", "0.004", "-fail", "1", "a.exr", "b.exr"],
+        &["-allowfailures", "10000", "-fail", "0", "a.exr", "b.exr"],
+        &["-q", "-fail", "0.01", "a.exr", "b.exr"],
+        &[
+            "-v",
+            "-failrelative",
+            "0.5",
+            "-fail",
+            "0.001",
+            "a.exr",
+            "b.exr",
+        ],
+        &["a.exr", "b.exr", "-fail", "0.001", "-hardwarn", "0.001"],
+    ];
+    let mut codes = vec![];
+    for argv in lines {
+        let (i, r) = (run("idiff", argv), run("rayproof", argv));
+        assert_eq!(r, i, "{argv:?}: rayproof {r}, idiff {i}");
+        codes.push(i);
+    }
+    // The lines cover more than one verdict
+    codes.sort_unstable();
+    codes.dedup();
+    assert!(codes.len() >= 2, "{codes:?}");
+    // -o d.exr -abs: idiff's difference image, as rayproof writes it
+    assert_eq!(run("idiff", &["-o", "d1.exr", "-abs", "a.exr", "b.exr"]), 2);
+    assert_eq!(
+        run("rayproof", &["-o", "d2.exr", "-abs", "a.exr", "b.exr"]),
+        2
+    );
+    assert_eq!(
+        run("rayproof", &["-q", "-fail", "1e-7", "d1.exr", "d2.exr"]),
+        0
+    );
+    // Refused with why, exit 64, one line; nothing written
+    for (argv, why) in [
+        (&["-p", "a.exr", "b.exr"][..], "-p"),
+        (&["-a", "a.exr", "b.exr"], "-a"),
+        (&["-od", "-o", "x.exr", "-abs", "a.exr", "b.exr"], "-od"),
+        (&["-o", "x.exr", "a.exr", "b.exr"], "-abs"),
+        (&["-o", "x.png", "-abs", "a.exr", "b.exr"], "-o x.png"),
+        (
+            &["-o", "x.exr", "-abs", "-scale", "7", "a.exr", "b.exr"],
+            "scaled",
+        ),
+        (&["--fial", "0.1", "a.exr", "b.exr"], "--fial"),
+        (&["-fail"], "-fail"),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
+            .arg("diff")
+            .args(argv)
+            .current_dir(d)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(64), "{argv:?}: {err}");
+        assert_eq!(err.trim_end().lines().count(), 1, "{argv:?}: {err}");
+        assert!(err.contains(why), "{argv:?}: {err}");
+        assert!(!d.join("x.exr").exists() && !d.join("x.png").exists());
+    }
+}

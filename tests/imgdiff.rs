@@ -59,7 +59,7 @@ fn hdr_picture(w: usize, h: usize) -> Image {
     Image::rgb(w, h, data)
 }
 
-/// Whether `rayproof diff ARGS…` is refused as a usage error naming `option` (exit 2, one line).
+/// Whether `rayproof diff ARGS…` is refused as a usage error naming `option` (exit 64, one line).
 fn usage_error(v: &[&str], option: &str) -> bool {
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_rayproof"))
         .arg("diff")
@@ -67,7 +67,7 @@ fn usage_error(v: &[&str], option: &str) -> bool {
         .output()
         .expect("binary runs");
     let err = String::from_utf8_lossy(&o.stderr);
-    o.status.code() == Some(2) && err.trim_end().lines().count() == 1 && err.contains(option)
+    o.status.code() == Some(64) && err.trim_end().lines().count() == 1 && err.contains(option)
 }
 
 /// `rayproof diff ARGS…`: its exit code.
@@ -1054,26 +1054,26 @@ fn run_diff_checks_outputs_before_work() {
     write_exr_rgb(&d.join("r.exr"), &r).unwrap();
     let rp = d.join("r.exr");
     let nowhere = d.join("no/such/dir/out.json");
-    // the inputs are missing too: the output check comes first (2, not 4)
+    // the inputs are missing too: the output check comes first (73, not 4)
     let code = run_diff(&[
         "--json",
         s(&nowhere),
         s(&d.join("x.exr")),
         s(&d.join("y.exr")),
     ]);
-    assert_eq!(code, 2);
+    assert_eq!(code, 73);
     assert!(!d.join("no").exists());
     // an output may not overwrite an input
-    assert_eq!(run_diff(&["-q", "--diff-exr", s(&rp), s(&rp), s(&rp)]), 2);
+    assert_eq!(run_diff(&["-q", "--diff-exr", s(&rp), s(&rp), s(&rp)]), 73);
     assert_eq!(read_image(&rp).unwrap(), r);
     // a directory is not an output file
-    assert_eq!(run_diff(&["-q", "--heatmap", s(&d), s(&rp), s(&rp)]), 2);
+    assert_eq!(run_diff(&["-q", "--heatmap", s(&d), s(&rp), s(&rp)]), 73);
     // one file named as two outputs: refused, and the file there stays as it was (the previous
     // binary wrote the heat map, then the JSON over it)
     let both = d.join("both.png");
     std::fs::write(&both, b"old").unwrap();
     let o = rayproof_diff(&["--heatmap", s(&both), "--json", s(&both), s(&rp), s(&rp)]);
-    assert_one_line_error(&o, 2, "two outputs");
+    assert_one_line_error(&o, 73, "two outputs");
     assert_eq!(std::fs::read(&both).unwrap(), b"old");
     // the outputs of a run are committed together: none is left behind beside the old file
     let left: Vec<_> = std::fs::read_dir(&*d)
@@ -1176,11 +1176,11 @@ fn binary_report_note_json_and_errors() {
         4,
         "none.png",
     );
-    assert_one_line_error(&rayproof_diff(&[&rp, &rp, "--fail=-1"]), 2, "--fail");
+    assert_one_line_error(&rayproof_diff(&[&rp, &rp, "--fail=-1"]), 64, "--fail");
     let nowhere = d.join("no/dir/h.png");
     assert_one_line_error(
         &rayproof_diff(&["--heatmap", s(&nowhere), &rp, &rp]),
-        2,
+        73,
         "no/dir",
     );
 }

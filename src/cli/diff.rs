@@ -3,8 +3,11 @@
 //! Exit codes of `rayproof diff`:
 //! - 0: PASS
 //! - 1: WARNING
-//! - 2: FAILURE; also bad usage (clap errors exit 2 in this binary, like every rayproof
-//!   command), an output directory that does not exist, or an output that cannot be written
+//! - 2: FAILURE
+//! - 64 ([`EXIT_USAGE`]): bad usage, never a verdict's code (an unknown option, a bad value, an
+//!   idiff option rayproof refuses: a CI must tell a typo from a regression)
+//! - 73 ([`EXIT_CANNOT_WRITE`]): an output directory that does not exist, an output that
+//!   cannot be written or is an input
 //! - 3: the images, or the variance image, differ in display window, channels or layer
 //!   (`--idiff-compat` compares them over the union of their data windows as idiff does; then
 //!   only `--diff-exr` and `--variance` need them to show one frame)
@@ -16,8 +19,10 @@
 //! The comparison, the files and the verdict are one library call, [`rayproof::images::diff::diff`].
 
 use super::emit;
+pub use rayproof::images::diff::EXIT_USAGE;
 use rayproof::images::diff::{diff, DiffRequest};
 use rayproof::images::{one_line, Thresholds, ZParams};
+use std::ffi::OsString;
 use std::io::Write;
 use std::path::PathBuf;
 
@@ -42,10 +47,12 @@ fn parse_unit_closed(s: &str) -> Result<f64, String> {
     }
 }
 
-/// `rayproof diff`: compare two images (OpenEXR or PNG) like OpenImageIO's idiff.
+/// `rayproof diff`: compare two images (OpenEXR or PNG) like OpenImageIO's idiff, which it
+/// replaces on a command line: idiff's single-dash spellings are taken (`-fail 0.01`, `-q`,
+/// `-o diff.exr -abs`; README, "rayproof diff for idiff").
 ///
-/// Exit codes: 0 PASS, 1 WARNING, 2 FAILURE (also bad usage and unwritable outputs), 3 size,
-/// channel or layer mismatch, 4 unreadable input (or no such layer).
+/// Exit codes: 0 PASS, 1 WARNING, 2 FAILURE, 3 size, channel or layer mismatch, 4 unreadable
+/// input (or no such layer), 64 bad usage, 73 an output that cannot be written.
 #[derive(clap::Args, Debug, Clone)]
 pub struct DiffArgs {
     /// Reference image (OpenEXR or PNG, recognised by content).
@@ -183,4 +190,85 @@ pub fn run_diff(a: DiffArgs) -> u8 {
             e.code
         }
     }
+}
+
+/// idiff's options that take a value and are rayproof's own with two dashes.
+const IDIFF_VALUED: [&str; 9] = [
+    "fail",
+    "failrelative",
+    "failpercent",
+    "hardfail",
+    "allowfailures",
+    "warn",
+    "warnrelative",
+    "warnpercent",
+    "hardwarn",
+];
+
+/// The command line with idiff's spellings of `rayproof diff` made rayproof's: `-fail X` …
+/// `-hardwarn X` become `--fail X` …, `-v` is dropped (the full report is the default), `-o
+/// FILE -abs` (with `-scale 1`) becomes `--diff-exr FILE` for an `.exr`; what rayproof does
+/// not do is refused with why (an error line, exit [`EXIT_USAGE`]). Any other command line is
+/// returned as it is.
+pub fn idiff_spellings(args: Vec<OsString>) -> Result<Vec<OsString>, String> {
+    if args.get(1).and_then(|a| a.to_str()) != Some("diff") {
+        return Ok(args);
+    }
+    let mut out: Vec<OsString> = args[..2].to_vec();
+    let (mut o, mut abs, mut scale) = (None::<OsString>, false, None::<String>);
+    let mut it = args.into_iter().skip(2);
+    let value = |it: &mut dyn Iterator<Item = OsString>, opt: &str| {
+        it.next()
+            .ok_or_else(|| format!("error: idiff's -{opt} takes a value"))
+    };
+    while let Some(a) = it.next() {
+        let Some(text) = a.to_str() else {
+            out.push(a);
+            continue;
+        };
+        // After `--` everything is a file
+        if text == "--" {
+            out.push(a);
+            out.extend(it.by_ref());
+            break;
+        }
+        let Some(name) = text.strip_prefix('-').filter(|n| !n.starts_with('-')) else {
+            out.push(a);
+            continue;
+        };
+        match name {
+            n if IDIFF_VALUED.contains(&n) => {
+                out.push(format!("--{n}").into());
+                out.push(value(&mut it, n)?);
+            }
+            "v" => {}
+            "o" => o = Some(value(&mut it, "o")?),
+            "abs" => abs = true,
+            "scale" => scale = Some(value(&mut it, "scale")?.to_string_lossy().into_owned()),
+            "od" => return Err("error: idiff's -od (write the difference image only when the images differ) is not supported: rayproof writes it whenever asked (-o FILE -abs, or --diff-exr FILE)".into()),
+            "p" => return Err("error: idiff's -p (Yee's perceptual test) is not supported: rayproof's perceptual metric is HDR-ꟻLIP (--flip, and max_flip in a suite)".into()),
+            "a" => return Err("error: idiff's -a (every subimage and MIP level) is not supported: rayproof compares one part and layer (--layer NAME)".into()),
+            _ => out.push(a),
+        }
+    }
+    if let Some(file) = o {
+        let scale_one = scale
+            .as_deref()
+            .is_none_or(|x| x.trim().parse::<f64>() == Ok(1.0));
+        let exr = file
+            .to_string_lossy()
+            .to_ascii_lowercase()
+            .ends_with(".exr");
+        if !abs || !scale_one || !exr {
+            return Err(format!(
+                "error: idiff's -o {} is supported as -o FILE.exr -abs (|REF - TEST| as float EXR, --diff-exr); rayproof writes no signed or scaled difference and no other format (for a picture of the difference: --heatmap FILE.png)",
+                file.to_string_lossy()
+            ));
+        }
+        out.push("--diff-exr".into());
+        out.push(file);
+    } else if abs || scale.is_some() {
+        return Err("error: idiff's -abs and -scale go with -o FILE".into());
+    }
+    Ok(out)
 }

@@ -37,7 +37,7 @@ macro_rules! say_raw {
 mod args;
 mod audit;
 mod check;
-mod diff;
+pub mod diff;
 mod header;
 mod implicit;
 mod offline;
@@ -117,7 +117,7 @@ pub enum Command {
 }
 
 /// Parses the command line; `probe --help` lists the routines.
-pub fn parse() -> Result<Cli, clap::Error> {
+pub fn parse(args: Vec<std::ffi::OsString>) -> Result<Cli, clap::Error> {
     use clap::{CommandFactory, FromArgMatches};
     let list: Vec<String> = rayproof::shapes::registry()
         .iter()
@@ -129,7 +129,7 @@ pub fn parse() -> Result<Cli, clap::Error> {
             list.join("\n")
         ))
     });
-    Cli::from_arg_matches(&cmd.try_get_matches()?)
+    Cli::from_arg_matches(&cmd.try_get_matches_from(args)?)
 }
 
 /// A clap error as one line (a first line ending in ':' is joined with its list, and a

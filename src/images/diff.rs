@@ -44,8 +44,14 @@ pub struct DiffOutcome {
     pub stdout: String,
 }
 
-/// A diff without a verdict: the exit code (2 an output that cannot be written, 3 images that
-/// do not show one frame, 4 an unreadable input) and why.
+/// The exit code of a bad command line of `rayproof diff` (sysexits' `EX_USAGE`): never one
+/// of the verdicts' 0–4.
+pub const EXIT_USAGE: u8 = 64;
+/// The exit code of an output `rayproof diff` cannot write (sysexits' `EX_CANTCREAT`).
+pub const EXIT_CANNOT_WRITE: u8 = 73;
+
+/// A diff without a verdict: the exit code ([`EXIT_CANNOT_WRITE`] an output that cannot be
+/// written, 3 images that do not show one frame, 4 an unreadable input) and why.
 #[derive(Debug)]
 pub struct DiffError {
     /// The exit code.
@@ -77,7 +83,7 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
         .flatten()
         .collect();
     crate::output::check_outputs(&files, &[], &inputs)
-        .map_err(|e| DiffError::new(2, e.to_string()))?;
+        .map_err(|e| DiffError::new(EXIT_CANNOT_WRITE, e.to_string()))?;
 
     // Inputs: the layer asked for (idiff reads every channel)
     let select = match (a.layer, a.idiff_compat) {
@@ -171,7 +177,7 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
 
     // Files: all written, or none replaced
     let (w, h) = (reference.width, reference.height);
-    let write_err = |e: anyhow::Error| DiffError::new(2, format!("{e:#}"));
+    let write_err = |e: anyhow::Error| DiffError::new(EXIT_CANNOT_WRITE, format!("{e:#}"));
     let mut files = crate::output::Outputs::new().reading(&inputs);
     if let Some(p) = a.diff_exr {
         let d = abs_diff(&reference, &test).map_err(mismatch)?;
