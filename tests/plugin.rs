@@ -308,8 +308,14 @@ fn a_routine_that_takes_its_process_down_never_takes_rayproof() {
             "{symbol}: {err}"
         );
         assert!(!json.exists(), "{symbol}: a report was written");
-        // A hang costs the deadline once, then the search for the case is bounded too
-        assert!(t0.elapsed().as_secs() < 30, "{symbol}: {:?}", t0.elapsed());
+        // A hang costs the deadline once (it was searched for its case, 3× the deadline: hostile
+        // run of issue 47); a crash's search for the case is bounded too
+        let bound = if symbol == "hangs_f32" { 8 } else { 30 };
+        assert!(
+            t0.elapsed().as_secs() < bound,
+            "{symbol}: {:?}",
+            t0.elapsed()
+        );
     }
 }
 

@@ -1323,6 +1323,160 @@ fn spawn_name_like_an_option(d: &Path) -> Result<(), String> {
     .refused(2, &["starting with a letter or digit"])
 }
 
+/// Issue 47, hostile run 3 F1: a rule that moves every new ray's origin two |p| along the
+/// surface (above it by pbrt's bound) passed: the tilted neighbour's gap was printed, never
+/// judged. It is judged as the parallel one is: never as wide as the scene.
+fn spawn_rule_that_slides_along_the_surface(d: &Path) -> Result<(), String> {
+    let script = "import sys, math\nfor l in sys.stdin:\n    v = [float.fromhex(x) for x in l.split()[1:]]\n    P, E, N, W = v[0:3], v[3:6], v[6:9], v[9:12]\n    wn = sum(W[i] * N[i] for i in range(3))\n    s = -1 if wn < 0 else 1\n    d = 8 * sum(abs(N[i]) * E[i] for i in range(3)) + 4 * max(map(abs, P)) * 2**-20\n    T = [W[i] - wn * N[i] for i in range(3)]\n    t = math.sqrt(sum(x * x for x in T)) or 1\n    m = max(map(abs, P))\n    print('1 ' + ' '.join((P[i] + s * d * N[i] + 2 * m * T[i] / t).hex() for i in range(3)) + ' 0', flush=True)\n";
+    std::fs::write(d.join("slide.py"), script).unwrap();
+    let r = run(
+        d,
+        &[
+            "spawn",
+            "--precision",
+            "f32",
+            "--per-cell",
+            "2",
+            "--exec",
+            "python3 slide.py",
+            "--name",
+            "slide",
+        ],
+        60,
+    );
+    r.exited(1)?;
+    if !r.stdout.contains("slide: FAIL") || !r.stdout.contains("to a neighbour tilted") {
+        return Err(format!(
+            "want slide to FAIL on its tilted gap: {}",
+            r.stdout
+        ));
+    }
+    Ok(())
+}
+
+/// Issue 47, hostile run 3 F2: a plugin that hangs took 3× --timeout (the batch was searched
+/// for its case, each step under its own deadline) and then said "no single case does it".
+fn spawn_plugin_that_hangs(d: &Path) -> Result<(), String> {
+    let lib = crate::common::build_library("routines.c", d);
+    let spec = format!("{}:hangs_f32", lib.display());
+    let r = run(
+        d,
+        &[
+            "spawn",
+            "--precision",
+            "f32",
+            "--per-cell",
+            "1",
+            "--plugin",
+            &spec,
+            "--timeout",
+            "2",
+        ],
+        60,
+    );
+    r.refused(4, &["did not answer within 2 s"])?;
+    if r.secs > 6.0 || r.stderr.contains("no single case") {
+        return Err(format!("want one deadline, no search: {}", r.ended()));
+    }
+    Ok(())
+}
+
+/// Issue 47, hostile run 3 F3: a replay whose error bound makes pbrt's offset overflow
+/// panicked (a 41-line stack trace, exit 101).
+fn spawn_replay_with_an_overflowing_offset(d: &Path) -> Result<(), String> {
+    let v = "0x1.d5fb6ep-13 -0x1.57bd76p-13 -0x1.6d2888p-17 0x1.fffffep+127 0x1.fffffep+127 0x1.fffffep+127 0x1.3963eep-6 -0x1.0f17aap-2 -0x1.eda282p-1 -0x1.2d4d04p-4 0x1.117e38p-1 -0x1.af315p-1 0x1p+0 0x1.b5328ep-13 -0x1.8c594cp-14 -0x1.3d024cp-12 0x1.064704p-16 -0x1.2321a2p-14 0x1.319908p-12 0x1.d33c2ep-13 -0x1.3d8ebp-13 -0x1.e10fccp-17 0x1.44b68ep-12 -0x1.18b8d6p-12 0x1.4421f4p-16 0x1.9aff3ep-13 -0x1.a6306ap-13 -0x1.39c986p-20";
+    let mut a = vec![
+        "spawn",
+        "--rule",
+        "pbrt",
+        "--precision",
+        "f32",
+        "--replay",
+        "--",
+    ];
+    a.extend(v.split(' '));
+    run(d, &a, 60).refused(2, &["not finite"])
+}
+
+/// Issue 47, hostile run 3 F4: an intersector answering outside the triangle contract (count
+/// 2, a NaN or infinite t) was counted as a miss or a hit without a word.
+fn spawn_intersector_outside_the_contract(d: &Path) -> Result<(), String> {
+    for answer in ["2 0.5", "1 nan", "1 inf"] {
+        let cmd = format!("exec:while read l; do echo {answer}; done");
+        run(
+            d,
+            &[
+                "spawn",
+                "--precision",
+                "f32",
+                "--per-cell",
+                "1",
+                "--rule",
+                "none",
+                "--intersector",
+                &cmd,
+            ],
+            60,
+        )
+        .refused(4, &["intersector"])?;
+    }
+    Ok(())
+}
+
+/// Issue 47, hostile run 3 F5: an f32-only plugin under the default precisions (f32,f64)
+/// failed at run time (exit 4); a usage error, found before anything runs.
+fn spawn_plugin_without_the_precision(d: &Path) -> Result<(), String> {
+    let lib = crate::common::build_library("routines.c", d);
+    let spec = format!("{}:triangle_mt_f32", lib.display());
+    run(d, &["spawn", "--plugin", &spec], 60).refused(2, &["no f64 symbol"])?;
+    run(
+        d,
+        &[
+            "spawn",
+            "--rule",
+            "none",
+            "--intersector",
+            &format!("plugin:{spec}"),
+        ],
+        60,
+    )
+    .refused(2, &["no f64 symbol"])
+}
+
+/// Issue 47, hostile run 3 F7 and F8: replay lines left out the run's --intersector (so they
+/// replayed another intersector's column), and at --per-cell 1 a cell whose one primary ray
+/// missed was empty, failing pbrt for want of a ray.
+fn spawn_replay_intersector_and_one_per_cell(d: &Path) -> Result<(), String> {
+    let r = run(
+        d,
+        &[
+            "spawn",
+            "--precision",
+            "f32",
+            "--per-cell",
+            "1",
+            "--rule",
+            "pbrt",
+            "--rule",
+            "none",
+            "--intersector",
+            "moller_trumbore",
+        ],
+        60,
+    );
+    r.exited(0)?;
+    if !r
+        .stdout
+        .contains("--rule none --intersector moller_trumbore --precision f32 --replay")
+    {
+        return Err(format!(
+            "want the intersector in the replay line: {}",
+            r.stdout
+        ));
+    }
+    Ok(())
+}
+
 type Row = (&'static str, fn(&Path) -> Result<(), String>);
 
 /// Issue 45's hostile run: a sphere routine that always answers "miss" spawns no ray, and its
@@ -2092,6 +2246,27 @@ const ROWS: &[Row] = &[
     ("spawn_huge_tmin", spawn_huge_tmin),
     ("spawn_replay_behind_and_wide", spawn_replay_behind_and_wide),
     ("spawn_name_like_an_option", spawn_name_like_an_option),
+    (
+        "spawn_rule_that_slides_along_the_surface",
+        spawn_rule_that_slides_along_the_surface,
+    ),
+    ("spawn_plugin_that_hangs", spawn_plugin_that_hangs),
+    (
+        "spawn_replay_with_an_overflowing_offset",
+        spawn_replay_with_an_overflowing_offset,
+    ),
+    (
+        "spawn_intersector_outside_the_contract",
+        spawn_intersector_outside_the_contract,
+    ),
+    (
+        "spawn_plugin_without_the_precision",
+        spawn_plugin_without_the_precision,
+    ),
+    (
+        "spawn_replay_intersector_and_one_per_cell",
+        spawn_replay_intersector_and_one_per_cell,
+    ),
 ];
 
 #[test]

@@ -229,9 +229,12 @@ pub struct Plugin {
 enum Failure {
     /// The routine ran and said so, or answered what cannot be an answer: not the case's fault.
     Reported(String),
-    /// The worker died or hung (how, and what it said on stderr): the batch is searched for the
-    /// case that does it.
+    /// The worker died (how, and what it said on stderr): the batch is searched for the case
+    /// that does it.
     Died(String, String),
+    /// The worker did not answer by the deadline (how, what it said): not searched, since each
+    /// step of a search could take another `--timeout` (a hang took 3× the deadline).
+    Hung(String, String),
 }
 
 impl Plugin {
@@ -283,7 +286,7 @@ impl Plugin {
             };
             // Load it now: a library or symbol that cannot be loaded is a usage error
             let w = p.start(&s).map_err(|e| match e {
-                Failure::Reported(e) | Failure::Died(e, _) => e,
+                Failure::Reported(e) | Failure::Died(e, _) | Failure::Hung(e, _) => e,
             })?;
             *s.worker.lock().unwrap_or_else(|e| e.into_inner()) = Some(w);
             if p.name.is_empty() {
@@ -381,6 +384,7 @@ impl Plugin {
             Ok(b) => b,
             Err(e) => {
                 let status = worker.wait(Duration::from_millis(200));
+                let hung = matches!(e, Broken::Deadline);
                 let how = match (e, status) {
                     (Broken::Deadline, _) => format!(
                         "did not answer within {} s (killed)",
@@ -400,7 +404,11 @@ impl Plugin {
                 };
                 let why = crate::process::explain(&worker.stderr());
                 *slot = None;
-                return Err(Failure::Died(how, why));
+                return Err(if hung {
+                    Failure::Hung(how, why)
+                } else {
+                    Failure::Died(how, why)
+                });
             }
         };
         let status = i32::from_le_bytes(bytes[0..4].try_into().expect("4 bytes"));
@@ -502,6 +510,18 @@ impl Method for Plugin {
         let (status, nanos, count, values) = match self.call(s, inputs) {
             Ok(r) => r,
             Err(Failure::Reported(e)) => return Err(e),
+            Err(Failure::Hung(how, said)) => {
+                let said = if said.is_empty() {
+                    String::new()
+                } else {
+                    format!("; it said: {said}")
+                };
+                return Err(format!(
+                    "plugin {spec} {how} answering batch {batch} ({n} {} cases); the batch's first: {}{said}",
+                    prec.name(),
+                    at(0)
+                ));
+            }
             Err(Failure::Died(how, said)) => {
                 // Which case? Halve the batch on fresh workers while time allows
                 let case = self

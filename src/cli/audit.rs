@@ -527,7 +527,12 @@ fn spawn_rules_of(
             theirs.plugin.len() + theirs.exec.len()
         );
     }
-    super::spawn::spawn_rules(&builtin, &theirs)
+    let precisions = if a.precision.is_empty() {
+        Precision::ALL.to_vec()
+    } else {
+        a.precision.clone()
+    };
+    super::spawn::spawn_rules(&builtin, &theirs, &precisions, "--spawn-name")
 }
 
 /// Prints the reintersection and watertightness tests' summary (with `--verbose`, tables).

@@ -75,7 +75,20 @@ fn rules(a: &SpawnArgs) -> Result<Vec<Box<dyn SpawnRule>>> {
     } else {
         a.rule.clone()
     };
-    spawn_rules(&names, &a.outside)
+    spawn_rules(&names, &a.outside, &a.precision, "--name")
+}
+
+/// The options that bring back the run's `--intersector` in a replay line (empty for the
+/// default), shell-quoted.
+fn intersector_option(a: &SpawnArgs) -> String {
+    if a.intersector == "watertight" {
+        String::new()
+    } else {
+        format!(
+            "--intersector {}",
+            rayproof::audit::exec::shell_word(&a.intersector)
+        )
+    }
 }
 
 /// The intersector `--intersector` names: a built-in triangle method, `exec:CMD` or
@@ -112,7 +125,19 @@ fn intersector(a: &SpawnArgs) -> Result<Box<dyn rayproof::audit::Method>> {
             index,
         }));
     }
-    let (m, _) = theirs.methods(info)?.remove(0);
+    let (m, has) = theirs.methods(info)?.remove(0);
+    if let Some(p) = a
+        .precision
+        .iter()
+        .find(|p| has.as_ref().is_some_and(|h| !h.contains(p)))
+    {
+        bail!(
+            "--intersector {}: no {} symbol (give --precision, or a :{} symbol)",
+            a.intersector,
+            p.name(),
+            p.name()
+        );
+    }
     Ok(m)
 }
 
@@ -121,6 +146,8 @@ fn intersector(a: &SpawnArgs) -> Result<Box<dyn rayproof::audit::Method>> {
 pub(super) fn spawn_rules(
     builtin: &[String],
     outside: &super::audit::OutsideArgs,
+    precisions: &[Precision],
+    flag: &str,
 ) -> Result<Vec<Box<dyn SpawnRule>>> {
     let mut out: Vec<Box<dyn SpawnRule>> = vec![];
     for n in builtin {
@@ -132,9 +159,21 @@ pub(super) fn spawn_rules(
         })?;
         out.push(Box::new(r));
     }
-    for (m, _) in outside.methods(&spawn::INFO)? {
+    for (m, has) in outside.methods(&spawn::INFO)? {
         if BuiltIn::named(m.name()).is_some() {
-            bail!("--name {}: a built-in rule's name; give another", m.name());
+            bail!("{flag} {}: a built-in rule's name; give another", m.name());
+        }
+        // A plugin answers the precisions it has symbols for: asked another, a usage error
+        if let Some(p) = precisions
+            .iter()
+            .find(|p| has.as_ref().is_some_and(|h| !h.contains(p)))
+        {
+            bail!(
+                "--plugin {}: no {} symbol (give --precision, or a :{} symbol)",
+                m.name(),
+                p.name(),
+                p.name()
+            );
         }
         out.push(Box::new(OutsideRule(m)));
     }
@@ -168,7 +207,15 @@ pub(super) fn run_spawn(a: SpawnArgs) -> Result<u8> {
     let intersector = intersector(&a)?;
     let failed = |e| anyhow!(rayproof::audit::run::MethodFailed(e));
     for r in &rules {
-        rows.extend(spawn::rows_with(r.as_ref(), &cells, intersector.as_ref()).map_err(failed)?);
+        rows.extend(
+            spawn::rows_with(
+                r.as_ref(),
+                &cells,
+                intersector.as_ref(),
+                &intersector_option(&a),
+            )
+            .map_err(failed)?,
+        );
     }
     intersector.finish().map_err(failed)?;
     // Verdicts: a rule of yours and pbrt's (the crate's own) are held to no self-hit, no ray
@@ -293,6 +340,9 @@ fn replay(a: &SpawnArgs, rules: &[Box<dyn SpawnRule>]) -> Result<u8> {
     let t = spawn::intersect(intersector.as_ref(), prec, &[(&ray, &s)])
         .and_then(|t| intersector.finish().map(|_| t[0]))
         .map_err(|e| anyhow!(rayproof::audit::run::MethodFailed(e)))?;
+    if !spawn::finite(&s) {
+        bail!("{}", spawn::not_finite(rule.name(), &s, prec, &ray.query));
+    }
     let v = spawn::judge(&ray, &s, t);
     let hex = |x: f64| rayproof::shapes::shape::hex_text(x);
     say!(

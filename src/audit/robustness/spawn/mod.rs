@@ -153,10 +153,11 @@ pub struct Goal {
     pub max_gap_ulps: Option<f64>,
 }
 
-/// Every judged row's gap bound, whatever its goal: a rule whose new ray starts as far above
-/// the surface as the triangle is wide (the cell's scene size) skips a neighbour at the scale
-/// of the scene itself, a light leak no renderer wants. (pbrt's rule stays under a seventh of
-/// it in the worst cell: f32, 10⁵ sizes from the origin.)
+/// Every judged row's gap bound, whatever its goal, for the parallel and the tilted neighbour:
+/// a rule whose new ray starts as far above the surface as the triangle is wide (the cell's
+/// scene size) skips a neighbour at the scale of the scene itself, a light leak no renderer
+/// wants. (pbrt's rule stays under a seventh of it in the worst cell: f32, 10⁵ sizes from the
+/// origin.)
 pub const MAX_GAP_SCENES: f64 = 1.0;
 
 impl Goal {
@@ -171,8 +172,10 @@ impl Goal {
     /// more self-hits than allowed, a gap over the bound or as wide as the scene
     /// ([`MAX_GAP_SCENES`]); else `pass`.
     pub fn verdict(&self, r: &SpawnRow) -> &'static str {
+        let scene = MAX_GAP_SCENES * 10f64.powi(r.scale);
         let too_wide = self.max_gap_ulps.is_some_and(|m| !(r.gap_ulps <= m))
-            || !(r.gap < MAX_GAP_SCENES * 10f64.powi(r.scale));
+            || !(r.gap < scene)
+            || !(r.gap_tilted < scene);
         let wrong_side = r.self_hits.max(r.behind) > self.max_self_hits;
         if r.rays == 0 || wrong_side || too_wide {
             "fail"
@@ -223,12 +226,14 @@ pub fn failure(r: &SpawnRow) -> String {
     };
     format!(
         "{at}: {} self-hits and {} rays behind the surface of {}; smallest resolved gap {:.3e} \
-         ({} ulps of max|p|; the scene is 1e{} wide); {replay}",
+         ({} ulps of max|p|), {:.3e} to a neighbour tilted {TILT_DEGREES}° (the scene is 1e{} \
+         wide); {replay}",
         r.self_hits,
         r.behind,
         r.rays,
         r.gap,
         ulps_text(r.gap_ulps),
+        r.gap_tilted,
         r.scale
     )
 }
@@ -252,7 +257,13 @@ fn cell_in<F: Real>(seed: u64, scale: i32, placement: &str, n: u64) -> Vec<Ray> 
     let prec = Precision::of::<F>();
     let s = 10f64.powi(scale);
     let mut out = vec![];
-    for i in 0..n {
+    // n triangles whose primary ray the renderer's intersector hits (a miss is drawn again,
+    // up to 8n draws: a cell is never empty for want of a lucky draw)
+    let mut made = 0;
+    for i in 0..8 * n {
+        if made == n {
+            break;
+        }
         let class = format!("spawn-{placement}-{scale}");
         let mut rng = case_rng(seed, "spawn", &class, prec, i);
         let at = match placement {
@@ -338,6 +349,7 @@ fn cell_in<F: Real>(seed: u64, scale: i32, placement: &str, n: u64) -> Vec<Ray> 
                 hit_ulp,
             });
         }
+        made += 1;
     }
     out
 }
@@ -390,13 +402,41 @@ pub fn intersect(
     let inputs: Vec<Vec<f64>> = rays.iter().map(|(r, s)| spawned_input(r, s)).collect();
     for chunk in inputs.chunks(crate::audit::run::CHUNK as usize) {
         let answers = crate::audit::run::answers(&[method], prec, chunk)?.remove(0);
-        out.extend(
-            answers
-                .iter()
-                .map(|a| (a.count == 1).then(|| a.values.first().copied()).flatten()),
-        );
+        for (a, x) in answers.iter().zip(chunk) {
+            // The triangle contract: a miss (0) or a hit (1) with a finite t; anything else is
+            // no answer to count
+            let t = a.values.first().copied();
+            match (a.count, t) {
+                (0, _) => out.push(None),
+                (1, Some(t)) if t.is_finite() => out.push(Some(t)),
+                _ => {
+                    return Err(format!(
+                        "intersector '{}': answered {} {:?} to the spawned ray {}; want 0, or 1 and a finite t",
+                        method.name(),
+                        a.count,
+                        a.values,
+                        crate::audit::exec::case_line(prec, x).trim_end()
+                    ))
+                }
+            }
+        }
     }
     Ok(out)
+}
+
+/// Whether a rule's answer is finite (a built-in rule's offset can overflow on absurd input).
+pub fn finite(s: &Spawned) -> bool {
+    s.origin.iter().all(|x| x.is_finite()) && s.t_min.is_finite() && s.t_min >= 0.0
+}
+
+/// The error for an answer that is not [`finite`].
+pub fn not_finite(rule: &str, s: &Spawned, prec: Precision, query: &[f64]) -> String {
+    format!(
+        "spawn rule '{rule}': answered origin {:?}, t_min {} to the query {}: not finite (or t_min < 0)",
+        s.origin,
+        s.t_min,
+        crate::audit::exec::case_line(prec, query).trim_end()
+    )
 }
 
 /// Judges a rule's answer `s` on `ray`, with the intersector's `t` on the spawned ray
@@ -479,11 +519,17 @@ pub fn judge(ray: &Ray, s: &Spawned, intersector_t: Option<f64>) -> Verdict {
 }
 
 /// The replay line of `ray` under `rule`: `rayproof spawn … --replay -- VALUES` (the query,
-/// then the triangle's 9 values).
-pub fn replay_line(rule: &dyn SpawnRule, prec: Precision, ray: &Ray) -> String {
-    let how = rule
+/// then the triangle's 9 values); `intersector` the options that bring back the run's
+/// intersector (empty for the default).
+pub fn replay_line(rule: &dyn SpawnRule, prec: Precision, ray: &Ray, intersector: &str) -> String {
+    let rule_how = rule
         .replay()
         .unwrap_or_else(|| format!("--rule {}", rule.name()));
+    let how = if intersector.is_empty() {
+        rule_how
+    } else {
+        format!("{rule_how} {intersector}")
+    };
     let values: Vec<String> = ray
         .query
         .iter()
@@ -537,15 +583,17 @@ pub fn ray_of(values: &[f64], prec: Precision) -> Result<Ray, String> {
 
 /// The rows of `rule` over `cells`, with pbrt-v4's watertight test as the intersector.
 pub fn rows(rule: &dyn SpawnRule, cells: &[Cell]) -> Result<Vec<SpawnRow>, String> {
-    rows_with(rule, cells, &watertight())
+    rows_with(rule, cells, &watertight(), "")
 }
 
 /// The rows of `rule` over `cells`: one call of the rule for all their rays, then one of the
-/// `intersector` (a triangle routine) for all the spawned rays.
+/// `intersector` (a triangle routine) for all the spawned rays; replay lines carry
+/// `intersector_option` (the options naming it, empty for the default).
 pub fn rows_with(
     rule: &dyn SpawnRule,
     cells: &[Cell],
     intersector: &dyn crate::shapes::shape::Method,
+    intersector_option: &str,
 ) -> Result<Vec<SpawnRow>, String> {
     let mut out = vec![];
     for prec in [Precision::F32, Precision::F64] {
@@ -558,6 +606,9 @@ pub fn rows_with(
             continue;
         }
         let answers = rule.spawn(prec, &queries)?;
+        if let Some((s, q)) = answers.iter().zip(&queries).find(|(s, _)| !finite(s)) {
+            return Err(not_finite(rule.name(), s, prec, q));
+        }
         if answers.len() != queries.len() {
             return Err(format!(
                 "spawn rule '{}': {} answers to {} queries",
@@ -600,14 +651,15 @@ pub fn rows_with(
                 if v.self_hit {
                     row.self_hits += 1;
                     if row.self_hit_replay.is_none() {
-                        row.self_hit_replay = Some(replay_line(rule, prec, ray));
+                        row.self_hit_replay =
+                            Some(replay_line(rule, prec, ray, intersector_option));
                     }
                 }
                 row.self_hits_intersector += v.self_hit_intersector as u64;
                 if v.reach < 0.0 {
                     row.behind += 1;
                     if row.behind_replay.is_none() {
-                        row.behind_replay = Some(replay_line(rule, prec, ray));
+                        row.behind_replay = Some(replay_line(rule, prec, ray, intersector_option));
                     }
                 }
                 let tilted = (v.reach + TILT_DEGREES.to_radians().tan() * v.along).min(f64::MAX);
@@ -618,7 +670,7 @@ pub fn rows_with(
                 if v.reach > row.gap {
                     row.gap = v.reach;
                     row.gap_ulps = (v.reach / ray.hit_ulp).min(f64::MAX);
-                    row.gap_replay = Some(replay_line(rule, prec, ray));
+                    row.gap_replay = Some(replay_line(rule, prec, ray, intersector_option));
                 }
             }
             out.push(row);
