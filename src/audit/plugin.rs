@@ -507,20 +507,22 @@ impl Method for Plugin {
         let at = |i: usize| {
             crate::audit::exec::case_text(&self.shape, prec, self.replay().as_deref(), &inputs[i])
         };
+        let died = |how: String, said: String, case: String| {
+            let said = if said.is_empty() {
+                String::new()
+            } else {
+                format!("; it said: {said}")
+            };
+            format!(
+                "plugin {spec} {how} answering batch {batch} ({n} {} cases){case}{said}",
+                prec.name()
+            )
+        };
         let (status, nanos, count, values) = match self.call(s, inputs) {
             Ok(r) => r,
             Err(Failure::Reported(e)) => return Err(e),
             Err(Failure::Hung(how, said)) => {
-                let said = if said.is_empty() {
-                    String::new()
-                } else {
-                    format!("; it said: {said}")
-                };
-                return Err(format!(
-                    "plugin {spec} {how} answering batch {batch} ({n} {} cases); the batch's first: {}{said}",
-                    prec.name(),
-                    at(0)
-                ));
+                return Err(died(how, said, format!("; the batch's first: {}", at(0))));
             }
             Err(Failure::Died(how, said)) => {
                 // Which case? Halve the batch on fresh workers while time allows
@@ -537,15 +539,7 @@ impl Method for Plugin {
                             at(0)
                         )
                     });
-                let said = if said.is_empty() {
-                    String::new()
-                } else {
-                    format!("; it said: {said}")
-                };
-                return Err(format!(
-                    "plugin {spec} {how} answering batch {batch} ({n} {} cases){case}{said}",
-                    prec.name()
-                ));
+                return Err(died(how, said, case));
             }
         };
         s.nanos
