@@ -41,6 +41,7 @@ pub mod diff;
 mod header;
 mod implicit;
 mod offline;
+mod outside;
 mod probe;
 mod reference;
 mod render;

@@ -27,7 +27,7 @@ pub struct ProbeShapeArgs {
     #[arg(long)]
     pub json: bool,
     #[command(flatten)]
-    pub outside: super::audit::OutsideArgs,
+    pub outside: super::outside::OutsideArgs,
     /// The input values in the shape's order (decimal or hex floats, each rounded once to the
     /// precision); put them after `--` when the first is negative.
     #[arg(allow_hyphen_values = true)]

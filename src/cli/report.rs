@@ -26,7 +26,7 @@ pub struct ReportArgs {
     /// A ray–sphere routine of yours (--plugin with an f32 or an f64 symbol or both, or --exec)
     /// beside the built-in methods in the accuracy-vs-cost section (in the precisions it has).
     #[command(flatten)]
-    pub outside: super::audit::OutsideArgs,
+    pub outside: super::outside::OutsideArgs,
 }
 
 pub(super) fn run_report(r: ReportArgs) -> Result<u8> {

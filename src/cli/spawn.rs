@@ -20,7 +20,7 @@ pub struct SpawnArgs {
     /// PATH:SYMBOL` (its C ABI, the same header), named by `--name` (plugins first, then
     /// commands), each batch under `--timeout` seconds.
     #[command(flatten)]
-    pub outside: super::audit::OutsideArgs,
+    pub outside: super::outside::OutsideArgs,
     /// Precisions (comma-separated).
     #[arg(long, value_delimiter = ',', default_value = "f32,f64", value_parser = parse_precision)]
     pub precision: Vec<Precision>,
@@ -96,7 +96,7 @@ fn intersector_option(a: &SpawnArgs) -> String {
 fn intersector(a: &SpawnArgs) -> Result<Box<dyn rayproof::audit::Method>> {
     let triangle = rayproof::shapes::shape_by_name("triangle").expect("registered");
     let info = triangle.info();
-    let mut theirs = super::audit::OutsideArgs {
+    let mut theirs = super::outside::OutsideArgs {
         plugin: vec![],
         exec: vec![],
         name: vec![],
@@ -145,7 +145,7 @@ fn intersector(a: &SpawnArgs) -> Result<Box<dyn rayproof::audit::Method>> {
 /// commands, made for [`spawn::INFO`]). Names are checked and unique.
 pub(super) fn spawn_rules(
     builtin: &[String],
-    outside: &super::audit::OutsideArgs,
+    outside: &super::outside::OutsideArgs,
     precisions: &[Precision],
     flag: &str,
 ) -> Result<Vec<Box<dyn SpawnRule>>> {

@@ -1,0 +1,154 @@
+//! The options that bring routines from outside the crate (`--plugin`, `--exec`, `--name`,
+//! `--timeout`) and the routines they make: for `audit`, `probe`, `report` and `spawn`.
+
+use anyhow::{anyhow, bail, Context, Result};
+use clap::Args;
+use rayproof::numerics::Precision;
+
+/// Routines from outside the crate, for `audit`, `probe`, `report` and `spawn` (and spawn rules
+/// and intersectors made from their specs).
+#[derive(Args, Debug, Clone)]
+pub struct OutsideArgs {
+    /// Audit a routine of a shared library through its C ABI, in batches: PATH:SYMBOL, with
+    /// :f32 or :f64 unless the symbol ends so. Repeat it: symbols of one library that differ
+    /// only in their _f32/_f64 suffix are one routine in two precisions; others are routines
+    /// of their own, side by side. `rayproof header` prints the C signatures.
+    #[arg(long, value_name = "PATH:SYMBOL")]
+    pub plugin: Vec<String>,
+    /// Audit a routine run by this command (`sh -c CMD`): cases as lines on its stdin, one
+    /// answer line per case on its stdout (`rayproof header --exec`). Repeatable.
+    #[arg(long, value_name = "CMD")]
+    pub exec: Vec<String>,
+    /// The outside routines' names in reports and tolerance rules, in order: the plugins' (in
+    /// the order of their first --plugin), then the --exec commands' (default: the symbol
+    /// without its precision suffix; `exec`, `exec2`, …).
+    #[arg(long)]
+    pub name: Vec<String>,
+    /// Run each --exec command once per batch of cases, its input closed at the batch's end
+    /// (for a child that writes only when its input ends). Default: one child for the run when
+    /// it answers its whole first batch with its input open, else one per batch.
+    #[arg(long, requires = "exec", conflicts_with = "exec_keep")]
+    pub exec_per_batch: bool,
+    /// Keep one child per --exec command for the whole run, whatever its first batch shows (it
+    /// must flush each answer line).
+    #[arg(long, requires = "exec")]
+    pub exec_keep: bool,
+    /// Seconds a batch of cases may take before an --exec child or a --plugin worker is
+    /// killed (the audit then stops, exit 4).
+    #[arg(long = "timeout", alias = "exec-timeout", default_value_t = 60.0, value_parser = parse_seconds)]
+    pub exec_timeout: f64,
+}
+
+/// An outside routine, and for a plugin the precisions it has symbols for.
+pub type Outside = (
+    Box<dyn rayproof::audit::Method + Send>,
+    Option<Vec<Precision>>,
+);
+
+impl OutsideArgs {
+    /// Whether any outside routine is given.
+    pub fn any(&self) -> bool {
+        !self.plugin.is_empty() || !self.exec.is_empty()
+    }
+
+    /// The outside routines, for a shape (or spawn rules: `rayproof::audit::robustness::spawn::INFO`),
+    /// in order: plugins, then commands.
+    pub fn methods(&self, shape: &rayproof::shapes::shape::ShapeInfo) -> Result<Vec<Outside>> {
+        self.methods_with(shape, false)
+    }
+
+    /// [`OutsideArgs::methods`] for a run of one batch (`probe`): an `--exec` child then gets
+    /// the batch and the end of its input at once (unless `--exec-keep`).
+    pub fn methods_with(
+        &self,
+        shape: &rayproof::shapes::shape::ShapeInfo,
+        one_batch: bool,
+    ) -> Result<Vec<Outside>> {
+        use rayproof::audit::plugin::{parse_spec, Plugin};
+        let timeout = std::time::Duration::from_secs_f64(self.exec_timeout);
+        // Plugin specs grouped into routines: one library's symbols that differ in precision
+        let mut groups: Vec<((String, String), Vec<String>)> = vec![];
+        for spec in &self.plugin {
+            let (path, symbol, _) = parse_spec(spec).map_err(|e| anyhow!(e))?;
+            let stem = symbol
+                .trim_end_matches("_f32")
+                .trim_end_matches("_f64")
+                .to_string();
+            match groups
+                .iter_mut()
+                .find(|(k, _)| *k == (path.clone(), stem.clone()))
+            {
+                Some((_, v)) => v.push(spec.clone()),
+                None => groups.push(((path, stem), vec![spec.clone()])),
+            }
+        }
+        let routines = groups.len() + self.exec.len();
+        if self.name.len() > routines {
+            bail!(
+                "--name given {} times for {routines} outside routine(s)",
+                self.name.len()
+            );
+        }
+        let mut names = self.name.iter().map(String::as_str);
+        let mut out: Vec<Outside> = vec![];
+        if !groups.is_empty() {
+            let worker =
+                std::env::current_exe().context("cannot find rayproof's own executable")?;
+            for (_, specs) in &groups {
+                let p = Plugin::load(&specs[..], names.next(), shape, &worker, timeout)
+                    .map_err(|e| anyhow!(e))?;
+                let has = p.precisions();
+                out.push((Box::new(p), Some(has)));
+            }
+        }
+        for (i, cmd) in self.exec.iter().enumerate() {
+            let default = if i == 0 {
+                "exec".to_string()
+            } else {
+                format!("exec{}", i + 1)
+            };
+            let name = names.next().map(str::to_string).unwrap_or(default);
+            let m = rayproof::audit::exec::Exec::new(
+                &name,
+                cmd,
+                shape.name,
+                timeout,
+                match (self.exec_keep, self.exec_per_batch || one_batch) {
+                    (true, _) => rayproof::audit::exec::Mode::Keep,
+                    (_, true) => rayproof::audit::exec::Mode::PerBatch,
+                    _ => rayproof::audit::exec::Mode::Auto,
+                },
+            );
+            out.push((Box::new(m), None));
+        }
+        // A name is a table's row label and a tolerance rule's key: one plain word
+        for (m, _) in &out {
+            let name = m.name();
+            let plain = |c: char| c.is_ascii_alphanumeric() || "_.+-".contains(c);
+            let first = name.starts_with(|c: char| c.is_ascii_alphanumeric());
+            if !first || name.len() > 64 || !name.chars().all(plain) {
+                bail!(
+                    "--name {:?}: a routine's name is 1 to 64 letters, digits or _ . + -, starting with a letter or digit (it labels table rows and tolerance rules)",
+                    name.chars().take(70).collect::<String>()
+                );
+            }
+        }
+        // Names are unique among them
+        for (i, (m, _)) in out.iter().enumerate() {
+            if out[..i].iter().any(|(x, _)| x.name() == m.name()) {
+                bail!(
+                    "two outside routines are named {}: give --name for each",
+                    m.name()
+                );
+            }
+        }
+        Ok(out)
+    }
+}
+
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    match s.parse::<f64>() {
+        Ok(x) if x > 0.0 && x <= 86_400.0 => Ok(x),
+        _ => Err(format!("'{s}' is not a number of seconds in (0, 86400]")),
+    }
+}
