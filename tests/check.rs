@@ -229,6 +229,13 @@ fn report_has_one_row_per_comparison_with_images() {
     let html = std::fs::read_to_string(report.join("index.html")).unwrap();
     assert_eq!(html.matches("<tr class=").count(), 3, "{html}");
     assert!(html.contains("onmouseover"));
+    // Issue 48's frictions: an identical pair points at no pixel, and a long name or log line
+    // wraps in its cell instead of pushing the metrics off a 1280-pixel window
+    assert!(!html.contains("max 0.000e0 @"), "{html}");
+    // (the golden comparison is bit-identical: its row is the identical one)
+    assert!(html.contains("identical: no difference"), "{html}");
+    assert!(html.contains("max 0 (identical)"), "{html}");
+    assert!(html.contains("td:first-child { max-width: 22em; overflow-wrap: anywhere; }"));
     for f in [
         "diffuse-new-promote-f64.png",
         "diffuse-povray.png",

@@ -48,6 +48,7 @@ pub fn html(rows: &[Row], title: &str) -> String {
          small.cap {{ display: block; max-width: 200px; }}\n\
          tr.fail {{ background: #f8d7da; }} tr.warn {{ background: #fff3cd; }} tr.xfail {{ background: #e2e3e5; }}\n\
          td.m {{ font-family: monospace; font-size: 90%; }} small.w {{ color: #8a5a00; }}\n\
+         td:first-child {{ max-width: 22em; overflow-wrap: anywhere; }}\n\
          </style></head><body>\n<h1>{title}</h1>\n<p class=\"counts\">{} comparisons: {}.</p>\n\
          <p>Hover over an image to swap new and reference. Failing pixels: red where the comparison \
          counts a pixel over <code>fail</code>, over the new render in grey. |New − Reference|: \
@@ -109,14 +110,22 @@ fn row(r: &Row) -> String {
     };
     let metrics = match c {
         Some(c) => format!(
-            "mean {:.3e}<br>RMS {:.3e}<br>PSNR {:.1} dB<br>max {:.3e} @ ({}, {}, {})<br>{} px ({:.3} %) &gt; {}<br>{} px &gt; warn {}<br>{} {}",
+            "mean {:.3e}<br>RMS {:.3e}<br>PSNR {:.1} dB<br>{}<br>{} px ({:.3} %) &gt; {}<br>{} px &gt; warn {}<br>{} {}",
             c.mean_error,
             c.rms_error,
             c.psnr,
-            c.max_error,
-            c.max_at.0,
-            c.max_at.1,
-            esc(&c.max_channel),
+            // No position for a maximum of 0: there is no largest difference to point at
+            if c.max_error == 0.0 && c.n_nonfinite_mismatch == 0 {
+                "max 0 (identical)".to_string()
+            } else {
+                format!(
+                    "max {:.3e} @ ({}, {}, {})",
+                    c.max_error,
+                    c.max_at.0,
+                    c.max_at.1,
+                    esc(&c.max_channel)
+                )
+            },
             c.n_fail,
             100.0 * c.n_fail as f64 / c.pixels.max(1) as f64,
             r.rule.idiff.fail,
