@@ -353,27 +353,15 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
 fn spawn_rules_of(
     a: &AuditArgs,
 ) -> Result<Vec<Box<dyn rayproof::audit::robustness::spawn::SpawnRule>>> {
-    let mut builtin = vec![];
-    let mut theirs = OutsideArgs {
-        plugin: vec![],
-        exec: vec![],
-        name: a.spawn_name.clone(),
-        exec_per_batch: false,
-        exec_keep: false,
-        exec_timeout: a.outside.exec_timeout,
-    };
-    for r in &a.spawn_rule {
-        if let Some(cmd) = r.strip_prefix("exec:") {
-            if cmd.trim().is_empty() {
-                bail!("--spawn-rule '{r}': give the command after exec:");
-            }
-            theirs.exec.push(cmd.to_string());
-        } else if let Some(spec) = r.strip_prefix("plugin:") {
-            theirs.plugin.push(spec.to_string());
-        } else {
-            builtin.push(r.clone());
-        }
+    if let Some(r) = a
+        .spawn_rule
+        .iter()
+        .find(|r| r.strip_prefix("exec:").is_some_and(|c| c.trim().is_empty()))
+    {
+        bail!("--spawn-rule '{r}': give the command after exec:");
     }
+    let (builtin, theirs) =
+        OutsideArgs::from_specs(&a.spawn_rule, &a.spawn_name, a.outside.exec_timeout);
     if theirs.name.len() > theirs.plugin.len() + theirs.exec.len() {
         bail!(
             "--spawn-name given {} times for {} plugin: or exec: spawn rule(s)",

@@ -46,6 +46,31 @@ pub type Outside = (
 );
 
 impl OutsideArgs {
+    /// The routines of one-string specs (`--spawn-rule`, `--intersector`): `exec:CMD` and
+    /// `plugin:PATH:SYMBOL` made into the options of this struct (named by `names`, each batch
+    /// under `timeout` seconds), and the other specs, built-in names, returned as they are.
+    pub fn from_specs(specs: &[String], names: &[String], timeout: f64) -> (Vec<String>, Self) {
+        let mut builtin = vec![];
+        let mut theirs = OutsideArgs {
+            plugin: vec![],
+            exec: vec![],
+            name: names.to_vec(),
+            exec_per_batch: false,
+            exec_keep: false,
+            exec_timeout: timeout,
+        };
+        for r in specs {
+            if let Some(cmd) = r.strip_prefix("exec:") {
+                theirs.exec.push(cmd.to_string());
+            } else if let Some(spec) = r.strip_prefix("plugin:") {
+                theirs.plugin.push(spec.to_string());
+            } else {
+                builtin.push(r.clone());
+            }
+        }
+        (builtin, theirs)
+    }
+
     /// Whether any outside routine is given.
     pub fn any(&self) -> bool {
         !self.plugin.is_empty() || !self.exec.is_empty()

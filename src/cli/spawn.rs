@@ -96,19 +96,12 @@ fn intersector_option(a: &SpawnArgs) -> String {
 fn intersector(a: &SpawnArgs) -> Result<Box<dyn rayproof::audit::Method>> {
     let triangle = rayproof::shapes::shape_by_name("triangle").expect("registered");
     let info = triangle.info();
-    let mut theirs = super::outside::OutsideArgs {
-        plugin: vec![],
-        exec: vec![],
-        name: vec![],
-        exec_per_batch: false,
-        exec_keep: false,
-        exec_timeout: a.outside.exec_timeout,
-    };
-    if let Some(cmd) = a.intersector.strip_prefix("exec:") {
-        theirs.exec.push(cmd.to_string());
-    } else if let Some(spec) = a.intersector.strip_prefix("plugin:") {
-        theirs.plugin.push(spec.to_string());
-    } else {
+    let (builtin, theirs) = super::outside::OutsideArgs::from_specs(
+        std::slice::from_ref(&a.intersector),
+        &[],
+        a.outside.exec_timeout,
+    );
+    if !builtin.is_empty() {
         let index = info
             .methods
             .iter()
