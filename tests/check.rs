@@ -290,7 +290,7 @@ fn shapes_thresholds_catch_an_axis_mixup_in_one_ellipsoid() {
         r.height,
         r.beauty.iter().flatten().copied().collect(),
     );
-    let suite = Suite::load(&root.join("suite.toml")).unwrap();
+    let suite = Suite::load(&root.join("suite.toml"), None).unwrap();
     let test = suite.tests.iter().find(|t| t.name == "shapes").unwrap();
     for reference in ["povray", "mitsuba"] {
         let refimg = read_image(&root.join("shapes").join(format!("{reference}.exr"))).unwrap();

@@ -1401,7 +1401,7 @@ fn suite_case(target: usize, m: &Mutation) -> Result<(), TestCaseError> {
     let after = snapshot(&d);
     // The goldens --update may write, as the suite names them (read by the library: none when
     // the suite does not validate), their manifests and the directories that hold them
-    let goldens: Vec<PathBuf> = rayproof::golden::Suite::load(&d.join("suite.toml"))
+    let goldens: Vec<PathBuf> = rayproof::golden::Suite::load(&d.join("suite.toml"), None)
         .map(|s| {
             s.tests
                 .iter()

@@ -53,11 +53,30 @@ pub struct CheckArgs {
     /// Write the rows as a Markdown table.
     #[arg(long)]
     pub markdown: Option<PathBuf>,
+    /// The platform (or device) of this run, one of the suite's `platforms`: its goldens
+    /// (`{platform}` in their paths) and its `[platform.NAME]` thresholds; else the environment's
+    /// RAYPROOF_PLATFORM. A suite that declares platforms needs one: no platform's golden
+    /// stands in for another's.
+    #[arg(long)]
+    pub platform: Option<String>,
+    /// The value of `{seed}` in renderer commands.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Render each test (or those of --test) N times with `{seed}` = 1..N, write the mean as
+    /// its golden and the variance of one render beside it (NAME.variance.exr), and propose
+    /// thresholds; later runs judge the golden with the z-test on that variance.
+    #[arg(long, value_name = "N")]
+    pub calibrate: Option<u32>,
 }
 
 pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     use rayproof::golden as check;
-    let suite = check::Suite::load(&a.suite)?;
+    let platform = a
+        .platform
+        .clone()
+        .or_else(|| std::env::var("RAYPROOF_PLATFORM").ok())
+        .filter(|p| !p.is_empty());
+    let suite = check::Suite::load(&a.suite, platform.as_deref())?;
     // Every output checked before the run, none over an input (the suite, a scene, a reference)
     let inputs = suite.inputs();
     let inputs: Vec<&Path> = inputs.iter().map(|p| p.as_path()).collect();
@@ -76,6 +95,12 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     let dirs: Vec<&Path> = a.report.iter().map(|p| p.as_path()).collect();
     check_outputs(&files, &dirs, &kept)?;
     let mut outputs = Outputs::new().reading(&inputs);
+    if let Some(n) = a.calibrate {
+        if a.update || a.report.is_some() || !files.is_empty() || !a.method.is_empty() {
+            anyhow::bail!("--calibrate writes goldens and their variance only: run check again for reports (--report, --json, --junit, --markdown) and --update");
+        }
+        return calibrate(&suite, &a.test, n, outputs);
+    }
     let report_dir = match &a.report {
         Some(d) => Some(outputs.dir(d)?),
         None => None,
@@ -102,6 +127,7 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
         configs,
         tests: a.test.clone(),
         flip: a.flip,
+        seed: a.seed,
     };
     // Run, then the summary: failures first
     let start = Instant::now();
@@ -140,4 +166,54 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
         say!("report: {}", dir.join("index.html").display());
     }
     Ok(out.exit_code())
+}
+
+/// `check --calibrate N`: every render made and checked before anything is written (exit 3 and
+/// nothing written when one fails).
+fn calibrate(
+    suite: &rayproof::golden::Suite,
+    tests: &[String],
+    n: u32,
+    mut outputs: Outputs,
+) -> Result<u8> {
+    use rayproof::golden::calibrate;
+    let start = Instant::now();
+    let done = match calibrate::calibrate(suite, tests, n, &mut outputs)? {
+        Ok(done) => done,
+        Err(why) => {
+            say!("--calibrate wrote nothing: {why}");
+            return Ok(3);
+        }
+    };
+    outputs.commit()?;
+    for c in &done {
+        let (fail, pct, mean) = c.proposal;
+        say!(
+            "calibrated {}: {} renders (seeds 1..{}) in {:.1} s; per-sample σ: median {:.3e}, largest {:.3e}",
+            c.test,
+            c.renders,
+            c.renders,
+            start.elapsed().as_secs_f64(),
+            c.sigma.1,
+            c.sigma.0
+        );
+        say!(
+            "  wrote {} (their mean) and {} (one render's variance × (1 + 1/{}))",
+            c.golden.display(),
+            c.variance.display(),
+            c.renders
+        );
+        say!(
+            "  the golden comparison now runs the z-test (Student's t, {} degrees of freedom, and the mean-shift test)",
+            c.renders - 1
+        );
+        say!("  idiff thresholds the renders support, if you keep those instead (not written):");
+        say_raw!(
+            "  [[test]] name = \"{}\"  golden_thresholds = {{ fail = {:.3e}, failpercent = {pct}, max_mean = {:.3e} }}\n",
+            c.test,
+            fail,
+            mean
+        );
+    }
+    Ok(0)
 }

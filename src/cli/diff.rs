@@ -159,6 +159,7 @@ impl DiffArgs {
             spp: self.spp.unwrap_or(d.spp),
             significance: self.significance.unwrap_or(d.significance),
             pixel_success_rate: self.pixel_success_rate.unwrap_or(d.pixel_success_rate),
+            ..d
         }
     }
 }

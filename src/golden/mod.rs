@@ -250,6 +250,7 @@
 //! | mirror | povray | rtg7 f64 | PASS | 1.28e-6 | 2.79e-6 | 111.1 | 0.000 | 0.000 % | 0.0001 |
 //! | mirror | rayproof | promote f64 | PASS | 0.00e0 | 0.00e0 | inf | 0.000 | 0.000 % | 0.0000 |
 
+pub mod calibrate;
 pub mod formats;
 mod html;
 mod junit;
@@ -285,6 +286,9 @@ pub struct Options {
     /// Compute ꟻLIP for every comparison (LDR when both images are PNG, else HDR), even without
     /// `report` or a `max_flip` rule.
     pub flip: bool,
+    /// The value of `{seed}` in renderer commands (`--seed`, default 0; `--calibrate` renders
+    /// with seeds 1 to N).
+    pub seed: u64,
 }
 
 /// The rows of a run and what `--update` did.
@@ -391,16 +395,17 @@ fn make(
     t: &Test,
     frame: Frame,
     scratch: &Path,
+    seed: u64,
 ) -> (Result<Made, String>, Option<String>, Option<String>) {
     let (mut log, mut tail) = (None, None);
-    let made = make_logged(suite, t, frame, scratch, &mut log, &mut tail);
+    let made = make_logged(suite, t, (frame, seed), scratch, &mut log, &mut tail);
     (made, log, tail)
 }
 
 fn make_logged(
     suite: &Suite,
     t: &Test,
-    frame: Frame,
+    (frame, seed): (Frame, u64),
     scratch: &Path,
     log: &mut Option<String>,
     tail: &mut Option<String>,
@@ -465,7 +470,11 @@ fn make_logged(
                 ("out", out.display().to_string()),
                 ("variance", var.display().to_string()),
                 ("name", t.name.clone()),
+                ("seed", seed.to_string()),
             ];
+            if let Some(p) = &suite.platform {
+                values.push(("platform", p.clone()));
+            }
             if let Some(s) = &t.scene {
                 values.push(("scene", abs(s).display().to_string()));
             }
@@ -613,6 +622,20 @@ fn judge(
                 "z-test: {} pixels beyond any noise (NaN/Inf, or a channel the variance lacks)",
                 z.beyond_noise
             ),
+            Some(z) if z.shift_p <= z.shift_alpha => {
+                let (k, zk) = z
+                    .shift_z
+                    .iter()
+                    .enumerate()
+                    .fold((0, 0f64), |b, (k, v)| if v.abs() > b.1.abs() { (k, *v) } else { b });
+                format!(
+                    "z-test: the image's mean shifted beyond its noise (channel {}: {zk:+.1} σ of the mean, p = {:.1e} ≤ {:.1e}); {} pixels fail alone",
+                    z.channels.get(k).map_or("?", |c| c.as_str()),
+                    z.shift_p,
+                    z.shift_alpha,
+                    z.failing_pixels
+                )
+            }
             Some(z) => format!(
                 "z-test: {} pixels fail at α = {:.2e}",
                 z.failing_pixels, z.alpha
@@ -641,6 +664,19 @@ fn judge(
         return (Status::Failure, why.join("; "));
     }
     let failed = !why.is_empty();
+    // Which test decided a pass: the z-test, said so (the idiff columns then do not judge)
+    if let (false, Some(z)) = (failed, z) {
+        let worst = z.shift_z.iter().fold(0f64, |m, v| m.max(v.abs()));
+        why.push(format!(
+            "z-test{}: {} of {} pixels within noise, mean shift ≤ {worst:.1} σ",
+            match z.params.dof {
+                0 => String::new(),
+                k => format!(" (calibrated, {} renders)", k + 1),
+            },
+            z.pixels - z.failing_pixels,
+            z.pixels
+        ));
+    }
     let note = why.join("; ");
     match (&rule.known_failure, failed) {
         (Some(k), true) => (Status::KnownFailure, k.clone()),
@@ -738,6 +774,8 @@ fn row(t: &Test, reference: &str, status: Status, note: String) -> Row {
         images: None,
         stale: None,
         log: None,
+        platform: None,
+        mask: None,
     }
 }
 
@@ -804,6 +842,22 @@ fn run_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Test
 /// [`run_test`] without the test's own time: rows carry their comparison's time only.
 fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<TestRun> {
     let mut rows = vec![];
+    // Skipped on this platform: a row per comparison, saying why, nothing made
+    if let Some(why) = &t.skip {
+        let why = format!(
+            "skipped on platform {}: {why}",
+            suite.platform.as_deref().unwrap_or_default()
+        );
+        let names = t.references.iter().map(|r| r.name.as_str());
+        let golden = t.golden.as_ref().map(|_| "golden");
+        return Ok((
+            names
+                .chain(golden)
+                .map(|n| row(t, n, Status::Skipped, why.clone()))
+                .collect(),
+            None,
+        ));
+    }
     // The scene's and inputs' hashes, for stale references
     let now = match sources(t) {
         Ok(s) => s,
@@ -817,6 +871,22 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                 all.push(row(t, "golden", Status::Refused, why));
             }
             return Ok((all, None));
+        }
+    };
+    // The mask's parts, its images read once
+    let mask_parts = match mask_parts(t) {
+        Ok(p) => p,
+        Err(why) => {
+            let names = t.references.iter().map(|r| r.name.as_str());
+            let golden = t.golden.as_ref().map(|_| "golden");
+            let why = format!("the mask: {why}");
+            return Ok((
+                names
+                    .chain(golden)
+                    .map(|n| row(t, n, Status::Refused, why.clone()))
+                    .collect(),
+                None,
+            ));
         }
     };
     // Load every reference (the golden last); missing, tampered, corrupt and stale external
@@ -925,7 +995,7 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
     }
     // Make the test image once; its renderer's log is kept in the report
     let rendering = Instant::now();
-    let (made, log, tail) = make(suite, t, frame, scratch);
+    let (made, log, tail) = make(suite, t, frame, scratch, o.seed);
     let render_seconds = rendering.elapsed().as_secs_f64();
     let log = keep_log(o, t, log)?;
     for r in rows.iter_mut() {
@@ -1022,7 +1092,23 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                 )
             });
         }
-        match images::compare(reference, &made.image, &rule.idiff) {
+        // The mask over this frame (a rectangle outside it, a mask image of another size: refused)
+        let mask = match mask_parts.is_empty() {
+            true => None,
+            false => match images::Mask::build(reference.display, &mask_parts) {
+                Ok(m) => Some(m),
+                Err(e) => {
+                    (r.status, r.note) = (Status::Refused, format!("the mask: {e}"));
+                    rows.push(r);
+                    continue;
+                }
+            },
+        };
+        let compared = match &mask {
+            Some(m) => images::compare_masked(reference, &made.image, &rule.idiff, m),
+            None => images::compare(reference, &made.image, &rule.idiff),
+        };
+        match compared {
             Err(e) => {
                 (r.status, r.note) = (Status::Failure, format!("{e}"));
             }
@@ -1038,20 +1124,41 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                     }
                 };
                 let reference = &reference;
-                // The z-test, when a variance is given
-                let z = match &made.variance {
-                    Some(v) => {
+                // The z-test, when a variance is given: a calibrated golden's own (Student's t
+                // over its renders), else the renderer's
+                let calibrated = match (&prov.calibration, *name == "golden") {
+                    (Some((renders, path)), true) => {
+                        match verified_reference(path, &Sources::default(), false) {
+                            Ok((v, ..)) => Some((v, 1, u64::from(*renders) - 1)),
+                            Err(e) => {
+                                (r.status, r.note) = (
+                                    Status::Refused,
+                                    format!("the calibrated golden's variance: {e:#}"),
+                                );
+                                rows.push(r);
+                                continue;
+                            }
+                        }
+                    }
+                    _ => None,
+                };
+                let variance = calibrated
+                    .or_else(|| made.variance.clone().map(|v| (v, t.variance_spp, 0)));
+                let z = match &variance {
+                    Some((v, spp, dof)) => {
                         let p = ZParams {
-                            spp: t.variance_spp,
+                            spp: *spp,
                             significance: rule.significance,
                             pixel_success_rate: rule.pixel_success_rate,
+                            shift_significance: rule.shift_significance,
+                            dof: *dof,
                         };
                         // over the same window (0 outside its data window)
                         let v = match v.display == reference.display {
                             true => v.padded(reference.data_window()),
                             false => v.clone(),
                         };
-                        match images::z_test(reference, &image, &v, &p) {
+                        match images::z_test_masked(reference, &image, &v, &p, mask.as_ref()) {
                             Ok(z) => Some(z),
                             Err(e) => {
                                 (r.status, r.note) =
@@ -1067,6 +1174,10 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                 // ꟻLIP, when a rule or the report needs it
                 let map = if o.flip || o.report.is_some() || rule.max_flip.is_some() {
                     let (kind, mean, map) = images::flip_error(reference, &image);
+                    // Under a mask: each pixel's ꟻLIP times its weight, over the pixels compared
+                    let mean = mask
+                        .as_ref()
+                        .map_or(mean, |m| m.weighted_mean(image.data_window(), &map));
                     (c.flip_mean, c.flip_kind) = (Some(mean), Some(kind));
                     Some(map)
                 } else {
@@ -1074,8 +1185,22 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                 };
                 let nonfinite = (!t.allow_nonfinite).then(|| nan_inf_pixels(&made.image));
                 (r.status, r.note) = judge(&c, z.as_ref(), rule, nonfinite);
+                if let Some(m) = &mask {
+                    let counts = m.counts(c.window);
+                    r.warnings.push(format!(
+                        "mask: {} pixel(s) left out, {} judged with scaled tolerances",
+                        counts.excluded, counts.scaled
+                    ));
+                    r.mask = Some(counts);
+                }
                 if let (Some(dir), Some(map)) = (&o.report, map) {
-                    r.images = Some(write_images(dir, &r, reference, &image, &map, rule)?);
+                    let view = Compared {
+                        reference,
+                        image: &image,
+                        flip: &map,
+                        mask: mask.as_ref(),
+                    };
+                    r.images = Some(write_images(dir, &r, &view, rule)?);
                 }
                 r.comparison = Some(c);
                 r.ztest = z;
@@ -1090,7 +1215,20 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
     for r in rows.iter_mut() {
         r.log = log.clone();
     }
-    let bless = golden_failed || golden_stale.is_some();
+    let mut bless = golden_failed || golden_stale.is_some();
+    // A calibrated golden (the mean of N renders) is re-made by --calibrate, never replaced by
+    // one render
+    let calibrated = loaded
+        .iter()
+        .any(|(n, _, _, p)| *n == "golden" && p.calibration.is_some());
+    if bless && calibrated && o.update {
+        bless = false;
+        for r in rows.iter_mut().filter(|r| r.reference == "golden") {
+            r.warnings.push(
+                "a calibrated golden: --update does not replace the mean of its renders with one render; re-make it with --calibrate N".into(),
+            );
+        }
+    }
     Ok((rows, bless.then_some((made, frame, now))))
 }
 
@@ -1113,6 +1251,9 @@ fn replay_command(suite: &Suite, t: &Test, extra: bool) -> String {
         q(&suite.path.display().to_string()),
         q(&t.name)
     );
+    if let Some(p) = &suite.platform {
+        c += &format!(" --platform {}", q(p));
+    }
     if let (true, Source::Rayproof(cfg)) = (extra, &t.source) {
         c += &format!(
             " --method {} --precision {}",
@@ -1172,6 +1313,7 @@ pub fn run(suite: &Suite, o: &Options, outputs: &mut crate::output::Outputs) -> 
         let replay = replay_command(suite, t, i >= own);
         for row in &mut r {
             row.replay = replay.clone();
+            row.platform = suite.platform.clone();
         }
         rows.extend(r);
         if let (Some(m), Some((golden, _))) = (made, &t.golden) {
@@ -1207,6 +1349,7 @@ pub fn run(suite: &Suite, o: &Options, outputs: &mut crate::output::Outputs) -> 
                 height: frame.height.or(Some(m.image.height as u32)),
                 grid: frame.grid,
                 sources,
+                calibration: None,
             };
             bless(&mut records, &golden, m.bytes, &b)?;
             for r in rows
@@ -1242,21 +1385,42 @@ pub fn run(suite: &Suite, o: &Options, outputs: &mut crate::output::Outputs) -> 
     })
 }
 
+/// One comparison's images over one window, for the report's PNGs.
+struct Compared<'a> {
+    reference: &'a Image,
+    image: &'a Image,
+    flip: &'a [f32],
+    mask: Option<&'a images::Mask>,
+}
+
+/// A test's mask, its images read (a mask image is a file the suite reads; one line if it
+/// cannot be read).
+fn mask_parts(t: &Test) -> Result<Vec<images::MaskPart>, String> {
+    let mut parts = vec![];
+    for m in &t.mask {
+        parts.push(match m {
+            suite::MaskSource::Rect([x, y, w, h], weight) => images::MaskPart::Rect {
+                x: *x,
+                y: *y,
+                width: *w as u64,
+                height: *h as u64,
+                weight: *weight,
+            },
+            suite::MaskSource::Image(p) => images::MaskPart::Image(formats::read_any(p)?),
+        });
+    }
+    Ok(parts)
+}
+
 /// The report's PNGs of one comparison: the new render and the reference tone-mapped, the
 /// failing-pixel mask, the normalised |difference| map and the ꟻLIP heat map.
-fn write_images(
-    dir: &Path,
-    row: &Row,
-    reference: &Image,
-    img: &Image,
-    flip: &[f32],
-    rule: &Rule,
-) -> Result<ReportImages> {
+fn write_images(dir: &Path, row: &Row, view: &Compared, rule: &Rule) -> Result<ReportImages> {
+    let (reference, img, flip) = (view.reference, view.image, view.flip);
     let config = row.config.replace(' ', "-");
     let pair = format!("{}-{}-{config}", row.test, row.reference);
     let (w, h) = (img.width, img.height);
     let new_rgb = images::tonemap_rgb8(img);
-    let mask = images::fail_mask(reference, img, &rule.idiff)?;
+    let mask = images::fail_mask(reference, img, &rule.idiff, view.mask)?;
     let diff = images::diff_map(reference, img)?;
     let out = ReportImages {
         new: format!("{}-new-{config}.png", row.test),
@@ -1266,7 +1430,12 @@ fn write_images(
         flip: format!("{pair}-flip.png"),
         diff_scale: diff.scale,
         mask_pixels: mask.iter().filter(|&&m| m).count() as u64,
+        masked: view.mask.map(|_| format!("{pair}-masked.png")),
     };
+    if let (Some(m), Some(name)) = (view.mask, &out.masked) {
+        let drawn = images::mask_overlay_rgb8(m, img.data_window(), &new_rgb);
+        images::write_png_rgb8(&dir.join(name), w, h, &drawn)?;
+    }
     let png = |name: &str, rgb: &[u8]| images::write_png_rgb8(&dir.join(name), w, h, rgb);
     png(&out.new, &new_rgb)?;
     png(&out.reference, &images::tonemap_rgb8(reference))?;

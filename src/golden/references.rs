@@ -37,10 +37,15 @@ pub fn sha256_file(path: &Path) -> Result<String> {
         crate::input::Kind::Regular,
     )
     .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", path.display()))?;
-    Ok(Sha256::digest(&bytes)
+    Ok(sha256_bytes(&bytes))
+}
+
+/// Hex SHA-256 of bytes.
+pub fn sha256_bytes(bytes: &[u8]) -> String {
+    Sha256::digest(bytes)
         .iter()
         .map(|b| format!("{b:02x}"))
-        .collect())
+        .collect()
 }
 
 /// Thresholds of one comparison: idiff's, plus rayproof's keys.
@@ -57,6 +62,8 @@ pub struct Rule {
     pub significance: f64,
     /// The z-test passes when at least this share of channel tests pass.
     pub pixel_success_rate: f64,
+    /// The z-test's mean-shift test fails at this family-wise significance.
+    pub shift_significance: f64,
     /// Why this comparison is expected to fail.
     pub known_failure: Option<String>,
 }
@@ -90,8 +97,12 @@ impl Rule {
         let z = crate::images::ZParams::default();
         let significance = number("significance")?.unwrap_or(z.significance);
         let pixel_success_rate = number("pixel_success_rate")?.unwrap_or(z.pixel_success_rate);
-        if !(significance > 0.0 && significance < 1.0) || pixel_success_rate > 1.0 {
-            bail!("significance must lie in (0, 1) and pixel_success_rate in [0, 1]");
+        let shift_significance = number("shift_significance")?.unwrap_or(z.shift_significance);
+        if !(significance > 0.0 && significance < 1.0)
+            || !(shift_significance > 0.0 && shift_significance < 1.0)
+            || pixel_success_rate > 1.0
+        {
+            bail!("significance and shift_significance must lie in (0, 1) and pixel_success_rate in [0, 1]");
         }
         let known_failure = match merged.remove("known_failure") {
             Some(v) => Some(
@@ -111,6 +122,7 @@ impl Rule {
             max_flip,
             significance,
             pixel_success_rate,
+            shift_significance,
             known_failure,
         })
     }
@@ -127,6 +139,9 @@ pub struct Provenance {
     pub height: Option<u32>,
     /// `n` of the n×n sampling grid the manifest records.
     pub grid: Option<u32>,
+    /// A golden made by `check --calibrate`: how many renders, and the variance image beside
+    /// it (verified by its own manifest entry when it is read).
+    pub calibration: Option<(u32, PathBuf)>,
 }
 
 /// The manifest of the images in `dir` (`dir/manifest.json`), if there is one.
@@ -314,10 +329,38 @@ pub fn verified_reference(
             width: entry_u32(entry, "width", MAX_SIDE, path)?,
             height: entry_u32(entry, "height", MAX_SIDE, path)?,
             grid: entry_u32(entry, "grid", MAX_GRID, path)?,
+            calibration: calibration(entry, &dir, path)?,
         };
     }
     let img = super::formats::read_any(path).map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok((img, prov, stale))
+}
+
+/// A golden's calibration, as its manifest entry records it: the renders (2 to
+/// [`super::calibrate::MAX_RENDERS`]) and the variance image's name, a file beside it.
+fn calibration(
+    entry: &serde_json::Value,
+    dir: &Path,
+    path: &Path,
+) -> Result<Option<(u32, PathBuf)>> {
+    let Some(c) = entry.get("calibration").filter(|c| c.get("variance").is_some()) else {
+        return Ok(None);
+    };
+    let renders = c
+        .get("renders")
+        .and_then(|r| r.as_u64())
+        .filter(|r| (2..=super::calibrate::MAX_RENDERS as u64).contains(r));
+    let name = c.get("variance").and_then(|v| v.as_str()).filter(|n| {
+        !n.is_empty() && !n.contains(['/', '\\']) && *n != "." && *n != ".."
+    });
+    match (renders, name) {
+        (Some(r), Some(n)) => Ok(Some((r as u32, dir.join(n)))),
+        _ => bail!(
+            "{}: the manifest's calibration is not {{renders: 2 to {}, variance: a file name beside it}}",
+            path.display(),
+            super::calibrate::MAX_RENDERS
+        ),
+    }
 }
 
 /// How a blessed golden was made, for its manifest entry.
@@ -330,6 +373,8 @@ pub struct Blessing {
     pub grid: Option<u32>,
     /// The scene and inputs the image was made from, with their hashes.
     pub sources: Sources,
+    /// `check --calibrate`'s record (renders, seeds, the variance image), when it made the file.
+    pub calibration: Option<serde_json::Value>,
 }
 
 /// Stages a golden (`bytes`: exactly the test image compared) and its entry in the manifest
@@ -362,6 +407,9 @@ pub fn bless(records: &mut Records, golden: &Path, bytes: Vec<u8>, b: &Blessing)
         .map(|(n, h)| (n.clone(), h.clone().into()))
         .collect();
     entry["inputs"] = inputs.into();
+    if let Some(c) = &b.calibration {
+        entry["calibration"] = c.clone();
+    }
     records.add(golden, bytes, entry, None);
     Ok(())
 }

@@ -105,6 +105,11 @@ pub struct Row {
     /// The test's whole renderer log (the command, how it ended, its standard error and
     /// output), relative to the report directory: `logs/TEST.log` (with `--report` only).
     pub log: Option<String>,
+    /// The platform the run was for (`--platform`), when the suite declares platforms.
+    pub platform: Option<String>,
+    /// The pixels the test's mask left out of this comparison or judged with scaled
+    /// tolerances, when it has a mask.
+    pub mask: Option<crate::images::MaskCounts>,
 }
 
 /// How many lines of a renderer's standard error a row keeps ([`Row::log_tail`]).
@@ -142,6 +147,9 @@ pub struct ReportImages {
     pub diff_scale: f64,
     /// Failing pixels in the mask (equal to the comparison's count of pixels over `fail`).
     pub mask_pixels: u64,
+    /// The test's mask drawn over the test image (left-out pixels striped magenta, scaled ones
+    /// tinted blue), when the test has one.
+    pub masked: Option<String>,
 }
 
 /// The run's counts as the terminal's last line and the HTML header print them:

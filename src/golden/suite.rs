@@ -70,6 +70,20 @@ struct FileSpec {
     golden_thresholds: toml::Table,
     #[serde(default)]
     test: Vec<TestSpec>,
+    #[serde(default)]
+    platform: std::collections::BTreeMap<String, PlatformSpec>,
+}
+
+/// `[platform.NAME]` of the suite, or `[test.platform.NAME]` of a test: the thresholds of one
+/// platform (layered after the ones they refine), and a test's reason to skip it.
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct PlatformSpec {
+    #[serde(default)]
+    thresholds: toml::Table,
+    #[serde(default)]
+    golden_thresholds: toml::Table,
+    skip: Option<String>,
 }
 
 #[derive(Deserialize, Default)]
@@ -80,6 +94,7 @@ struct HeadSpec {
     timeout: Option<f64>,
     goldens: Option<String>,
     output: Option<String>,
+    platforms: Option<Vec<String>>,
 }
 
 #[derive(Deserialize)]
@@ -105,6 +120,29 @@ struct TestSpec {
     golden_thresholds: toml::Table,
     #[serde(default)]
     reference: Vec<RefSpec>,
+    #[serde(default)]
+    platform: std::collections::BTreeMap<String, PlatformSpec>,
+    #[serde(default)]
+    mask: Vec<MaskSpec>,
+}
+
+/// `[[test.mask]]`: `rect = [x, y, width, height]` (left out, or with `tolerance = K` its
+/// tolerances × K), or `image = "PATH"` (a grey image: its first channel is the weight).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaskSpec {
+    rect: Option<[i64; 4]>,
+    tolerance: Option<f64>,
+    image: Option<String>,
+}
+
+/// One part of a test's mask, as the suite gives it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum MaskSource {
+    /// A rectangle and its weight (0: left out).
+    Rect([i64; 4], f32),
+    /// A mask image, joined to the suite's directory.
+    Image(PathBuf),
 }
 
 #[derive(Deserialize)]
@@ -196,6 +234,12 @@ pub struct Test {
     pub golden: Option<(PathBuf, Rule)>,
     /// The references the test image is compared with.
     pub references: Vec<Reference>,
+    /// The test's mask (`[[test.mask]]`): pixels left out of every comparison of the test, or
+    /// judged with scaled tolerances. Empty: none.
+    pub mask: Vec<MaskSource>,
+    /// Why the test is skipped on the chosen platform (`[test.platform.NAME] skip = "…"`):
+    /// every row SKIPPED with this reason, nothing made or compared.
+    pub skip: Option<String>,
 }
 
 impl Test {
@@ -224,6 +268,10 @@ pub struct Suite {
     pub timeout: Duration,
     /// The tests, in file order.
     pub tests: Vec<Test>,
+    /// The platform the run is for (`--platform NAME` or `RAYPROOF_PLATFORM`): one of the
+    /// suite's `platforms`, put for `{platform}` in its paths and commands, and choosing the
+    /// `[platform.NAME]` thresholds. `None`: the suite declares no platforms.
+    pub platform: Option<String>,
 }
 
 /// The longest `[suite] timeout`: one week, in seconds (a render command that may run longer is
@@ -231,8 +279,8 @@ pub struct Suite {
 pub const MAX_TIMEOUT: f64 = 7.0 * 24.0 * 3600.0;
 
 /// The placeholders a command may use.
-pub const PLACEHOLDERS: [&str; 8] = [
-    "scene", "out", "variance", "width", "height", "grid", "spp", "name",
+pub const PLACEHOLDERS: [&str; 10] = [
+    "scene", "out", "variance", "width", "height", "grid", "spp", "name", "platform", "seed",
 ];
 
 /// The placeholders in a template; an unknown one or an unclosed brace is an error.
@@ -268,8 +316,8 @@ pub fn fill(template: &str, values: &[(&str, String)]) -> String {
 }
 
 impl Suite {
-    /// Reads and validates a suite file.
-    pub fn load(path: &Path) -> Result<Suite> {
+    /// Reads and validates a suite file for one platform (`None`: a suite that declares none).
+    pub fn load(path: &Path, platform: Option<&str>) -> Result<Suite> {
         let text = crate::input::read_text(
             path,
             crate::input::MAX_TEXT_BYTES,
@@ -283,7 +331,78 @@ impl Suite {
             .filter(|d| !d.as_os_str().is_empty())
             .unwrap_or(Path::new("."))
             .to_path_buf();
-        let at = |p: &str| dir.join(p);
+        // The platform: one of those the suite declares, when it declares some; never another
+        // platform's golden or thresholds in its place
+        let platforms = spec.suite.platforms.clone();
+        if let Some(list) = &platforms {
+            if list.is_empty() {
+                bail!("{}: suite.platforms is empty: name the platforms, or leave it out", path.display());
+            }
+            for (i, p) in list.iter().enumerate() {
+                if !file_name_safe(p) || list[..i].contains(p) {
+                    bail!(
+                        "{}: suite.platforms: {:?} is repeated or not a name of letters, digits, '-', '_' or '.' (it becomes part of file names)",
+                        path.display(),
+                        p.chars().take(80).collect::<String>()
+                    );
+                }
+            }
+        }
+        let known = |list: &[String]| list.join(", ");
+        match (&platforms, platform) {
+            (None, Some(p)) => bail!(
+                "{}: --platform {p} (or RAYPROOF_PLATFORM): the suite declares no platforms (add platforms = [...] to [suite])",
+                path.display()
+            ),
+            (Some(list), None) => bail!(
+                "{}: the suite keeps goldens or thresholds per platform ({}): give --platform NAME or set RAYPROOF_PLATFORM (no platform's golden stands in for another's)",
+                path.display(),
+                known(list)
+            ),
+            (Some(list), Some(p)) if !list.iter().any(|x| x == p) => bail!(
+                "{}: platform '{p}' is not one the suite declares ({})",
+                path.display(),
+                known(list)
+            ),
+            _ => {}
+        }
+        if platforms.is_none() && text.contains("{platform}") {
+            bail!(
+                "{}: {{platform}} is used but the suite declares no platforms (add platforms = [...] to [suite])",
+                path.display()
+            );
+        }
+        let declared_platform = |where_: &str, name: &str| -> Result<()> {
+            match &platforms {
+                Some(list) if list.iter().any(|x| x == name) => Ok(()),
+                Some(list) => bail!(
+                    "{}: {where_}[platform.{name}]: '{name}' is not one of the suite's platforms ({})",
+                    path.display(),
+                    known(list)
+                ),
+                None => bail!(
+                    "{}: {where_}[platform.{name}]: the suite declares no platforms (add platforms = [...] to [suite])",
+                    path.display()
+                ),
+            }
+        };
+        for name in spec.platform.keys() {
+            declared_platform("", name)?;
+        }
+        let empty = PlatformSpec::default();
+        let on = spec
+            .platform
+            .get(platform.unwrap_or_default())
+            .unwrap_or(&empty);
+        if on.skip.is_some() {
+            bail!(
+                "{}: [platform.{}]: skip belongs in a test's [test.platform.NAME]",
+                path.display(),
+                platform.unwrap_or_default()
+            );
+        }
+        let sub = |p: &str| p.replace("{platform}", platform.unwrap_or_default());
+        let at = |p: &str| dir.join(sub(p));
         let timeout = spec.suite.timeout.unwrap_or(600.0);
         if !(timeout > 0.0 && timeout <= MAX_TIMEOUT) {
             bail!(
@@ -309,6 +428,16 @@ impl Suite {
         let mut tests: Vec<Test> = vec![];
         for t in spec.test {
             let ctx = |what: String| format!("{}: test '{}': {what}", path.display(), t.name);
+            for name in t.platform.keys() {
+                declared_platform(&format!("test '{}': ", t.name), name)?;
+            }
+            let t_on = t
+                .platform
+                .get(platform.unwrap_or_default())
+                .unwrap_or(&empty);
+            if t_on.skip.as_deref().is_some_and(|s| s.trim().is_empty()) {
+                bail!(ctx("skip = \"\": say why the test is skipped on this platform".into()));
+            }
             // A unique, file-name-safe name
             if !file_name_safe(&t.name) {
                 bail!(ctx("a name must be letters, digits, '-', '_' or '.'".into()));
@@ -386,6 +515,25 @@ impl Suite {
                     .unwrap_or_default(),
                 _ => "exr".to_string(),
             };
+            // The mask: rectangles and images
+            let mut mask = vec![];
+            for m in &t.mask {
+                mask.push(match (&m.rect, &m.image, m.tolerance) {
+                    (Some(r), None, tol) => {
+                        if r[2] <= 0 || r[3] <= 0 {
+                            bail!(ctx(format!("mask rect {r:?}: [x, y, width, height] with a width and height of at least 1")));
+                        }
+                        let weight = match tol {
+                            None => 0.0,
+                            Some(k) if k.is_finite() && k >= 1.0 => (1.0 / k) as f32,
+                            Some(k) => bail!(ctx(format!("mask tolerance = {k}: a factor of at least 1 by which the rectangle's tolerances grow (leave it out to ignore the rectangle)"))),
+                        };
+                        MaskSource::Rect(*r, weight)
+                    }
+                    (None, Some(i), None) => MaskSource::Image(at(i)),
+                    _ => bail!(ctx("a [[test.mask]] is rect = [x, y, width, height] (with an optional tolerance) or image = \"PATH\"".into())),
+                });
+            }
             // Inputs the image is made from, besides the scene
             let mut inputs = vec![];
             for i in t.inputs.iter().flatten() {
@@ -427,7 +575,13 @@ impl Suite {
                     name: r.name.clone(),
                     path: at(&r.path),
                     required: r.required,
-                    rule: rule(&[&spec.thresholds, &t.thresholds, &r.thresholds])?,
+                    rule: rule(&[
+                        &spec.thresholds,
+                        &on.thresholds,
+                        &t.thresholds,
+                        &t_on.thresholds,
+                        &r.thresholds,
+                    ])?,
                 });
             }
             // The golden: a path, false, or by default GOLDENS/NAME.exr when the suite names a
@@ -456,7 +610,15 @@ impl Suite {
                 ));
             }
             let golden = match golden_path {
-                Some(p) => Some((p, rule(&[&spec.golden_thresholds, &t.golden_thresholds])?)),
+                Some(p) => Some((
+                    p,
+                    rule(&[
+                        &spec.golden_thresholds,
+                        &on.golden_thresholds,
+                        &t.golden_thresholds,
+                        &t_on.golden_thresholds,
+                    ])?,
+                )),
                 None => None,
             };
             if golden.is_none() && references.is_empty() {
@@ -479,11 +641,13 @@ impl Suite {
                 output,
                 out_ext,
                 grid: t.grid,
-                variance: t.variance.clone(),
+                variance: t.variance.as_deref().map(sub),
                 variance_spp: t.variance_spp.unwrap_or(1).max(1),
                 allow_nonfinite: t.allow_nonfinite.unwrap_or(false),
                 golden,
                 references,
+                skip: t_on.skip.clone(),
+                mask,
             });
         }
         if tests.is_empty() {
@@ -496,6 +660,7 @@ impl Suite {
             name: String::new(),
             timeout: Duration::ZERO,
             tests: tests.clone(),
+            platform: None,
         };
         // Each file's identity once (a look-up per golden: linear in the suite's size)
         let read: std::collections::HashMap<crate::output::Identity, PathBuf> = suite
@@ -536,6 +701,7 @@ impl Suite {
             name: spec.suite.name.unwrap_or_else(|| "rayproof check".into()),
             timeout: Duration::from_secs_f64(timeout),
             tests,
+            platform: platform.map(str::to_string),
         })
     }
 }
@@ -553,6 +719,10 @@ impl Suite {
                 v.push(p.clone());
             }
             v.extend(t.references.iter().map(|r| r.path.clone()));
+            v.extend(t.mask.iter().filter_map(|m| match m {
+                MaskSource::Image(p) => Some(p.clone()),
+                MaskSource::Rect(..) => None,
+            }));
             // A variance image the suite gives (not the renderer's `{variance}`)
             if let Some(var) = t.variance.as_deref().filter(|v| *v != "{variance}") {
                 v.push(self.dir.join(var.replace("{name}", &t.name)));
@@ -567,6 +737,7 @@ impl Suite {
         let mut v = vec![];
         for (g, _) in self.tests.iter().filter_map(|t| t.golden.as_ref()) {
             v.push(g.clone());
+            v.push(super::calibrate::variance_path(g));
             let dir = g.parent().unwrap_or(Path::new("."));
             v.push(dir.join("manifest.json"));
         }

@@ -4,6 +4,7 @@
 
 use super::flip::heatmap_rgb8;
 use super::io::Image;
+use super::mask::Mask;
 use super::metrics::{same_nonfinite, same_shape, SizeMismatch, Thresholds};
 
 /// The failing pixels of a comparison under rayproof's semantics, as [`super::compare`] counts
@@ -16,16 +17,21 @@ pub fn fail_mask(
     reference: &Image,
     test: &Image,
     t: &Thresholds,
+    mask: Option<&Mask>,
 ) -> Result<Vec<bool>, SizeMismatch> {
     same_shape(reference, test)?;
     let f32t = |x: f64| x as f32 as f64;
     let (fail, failrel) = (f32t(t.fail), f32t(t.failrelative));
     let n = reference.channels.len().max(1);
-    let fails = |a: f32, b: f32| -> bool {
+    let weights = mask.map(|m| m.over(reference.data_window()));
+    let fails = |a: f32, b: f32, w: f64| -> bool {
+        if w == 0.0 {
+            return false;
+        }
         if !a.is_finite() || !b.is_finite() {
             return !same_nonfinite(a as f64, b as f64);
         }
-        let f = (a - b).abs() as f64;
+        let f = (a - b).abs() as f64 * w;
         let meanabs = (0.5 * a.abs() as f64 + 0.5 * b.abs() as f64) as f32;
         let rel = if meanabs > 0.0 {
             f / meanabs as f64
@@ -38,7 +44,11 @@ pub fn fail_mask(
         .data
         .chunks(n)
         .zip(test.data.chunks(n))
-        .map(|(a, b)| a.iter().zip(b).any(|(&a, &b)| fails(a, b)))
+        .enumerate()
+        .map(|(i, (a, b))| {
+            let w = weights.as_ref().map_or(1.0, |v| v[i] as f64);
+            a.iter().zip(b).any(|(&a, &b)| fails(a, b, w))
+        })
         .collect())
 }
 
@@ -177,7 +187,7 @@ mod tests {
                 ..Default::default()
             },
         ] {
-            let mask = fail_mask(&ra, &rb, &t).unwrap();
+            let mask = fail_mask(&ra, &rb, &t, None).unwrap();
             let c = compare(&ra, &rb, &t).unwrap();
             assert_eq!(
                 mask.iter().filter(|&&m| m).count() as u64,

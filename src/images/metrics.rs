@@ -5,6 +5,7 @@
 
 use super::flip::FlipKind;
 use super::io::{Image, LayerInfo, Window};
+use super::mask::Mask;
 use serde::{Deserialize, Serialize};
 use std::borrow::Cow;
 
@@ -392,6 +393,29 @@ pub fn compare_as(
     t: &Thresholds,
     semantics: Semantics,
 ) -> Result<Comparison, SizeMismatch> {
+    compare_weighted(reference, test, t, semantics, None)
+}
+
+/// [`compare`] under a mask ([`Mask`]): a pixel of weight 0 is left out of every sum and count
+/// (and of `pixels` and `npels`, so percentages are of the pixels compared); a pixel of weight
+/// w < 1 has each |a − b| counted as w·|a − b| (its tolerances × 1/w).
+pub fn compare_masked(
+    reference: &Image,
+    test: &Image,
+    t: &Thresholds,
+    mask: &Mask,
+) -> Result<Comparison, SizeMismatch> {
+    compare_weighted(reference, test, t, Semantics::Rayproof, Some(mask))
+}
+
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+fn compare_weighted(
+    reference: &Image,
+    test: &Image,
+    t: &Thresholds,
+    semantics: Semantics,
+    mask: Option<&Mask>,
+) -> Result<Comparison, SizeMismatch> {
     let idiff = semantics == Semantics::Idiff;
     if !idiff {
         same_frame(reference, test)?;
@@ -436,6 +460,14 @@ pub fn compare_as(
             break;
         }
         next = p + 1;
+        // Left out by the mask: no sum, no count (the batch flush below still runs)
+        let weight = mask.map_or(1.0, |m| m.weight(x, y)) as f64;
+        if weight == 0.0 {
+            if (p + 1) % 4096 == 0 {
+                (sum, sum2, batch, batch2) = (sum + batch, sum2 + batch2, 0.0, 0.0);
+            }
+            continue;
+        }
         let (mut warned, mut failed, mut nonfinite) = (false, false, false);
         for c in 0..nch {
             let (a, b) = (value(reference, x, y, c), value(test, x, y, c));
@@ -471,7 +503,7 @@ pub fn compare_as(
                 (a64 - b64).abs()
             } else {
                 (a - b).abs() as f64
-            };
+            } * weight;
             let (aa, ba) = (a.abs(), b.abs());
             // OIIO's lerp(|a|, |b|, 0.5): in double, returned as float
             let meanabs = if exact {
@@ -506,8 +538,16 @@ pub fn compare_as(
 
     // Means over pixels × channels, PSNR against the peak, the verdict over the reference's
     // pixels (idiff's npels)
-    let pixels = (w as u128 * h as u128).min(u64::MAX as u128) as u64;
-    let n = w as f64 * h as f64 * nch as f64;
+    // The mask's left-out pixels are not among those compared
+    let (out_window, out_reference) = match mask {
+        Some(m) => (
+            m.counts(window).excluded,
+            m.counts(reference.data_window()).excluded,
+        ),
+        None => (0, 0),
+    };
+    let pixels = (w as u128 * h as u128).min(u64::MAX as u128) as u64 - out_window;
+    let n = pixels as f64 * nch as f64;
     let per = |s: f64| if n > 0.0 { s / n } else { 0.0 };
     let rms_error = per(sum2).sqrt();
     let (mx, my, mc) = max_at;
@@ -518,7 +558,7 @@ pub fn compare_as(
     };
     // The pixels the percentages are of: idiff's npels, the reference's data window (fewer
     // than the compared pixels when the reference's data window is smaller: stricter)
-    let npels = reference.pixels() as u64;
+    let npels = reference.pixels() as u64 - out_reference;
     Ok(Comparison {
         width: w,
         height: h,

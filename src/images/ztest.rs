@@ -2,6 +2,7 @@
 //! a per-pixel variance passes if its differences from the reference are plausible noise.
 
 use super::io::Image;
+use super::mask::Mask;
 use super::metrics::{same_nonfinite, same_shape, SizeMismatch, Verdict};
 use serde::Serialize;
 
@@ -47,6 +48,16 @@ pub struct ZParams {
     pub significance: f64,
     /// Fraction of pixels (counted as passing channels / channels) that must pass.
     pub pixel_success_rate: f64,
+    /// Degrees of freedom of the variance: 0 when it is known (a renderer's own estimate over
+    /// many samples: z is normal), k when it is a sample variance of k + 1 renders
+    /// (`check --calibrate`: the statistic is then Student's t with k degrees of freedom, so a
+    /// variance estimated from few renders does not fail pixels whose estimate came out small).
+    pub dof: u64,
+    /// Family-wise significance of the mean-shift test (Šidák-corrected over the channels): per
+    /// channel, Σ w·(test − ref) / sqrt(Σ w²·var/spp) is standard normal when the differences are
+    /// independent noise; a shift of the whole image's mean (a regression the per-pixel test
+    /// misses when each pixel's noise is larger than the shift) fails it.
+    pub shift_significance: f64,
 }
 
 impl Default for ZParams {
@@ -55,6 +66,8 @@ impl Default for ZParams {
             spp: 1,
             significance: 0.01,
             pixel_success_rate: 0.9975,
+            dof: 0,
+            shift_significance: 1e-6,
         }
     }
 }
@@ -84,7 +97,16 @@ pub struct ZTest {
     pub beyond_noise: u64,
     /// Channel tests with p > alpha.
     pub passing_channels: u64,
-    /// PASS or FAILURE (the z-test has no warning).
+    /// The mean-shift statistic of each tested channel (`channels`' order): Σ w·(test − ref) /
+    /// sqrt(Σ w²·max(var, 10⁻⁴)/spp), standard normal under noise alone.
+    pub shift_z: Vec<f64>,
+    /// The smallest two-sided p-value of `shift_z`.
+    pub shift_p: f64,
+    /// The mean-shift test's per-channel significance after the Šidák correction; the image's
+    /// mean has shifted beyond its noise when `shift_p` ≤ this.
+    pub shift_alpha: f64,
+    /// PASS or FAILURE (the z-test has no warning): enough pixels pass, nothing is beyond noise,
+    /// and no channel's mean shifted.
     pub verdict: Verdict,
 }
 
@@ -122,6 +144,18 @@ pub fn z_test(
     test: &Image,
     variance: &Image,
     p: &ZParams,
+) -> Result<ZTest, ZTestError> {
+    z_test_masked(reference, test, variance, p, None)
+}
+
+/// [`z_test`] under a mask: a pixel of weight 0 is not tested (nor counted among the pixels the
+/// Šidák correction and the success rate are of), a pixel of weight w < 1 has its z times w.
+pub fn z_test_masked(
+    reference: &Image,
+    test: &Image,
+    variance: &Image,
+    p: &ZParams,
+    mask: Option<&Mask>,
 ) -> Result<ZTest, ZTestError> {
     same_shape(reference, test)?;
     // Pair each channel of the reference (alpha only if the variance has it) with the variance's
@@ -172,10 +206,23 @@ pub fn z_test(
     }
     // Test every pixel and channel against the Šidák-corrected significance
     let (nr, nv) = (reference.channels.len(), variance.channels.len());
-    let pixels = reference.pixels() as u64;
+    let pixels = reference.pixels() as u64
+        - mask.map_or(0, |m| m.counts(reference.data_window()).excluded);
     let alpha = sidak_alpha(p.significance, pixels);
+    let weight_of = |px: usize| {
+        let (x, y) = (px % reference.width, px / reference.width);
+        mask.map_or(1.0, |m| {
+            m.weight(reference.origin.0 + x as i64, reference.origin.1 + y as i64) as f64
+        })
+    };
     let (mut min_p, mut min_at) = (f64::INFINITY, (reference.origin.0, reference.origin.1, 0));
     let (mut failing_pixels, mut passing) = (0u64, 0u64);
+    // The mean-shift sums, per tested channel
+    let mut shift = vec![(0f64, 0f64); idx.len()];
+    let students = (p.dof > 0).then(|| {
+        statrs::distribution::StudentsT::new(0.0, 1.0, p.dof as f64)
+            .expect("a positive number of degrees of freedom")
+    });
     // What no noise explains, whatever the success rate allows: a NaN/Inf mismatch, and any
     // difference in a channel the variance does not cover (alpha without a variance for it)
     let untested: Vec<usize> = (0..nr)
@@ -183,6 +230,10 @@ pub fn z_test(
         .collect();
     let mut beyond_noise = 0u64;
     for px in 0..reference.pixels() {
+        let weight = weight_of(px);
+        if weight == 0.0 {
+            continue;
+        }
         let mut failed = false;
         let mut beyond = untested.iter().any(|&i| {
             let (r, t) = (reference.data[px * nr + i], test.data[px * nr + i]);
@@ -196,8 +247,16 @@ pub fn z_test(
             let var = variance.data[px * nv + j] as f64;
             let pv = if r.is_finite() && t.is_finite() {
                 let var = var.max(1e-4);
-                let z = (t - r).abs() * (p.spp as f64 / var).sqrt();
-                erfc(z / std::f64::consts::SQRT_2).min(1.0) // the fit gives 1 + 3e-8 at 0
+                let z = (t - r).abs() * (p.spp as f64 / var).sqrt() * weight;
+                shift[k].0 += weight * (t - r);
+                shift[k].1 += weight * weight * var / p.spp as f64;
+                match &students {
+                    Some(st) => {
+                        use statrs::distribution::ContinuousCDF;
+                        (2.0 * st.sf(z)).min(1.0)
+                    }
+                    None => erfc(z / std::f64::consts::SQRT_2).min(1.0), // the fit gives 1 + 3e-8 at 0
+                }
             } else if same_nonfinite(r, t) {
                 1.0
             } else {
@@ -223,7 +282,17 @@ pub fn z_test(
         .iter()
         .map(|&(i, _)| reference.channels[i].clone())
         .collect();
+    let shift_z: Vec<f64> = shift
+        .iter()
+        .map(|&(s, v)| if v > 0.0 { s / v.sqrt() } else { 0.0 })
+        .collect();
+    let shift_p = shift_z
+        .iter()
+        .map(|z| erfc(z.abs() / std::f64::consts::SQRT_2).min(1.0))
+        .fold(1.0, f64::min);
+    let shift_alpha = sidak_alpha(p.shift_significance, channels.len() as u64);
     let ok = beyond_noise == 0
+        && shift_p > shift_alpha
         && passing as f64 / channels.len().max(1) as f64 >= p.pixel_success_rate * pixels as f64;
     Ok(ZTest {
         params: *p,
@@ -236,6 +305,9 @@ pub fn z_test(
         failing_pixels,
         beyond_noise,
         passing_channels: passing,
+        shift_z,
+        shift_p,
+        shift_alpha,
         verdict: if ok { Verdict::Pass } else { Verdict::Failure },
     })
 }

@@ -6,9 +6,16 @@ edge depends on the sampling grid as a real renderer's would. Writes an uncompre
 OpenEXR by hand (no OpenEXR module needed).
 
 usage: standin_render.py OUT --width W --grid G [--perturb D] [--variance VAR] [--nan] [--sleep S]
-       [--fail] [--hang] [--no-output]
+       [--fail] [--hang] [--no-output] [--seed S --noise SIGMA] [--shift F] [--stamp N]
+
+--seed and --noise make it a Monte Carlo renderer: independent Gaussian noise of standard
+deviation SIGMA on every channel of every pixel, drawn from the seed. --shift F multiplies the
+image by 1 + F (a regression that moves the mean). --stamp N writes N into the top-left 8x4
+pixels (a timestamp that changes from run to run). STANDIN_SHIFT in the environment is the
+default of --shift (a regression without changing the command a golden records).
 """
 import argparse
+import os
 import struct
 import sys
 import time
@@ -53,6 +60,10 @@ def main():
     p.add_argument("--hang", action="store_true")
     p.add_argument("--sleep", type=float, default=0.0)
     p.add_argument("--no-output", action="store_true")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--noise", type=float, default=0.0)
+    p.add_argument("--shift", type=float, default=float(os.environ.get("STANDIN_SHIFT", "0")))
+    p.add_argument("--stamp", type=float)
     a = p.parse_args()
     if a.fail:
         print("standin: out of memory (pretend)", file=sys.stderr)
@@ -83,6 +94,15 @@ def main():
                 px = [v + a.perturb for v in px]
             row.append(px)
         img.append(row)
+    if a.noise or a.shift:
+        import random
+        rng = random.Random(a.seed)
+        img = [[[(v + (rng.gauss(0.0, a.noise) if a.noise else 0.0)) * (1.0 + a.shift) for v in px]
+                for px in row] for row in img]
+    if a.stamp is not None:
+        for y in range(min(4, h)):
+            for x in range(min(8, w)):
+                img[y][x] = [a.stamp % 1.0] * 3
     if a.nan:
         img[0][0] = [float("nan")] * 3
     write_exr(a.out, w, h, img)
