@@ -500,15 +500,23 @@ pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Resul
             bail!("{}: named as two outputs of this run", p.display());
         }
         seen.push((id, p));
+        // A directory that does not exist yet is made when the output is staged (and removed
+        // again if the run ends without committing): its nearest existing ancestor must be a
+        // directory that takes a temporary
         let dir = p
             .parent()
             .filter(|d| !d.as_os_str().is_empty())
             .unwrap_or(Path::new("."));
-        if !dir.is_dir() {
+        let existing = dir
+            .ancestors()
+            .filter(|d| !d.as_os_str().is_empty())
+            .find(|d| std::fs::symlink_metadata(d).is_ok())
+            .unwrap_or(Path::new("."));
+        if !existing.is_dir() {
             bail!(
-                "{}: directory {} does not exist",
+                "{}: {} is not a directory",
                 p.display(),
-                dir.display()
+                existing.display()
             );
         }
         if is_dir {
@@ -520,7 +528,11 @@ pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Resul
         // `staging`, like every temporary: a signal between its creation and its removal left
         // it behind (1 of 80 interrupted renders, tests/signals.rs, once its tests ran beside
         // others)
-        let tmp = tmp_for(p, "tmp");
+        let probe = match existing == dir {
+            true => p.to_path_buf(),
+            false => existing.join(p.file_name().unwrap_or_default()),
+        };
+        let tmp = tmp_for(&probe, "tmp");
         let made = staging(&tmp, || std::fs::File::create(&tmp));
         discard(&tmp);
         made.map_err(|e| anyhow::anyhow!("cannot write {}: {e}", p.display()))?;
@@ -555,6 +567,9 @@ pub struct Outputs {
     inputs: Vec<(Identity, PathBuf)>,
     /// Directory locks held until the outputs are committed (or dropped).
     locks: Vec<DirLock>,
+    /// Directories made for outputs whose directory did not exist (outermost first): removed
+    /// again, when still empty, if the outputs are dropped uncommitted.
+    made_dirs: Vec<PathBuf>,
 }
 
 /// An exclusive advisory lock (`flock(2)`) on a directory, released when dropped.
@@ -637,6 +652,24 @@ impl Outputs {
         Ok(())
     }
 
+    /// Makes the directories `path` needs that do not exist yet (`--json out/check.json` into a
+    /// fresh `out/`), remembering them.
+    fn make_parents(&mut self, path: &Path) -> Result<()> {
+        let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) else {
+            return Ok(());
+        };
+        let missing: Vec<&Path> = dir
+            .ancestors()
+            .filter(|d| !d.as_os_str().is_empty())
+            .take_while(|d| std::fs::symlink_metadata(d).is_err())
+            .collect();
+        for d in missing.into_iter().rev() {
+            std::fs::create_dir(d).with_context(|| format!("cannot create {}", d.display()))?;
+            self.made_dirs.push(d.to_path_buf());
+        }
+        Ok(())
+    }
+
     /// Stages `path`: runs `write` on its temporary sibling.
     pub fn write_with(
         &mut self,
@@ -645,6 +678,7 @@ impl Outputs {
     ) -> Result<()> {
         check_target(path)?;
         self.claim(path)?;
+        self.make_parents(path)?;
         remove_stale(path);
         let tmp = tmp_for(path, "tmp");
         if let Err(e) = staging(&tmp, || write(&tmp)) {
@@ -670,6 +704,7 @@ impl Outputs {
     pub fn dir_with(&mut self, path: &Path, fill: impl FnOnce(&Path) -> Result<()>) -> Result<()> {
         check_dir_target(path)?;
         self.claim(path)?;
+        self.make_parents(path)?;
         remove_stale(path);
         let tmp = tmp_for(path, "dir");
         // Made under `staging`; filled after, by path (once the handler removed it, writes in it
@@ -774,6 +809,7 @@ impl Outputs {
         if let Some((j, _)) = journal {
             j.finish();
         }
+        self.made_dirs.clear();
         Ok(())
     }
 }
@@ -818,6 +854,10 @@ impl Drop for Outputs {
     fn drop(&mut self) {
         for s in &self.staged {
             discard(&s.tmp);
+        }
+        // Directories made for outputs never committed: innermost first, only if empty
+        for d in self.made_dirs.iter().rev() {
+            let _ = std::fs::remove_dir(d);
         }
     }
 }

@@ -698,12 +698,11 @@ fn noise(line: &str) -> bool {
     l.contains("cannot open the user configuration file") || setting
 }
 
-/// The lines of a failed command's standard error that explain it, as one line: the first four
-/// that say error, fatal or cannot (or can't, failed, traceback, out of memory), and the last
-/// three non-empty lines (a renderer's first line is often noise, its last ones the reason), in
-/// the order written, without repeats or known noise (`noise`), joined by ` | `; at most 600
-/// characters, its end kept (where the reason is).
-pub fn explain(stderr: &str) -> String {
+/// The lines of a command's standard error that explain how it ended, in the order written,
+/// without repeats or known noise (`noise`): the first `says_max` that say error, fatal or
+/// cannot (or can't, failed, traceback, out of memory), and the last `last` non-empty lines (a
+/// renderer's first line is often noise, its last ones the reason).
+pub fn explaining_lines(stderr: &str, says_max: usize, last: usize) -> Vec<&str> {
     let lines: Vec<&str> = stderr
         .lines()
         .map(str::trim)
@@ -725,16 +724,23 @@ pub fn explain(stderr: &str) -> String {
     };
     let says_idx: Vec<usize> = (0..lines.len())
         .filter(|&i| says(lines[i]))
-        .take(4)
+        .take(says_max)
         .collect();
-    let last = lines.len().saturating_sub(3)..lines.len();
+    let last = lines.len().saturating_sub(last)..lines.len();
     let mut picked: Vec<&str> = vec![];
     for (i, &l) in lines.iter().enumerate() {
         if (says_idx.contains(&i) || last.contains(&i)) && !picked.contains(&l) {
             picked.push(l);
         }
     }
-    let s = picked.join(" | ");
+    picked
+}
+
+/// The lines of a failed command's standard error that explain it, as one line: the first four
+/// that say error, fatal or cannot, and the last three ([`explaining_lines`]), joined by ` | `;
+/// at most 600 characters, its end kept (where the reason is).
+pub fn explain(stderr: &str) -> String {
+    let s = explaining_lines(stderr, 4, 3).join(" | ");
     let n = s.chars().count();
     if n > 600 {
         return "… ".to_string() + &s.chars().skip(n - 600).collect::<String>();

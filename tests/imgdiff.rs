@@ -867,8 +867,13 @@ fn z_test_spp_scales_the_variance() {
         )
         .unwrap()
     };
-    assert_eq!(at(1).verdict, Verdict::Pass);
+    // Per pixel: z = 0.5 passes at 1 spp, z = 5 fails at 100
+    assert_eq!((at(1).failing_pixels, at(100).failing_pixels), (0, 4096));
     assert_eq!(at(100).verdict, Verdict::Failure);
+    // But every pixel 0.5 σ up is a shift of the image's mean: 0.5·sqrt(4096) = 32 σ of it
+    let one = at(1);
+    assert_eq!(one.verdict, Verdict::Failure);
+    assert!(one.shift_z.iter().all(|z| (z - 32.0).abs() < 3.0), "{:?}", one.shift_z);
 }
 
 #[test]

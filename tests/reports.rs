@@ -349,6 +349,8 @@ fn row(status: Status, note: &str) -> Row {
         images: None,
         stale: None,
         log: None,
+        platform: None,
+        mask: None,
     }
 }
 

@@ -67,6 +67,19 @@ pub struct CheckArgs {
     /// thresholds; later runs judge the golden with the z-test on that variance.
     #[arg(long, value_name = "N")]
     pub calibrate: Option<u32>,
+    /// Print GitHub Actions annotations (`::error file=SUITE,line=L::…` on each failing test's
+    /// `[[test]]` line, `::warning` for warnings and expected failures); on by default when
+    /// GITHUB_ACTIONS=true.
+    #[arg(long)]
+    pub annotations: bool,
+    /// Write a Markdown summary (failing rows first, linked to the HTML report) to this file;
+    /// without it, appended to $GITHUB_STEP_SUMMARY when that is set.
+    #[arg(long)]
+    pub summary: Option<PathBuf>,
+    /// Where the HTML report will be seen (the URL of the uploaded report's index.html): the
+    /// summary links each row there; without it the summary names --report's path, unlinked.
+    #[arg(long, value_name = "URL")]
+    pub report_url: Option<String>,
 }
 
 pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
@@ -87,7 +100,7 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
         .copied()
         .chain(goldens.iter().map(|p| p.as_path()))
         .collect();
-    let files: Vec<&Path> = [&a.json, &a.junit, &a.markdown]
+    let files: Vec<&Path> = [&a.json, &a.junit, &a.markdown, &a.summary]
         .into_iter()
         .flatten()
         .map(|p| p.as_path())
@@ -146,7 +159,7 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     }
     // The reports, staged with the goldens: all committed together
     if let Some(dir) = &report_dir {
-        let html = check::html(rows, &suite.name);
+        let html = check::html(rows, &suite.name, suite.platform.as_deref());
         std::fs::write(dir.join("index.html"), html.as_bytes())?;
     }
     if let Some(p) = &a.json {
@@ -158,7 +171,38 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     if let Some(p) = &a.markdown {
         outputs.write(p, check::markdown(rows).as_bytes())?;
     }
+    // The CI summary: to its file, with the run's other outputs, or to the step summary
+    let index = a.report.as_ref().map(|d| d.join("index.html"));
+    let summary = check::ci::summary(
+        rows,
+        &suite,
+        out.exit_code(),
+        a.report_url.as_deref(),
+        index.as_deref(),
+    );
+    if let Some(p) = &a.summary {
+        outputs.write(p, summary.as_bytes())?;
+    }
     outputs.commit()?;
+    if a.annotations || std::env::var("GITHUB_ACTIONS").is_ok_and(|v| v == "true") {
+        say_raw!("{}", check::ci::annotations(rows, &suite));
+    }
+    if a.summary.is_none() {
+        if let Some(p) = std::env::var_os("GITHUB_STEP_SUMMARY").filter(|p| !p.is_empty()) {
+            // The runner's file for this step: appended to, as its protocol says
+            let appended = std::fs::OpenOptions::new()
+                .append(true)
+                .create(true)
+                .open(&p)
+                .and_then(|mut f| std::io::Write::write_all(&mut f, (summary + "\n").as_bytes()));
+            if let Err(e) = appended {
+                say!(
+                    "cannot append the summary to GITHUB_STEP_SUMMARY ({}): {e}",
+                    Path::new(&p).display()
+                );
+            }
+        }
+    }
     for g in &out.blessed {
         say!("updated {}", g.display());
     }

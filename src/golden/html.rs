@@ -31,8 +31,11 @@ fn url(name: &str) -> String {
 /// value the page prints: a 1e-6 change fills the colour scale) and the ꟻLIP heat map; the
 /// largest difference is ringed on the first two. The header gives the run's counts as the
 /// terminal does (`2 failing, 1 refused`).
-pub fn html(rows: &[Row], title: &str) -> String {
+pub fn html(rows: &[Row], title: &str, platform: Option<&str>) -> String {
     let title = esc(title);
+    let platform = platform
+        .map(|p| format!(" Platform: <b>{}</b>.", esc(p)))
+        .unwrap_or_default();
     let mut body = String::new();
     for r in rows {
         body += &row(r);
@@ -49,12 +52,13 @@ pub fn html(rows: &[Row], title: &str) -> String {
          tr.fail {{ background: #f8d7da; }} tr.warn {{ background: #fff3cd; }} tr.xfail {{ background: #e2e3e5; }}\n\
          td.m {{ font-family: monospace; font-size: 90%; }} small.w {{ color: #8a5a00; }}\n\
          td:first-child {{ max-width: 22em; overflow-wrap: anywhere; }}\n\
-         </style></head><body>\n<h1>{title}</h1>\n<p class=\"counts\">{} comparisons: {}.</p>\n\
+         </style></head><body>\n<h1>{title}</h1>\n<p class=\"counts\">{} comparisons: {}.{platform}</p>\n\
          <p>Hover over an image to swap new and reference. Failing pixels: red where the comparison \
          counts a pixel over <code>fail</code>, over the new render in grey. |New − Reference|: \
          the largest channel difference per pixel, black 0 to pale yellow at the maximum printed \
          below it, cyan for NaN/Inf mismatches. The green ring marks the maximum. ꟻLIP: the \
-         perceptual error (magma).</p>\n\
+         perceptual error (magma). A test's mask, under its failing pixels: striped magenta where \
+         pixels are left out, blue where their tolerance is scaled.</p>\n\
          <table>\n<tr><th>Name</th><th>New</th><th>Reference</th><th>Failing pixels</th>\
          <th>|New − Reference|</th><th>Diff (ꟻLIP)</th><th>Metrics</th></tr>\n{body}</table>\n</body></html>\n",
         rows.len(),
@@ -86,6 +90,15 @@ fn row(r: &Row) -> String {
         (Some(i), Some(c)) => {
             // URL-encoded names hold no quote: safe inside the handlers' strings too
             let (new, reference) = (url(&i.new), url(&i.reference));
+            let masked = match (&i.masked, r.mask) {
+                (Some(m), Some(n)) => format!(
+                    "<img class=\"masked\" src=\"{}\"><small class=\"cap\">mask: {} px left out, {} px at scaled tolerance</small>",
+                    url(m),
+                    n.excluded,
+                    n.scaled
+                ),
+                _ => String::new(),
+            };
             let scale = if i.diff_scale > 0.0 {
                 format!("scale: pale yellow = {:.3e} (max |d|)", i.diff_scale)
             } else if c.n_nonfinite_mismatch > 0 {
@@ -96,7 +109,7 @@ fn row(r: &Row) -> String {
             format!(
                 "<td><img class=\"new\" src=\"{new}\" onmouseover=\"this.src='{reference}'\" onmouseout=\"this.src='{new}'\"></td>\
                  <td><img class=\"reference\" src=\"{reference}\" onmouseover=\"this.src='{new}'\" onmouseout=\"this.src='{reference}'\"></td>\
-                 <td><div class=\"pic\"><img class=\"mask\" src=\"{}\">{ring}</div><small class=\"cap\">{} px over fail {}</small></td>\
+                 <td><div class=\"pic\"><img class=\"mask\" src=\"{}\">{ring}</div><small class=\"cap\">{} px over fail {}</small>{masked}</td>\
                  <td><div class=\"pic\"><img class=\"diff\" src=\"{}\">{ring}</div><small class=\"cap\">{scale}</small></td>\
                  <td><img class=\"flip\" src=\"{}\"></td>",
                 url(&i.mask),
@@ -154,11 +167,19 @@ fn row(r: &Row) -> String {
     for w in &r.warnings {
         name += &format!("<br><small class=\"w\">warning: {}</small>", esc(w));
     }
-    if let Some(s) = &r.stale {
-        name += &format!("<br><small class=\"w\">stale golden: {}</small>", esc(s));
-    }
     if let Some(l) = &r.log {
         name += &format!("<br><a href=\"{}\">renderer log</a>", esc(l));
     }
-    format!("<tr class=\"{class}\"><td>{name}</td>{imgs}<td class=\"m\">{metrics}</td></tr>\n")
+    let mut metrics = metrics;
+    if let Some(z) = &r.ztest {
+        let worst = z.shift_z.iter().fold(0f64, |m, v| m.max(v.abs()));
+        metrics += &format!(
+            "<br>z-test: {} px fail at α {:.1e}<br>mean shift {worst:.1} σ (limit {:.1e})",
+            z.failing_pixels, z.alpha, z.shift_alpha
+        );
+    }
+    format!(
+        "<tr class=\"{class}\" id=\"{}\"><td>{name}</td>{imgs}<td class=\"m\">{metrics}</td></tr>\n",
+        super::ci::anchor(r)
+    )
 }

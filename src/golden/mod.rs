@@ -251,6 +251,7 @@
 //! | mirror | rayproof | promote f64 | PASS | 0.00e0 | 0.00e0 | inf | 0.000 | 0.000 % | 0.0000 |
 
 pub mod calibrate;
+pub mod ci;
 pub mod formats;
 mod html;
 mod junit;
@@ -498,7 +499,11 @@ fn make_logged(
                 crate::process::STDOUT_CAP,
             );
             *log = Some(renderer_log(&filled, &suite.dir, &ran, &stderr));
-            *tail = rows::log_tail(&stderr);
+            let failed = match &ran {
+                Ok(f) => crate::process::failure("renderer", f).is_some(),
+                Err(_) => true,
+            };
+            *tail = rows::log_tail(&stderr, failed);
             let f = ran?;
             if let Some(e) = crate::process::failure("renderer", &f) {
                 return Err(e);

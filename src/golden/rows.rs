@@ -92,9 +92,9 @@ pub struct Row {
     /// The command that runs this comparison again (`rayproof check --suite … --test …`, the
     /// suite's path as it was given: run it where `check` ran).
     pub replay: String,
-    /// The last lines of the renderer's standard error (up to [`LOG_TAIL_LINES`] non-empty
-    /// lines), when a renderer command made the test image and wrote any; also when it failed or
-    /// was killed.
+    /// The lines of the renderer's standard error that explain how it ended ([`log_tail`]: up to
+    /// [`LOG_TAIL_LINES`]), when a renderer command made the test image; also when it failed or
+    /// was killed. `None` when none explains anything.
     pub log_tail: Option<String>,
     /// Report images, relative to the report directory.
     #[serde(skip)]
@@ -115,14 +115,13 @@ pub struct Row {
 /// How many lines of a renderer's standard error a row keeps ([`Row::log_tail`]).
 pub const LOG_TAIL_LINES: usize = 20;
 
-/// The last [`LOG_TAIL_LINES`] non-empty lines of a command's standard error (right-trimmed),
-/// or `None` when it wrote nothing but blank lines.
-pub fn log_tail(stderr: &str) -> Option<String> {
-    let lines: Vec<&str> = stderr
-        .lines()
-        .map(str::trim_end)
-        .filter(|l| !l.trim().is_empty())
-        .collect();
+/// The lines of a renderer's standard error a row keeps: those that explain how it ended
+/// ([`crate::process::explaining_lines`]: lines that say error, fatal, cannot, failed, …, and
+/// for a render that failed its last 5 lines), at most [`LOG_TAIL_LINES`], the last kept; `None`
+/// when none explains anything (a render that worked and printed only its banner and
+/// statistics, as POV-Ray does: its credits are not a reason).
+pub fn log_tail(stderr: &str, failed: bool) -> Option<String> {
+    let lines = crate::process::explaining_lines(stderr, usize::MAX, if failed { 5 } else { 0 });
     let tail = &lines[lines.len().saturating_sub(LOG_TAIL_LINES)..];
     (!tail.is_empty()).then(|| tail.join("\n"))
 }

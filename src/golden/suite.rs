@@ -237,6 +237,9 @@ pub struct Test {
     /// The test's mask (`[[test.mask]]`): pixels left out of every comparison of the test, or
     /// judged with scaled tolerances. Empty: none.
     pub mask: Vec<MaskSource>,
+    /// The line of the suite file where the test starts (its `[[test]]`), for annotations that
+    /// point at it; 1 when the file writes its tests otherwise.
+    pub line: usize,
     /// Why the test is skipped on the chosen platform (`[test.platform.NAME] skip = "…"`):
     /// every row SKIPPED with this reason, nothing made or compared.
     pub skip: Option<String>,
@@ -426,7 +429,14 @@ impl Suite {
             None => None,
         };
         let mut tests: Vec<Test> = vec![];
-        for t in spec.test {
+        // Where each [[test]] starts, for CI annotations
+        let starts: Vec<usize> = text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| l.trim_start().starts_with("[[test]]"))
+            .map(|(i, _)| i + 1)
+            .collect();
+        for (index, t) in spec.test.into_iter().enumerate() {
             let ctx = |what: String| format!("{}: test '{}': {what}", path.display(), t.name);
             for name in t.platform.keys() {
                 declared_platform(&format!("test '{}': ", t.name), name)?;
@@ -648,6 +658,7 @@ impl Suite {
                 references,
                 skip: t_on.skip.clone(),
                 mask,
+                line: starts.get(index).copied().unwrap_or(1),
             });
         }
         if tests.is_empty() {

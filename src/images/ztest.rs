@@ -53,10 +53,15 @@ pub struct ZParams {
     /// (`check --calibrate`: the statistic is then Student's t with k degrees of freedom, so a
     /// variance estimated from few renders does not fail pixels whose estimate came out small).
     pub dof: u64,
-    /// Family-wise significance of the mean-shift test (Šidák-corrected over the channels): per
-    /// channel, Σ w·(test − ref) / sqrt(Σ w²·var/spp) is standard normal when the differences are
-    /// independent noise; a shift of the whole image's mean (a regression the per-pixel test
-    /// misses when each pixel's noise is larger than the shift) fails it.
+    /// Family-wise significance of the mean-shift test (Šidák-corrected over the channels). Per
+    /// channel, each pixel's signed statistic w·(test − ref)/sqrt(var/spp), clamped to ±4 so that
+    /// a few outliers (fireflies: the per-pixel test's business) cannot move it, is summed over
+    /// the n pixels and divided by sqrt(n·v), where v bounds the clamped statistic's variance
+    /// under noise alone (1 for a normal z; min(16, k/(k − 2)) for Student's t with k degrees of
+    /// freedom). Under independent noise the sum is symmetric about 0 with variance ≤ n·v, so
+    /// the result is at most standard normal (the central limit theorem; conservative); a shift
+    /// of the whole image's mean (a regression the per-pixel test misses when each pixel's noise
+    /// is larger than the shift) moves it by shift/σ·sqrt(n/v).
     pub shift_significance: f64,
 }
 
@@ -97,8 +102,8 @@ pub struct ZTest {
     pub beyond_noise: u64,
     /// Channel tests with p > alpha.
     pub passing_channels: u64,
-    /// The mean-shift statistic of each tested channel (`channels`' order): Σ w·(test − ref) /
-    /// sqrt(Σ w²·max(var, 10⁻⁴)/spp), standard normal under noise alone.
+    /// The mean-shift statistic of each tested channel (`channels`' order), at most standard
+    /// normal under noise alone ([`ZParams::shift_significance`]).
     pub shift_z: Vec<f64>,
     /// The smallest two-sided p-value of `shift_z`.
     pub shift_p: f64,
@@ -217,8 +222,14 @@ pub fn z_test_masked(
     };
     let (mut min_p, mut min_at) = (f64::INFINITY, (reference.origin.0, reference.origin.1, 0));
     let (mut failing_pixels, mut passing) = (0u64, 0u64);
-    // The mean-shift sums, per tested channel
-    let mut shift = vec![(0f64, 0f64); idx.len()];
+    // The mean-shift sums of clamped statistics and their counts, per tested channel
+    const CLAMP: f64 = 4.0;
+    let mut shift = vec![(0f64, 0u64); idx.len()];
+    let null_variance = match p.dof {
+        0 => 1.0,
+        1 | 2 => CLAMP * CLAMP,
+        k => (k as f64 / (k as f64 - 2.0)).min(CLAMP * CLAMP),
+    };
     let students = (p.dof > 0).then(|| {
         statrs::distribution::StudentsT::new(0.0, 1.0, p.dof as f64)
             .expect("a positive number of degrees of freedom")
@@ -248,8 +259,9 @@ pub fn z_test_masked(
             let pv = if r.is_finite() && t.is_finite() {
                 let var = var.max(1e-4);
                 let z = (t - r).abs() * (p.spp as f64 / var).sqrt() * weight;
-                shift[k].0 += weight * (t - r);
-                shift[k].1 += weight * weight * var / p.spp as f64;
+                let signed = (t - r) * (p.spp as f64 / var).sqrt() * weight;
+                shift[k].0 += signed.clamp(-CLAMP, CLAMP);
+                shift[k].1 += 1;
                 match &students {
                     Some(st) => {
                         use statrs::distribution::ContinuousCDF;
@@ -284,7 +296,10 @@ pub fn z_test_masked(
         .collect();
     let shift_z: Vec<f64> = shift
         .iter()
-        .map(|&(s, v)| if v > 0.0 { s / v.sqrt() } else { 0.0 })
+        .map(|&(s, n)| match n {
+            0 => 0.0,
+            n => s / (n as f64 * null_variance).sqrt(),
+        })
         .collect();
     let shift_p = shift_z
         .iter()
