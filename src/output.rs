@@ -513,11 +513,7 @@ pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Resul
             .find(|d| std::fs::symlink_metadata(d).is_ok())
             .unwrap_or(Path::new("."));
         if !existing.is_dir() {
-            bail!(
-                "{}: {} is not a directory",
-                p.display(),
-                existing.display()
-            );
+            bail!("{}: {} is not a directory", p.display(), existing.display());
         }
         if is_dir {
             check_dir_target(p)?;

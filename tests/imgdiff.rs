@@ -873,7 +873,11 @@ fn z_test_spp_scales_the_variance() {
     // But every pixel 0.5 σ up is a shift of the image's mean: 0.5·sqrt(4096) = 32 σ of it
     let one = at(1);
     assert_eq!(one.verdict, Verdict::Failure);
-    assert!(one.shift_z.iter().all(|z| (z - 32.0).abs() < 3.0), "{:?}", one.shift_z);
+    assert!(
+        one.shift_z.iter().all(|z| (z - 32.0).abs() < 3.0),
+        "{:?}",
+        one.shift_z
+    );
 }
 
 #[test]

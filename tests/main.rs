@@ -48,6 +48,7 @@ mod signals;
 mod spawn;
 mod sphere;
 mod suite;
+mod teams;
 mod torus;
 mod triangle;
 mod verdicts;

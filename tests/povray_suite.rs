@@ -285,4 +285,18 @@ width = 16
         .find(|r| r["test"] == "broken")
         .unwrap();
     assert_eq!(broken["log"], "logs/broken.log");
+    // The tail a row keeps is what explains the failure, never POV-Ray's credits banner; a
+    // render that worked keeps none (its banner explains nothing)
+    let tail = broken["log_tail"].as_str().unwrap();
+    assert!(tail.contains("Cannot open include file spot.inc"), "{tail}");
+    assert!(!tail.contains("Persistence of Vision"), "{tail}");
+    assert!(!tail.contains("POV-Ray is based on"), "{tail}");
+    let ok = rows
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|r| r["test"] == "ok")
+        .unwrap();
+    assert_eq!(ok["log_tail"], serde_json::Value::Null, "{ok}");
+    assert!(!xml.contains("Persistence of Vision"), "{xml}");
 }

@@ -143,10 +143,12 @@ pub fn summary(
     );
     match (report, report_path) {
         (Some(rep), _) => s += &format!(" [HTML report]({rep})"),
-        (None, Some(p)) => s += &format!(
-            " HTML report: `{}` (give --report-url to link its rows here).",
-            cell(&p.display().to_string())
-        ),
+        (None, Some(p)) => {
+            s += &format!(
+                " HTML report: `{}` (give --report-url to link its rows here).",
+                cell(&p.display().to_string())
+            )
+        }
         _ => {}
     }
     s += "\n\n| | test | reference | config | status | max error | pixels > fail | mask | why |\n|---|---|---|---|---|---|---|---|---|\n";

@@ -1147,8 +1147,8 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                     }
                     _ => None,
                 };
-                let variance = calibrated
-                    .or_else(|| made.variance.clone().map(|v| (v, t.variance_spp, 0)));
+                let variance =
+                    calibrated.or_else(|| made.variance.clone().map(|v| (v, t.variance_spp, 0)));
                 let z = match &variance {
                     Some((v, spp, dof)) => {
                         let p = ZParams {

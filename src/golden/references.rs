@@ -343,16 +343,20 @@ fn calibration(
     dir: &Path,
     path: &Path,
 ) -> Result<Option<(u32, PathBuf)>> {
-    let Some(c) = entry.get("calibration").filter(|c| c.get("variance").is_some()) else {
+    let Some(c) = entry
+        .get("calibration")
+        .filter(|c| c.get("variance").is_some())
+    else {
         return Ok(None);
     };
     let renders = c
         .get("renders")
         .and_then(|r| r.as_u64())
         .filter(|r| (2..=super::calibrate::MAX_RENDERS as u64).contains(r));
-    let name = c.get("variance").and_then(|v| v.as_str()).filter(|n| {
-        !n.is_empty() && !n.contains(['/', '\\']) && *n != "." && *n != ".."
-    });
+    let name = c
+        .get("variance")
+        .and_then(|v| v.as_str())
+        .filter(|n| !n.is_empty() && !n.contains(['/', '\\']) && *n != "." && *n != "..");
     match (renders, name) {
         (Some(r), Some(n)) => Ok(Some((r as u32, dir.join(n)))),
         _ => bail!(

@@ -45,6 +45,22 @@
 //! format is its extension's. `scene` and `inputs` are hashed into a golden's manifest entry: a
 //! golden made from other versions of them is stale (compared, then re-blessed by `--update`).
 //!
+//! **Platforms.** `[suite] platforms = ["linux-x86_64", "macos-arm64"]` makes a run name one
+//! (`check --platform NAME`, else `RAYPROOF_PLATFORM`; neither, or one not in the list, is exit
+//! 2): it replaces `{platform}` in every path of the suite (`goldens = "goldens/{platform}"`)
+//! and in commands, and chooses `[platform.NAME]` thresholds (`thresholds`,
+//! `golden_thresholds`), layered after the suite's, and a test's `[test.platform.NAME]` after
+//! the test's (with `skip = "why"`: the test is SKIPPED on that platform). `{platform}` in a
+//! suite without `platforms` is an error: no platform's golden stands in for another's.
+//!
+//! **Masks.** `[[test.mask]]` with `rect = [x, y, width, height]` (display-window pixels) leaves
+//! those pixels out of every comparison of the test, or with `tolerance = K` (≥ 1) judges them
+//! with K times the tolerances; `image = "PATH"` is a grey image of the frame's size whose first
+//! channel is the weight (0 out, 1 as usual, g: tolerances × 1/g). See [`crate::images::Mask`].
+//!
+//! **Seeds.** `{seed}` in a command is `check --seed` (default 0); `check --calibrate N` renders
+//! with seeds 1 to N ([`super::calibrate`]).
+//!
 //! A NaN or an infinity in a test image fails every comparison of the test, whatever its
 //! thresholds (idiff lets a few through under `failpercent`); a test whose image may hold them on
 //! purpose says `allow_nonfinite = true`.
@@ -339,7 +355,10 @@ impl Suite {
         let platforms = spec.suite.platforms.clone();
         if let Some(list) = &platforms {
             if list.is_empty() {
-                bail!("{}: suite.platforms is empty: name the platforms, or leave it out", path.display());
+                bail!(
+                    "{}: suite.platforms is empty: name the platforms, or leave it out",
+                    path.display()
+                );
             }
             for (i, p) in list.iter().enumerate() {
                 if !file_name_safe(p) || list[..i].contains(p) {
@@ -446,7 +465,9 @@ impl Suite {
                 .get(platform.unwrap_or_default())
                 .unwrap_or(&empty);
             if t_on.skip.as_deref().is_some_and(|s| s.trim().is_empty()) {
-                bail!(ctx("skip = \"\": say why the test is skipped on this platform".into()));
+                bail!(ctx(
+                    "skip = \"\": say why the test is skipped on this platform".into()
+                ));
             }
             // A unique, file-name-safe name
             if !file_name_safe(&t.name) {

@@ -121,11 +121,11 @@ pub use io::{
     tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError, LayerInfo, LayerPick,
     LayerSelect, Window, MAX_ANCILLARY_BYTES, MAX_CHANNELS, MAX_IMAGE_BYTES, MAX_PIXELS,
 };
-pub use mask::{mask_overlay_rgb8, Mask, MaskCounts, MaskPart};
 pub use maps::{diff_map, diff_map_rgb8, fail_mask, mask_rgb8, DiffMap};
+pub use mask::{mask_overlay_rgb8, Mask, MaskCounts, MaskPart};
 pub use metrics::{
-    abs_diff, abs_error_map, align, compare, compare_as, compare_masked, verdict, AlignError, Comparison,
-    Semantics, SizeMismatch, Thresholds, Verdict,
+    abs_diff, abs_error_map, align, compare, compare_as, compare_masked, verdict, AlignError,
+    Comparison, Semantics, SizeMismatch, Thresholds, Verdict,
 };
 pub use report::{fmt_g, report_text, DiffReport};
 pub use ztest::{erfc, sidak_alpha, z_test, z_test_masked, ZParams, ZTest, ZTestError};

@@ -211,8 +211,8 @@ pub fn z_test_masked(
     }
     // Test every pixel and channel against the Šidák-corrected significance
     let (nr, nv) = (reference.channels.len(), variance.channels.len());
-    let pixels = reference.pixels() as u64
-        - mask.map_or(0, |m| m.counts(reference.data_window()).excluded);
+    let pixels =
+        reference.pixels() as u64 - mask.map_or(0, |m| m.counts(reference.data_window()).excluded);
     let alpha = sidak_alpha(p.significance, pixels);
     let weight_of = |px: usize| {
         let (x, y) = (px % reference.width, px / reference.width);

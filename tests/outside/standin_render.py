@@ -102,7 +102,7 @@ def main():
     if a.stamp is not None:
         for y in range(min(4, h)):
             for x in range(min(8, w)):
-                img[y][x] = [a.stamp % 1.0] * 3
+                img[y][x] = [(a.stamp % 997) / 997] * 3
     if a.nan:
         img[0][0] = [float("nan")] * 3
     write_exr(a.out, w, h, img)
