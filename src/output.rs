@@ -951,6 +951,25 @@ impl Drop for ScratchDir {
 mod tests {
     use super::*;
 
+    /// Issue 48: an output's missing directories are made when it is staged, stay when it is
+    /// committed, and are removed again (only those, only if empty) when it is not.
+    #[test]
+    fn missing_output_directories_are_made_and_unmade_with_the_output() {
+        let tmp = std::env::temp_dir().join(format!("rayproof-parents-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&tmp);
+        std::fs::create_dir_all(&tmp).unwrap();
+        let mut out = Outputs::new();
+        out.write(&tmp.join("a/b/c.json"), b"{}").unwrap();
+        assert!(tmp.join("a/b").is_dir());
+        drop(out);
+        assert!(!tmp.join("a").exists());
+        let mut out = Outputs::new();
+        out.write(&tmp.join("a/b/c.json"), b"{}").unwrap();
+        out.commit().unwrap();
+        assert_eq!(std::fs::read(tmp.join("a/b/c.json")).unwrap(), b"{}");
+        std::fs::remove_dir_all(&tmp).unwrap();
+    }
+
     /// Issue 46 (10): the scratch directory of a run killed by SIGKILL is removed by the next
     /// run; a live run's, another name's, a link and a directory of a live pid are kept.
     #[test]

@@ -360,6 +360,26 @@ mod tests {
     }
 
     #[test]
+    fn few_renders_judge_with_students_t_not_the_normal() {
+        // One pixel 5 σ off among 100: the normal p (5.7e-7) is under α = 1.0e-4 (fails),
+        // Student's t with 3 degrees of freedom gives p = 0.015 (within the noise of a variance
+        // estimated from 4 renders)
+        let r = Image::new(100, 1, &["Y"], vec![0.5; 100]);
+        let mut t = r.clone();
+        t.data[7] += 5.0;
+        let v = Image::new(100, 1, &["Y"], vec![1.0; 100]);
+        let p = |dof| ZParams {
+            dof,
+            pixel_success_rate: 1.0,
+            ..Default::default()
+        };
+        let normal = z_test(&r, &t, &v, &p(0)).unwrap();
+        let students = z_test(&r, &t, &v, &p(3)).unwrap();
+        assert_eq!((normal.failing_pixels, students.failing_pixels), (1, 0));
+        assert!((students.min_p - 0.0154).abs() < 1e-3, "{}", students.min_p);
+    }
+
+    #[test]
     fn sidak_alpha_matches_direct_formula() {
         let direct = |s: f64, n: u64| 1.0 - (1.0 - s).powf(1.0 / n as f64);
         for n in [1, 100, 4096] {
