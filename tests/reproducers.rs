@@ -60,6 +60,23 @@
 //! | `report_out_over_a_directory_with_a_linked_marker` | exit 0, the user's directory (a link named `.rayproof-output` in it) replaced whole |
 //! | `output_name_of_256_characters` | a regression of this work, found by the hostile run: once temporaries' names were cut to fit (a467ad4), a name of 256 bytes passed the check before the work, the audit ran and its rename failed at the end (its progress line and the error: two lines). The old binary refused it up front ("File name too long"; the row fails there on its wording only) |
 //!
+//! Issue 48 (golden CI as teams run it): found by a hostile helper that had only the binary and
+//! the README (about 375 runs), each row failed against the binary it attacked
+//! (`/tmp/hostile48/rayproof`, before the fixes), as said:
+//!
+//! | row | before |
+//! |---|---|
+//! | `calibrate_renders_that_never_vary` | exit 0, σ = 0 written; later a +0.1 change passed |
+//! | `variance_file_of_another_test` | exit 0: tests `a` and `a.variance` shared one file |
+//! | `summary_over_another_platforms_golden` | exit 1 after writing the summary over platform a's golden |
+//! | `step_summary_over_an_input_or_a_fifo` | exit 1, the suite file appended to (a FIFO: a hang) |
+//! | `forged_workflow_commands` | `::error file=forged.toml,line=2::FORGED-SKIP` on a line of its own |
+//! | `calibrate_a_skipped_test` | exit 0, the skipped test rendered and its golden written |
+//! | `mask_over_the_whole_frame` | exit 0, a 0.5 shift passed with 0 pixels compared |
+//! | `calibrate_a_variance_past_float32` | exit 0, a variance of +Inf written |
+//! | `report_url_that_breaks_the_summary` | exit 1, a row injected into the summary |
+//! | `masks_and_replays_as_written` | exit 1: a five-number rect taken (and a colour mask read as its red channel) |
+//!
 //! The other reproducers of the issue are tests elsewhere (`tests/bounds.rs`: MPU points at
 //! ±1e308, `[measured] = [1, 1e9]`, 40 glass and mirror spheres at depth 256, `mtllib
 //! /dev/zero` and a mesh `file = "/dev/zero"`, EXR channel counts, a 16384² PNG;
@@ -150,10 +167,19 @@ impl Run {
 /// killed after `deadline` seconds; standard output and error go to files (what it leaves
 /// running cannot block the test).
 fn run(dir: &Path, args: &[&str], deadline: u64) -> Run {
+    run_env(dir, args, deadline, &[])
+}
+
+/// [`run`] with these variables in its environment (and GitHub's own cleared).
+fn run_env(dir: &Path, args: &[&str], deadline: u64, env: &[(&str, &str)]) -> Run {
     let logs = dir.join(".logs");
     std::fs::create_dir_all(&logs).unwrap();
     let (out, err) = (logs.join("stdout"), logs.join("stderr"));
     let mut c = Command::new(env!("CARGO_BIN_EXE_rayproof"));
+    for k in ["GITHUB_ACTIONS", "GITHUB_STEP_SUMMARY", "RAYPROOF_PLATFORM"] {
+        c.env_remove(k);
+    }
+    c.envs(env.iter().copied());
     c.args(args)
         .current_dir(dir)
         .stdin(Stdio::null())
@@ -2120,6 +2146,332 @@ fn exec_child_that_never_reads_its_batch(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+// ---- Issue 48, the hostile run of golden CI as teams run it (helper-11, 375 runs) -------------
+
+/// A suite of the stand-in (16×10 pixels), `goldens = "g/{platform}"` when `platforms` is
+/// given, with `tests` appended.
+fn teams_suite(d: &Path, head: &str, tests: &str) -> PathBuf {
+    let p = d.join("suite.toml");
+    std::fs::write(
+        &p,
+        format!(
+            "[suite]\nrenderer = \"{}\"\n{head}\n[golden_thresholds]\nfail = 1e-6\n{tests}",
+            standin("")
+        ),
+    )
+    .unwrap();
+    p
+}
+
+/// F1: a renderer that ignores `{seed}` was calibrated (σ = 0 everywhere) and then every change
+/// passed; now --calibrate refuses it, nothing written.
+fn calibrate_renders_that_never_vary(d: &Path) -> Result<(), String> {
+    teams_suite(
+        d,
+        "goldens = \"g\"",
+        &format!(
+            "[[test]]\nname = \"mc\"\ncommand = \"{} --seed 7 --noise 0.02 # {{seed}}\"\n",
+            standin("")
+        ),
+    );
+    let r = run(
+        d,
+        &["check", "--suite", "suite.toml", "--calibrate", "4"],
+        60,
+    );
+    r.exited(3)?;
+    if !r.stdout.contains("identical at every pixel") || d.join("g").exists() {
+        return Err(format!(
+            "not refused, or written: {}{}",
+            r.stdout,
+            r.ended()
+        ));
+    }
+    Ok(())
+}
+
+/// F2: tests `a` and `a.variance` shared `g/a.variance.exr` (a's calibrated variance, b's
+/// golden): --update of one passed the other's regression. Now a suite error.
+fn variance_file_of_another_test(d: &Path) -> Result<(), String> {
+    teams_suite(
+        d,
+        "goldens = \"g\"",
+        "[[test]]\nname = \"a\"\n[[test]]\nname = \"a.variance\"\n",
+    );
+    run(d, &["check", "--suite", "suite.toml", "--update"], 60)
+        .refused(2, &["calibrated variance of test 'a'", "one file"])
+}
+
+/// F3: a run for platform b wrote its --summary over platform a's golden (then REFUSED as
+/// tampered); other platforms' goldens, manifests and references are the run's to keep.
+fn summary_over_another_platforms_golden(d: &Path) -> Result<(), String> {
+    teams_suite(
+        d,
+        "goldens = \"g/{platform}\"\nplatforms = [\"a\", \"b\"]",
+        "[[test]]\nname = \"disc\"\n",
+    );
+    run(
+        d,
+        &[
+            "check",
+            "--suite",
+            "suite.toml",
+            "--platform",
+            "a",
+            "--update",
+        ],
+        60,
+    )
+    .exited(0)?;
+    let before = snapshot(d);
+    for out in ["g/a/disc.exr", "g/a/manifest.json"] {
+        run(
+            d,
+            &[
+                "check",
+                "--suite",
+                "suite.toml",
+                "--platform",
+                "b",
+                "--summary",
+                out,
+            ],
+            60,
+        )
+        .refused(2, &["never writes over its inputs"])?;
+        run(
+            d,
+            &[
+                "check",
+                "--suite",
+                "suite.toml",
+                "--platform",
+                "b",
+                "--json",
+                out,
+            ],
+            60,
+        )
+        .refused(2, &["never writes over its inputs"])?;
+    }
+    unchanged(&before, d)
+}
+
+/// F4 and the FIFO: GITHUB_STEP_SUMMARY named the suite file (appended to: the suite broken) or
+/// a FIFO nobody reads (a hang after the results). Now exit 2 before any work.
+fn step_summary_over_an_input_or_a_fifo(d: &Path) -> Result<(), String> {
+    let suite = teams_suite(d, "goldens = \"g\"", "[[test]]\nname = \"disc\"\n");
+    let before = snapshot(d);
+    run_env(
+        d,
+        &["check", "--suite", "suite.toml"],
+        60,
+        &[("GITHUB_STEP_SUMMARY", s(&suite))],
+    )
+    .refused(2, &["GITHUB_STEP_SUMMARY", "never writes over its inputs"])?;
+    unchanged(&before, d)?;
+    let fifo = d.join("fifo");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    run_env(
+        d,
+        &["check", "--suite", "suite.toml"],
+        20,
+        &[("GITHUB_STEP_SUMMARY", s(&fifo))],
+    )
+    .refused(2, &["not a regular file"])
+}
+
+/// F5: a skip reason, a known_failure and the suite's name with a newline printed lines of
+/// their own under GITHUB_ACTIONS: forged `::error` workflow commands. Now every row is one
+/// line, and between `::stop-commands::TOKEN` and `::TOKEN::` nothing is a command anyway.
+fn forged_workflow_commands(d: &Path) -> Result<(), String> {
+    std::fs::write(
+        d.join("suite.toml"),
+        format!(
+            r#"[suite]
+name = "ok\n::error file=forged.toml,line=1::FORGED-SUITE-NAME"
+renderer = "{}"
+goldens = "g/{{platform}}"
+platforms = ["p"]
+[golden_thresholds]
+fail = 1e-6
+[[test]]
+name = "sk"
+[test.platform.p]
+skip = "reason\n::error file=forged.toml,line=2::FORGED-SKIP"
+[[test]]
+name = "xf"
+command = "{}"
+golden_thresholds = {{ known_failure = "bug\n::error file=forged.toml,line=3::FORGED-KF" }}
+"#,
+            standin(""),
+            standin(" --shift 0.1")
+        ),
+    )
+    .unwrap();
+    let env = [("GITHUB_ACTIONS", "true")];
+    let r = run_env(
+        d,
+        &["check", "--suite", "suite.toml", "--platform", "p"],
+        60,
+        &env,
+    );
+    r.exited(1)?;
+    let forged = r
+        .stdout
+        .lines()
+        .filter(|l| l.contains("FORGED"))
+        .find(|l| l.starts_with("::"));
+    if let Some(l) = forged {
+        return Err(format!("a line of its own: {l:?}\n{}", r.stdout));
+    }
+    let stop = r.stdout.lines().next().unwrap_or_default().to_string();
+    let token = stop.strip_prefix("::stop-commands::").unwrap_or_default();
+    if token.len() < 32 || !r.stdout.contains(&format!("\n::{token}::\n")) {
+        return Err(format!("no stop-commands around the table: {}", r.stdout));
+    }
+    Ok(())
+}
+
+/// F6: --calibrate rendered a test skipped on the platform and wrote its golden.
+fn calibrate_a_skipped_test(d: &Path) -> Result<(), String> {
+    teams_suite(
+        d,
+        "goldens = \"g/{platform}\"\nplatforms = [\"p\", \"q\"]",
+        &format!(
+            "[[test]]\nname = \"mc\"\ncommand = \"{}\"\n[test.platform.q]\nskip = \"no device\"\n",
+            standin(" --seed {seed} --noise 0.02")
+        ),
+    );
+    let a = [
+        "check",
+        "--suite",
+        "suite.toml",
+        "--platform",
+        "q",
+        "--calibrate",
+        "3",
+    ];
+    run(d, &[&a[..], &["--test", "mc"]].concat(), 60).refused(2, &["skipped on platform q"])?;
+    let r = run(d, &a, 60);
+    r.exited(0)?;
+    match d.join("g").exists() {
+        true => Err(format!("a skipped test calibrated: {}", r.stdout)),
+        false => Ok(()),
+    }
+}
+
+/// F7: a mask over the whole frame compared 0 pixels and passed a 0.5 shift; now REFUSED.
+fn mask_over_the_whole_frame(d: &Path) -> Result<(), String> {
+    teams_suite(
+        d,
+        "goldens = \"g\"",
+        &format!(
+            "[[test]]\nname = \"m\"\ncommand = \"{}\"\n[[test.mask]]\nrect = [0, 0, 16, 10]\n",
+            standin(" $SHIFT")
+        ),
+    );
+    run(d, &["check", "--suite", "suite.toml", "--update"], 60).exited(0)?;
+    let r = run_env(
+        d,
+        &["check", "--suite", "suite.toml"],
+        60,
+        &[("SHIFT", "--shift 0.5")],
+    );
+    r.exited(3)?;
+    match r.stdout.contains("the mask leaves no pixel to compare") {
+        true => Ok(()),
+        false => Err(r.stdout),
+    }
+}
+
+/// F8: renders of ±3e38 made a variance of +Inf everywhere, written; every later run REFUSED.
+fn calibrate_a_variance_past_float32(d: &Path) -> Result<(), String> {
+    teams_suite(
+        d,
+        "goldens = \"g\"",
+        &format!(
+            "[[test]]\nname = \"mc\"\ncommand = \"{}\"\n",
+            standin(" --seed {seed} --noise 5e37")
+        ),
+    );
+    let r = run(
+        d,
+        &["check", "--suite", "suite.toml", "--calibrate", "3"],
+        60,
+    );
+    r.exited(3)?;
+    match (r.stdout.contains("overflow float32"), d.join("g").exists()) {
+        (true, false) => Ok(()),
+        _ => Err(format!("{}{}", r.stdout, r.ended())),
+    }
+}
+
+/// F9: --report-url with a newline injected rows and a forged command into the summary; with a
+/// `#` it made `#frag#row`. Now exit 2, one line.
+fn report_url_that_breaks_the_summary(d: &Path) -> Result<(), String> {
+    teams_suite(d, "goldens = \"g\"", "[[test]]\nname = \"disc\"\n");
+    for url in [
+        "http://x/\n::error::X\n| injected | row |",
+        "http://x/#frag",
+        "a b)c](http://evil",
+        "",
+    ] {
+        run(
+            d,
+            &["check", "--suite", "suite.toml", "--report-url", url],
+            30,
+        )
+        .refused(2, &["--report-url"])?;
+    }
+    Ok(())
+}
+
+/// The smaller findings: a five-number rect was taken; a colour mask image read its red
+/// channel only; a replay line dropped `--seed`.
+fn masks_and_replays_as_written(d: &Path) -> Result<(), String> {
+    teams_suite(
+        d,
+        "goldens = \"g\"",
+        "[[test]]\nname = \"r\"\n[[test.mask]]\nrect = [0, 0, 4, 4, 4]\n",
+    );
+    run(d, &["check", "--suite", "suite.toml"], 30).refused(2, &["mask rect"])?;
+    let png = d.join("colour.png");
+    let rgb: Vec<u8> = (0..16 * 10).flat_map(|_| [0u8, 255, 255]).collect();
+    image::save_buffer(&png, &rgb, 16, 10, image::ColorType::Rgb8).unwrap();
+    teams_suite(
+        d,
+        "goldens = \"g\"",
+        "[[test]]\nname = \"c\"\n[[test.mask]]\nimage = \"colour.png\"\n",
+    );
+    run(d, &["check", "--suite", "suite.toml", "--update"], 30).exited(0)?;
+    let r = run(d, &["check", "--suite", "suite.toml"], 30);
+    r.exited(3)?;
+    if !r.stdout.contains("a mask is grey") {
+        return Err(format!("colour mask taken: {}", r.stdout));
+    }
+    teams_suite(d, "goldens = \"g\"", "[[test]]\nname = \"s\"\n");
+    let r = run(
+        d,
+        &[
+            "check",
+            "--suite",
+            "suite.toml",
+            "--seed",
+            "6",
+            "--json",
+            "s.json",
+        ],
+        30,
+    );
+    r.exited(1)?;
+    match std::fs::read_to_string(d.join("s.json")) {
+        Ok(j) if j.contains("--test s --seed 6") => Ok(()),
+        j => Err(format!("no --seed in the replay: {j:?}")),
+    }
+}
+
 const ROWS: &[Row] = &[
     (
         "update_beside_an_external_reference",
@@ -2267,6 +2619,34 @@ const ROWS: &[Row] = &[
         "spawn_replay_intersector_and_one_per_cell",
         spawn_replay_intersector_and_one_per_cell,
     ),
+    (
+        "calibrate_renders_that_never_vary",
+        calibrate_renders_that_never_vary,
+    ),
+    (
+        "variance_file_of_another_test",
+        variance_file_of_another_test,
+    ),
+    (
+        "summary_over_another_platforms_golden",
+        summary_over_another_platforms_golden,
+    ),
+    (
+        "step_summary_over_an_input_or_a_fifo",
+        step_summary_over_an_input_or_a_fifo,
+    ),
+    ("forged_workflow_commands", forged_workflow_commands),
+    ("calibrate_a_skipped_test", calibrate_a_skipped_test),
+    ("mask_over_the_whole_frame", mask_over_the_whole_frame),
+    (
+        "calibrate_a_variance_past_float32",
+        calibrate_a_variance_past_float32,
+    ),
+    (
+        "report_url_that_breaks_the_summary",
+        report_url_that_breaks_the_summary,
+    ),
+    ("masks_and_replays_as_written", masks_and_replays_as_written),
 ];
 
 #[test]

@@ -201,6 +201,10 @@ fn a_mask_leaves_pixels_out_of_every_metric_and_is_counted_and_drawn() {
         "{html}"
     );
     assert!(d.join("html/clock-golden-command-masked.png").is_file());
+    // The difference map and the failing pixels follow the mask: the timestamp it leaves out
+    // does not set the map's scale (nothing else changed: no difference to draw)
+    assert!(html.contains("identical: no difference"), "{html}");
+    assert!(html.contains("0 px over fail 0.001"), "{html}");
     // Without the mask the same render fails: the mask is what lets the timestamp through
     let suite = std::fs::read_to_string(d.join("suite.toml")).unwrap();
     let unmasked = suite.replacen("rect = [0, 0, 8, 4]", "rect = [0, 4, 8, 4]", 1);
@@ -215,7 +219,7 @@ fn a_mask_leaves_pixels_out_of_every_metric_and_is_counted_and_drawn() {
     let a = Image::new(4, 1, &["Y"], vec![0.5; 4]);
     let mut b = a.clone();
     b.data[3] += 3e-6;
-    b.data[0] = 9.0; // left out
+    b.data[0] = f32::NAN; // left out: not even a NaN counts there
     let t = Thresholds {
         fail: 1e-6,
         ..Default::default()
@@ -230,6 +234,7 @@ fn a_mask_leaves_pixels_out_of_every_metric_and_is_counted_and_drawn() {
     let mask = Mask::build(a.display, &[rect(0, 0.0), rect(3, 0.25)]).unwrap();
     let masked = compare_masked(&a, &b, &t, &mask).unwrap();
     assert_eq!((masked.n_fail, masked.pixels), (0, 3));
+    assert_eq!(masked.n_nonfinite_mismatch, 0);
     assert!(masked.max_error < 1e-6, "{}", masked.max_error);
     assert_eq!(compare(&a, &b, &t).unwrap().n_fail, 2);
     // A rectangle outside the frame is refused, not clipped
@@ -313,6 +318,11 @@ fn calibration_learns_the_noise_passes_fresh_seeds_and_catches_a_one_percent_shi
             .unwrap()
             .contains("z-test (calibrated, 8 renders)"));
     }
+    // The report draws the z-test's failing pixels (none), not those over idiff's `fail`
+    let o = run(&d, &with(&["--report", "rep", "--seed", "99"]), &[]);
+    assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    let html = std::fs::read_to_string(d.join("rep/index.html")).unwrap();
+    assert!(html.contains("0 px fail the z-test (it decides)"), "{html}");
     // A 1 % shift of the mean, up or down, fails on the mean-shift test, whatever the seed
     for shift in ["0.01", "-0.01"] {
         for seed in ["200", "201"] {
@@ -387,11 +397,11 @@ fn ci_gets_annotations_on_the_test_lines_and_a_summary_failing_first() {
     let out = String::from_utf8_lossy(&o.stdout).into_owned();
     let errors: Vec<&str> = out.lines().filter(|l| l.starts_with("::error ")).collect();
     assert_eq!(errors.len(), 1, "{out}");
-    // On disc's [[test]] line of the suite file, the platform in the title, escaped text
+    // On disc's name line of the suite file, the platform in the title, escaped text
     let line = std::fs::read_to_string(d.join("suite.toml"))
         .unwrap()
         .lines()
-        .position(|l| l.starts_with("[[test]]"))
+        .position(|l| l.starts_with("name = \"disc\""))
         .unwrap()
         + 1;
     assert!(

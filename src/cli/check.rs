@@ -99,6 +99,7 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
         .iter()
         .copied()
         .chain(goldens.iter().map(|p| p.as_path()))
+        .chain(suite.others.iter().map(|p| p.as_path()))
         .collect();
     let files: Vec<&Path> = [&a.json, &a.junit, &a.markdown, &a.summary]
         .into_iter()
@@ -107,6 +108,34 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
         .collect();
     let dirs: Vec<&Path> = a.report.iter().map(|p| p.as_path()).collect();
     check_outputs(&files, &dirs, &kept)?;
+    // The step summary GitHub's runner names: appended to, so checked as an output too
+    let step_summary = std::env::var_os("GITHUB_STEP_SUMMARY")
+        .filter(|p| !p.is_empty() && a.summary.is_none())
+        .map(PathBuf::from);
+    if let Some(p) = &step_summary {
+        appendable(p, &kept)?;
+    }
+    if let Some(u) = &a.report_url {
+        check::ci::check_url(u).map_err(anyhow::Error::msg)?;
+    }
+    // Under annotations, nothing but them is read as a workflow command: a note, a suite name
+    // or a path printed in the table cannot forge one (GitHub's stop-commands)
+    let annotate = a.annotations || std::env::var("GITHUB_ACTIONS").is_ok_and(|v| v == "true");
+    let token = format!(
+        "rayproof-{}",
+        &check::sha256_bytes(
+            format!(
+                "{:?} {} {:?}",
+                std::time::SystemTime::now(),
+                std::process::id(),
+                a.suite
+            )
+            .as_bytes()
+        )[..32]
+    );
+    if annotate {
+        say!("::stop-commands::{token}");
+    }
     let mut outputs = Outputs::new().reading(&inputs);
     if let Some(n) = a.calibrate {
         if a.update || a.report.is_some() || !files.is_empty() || !a.method.is_empty() {
@@ -149,7 +178,7 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     say_raw!("{}", check::table(rows));
     say!(
         "{}: {} comparisons in {:.1} s: {}",
-        suite.name,
+        rayproof::images::one_line(&suite.name),
         rows.len(),
         start.elapsed().as_secs_f64(),
         check::counts(rows)
@@ -184,23 +213,23 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
         outputs.write(p, summary.as_bytes())?;
     }
     outputs.commit()?;
-    if a.annotations || std::env::var("GITHUB_ACTIONS").is_ok_and(|v| v == "true") {
-        say_raw!("{}", check::ci::annotations(rows, &suite));
-    }
-    if a.summary.is_none() {
-        if let Some(p) = std::env::var_os("GITHUB_STEP_SUMMARY").filter(|p| !p.is_empty()) {
-            // The runner's file for this step: appended to, as its protocol says
-            let appended = std::fs::OpenOptions::new()
-                .append(true)
-                .create(true)
-                .open(&p)
-                .and_then(|mut f| std::io::Write::write_all(&mut f, (summary + "\n").as_bytes()));
-            if let Err(e) = appended {
-                say!(
-                    "cannot append the summary to GITHUB_STEP_SUMMARY ({}): {e}",
-                    Path::new(&p).display()
-                );
-            }
+    if let Some(p) = &step_summary {
+        // The runner's file for this step: appended to, as its protocol says
+        let appended = std::fs::OpenOptions::new()
+            .append(true)
+            .open(p)
+            .or_else(|_| {
+                std::fs::OpenOptions::new()
+                    .append(true)
+                    .create_new(true)
+                    .open(p)
+            })
+            .and_then(|mut f| std::io::Write::write_all(&mut f, (summary + "\n").as_bytes()));
+        if let Err(e) = appended {
+            say!(
+                "cannot append the summary to GITHUB_STEP_SUMMARY ({}): {e}",
+                p.display()
+            );
         }
     }
     for g in &out.blessed {
@@ -209,7 +238,45 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     if let Some(dir) = &a.report {
         say!("report: {}", dir.join("index.html").display());
     }
+    if annotate {
+        say!("::{token}::");
+        say_raw!("{}", check::ci::annotations(rows, &suite));
+    }
     Ok(out.exit_code())
+}
+
+/// GitHub's step summary file: a regular file (or none yet, in a directory), never a file the
+/// run reads or keeps (the suite, a scene, a golden): it is appended to, not replaced.
+fn appendable(p: &Path, kept: &[&Path]) -> Result<()> {
+    let id = rayproof::output::identity(p);
+    if let Some(k) = kept.iter().find(|k| rayproof::output::identity(k) == id) {
+        anyhow::bail!(
+            "GITHUB_STEP_SUMMARY={}: is {} of this run; rayproof never writes over its inputs or goldens",
+            p.display(),
+            k.display()
+        );
+    }
+    match std::fs::metadata(p) {
+        Ok(m) if !m.is_file() => anyhow::bail!(
+            "GITHUB_STEP_SUMMARY={}: not a regular file (a directory, FIFO or device)",
+            p.display()
+        ),
+        Ok(_) => Ok(()),
+        Err(_) => {
+            let dir = p
+                .parent()
+                .filter(|d| !d.as_os_str().is_empty())
+                .unwrap_or(Path::new("."));
+            if dir.is_dir() {
+                Ok(())
+            } else {
+                anyhow::bail!(
+                    "GITHUB_STEP_SUMMARY={}: its directory does not exist",
+                    p.display()
+                )
+            }
+        }
+    }
 }
 
 /// `check --calibrate N`: every render made and checked before anything is written (exit 3 and

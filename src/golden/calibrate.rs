@@ -95,6 +95,17 @@ pub fn calibrate(
             bail!("no test '{n}' in {}", suite.path.display());
         }
     }
+    // A test skipped on this platform is not rendered: named, it is an error; else left out
+    let platform = suite.platform.as_deref().unwrap_or_default();
+    for t in &tests {
+        if let (Some(why), false) = (&t.skip, names.is_empty()) {
+            bail!(
+                "--calibrate: test '{}' is skipped on platform {platform}: {why}",
+                t.name
+            );
+        }
+    }
+    let tests: Vec<&Test> = tests.into_iter().filter(|t| t.skip.is_none()).collect();
     for t in &tests {
         if let Err(why) = calibratable(t) {
             bail!("--calibrate: test '{}': {why}", t.name);
@@ -151,6 +162,26 @@ pub fn calibrate(
         }
         let imgs: Vec<&Image> = made.iter().map(|m| &m.image).collect();
         let (mean, variance, proposal, sigma) = statistics(&imgs);
+        // Renders that never vary calibrate nothing ({seed} without effect); sums past the
+        // float range are no variance either
+        if variance.data.iter().all(|&v| v == 0.0) {
+            return Ok(Err(format!(
+                "test '{}': the {renders} renders are identical at every pixel: its renderer ignores {{seed}}, so there is no noise to learn",
+                t.name
+            )));
+        }
+        let bad = mean
+            .data
+            .iter()
+            .chain(&variance.data)
+            .filter(|v| !v.is_finite())
+            .count();
+        if bad > 0 {
+            return Ok(Err(format!(
+                "test '{}': {bad} samples of the mean or variance overflow float32 (renders of ±3e38?): not a noise to learn",
+                t.name
+            )));
+        }
         // The golden (the mean) and the variance, as EXR bytes
         let bytes = |img: &Image, name: &str| -> Result<Vec<u8>> {
             let p = scratch.0.join(name);

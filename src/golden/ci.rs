@@ -92,6 +92,22 @@ pub fn annotations(rows: &[Row], suite: &Suite) -> String {
     out
 }
 
+/// A `--report-url`: non-empty, without a fragment (rayproof adds each row's), whitespace,
+/// control characters or any of `()[]<>|"'\`` that would end a Markdown link or table cell.
+pub fn check_url(url: &str) -> Result<(), String> {
+    let bad = url
+        .chars()
+        .find(|c| c.is_whitespace() || c.is_control() || "#()[]<>|\"'`\\".contains(*c));
+    match (url.is_empty(), bad) {
+        (true, _) => Err("--report-url is empty".into()),
+        (_, Some(c)) => Err(format!(
+            "--report-url {:?}: {c:?} cannot stand in a link of the summary (percent-encode it; no #fragment: each row adds its own)",
+            url.chars().take(200).collect::<String>()
+        )),
+        _ => Ok(()),
+    }
+}
+
 /// Markdown text in a table cell: one line, `|` escaped, at most 300 characters.
 fn cell(s: &str) -> String {
     let one: String = s.split_whitespace().collect::<Vec<_>>().join(" ");
@@ -102,6 +118,7 @@ fn cell(s: &str) -> String {
     short
         .replace('\\', "\\\\")
         .replace('|', "\\|")
+        .replace('&', "&amp;")
         .replace('<', "&lt;")
 }
 
@@ -201,6 +218,17 @@ mod tests {
     fn annotation_text_cannot_end_a_command_early() {
         assert_eq!(data("50% off\r\nnext"), "50%25 off%0D%0Anext");
         assert_eq!(property("a:b,c%"), "a%3Ab%2Cc%25");
-        assert_eq!(cell("a | b\n c"), "a \\| b c");
+        assert_eq!(cell("a | b\n c & <d>"), "a \\| b c &amp; &lt;d>");
+        assert!(check_url("https://ci.example/1/index.html").is_ok());
+        for bad in [
+            "",
+            "http://x/#f",
+            "http://x/a b",
+            "http://x/\n::error::X",
+            "a)b",
+            "a|b",
+        ] {
+            assert!(check_url(bad).is_err(), "{bad:?}");
+        }
     }
 }

@@ -54,7 +54,7 @@ pub fn html(rows: &[Row], title: &str, platform: Option<&str>) -> String {
          td:first-child {{ max-width: 22em; overflow-wrap: anywhere; }}\n\
          </style></head><body>\n<h1>{title}</h1>\n<p class=\"counts\">{} comparisons: {}.{platform}</p>\n\
          <p>Hover over an image to swap new and reference. Failing pixels: red where the comparison \
-         counts a pixel over <code>fail</code>, over the new render in grey. |New − Reference|: \
+         counts a pixel over <code>fail</code> (or, when a z-test decides, where it fails), over the new render in grey. |New − Reference|: \
          the largest channel difference per pixel, black 0 to pale yellow at the maximum printed \
          below it, cyan for NaN/Inf mismatches. The green ring marks the maximum. ꟻLIP: the \
          perceptual error (magma). A test's mask, under its failing pixels: striped magenta where \
@@ -109,12 +109,14 @@ fn row(r: &Row) -> String {
             format!(
                 "<td><img class=\"new\" src=\"{new}\" onmouseover=\"this.src='{reference}'\" onmouseout=\"this.src='{new}'\"></td>\
                  <td><img class=\"reference\" src=\"{reference}\" onmouseover=\"this.src='{new}'\" onmouseout=\"this.src='{reference}'\"></td>\
-                 <td><div class=\"pic\"><img class=\"mask\" src=\"{}\">{ring}</div><small class=\"cap\">{} px over fail {}</small>{masked}</td>\
+                 <td><div class=\"pic\"><img class=\"mask\" src=\"{}\">{ring}</div><small class=\"cap\">{}</small>{masked}</td>\
                  <td><div class=\"pic\"><img class=\"diff\" src=\"{}\">{ring}</div><small class=\"cap\">{scale}</small></td>\
                  <td><img class=\"flip\" src=\"{}\"></td>",
                 url(&i.mask),
-                i.mask_pixels,
-                r.rule.idiff.fail,
+                match &r.ztest {
+                    Some(_) => format!("{} px fail the z-test (it decides)", i.mask_pixels),
+                    None => format!("{} px over fail {}", i.mask_pixels, r.rule.idiff.fail),
+                },
                 url(&i.diff),
                 url(&i.flip),
             )

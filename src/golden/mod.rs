@@ -262,7 +262,7 @@ pub mod suite;
 
 pub use html::html;
 pub use junit::junit;
-pub use references::{sha256_file, utc_now, Config, Provenance, Rule};
+pub use references::{sha256_bytes, sha256_file, utc_now, Config, Provenance, Rule};
 pub use rows::{counts, log_tail, markdown, table, ReportImages, Row, Status, LOG_TAIL_LINES};
 pub use suite::{Source, Suite, Test};
 
@@ -624,7 +624,7 @@ fn judge(
     if verdict == Verdict::Failure {
         why.push(match z {
             Some(z) if z.beyond_noise > 0 => format!(
-                "z-test: {} pixels beyond any noise (NaN/Inf, or a channel the variance lacks)",
+                "z-test: {} pixels beyond any noise (NaN/Inf, a channel the variance lacks, or a change where the calibration's renders never varied)",
                 z.beyond_noise
             ),
             Some(z) if z.shift_p <= z.shift_alpha => {
@@ -1113,7 +1113,17 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
             Some(m) => images::compare_masked(reference, &made.image, &rule.idiff, m),
             None => images::compare(reference, &made.image, &rule.idiff),
         };
-        match compared {
+        // A mask that leaves nothing to compare proves nothing
+        let compared = compared.map(|c| (c.pixels == 0, c));
+        if let Ok((true, _)) = compared {
+            (r.status, r.note) = (
+                Status::Refused,
+                "the mask leaves no pixel to compare: nothing was compared".into(),
+            );
+            rows.push(r);
+            continue;
+        }
+        match compared.map(|(_, c)| c) {
             Err(e) => {
                 (r.status, r.note) = (Status::Failure, format!("{e}"));
             }
@@ -1132,8 +1142,19 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                 // The z-test, when a variance is given: a calibrated golden's own (Student's t
                 // over its renders), else the renderer's
                 let calibrated = match (&prov.calibration, *name == "golden") {
-                    (Some((renders, path)), true) => {
-                        match verified_reference(path, &Sources::default(), false) {
+                    (Some((renders, path, sha)), true) => {
+                        // The variance the calibration wrote, by its own record too (another
+                        // test's --update could re-enter it in the manifest)
+                        let same = sha256_file(path).ok().as_ref() == Some(sha);
+                        let read = verified_reference(path, &Sources::default(), false)
+                            .and_then(|v| match same {
+                                true => Ok(v),
+                                false => anyhow::bail!(
+                                    "{} is not the variance its calibration wrote (SHA-256 {sha}): re-calibrate",
+                                    path.display()
+                                ),
+                            });
+                        match read {
                             Ok((v, ..)) => Some((v, 1, u64::from(*renders) - 1)),
                             Err(e) => {
                                 (r.status, r.note) = (
@@ -1204,6 +1225,7 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
                         image: &image,
                         flip: &map,
                         mask: mask.as_ref(),
+                        z: z.as_ref(),
                     };
                     r.images = Some(write_images(dir, &r, &view, rule)?);
                 }
@@ -1240,7 +1262,7 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
 /// The command that runs one test again: `rayproof check --suite SUITE --test NAME`, with the
 /// method and precision of an extra configuration (`extra`); paths and names quoted for `sh`
 /// when they need it.
-fn replay_command(suite: &Suite, t: &Test, extra: bool) -> String {
+fn replay_command(suite: &Suite, t: &Test, extra: bool, seed: u64) -> String {
     let q = |s: &str| {
         let plain = !s.is_empty()
             && s.chars()
@@ -1258,6 +1280,9 @@ fn replay_command(suite: &Suite, t: &Test, extra: bool) -> String {
     );
     if let Some(p) = &suite.platform {
         c += &format!(" --platform {}", q(p));
+    }
+    if seed != 0 {
+        c += &format!(" --seed {seed}");
     }
     if let (true, Source::Rayproof(cfg)) = (extra, &t.source) {
         c += &format!(
@@ -1315,7 +1340,7 @@ pub fn run(suite: &Suite, o: &Options, outputs: &mut crate::output::Outputs) -> 
     let mut to_bless = vec![];
     for (i, t) in tests.iter().enumerate() {
         let (mut r, made) = run_test(suite, t, o, &scratch.0)?;
-        let replay = replay_command(suite, t, i >= own);
+        let replay = replay_command(suite, t, i >= own, o.seed);
         for row in &mut r {
             row.replay = replay.clone();
             row.platform = suite.platform.clone();
@@ -1396,6 +1421,7 @@ struct Compared<'a> {
     image: &'a Image,
     flip: &'a [f32],
     mask: Option<&'a images::Mask>,
+    z: Option<&'a images::ZTest>,
 }
 
 /// A test's mask, its images read (a mask image is a file the suite reads; one line if it
@@ -1425,8 +1451,21 @@ fn write_images(dir: &Path, row: &Row, view: &Compared, rule: &Rule) -> Result<R
     let pair = format!("{}-{}-{config}", row.test, row.reference);
     let (w, h) = (img.width, img.height);
     let new_rgb = images::tonemap_rgb8(img);
-    let mask = images::fail_mask(reference, img, &rule.idiff, view.mask)?;
-    let diff = images::diff_map(reference, img)?;
+    // The failing pixels: the z-test's when it decides, else those over `fail`
+    let mask = match view.z {
+        Some(z) => z.failing_map.clone(),
+        None => images::fail_mask(reference, img, &rule.idiff, view.mask)?,
+    };
+    let diff = images::diff_map(reference, img, view.mask)?;
+    // ꟻLIP under the mask as the comparison weighs it
+    let flip: Vec<f32> = match view.mask {
+        Some(m) => flip
+            .iter()
+            .zip(m.over(img.data_window()))
+            .map(|(f, w)| f * w)
+            .collect(),
+        None => flip.to_vec(),
+    };
     let out = ReportImages {
         new: format!("{}-new-{config}.png", row.test),
         reference: format!("{}-{}.png", row.test, row.reference),
@@ -1446,6 +1485,6 @@ fn write_images(dir: &Path, row: &Row, view: &Compared, rule: &Rule) -> Result<R
     png(&out.reference, &images::tonemap_rgb8(reference))?;
     png(&out.mask, &images::mask_rgb8(&mask, &new_rgb))?;
     png(&out.diff, &images::diff_map_rgb8(&diff, w, h))?;
-    png(&out.flip, &images::heatmap_rgb8(flip, w, h))?;
+    png(&out.flip, &images::heatmap_rgb8(&flip, w, h))?;
     Ok(out)
 }

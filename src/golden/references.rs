@@ -139,9 +139,10 @@ pub struct Provenance {
     pub height: Option<u32>,
     /// `n` of the n×n sampling grid the manifest records.
     pub grid: Option<u32>,
-    /// A golden made by `check --calibrate`: how many renders, and the variance image beside
-    /// it (verified by its own manifest entry when it is read).
-    pub calibration: Option<(u32, PathBuf)>,
+    /// A golden made by `check --calibrate`: how many renders, the variance image beside it
+    /// and the SHA-256 the calibration recorded for it (checked, with the variance's own
+    /// manifest entry, when it is read).
+    pub calibration: Option<(u32, PathBuf, String)>,
 }
 
 /// The manifest of the images in `dir` (`dir/manifest.json`), if there is one.
@@ -342,7 +343,7 @@ fn calibration(
     entry: &serde_json::Value,
     dir: &Path,
     path: &Path,
-) -> Result<Option<(u32, PathBuf)>> {
+) -> Result<Option<(u32, PathBuf, String)>> {
     let Some(c) = entry
         .get("calibration")
         .filter(|c| c.get("variance").is_some())
@@ -357,10 +358,11 @@ fn calibration(
         .get("variance")
         .and_then(|v| v.as_str())
         .filter(|n| !n.is_empty() && !n.contains(['/', '\\']) && *n != "." && *n != "..");
-    match (renders, name) {
-        (Some(r), Some(n)) => Ok(Some((r as u32, dir.join(n)))),
+    let sha = c.get("variance_sha256").and_then(|v| v.as_str());
+    match (renders, name, sha) {
+        (Some(r), Some(n), Some(h)) => Ok(Some((r as u32, dir.join(n), h.to_string()))),
         _ => bail!(
-            "{}: the manifest's calibration is not {{renders: 2 to {}, variance: a file name beside it}}",
+            "{}: the manifest's calibration is not {{renders: 2 to {}, variance: a file name beside it, variance_sha256}}",
             path.display(),
             super::calibrate::MAX_RENDERS
         ),

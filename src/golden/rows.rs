@@ -144,7 +144,8 @@ pub struct ReportImages {
     /// The difference that shows as the top of the |difference| map's colour scale: the
     /// largest finite |test − reference| (0 when the images are equal).
     pub diff_scale: f64,
-    /// Failing pixels in the mask (equal to the comparison's count of pixels over `fail`).
+    /// Failing pixels in the mask: the comparison's count of pixels over `fail`, or the
+    /// z-test's failing pixels when it decides.
     pub mask_pixels: u64,
     /// The test's mask drawn over the test image (left-out pixels striped magenta, scaled ones
     /// tinted blue), when the test has one.
@@ -194,10 +195,16 @@ pub fn table(rows: &[Row]) -> String {
             c.and_then(|c| c.flip_mean)
                 .map(|v| format!("{v:.4}"))
                 .unwrap_or("-".into()),
-            r.note
+            // One row, one line: a note or warning of several lines (a suite's skip reason, a
+            // path) cannot start a line of its own
+            crate::images::one_line(&r.note)
         );
         for warning in &r.warnings {
-            s += &format!("{:<w$}   warning: {warning}\n", "");
+            s += &format!(
+                "{:<w$}   warning: {}\n",
+                "",
+                crate::images::one_line(warning)
+            );
         }
     }
     s

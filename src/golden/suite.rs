@@ -116,7 +116,7 @@ struct HeadSpec {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct TestSpec {
-    name: String,
+    name: toml::Spanned<String>,
     scene: Option<String>,
     image: Option<String>,
     command: Option<String>,
@@ -147,7 +147,7 @@ struct TestSpec {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MaskSpec {
-    rect: Option<[i64; 4]>,
+    rect: Option<Vec<i64>>,
     tolerance: Option<f64>,
     image: Option<String>,
 }
@@ -291,6 +291,9 @@ pub struct Suite {
     /// suite's `platforms`, put for `{platform}` in its paths and commands, and choosing the
     /// `[platform.NAME]` thresholds. `None`: the suite declares no platforms.
     pub platform: Option<String>,
+    /// The goldens, their manifests and variances, and the references of the suite's other
+    /// platforms: files no output of this run may replace.
+    pub others: Vec<PathBuf>,
 }
 
 /// The longest `[suite] timeout`: one week, in seconds (a render command that may run longer is
@@ -363,7 +366,7 @@ impl Suite {
             for (i, p) in list.iter().enumerate() {
                 if !file_name_safe(p) || list[..i].contains(p) {
                     bail!(
-                        "{}: suite.platforms: {:?} is repeated or not a name of letters, digits, '-', '_' or '.' (it becomes part of file names)",
+                        "{}: suite.platforms: {:?} is repeated or not a name of 1 to 100 letters, digits, '-', '_' or '.' (it becomes part of file names)",
                         path.display(),
                         p.chars().take(80).collect::<String>()
                     );
@@ -448,17 +451,17 @@ impl Suite {
             None => None,
         };
         let mut tests: Vec<Test> = vec![];
-        // Where each [[test]] starts, for CI annotations
-        let starts: Vec<usize> = text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| l.trim_start().starts_with("[[test]]"))
-            .map(|(i, _)| i + 1)
-            .collect();
-        for (index, t) in spec.test.into_iter().enumerate() {
-            let ctx = |what: String| format!("{}: test '{}': {what}", path.display(), t.name);
+        let mut others: Vec<PathBuf> = vec![];
+        for t in spec.test {
+            // The line of the test's name, for CI annotations (the parser's own span of it)
+            let line = text[..t.name.span().start.min(text.len())]
+                .matches('\n')
+                .count()
+                + 1;
+            let test_name: String = t.name.get_ref().clone();
+            let ctx = |what: String| format!("{}: test '{}': {what}", path.display(), test_name);
             for name in t.platform.keys() {
-                declared_platform(&format!("test '{}': ", t.name), name)?;
+                declared_platform(&format!("test '{}': ", test_name), name)?;
             }
             let t_on = t
                 .platform
@@ -470,10 +473,10 @@ impl Suite {
                 ));
             }
             // A unique, file-name-safe name
-            if !file_name_safe(&t.name) {
+            if !file_name_safe(&test_name) {
                 bail!(ctx("a name must be letters, digits, '-', '_' or '.'".into()));
             }
-            if tests.iter().any(|o| o.name == t.name) {
+            if tests.iter().any(|o| o.name == test_name) {
                 bail!(ctx("a second test with this name".into()));
             }
             // Exactly one image source
@@ -551,7 +554,7 @@ impl Suite {
             for m in &t.mask {
                 mask.push(match (&m.rect, &m.image, m.tolerance) {
                     (Some(r), None, tol) => {
-                        if r[2] <= 0 || r[3] <= 0 {
+                        if r.len() != 4 || r[2] <= 0 || r[3] <= 0 {
                             bail!(ctx(format!("mask rect {r:?}: [x, y, width, height] with a width and height of at least 1")));
                         }
                         let weight = match tol {
@@ -559,7 +562,7 @@ impl Suite {
                             Some(k) if k.is_finite() && k >= 1.0 => (1.0 / k) as f32,
                             Some(k) => bail!(ctx(format!("mask tolerance = {k}: a factor of at least 1 by which the rectangle's tolerances grow (leave it out to ignore the rectangle)"))),
                         };
-                        MaskSource::Rect(*r, weight)
+                        MaskSource::Rect([r[0], r[1], r[2], r[3]], weight)
                     }
                     (None, Some(i), None) => MaskSource::Image(at(i)),
                     _ => bail!(ctx("a [[test.mask]] is rect = [x, y, width, height] (with an optional tolerance) or image = \"PATH\"".into())),
@@ -622,9 +625,31 @@ impl Suite {
                 Some(toml::Value::Boolean(false)) => None,
                 Some(toml::Value::Boolean(true)) | None => goldens
                     .as_ref()
-                    .map(|g| g.join(format!("{}.{out_ext}", t.name))),
+                    .map(|g| g.join(format!("{}.{out_ext}", test_name))),
                 Some(_) => bail!(ctx("golden must be a path or false".into())),
             };
+            // The same files of the suite's other platforms: no output of this run may be one
+            for other in platforms.iter().flatten() {
+                if Some(other.as_str()) == platform {
+                    continue;
+                }
+                let at_other = |p: &str| dir.join(p.replace("{platform}", other));
+                let golden = match &t.golden {
+                    Some(toml::Value::String(p)) => Some(at_other(p)),
+                    Some(toml::Value::Boolean(false)) => None,
+                    _ => spec
+                        .suite
+                        .goldens
+                        .as_deref()
+                        .map(|g| at_other(g).join(format!("{}.{out_ext}", test_name))),
+                };
+                if let Some(g) = golden {
+                    others.push(super::calibrate::variance_path(&g));
+                    others.push(g.with_file_name("manifest.json"));
+                    others.push(g);
+                }
+                others.extend(t.reference.iter().map(|r| at_other(&r.path)));
+            }
             // A golden keeps its real format: its name says the test image's
             if let (Some(g), Some(f)) = (&golden_path, output) {
                 if Format::of_path(g) != Some(f) {
@@ -658,7 +683,7 @@ impl Suite {
                 ));
             }
             tests.push(Test {
-                name: t.name.clone(),
+                name: test_name.clone(),
                 scene: t.scene.as_deref().map(at),
                 scene_name: t.scene.clone(),
                 inputs,
@@ -679,7 +704,7 @@ impl Suite {
                 references,
                 skip: t_on.skip.clone(),
                 mask,
-                line: starts.get(index).copied().unwrap_or(1),
+                line,
             });
         }
         if tests.is_empty() {
@@ -693,6 +718,7 @@ impl Suite {
             timeout: Duration::ZERO,
             tests: tests.clone(),
             platform: None,
+            others: vec![],
         };
         // Each file's identity once (a look-up per golden: linear in the suite's size)
         let read: std::collections::HashMap<crate::output::Identity, PathBuf> = suite
@@ -701,20 +727,24 @@ impl Suite {
             .rev()
             .map(|p| (crate::output::identity(&p), p))
             .collect();
-        let mut goldens: std::collections::HashMap<crate::output::Identity, &str> =
+        let mut goldens: std::collections::HashMap<crate::output::Identity, String> =
             Default::default();
         for t in &tests {
             if let Some((g, _)) = &t.golden {
                 let id = crate::output::identity(g);
-                // One golden, two tests (`g/a.exr` and `g/../g/a.exr`): --update would write
-                // it twice
-                if let Some(other) = goldens.insert(id.clone(), &t.name) {
-                    bail!(
-                        "{}: tests '{other}' and '{}' have one golden, {}: give each its own",
-                        path.display(),
-                        t.name,
-                        g.display()
-                    );
+                // One golden, two tests (`g/a.exr` and `g/../g/a.exr`), or a golden that is
+                // another test's calibrated variance (tests `a` and `a.variance`): --update or
+                // --calibrate would write one file twice
+                let variance = super::calibrate::variance_path(g);
+                for (what, p) in [("golden", g), ("calibrated variance", &variance)] {
+                    let mine = format!("the {what} of test '{}'", t.name);
+                    if let Some(other) = goldens.insert(crate::output::identity(p), mine.clone()) {
+                        bail!(
+                            "{}: {other} and {mine} are one file, {}: give each its own",
+                            path.display(),
+                            p.display()
+                        );
+                    }
                 }
                 if let Some(r) = read.get(&id) {
                     bail!(
@@ -734,6 +764,7 @@ impl Suite {
             timeout: Duration::from_secs_f64(timeout),
             tests,
             platform: platform.map(str::to_string),
+            others,
         })
     }
 }

@@ -81,16 +81,27 @@ pub struct DiffMap {
     pub nonfinite: u64,
 }
 
-/// The normalised |difference| map (see [`DiffMap`]).
-pub fn diff_map(reference: &Image, test: &Image) -> Result<DiffMap, SizeMismatch> {
+/// The normalised |difference| map (see [`DiffMap`]); under a mask each pixel's |d| times its
+/// weight (a left-out pixel is 0: a timestamp the comparison ignores does not set the scale).
+pub fn diff_map(
+    reference: &Image,
+    test: &Image,
+    mask: Option<&Mask>,
+) -> Result<DiffMap, SizeMismatch> {
     same_shape(reference, test)?;
     let n = reference.channels.len().max(1);
     let mut nonfinite = 0;
+    let weights = mask.map(|m| m.over(reference.data_window()));
     let raw: Vec<f32> = reference
         .data
         .chunks(n)
         .zip(test.data.chunks(n))
-        .map(|(a, b)| {
+        .enumerate()
+        .map(|(i, (a, b))| {
+            let w = weights.as_ref().map_or(1.0, |v| v[i]);
+            if w == 0.0 {
+                return 0.0;
+            }
             let mut m = 0f32;
             for (&a, &b) in a.iter().zip(b) {
                 if !a.is_finite() || !b.is_finite() {
@@ -102,7 +113,7 @@ pub fn diff_map(reference: &Image, test: &Image) -> Result<DiffMap, SizeMismatch
                 }
                 m = m.max((a - b).abs());
             }
-            m
+            m * w
         })
         .collect();
     let scale = raw
@@ -209,7 +220,7 @@ mod tests {
         b.data[3] += 1e-6; // pixel 1, R
         b.data[7] += 0.5e-6; // pixel 2, G
         b.data[11] = f32::NAN; // pixel 3, B
-        let m = diff_map(&a, &b).unwrap();
+        let m = diff_map(&a, &b, None).unwrap();
         let d = ((0.5f32 + 1e-6) - 0.5) as f64;
         assert_eq!(m.scale, d);
         assert_eq!(m.values[0], 0.0);
@@ -223,7 +234,7 @@ mod tests {
             "{rgb:?}"
         );
         assert_eq!(rgb[9..12], [0, 255, 255]);
-        let equal = diff_map(&a, &a).unwrap();
+        let equal = diff_map(&a, &a, None).unwrap();
         assert_eq!((equal.scale, equal.values[1]), (0.0, 0.0));
     }
 }

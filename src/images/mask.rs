@@ -98,8 +98,23 @@ impl Mask {
                         ));
                     }
                     let n = img.channels.len().max(1);
+                    // Grey: a colour mask (R, G and B not equal) says nothing one weight can
+                    let rgb: Vec<usize> = ["R", "G", "B"]
+                        .iter()
+                        .filter_map(|c| img.channels.iter().position(|x| x == c))
+                        .collect();
                     for (i, w) in weights.iter_mut().enumerate() {
-                        let v = img.data[i * n];
+                        let v = img.data[i * n + rgb.first().copied().unwrap_or(0)];
+                        if rgb.len() == 3
+                            && rgb
+                                .iter()
+                                .any(|&c| img.data[i * n + c] != img.data[i * n + rgb[0]])
+                        {
+                            let (x, y) = (i % window.width, i / window.width);
+                            return Err(format!(
+                                "the mask image is in colour at ({x}, {y}): a mask is grey (R = G = B), its value the weight"
+                            ));
+                        }
                         if !(0.0..=1.0).contains(&v) {
                             let (x, y) = (i % window.width, i / window.width);
                             return Err(format!(

@@ -97,8 +97,9 @@ pub struct ZTest {
     pub min_p_channel: String,
     /// Pixels with some channel's p ≤ alpha, or beyond noise.
     pub failing_pixels: u64,
-    /// Pixels no noise explains: a NaN/Inf mismatch, or a difference in a channel the variance
-    /// does not cover (alpha): any one fails the test, whatever the success rate allows.
+    /// Pixels no noise explains: a NaN/Inf mismatch, a difference in a channel the variance
+    /// does not cover (alpha), or (calibrated) a change where the renders never varied: any one
+    /// fails the test, whatever the success rate allows.
     pub beyond_noise: u64,
     /// Channel tests with p > alpha.
     pub passing_channels: u64,
@@ -113,6 +114,10 @@ pub struct ZTest {
     /// PASS or FAILURE (the z-test has no warning): enough pixels pass, nothing is beyond noise,
     /// and no channel's mean shifted.
     pub verdict: Verdict,
+    /// Per pixel of the reference's data window, row by row: whether it is one of
+    /// `failing_pixels` (what the report draws as the failing pixels when the z-test decides).
+    #[serde(skip)]
+    pub failing_map: Vec<bool>,
 }
 
 /// Why a z-test could not be run.
@@ -139,7 +144,8 @@ pub enum ZTestError {
 }
 
 /// Per pixel and channel, z = |test − ref| · sqrt(spp / max(var, 10⁻⁴)) and p = 2(1 − Φ(z)) =
-/// erfc(z/√2); a channel passes if p > α = 1 − (1 − significance)^(1/pixels), and the test
+/// erfc(z/√2) (with a calibrated variance, `dof` > 0: var as it is, p from Student's t, and a
+/// change where var = 0 is beyond noise); a channel passes if p > α = 1 − (1 − significance)^(1/pixels), and the test
 /// passes if passing channels / channels ≥ success rate × pixels. NaN against NaN (or the same
 /// Inf) passes; any other NaN/Inf in the images fails.
 /// A variance sample of a tested channel that is NaN, infinite or negative refuses the test
@@ -240,6 +246,7 @@ pub fn z_test_masked(
         .filter(|i| !idx.iter().any(|&(c, _)| c == *i))
         .collect();
     let mut beyond_noise = 0u64;
+    let mut failing_map = vec![false; reference.pixels()];
     for px in 0..reference.pixels() {
         let weight = weight_of(px);
         if weight == 0.0 {
@@ -256,8 +263,20 @@ pub fn z_test_masked(
                 test.data[px * nr + i] as f64,
             );
             let var = variance.data[px * nv + j] as f64;
-            let pv = if r.is_finite() && t.is_finite() {
-                let var = var.max(1e-4);
+            // A sample variance of renders (dof > 0) is taken as it is: where the renders did
+            // not vary at all, any change is beyond their noise (Mitsuba's floor of 10⁻⁴, a
+            // σ of 0.01, let a calibrated pixel with no noise change by 0.1)
+            let calibrated_flat = p.dof > 0 && var == 0.0;
+            let pv = if calibrated_flat && r.is_finite() && t.is_finite() {
+                shift[k].1 += 1;
+                if t == r {
+                    1.0
+                } else {
+                    beyond = true;
+                    0.0
+                }
+            } else if r.is_finite() && t.is_finite() {
+                let var = if p.dof > 0 { var } else { var.max(1e-4) };
                 let z = (t - r).abs() * (p.spp as f64 / var).sqrt() * weight;
                 let signed = (t - r) * (p.spp as f64 / var).sqrt() * weight;
                 shift[k].0 += signed.clamp(-CLAMP, CLAMP);
@@ -287,6 +306,7 @@ pub fn z_test_masked(
             }
         }
         failing_pixels += (failed || beyond) as u64;
+        failing_map[px] = failed || beyond;
         beyond_noise += beyond as u64;
     }
     // Pass if enough channel tests pass
@@ -323,6 +343,7 @@ pub fn z_test_masked(
         shift_z,
         shift_p,
         shift_alpha,
+        failing_map,
         verdict: if ok { Verdict::Pass } else { Verdict::Failure },
     })
 }
@@ -377,6 +398,25 @@ mod tests {
         let students = z_test(&r, &t, &v, &p(3)).unwrap();
         assert_eq!((normal.failing_pixels, students.failing_pixels), (1, 0));
         assert!((students.min_p - 0.0154).abs() < 1e-3, "{}", students.min_p);
+    }
+
+    #[test]
+    fn a_change_where_calibration_renders_never_varied_is_beyond_noise() {
+        // 100 pixels of noise σ = 0.1, one whose renders never varied (variance 0): a change of
+        // 1e-3 there fails a calibrated test (Mitsuba's floor of 1e-4 let 0.1 through)
+        let r = Image::new(100, 1, &["Y"], vec![0.5; 100]);
+        let mut v = Image::new(100, 1, &["Y"], vec![0.01; 100]);
+        v.data[3] = 0.0;
+        let mut t = r.clone();
+        t.data[3] += 1e-3;
+        let p = ZParams {
+            dof: 7,
+            ..Default::default()
+        };
+        let z = z_test(&r, &t, &v, &p).unwrap();
+        assert_eq!((z.beyond_noise, z.verdict), (1, Verdict::Failure));
+        // Unchanged there: a pass
+        assert_eq!(z_test(&r, &r, &v, &p).unwrap().verdict, Verdict::Pass);
     }
 
     #[test]
