@@ -784,6 +784,17 @@ fn row(t: &Test, reference: &str, status: Status, note: String) -> Row {
     }
 }
 
+/// A row for each of the test's comparisons (its references, then its golden), all with one
+/// status and note: a test skipped, or refused before anything was made.
+fn every_row(t: &Test, status: Status, why: &str) -> Vec<Row> {
+    let names = t.references.iter().map(|r| r.name.as_str());
+    let golden = t.golden.as_ref().map(|_| "golden");
+    names
+        .chain(golden)
+        .map(|n| row(t, n, status, why.to_string()))
+        .collect()
+}
+
 /// What `--update` may bless of a test: its image, the frame and the sources it was made from.
 type ToBless = (Made, Frame, Sources);
 
@@ -853,45 +864,19 @@ fn judge_test(suite: &Suite, t: &Test, o: &Options, scratch: &Path) -> Result<Te
             "skipped on platform {}: {why}",
             suite.platform.as_deref().unwrap_or_default()
         );
-        let names = t.references.iter().map(|r| r.name.as_str());
-        let golden = t.golden.as_ref().map(|_| "golden");
-        return Ok((
-            names
-                .chain(golden)
-                .map(|n| row(t, n, Status::Skipped, why.clone()))
-                .collect(),
-            None,
-        ));
+        return Ok((every_row(t, Status::Skipped, &why), None));
     }
     // The scene's and inputs' hashes, for stale references
     let now = match sources(t) {
         Ok(s) => s,
-        Err(why) => {
-            let mut all: Vec<Row> = t
-                .references
-                .iter()
-                .map(|r| row(t, &r.name, Status::Refused, why.clone()))
-                .collect();
-            if t.golden.is_some() {
-                all.push(row(t, "golden", Status::Refused, why));
-            }
-            return Ok((all, None));
-        }
+        Err(why) => return Ok((every_row(t, Status::Refused, &why), None)),
     };
     // The mask's parts, its images read once
     let mask_parts = match mask_parts(t) {
         Ok(p) => p,
         Err(why) => {
-            let names = t.references.iter().map(|r| r.name.as_str());
-            let golden = t.golden.as_ref().map(|_| "golden");
             let why = format!("the mask: {why}");
-            return Ok((
-                names
-                    .chain(golden)
-                    .map(|n| row(t, n, Status::Refused, why.clone()))
-                    .collect(),
-                None,
-            ));
+            return Ok((every_row(t, Status::Refused, &why), None));
         }
     };
     // Load every reference (the golden last); missing, tampered, corrupt and stale external
