@@ -19,6 +19,7 @@ mod exr_layers;
 mod fuzz;
 mod fuzz_surfaces;
 mod golden_follow;
+mod guard;
 mod hostile;
 mod idiff_live;
 mod imgdiff;

@@ -38,6 +38,7 @@ mod args;
 mod audit;
 mod check;
 pub mod diff;
+mod guard;
 mod header;
 mod implicit;
 mod offline;
@@ -52,6 +53,7 @@ use args::*;
 use audit::{AuditArgs, MergeArgs};
 use check::CheckArgs;
 pub use diff::{run_diff, DiffArgs};
+use guard::GuardArgs;
 use implicit::ImplicitCheckArgs;
 use offline::{CasesArgs, ScoreArgs};
 use probe::ProbeCommand;
@@ -101,6 +103,9 @@ pub enum Command {
     /// Audit spawn rules both ways: self-hits (judged exactly) and the smallest gap to a
     /// neighbour each resolves, at scene sizes 1e-4 to 1e7 (exit 1 if a rule of yours self-hits).
     Spawn(SpawnArgs),
+    /// Audit the box that guards the primitive: slab tests with t_max = a primitive's rounded
+    /// hit, on boxes holding that hit (lost geometry counted; exit 1 if `ize` loses a box).
+    Guard(GuardArgs),
     /// Measure what accuracy costs in time: write DIR/index.html, report.md, report.json and figures.
     Report(ReportArgs),
     /// Render an implicit scene per pixel and by image-space subdivision (seed 004), shadows off
@@ -195,6 +200,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Reference(r) => reference::run_reference(r),
         Command::Report(r) => report::run_report(r),
         Command::Spawn(a) => spawn::run_spawn(a),
+        Command::Guard(a) => guard::run_guard(a),
         Command::ImplicitCheck(a) => implicit::run_implicit_check(a),
         Command::PluginWorker {
             path,

@@ -32,6 +32,7 @@
 //!   oracle calls ill-posed; the rest are single-triangle false misses by a rounding larger than
 //!   one ulp of an input (the triangle audit's rows judge those), reported and not failed.
 
+pub mod guard;
 pub mod offset;
 pub mod reintersect;
 pub mod rules;

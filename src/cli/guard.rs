@@ -1,0 +1,154 @@
+//! `rayproof guard`: the box that guards the primitive (issue 49 item 1): slab tests with
+//! `t_max` = a primitive's rounded hit, on boxes that hold that hit; a culled box is lost
+//! geometry. Exit 0 when every judged guard (`ize`) loses nothing, 1 otherwise, 2 bad usage.
+
+use super::*;
+use anyhow::Result;
+use clap::Args;
+use rayproof::audit::robustness::guard::{self, GUARDS};
+use rayproof::numerics::Precision;
+use std::path::PathBuf;
+
+#[derive(Args, Debug)]
+pub struct GuardArgs {
+    /// Cases per class, scene size and placement.
+    #[arg(long, default_value_t = 32)]
+    pub per_cell: u64,
+    /// Seed of the cases.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Precisions (default: both).
+    #[arg(long, value_delimiter = ',', value_parser = parse_precision)]
+    pub precision: Vec<Precision>,
+    /// Guards (default: all): naive_slab, williams, pbrt, ize.
+    #[arg(long, value_delimiter = ',')]
+    pub guard: Vec<String>,
+    /// Write the rows as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// Replay one case: GUARD PRECISION and 13 values (o, d, lo, hi, t_max) as printed.
+    #[arg(long, num_args = 15, value_name = "ARG", allow_hyphen_values = true)]
+    pub replay: Vec<String>,
+}
+
+pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
+    if !a.replay.is_empty() {
+        return replay(&a.replay);
+    }
+    if !(1..=100_000).contains(&a.per_cell) {
+        anyhow::bail!("--per-cell {}: from 1 to 100000", a.per_cell);
+    }
+    let guards: Vec<&str> = match a.guard.is_empty() {
+        true => GUARDS.to_vec(),
+        false => a
+            .guard
+            .iter()
+            .map(|g| {
+                GUARDS.iter().copied().find(|k| k == g).ok_or_else(|| {
+                    anyhow::anyhow!("--guard {g}: not a guard (known: {})", GUARDS.join(", "))
+                })
+            })
+            .collect::<Result<_>>()?,
+    };
+    let precs = match a.precision.is_empty() {
+        true => Precision::ALL.to_vec(),
+        false => a.precision.clone(),
+    };
+    if let Some(p) = &a.json {
+        rayproof::output::check_output_dirs(&[&Some(p.clone())])?;
+    }
+    let rows = guard::rows(a.seed, &guards, &precs, a.per_cell);
+    say!(
+        "{:<11} {:<4} {:<8} {:>7} {:>6} {:>11} {:>8}  judged",
+        "guard",
+        "prec",
+        "class",
+        "cases",
+        "lost",
+        "from size",
+        "ns/test"
+    );
+    for r in &rows {
+        say!(
+            "{:<11} {:<4} {:<8} {:>7} {:>6} {:>11} {:>8.2}  {}",
+            r.guard,
+            r.precision,
+            r.class,
+            r.cases,
+            r.lost,
+            r.first_scale.map_or("-".into(), |s| format!("1e{s}")),
+            r.ns_per_test,
+            if r.judged { "yes" } else { "reported" }
+        );
+    }
+    for r in rows.iter().filter(|r| r.replay.is_some()) {
+        say!(
+            "first lost ({} {} {}): {}",
+            r.guard,
+            r.precision,
+            r.class,
+            r.replay.as_deref().unwrap_or_default()
+        );
+    }
+    if let Some(p) = &a.json {
+        rayproof::output::write_atomic(
+            p,
+            (serde_json::to_string_pretty(&rows)? + "\n").as_bytes(),
+        )?;
+    }
+    let failed = rows.iter().any(|r| r.judged && r.lost > 0);
+    say!(
+        "verdict: {}",
+        if failed {
+            "FAIL (a judged guard lost geometry)"
+        } else {
+            "pass"
+        }
+    );
+    Ok(failed as u8)
+}
+
+/// `--replay GUARD PREC v×13`: the guard's answer, and the truth it is held to (the box holds
+/// a hit at t ≤ t_max's exact value: it must let the ray in).
+fn replay(args: &[String]) -> Result<u8> {
+    let g = GUARDS
+        .iter()
+        .copied()
+        .find(|k| *k == args[0])
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "--replay {}: not a guard (known: {})",
+                args[0],
+                GUARDS.join(", ")
+            )
+        })?;
+    let prec = parse_precision(&args[1]).map_err(anyhow::Error::msg)?;
+    let mut v = [0f64; 13];
+    for (k, s) in args[2..].iter().enumerate() {
+        let x = rayproof::audit::hexfloat::parse_exact(s)
+            .ok_or_else(|| anyhow::anyhow!("--replay value {} ({s}): not a number", k + 1))?;
+        let exact = match prec {
+            Precision::F32 => (x as f32) as f64 == x,
+            Precision::F64 => true,
+        };
+        if !x.is_finite() || !exact {
+            anyhow::bail!(
+                "--replay value {} ({s}): not a finite value of {}",
+                k + 1,
+                prec.name()
+            );
+        }
+        v[k] = x;
+    }
+    let admitted = guard::admits(g, prec, &v);
+    say!(
+        "{g} {}: {}",
+        prec.name(),
+        if admitted {
+            "hit (the box is entered)"
+        } else {
+            "MISS: the box is culled"
+        }
+    );
+    Ok((!admitted) as u8)
+}
