@@ -1,4 +1,7 @@
-//! `rayproof guard` (issue 49, item 1): the box that guards the primitive. Boxes that hold a
+//! The seams between routines (issue 49): `rayproof guard` (item 1), the box that guards the
+//! primitive, and `rayproof once` (item 4), exactly one hit per mesh.
+//!
+//! `rayproof guard`: the box that guards the primitive. Boxes that hold a
 //! triangle's exact hit, `t_max` = that hit rounded: the naive slab test and the strict
 //! comparisons of Williams et al. and pbrt-v4 cull boxes whose entry face holds the hit (lost
 //! geometry), Ize's robust traversal culls none; every lost case replays.
@@ -62,5 +65,143 @@ fn the_naive_slab_loses_face_hits_and_izes_traversal_loses_none() {
             "{bad:?}: {}",
             stderr(&o)
         );
+    }
+}
+
+/// Builds `tests/outside/guard_slab.c` as a command in `dir` (with `flags`).
+fn build_command(dir: &std::path::Path, name: &str, flags: &[&str]) -> std::path::PathBuf {
+    let exe = dir.join(name);
+    let o = std::process::Command::new("cc")
+        .args(["-O2", "-ffp-contract=off"])
+        .args(flags)
+        .arg(crate::common::outside("guard_slab.c"))
+        .arg("-o")
+        .arg(&exe)
+        .output()
+        .expect("a C compiler (cc)");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    exe
+}
+
+#[test]
+fn a_users_guard_is_judged_through_exec_and_plugin_alike() {
+    let dir = crate::common::temp_dir("guard-outside");
+    let naive = build_command(&dir, "guard_slab", &[]);
+    let robust = build_command(&dir, "guard_robust", &["-DROBUST=1"]);
+    let lib = crate::common::build_library("guard_slab.c", &dir);
+    let rows_of = |args: &[&str], want: i32| -> Vec<serde_json::Value> {
+        let json = dir.join("rows.json");
+        let mut a = vec!["guard", "--per-cell", "6", "--json", json.to_str().unwrap()];
+        a.extend(args);
+        let o = rayproof(&a);
+        assert_eq!(
+            o.status.code(),
+            Some(want),
+            "{a:?}: {}{}",
+            stdout(&o),
+            stderr(&o)
+        );
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+    };
+    let lost = |rows: &[serde_json::Value], g: &str| -> Vec<u64> {
+        rows.iter()
+            .filter(|r| r["guard"] == g)
+            .map(|r| r["lost"].as_u64().unwrap())
+            .collect()
+    };
+    // The naive slab of the C file, as a command and as a library: judged, it loses face hits
+    // (exit 1), exactly as many as the built-in naive slab, case for case
+    let exec = rows_of(
+        &[
+            "--guard",
+            "naive_slab",
+            "--exec",
+            naive.to_str().unwrap(),
+            "--name",
+            "mine",
+        ],
+        1,
+    );
+    let plugin_spec = format!("{}:guard_slab_f32", lib.display());
+    let plugin = rows_of(&["--plugin", &plugin_spec, "--name", "mine"], 1);
+    assert_eq!(lost(&exec, "mine"), lost(&exec, "naive_slab"));
+    // The library has the f32 symbol: its rows are the command's f32 rows
+    let f32_rows: Vec<serde_json::Value> =
+        exec.iter().filter(|r| r["precision"] == "f32").cloned().collect();
+    assert_eq!(lost(&plugin, "mine"), lost(&f32_rows, "mine"));
+    assert!(lost(&exec, "mine").iter().sum::<u64>() > 0);
+    assert!(exec
+        .iter()
+        .filter(|r| r["guard"] == "mine")
+        .all(|r| r["judged"] == true));
+    // Its first lost case replays through the same command
+    let line = exec
+        .iter()
+        .find(|r| r["guard"] == "mine" && r["replay"].is_string())
+        .unwrap()["replay"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let o = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(line.replacen("rayproof", env!("CARGO_BIN_EXE_rayproof"), 1))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{line}: {}", stdout(&o));
+    // Ize's pad in C: nothing lost, exit 0
+    let r = rows_of(&["--exec", robust.to_str().unwrap(), "--name", "robust"], 0);
+    assert_eq!(lost(&r, "robust").iter().sum::<u64>(), 0);
+    // A guard that answers 2: its contract broken, one line, exit 4
+    let o = rayproof(&[
+        "guard",
+        "--per-cell",
+        "1",
+        "--exec",
+        "sed 's/.*/1 2/'",
+        "--name",
+        "two",
+    ]);
+    assert_eq!(o.status.code(), Some(4), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("want count 1 and HIT = 1"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn rays_through_shared_vertices_are_reported_once_by_the_wide_watertight_test_only() {
+    let dir = crate::common::temp_dir("once");
+    let json = dir.join("once.json");
+    let o = rayproof(&["once", "--per-cell", "2", "--json", json.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    let rows: Vec<serde_json::Value> =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(rows.len(), 4 * 2 * 2 * 2);
+    let sum = |routine: &str, key: &str| -> u64 {
+        rows.iter()
+            .filter(|r| r["routine"] == routine)
+            .map(|r| r[key].as_u64().unwrap())
+            .sum()
+    };
+    // The watertight tests never leak; Möller–Trumbore (|det| < 1e-6 rejected) and the
+    // chapter's test do, from the smallest scenes
+    for w in ["watertight", "watertight_wide"] {
+        assert_eq!(sum(w, "leaks"), 0, "{w}");
+    }
+    assert!(sum("moller_trumbore", "leaks") > 0);
+    assert!(sum("chapter", "leaks") > 0);
+    // At a shared vertex every triangle around it reports the ray: doubles, and for the
+    // f32/f64 watertight test hits at different t (two surfaces where there is one)
+    assert!(sum("watertight_wide", "doubles") > 0);
+    assert!(sum("watertight", "split") > 0);
+    // Every ray is counted once, in one of the four outcomes
+    for r in &rows {
+        let bad = ["leaks", "doubles", "split"]
+            .iter()
+            .map(|k| r[k].as_u64().unwrap())
+            .sum::<u64>();
+        assert!(bad <= r["rays"].as_u64().unwrap(), "{r}");
+        assert_eq!(bad > 0, r["example"].is_string(), "{r}");
     }
 }

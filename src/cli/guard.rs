@@ -1,11 +1,14 @@
 //! `rayproof guard`: the box that guards the primitive (issue 49 item 1): slab tests with
 //! `t_max` = a primitive's rounded hit, on boxes that hold that hit; a culled box is lost
-//! geometry. Exit 0 when every judged guard (`ize`) loses nothing, 1 otherwise, 2 bad usage.
+//! geometry. A user's guard comes in as `--exec CMD` or `--plugin PATH:SYMBOL` (the 13 values
+//! `o d lo hi t_max` in, `1 HIT` out: `rayproof header --guard`). Exit 0 when every judged guard
+//! (`ize`, and every guard of yours) loses nothing, 1 otherwise, 2 bad usage, 4 a guard of
+//! yours that breaks its contract, crashes or hangs.
 
 use super::*;
 use anyhow::Result;
 use clap::Args;
-use rayproof::audit::robustness::guard::{self, GUARDS};
+use rayproof::audit::robustness::guard::{self, Guard, GUARDS};
 use rayproof::numerics::Precision;
 use std::path::PathBuf;
 
@@ -17,30 +20,41 @@ pub struct GuardArgs {
     /// Seed of the cases.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Precisions (default: both).
+    /// Precisions (default: both; a plugin's own).
     #[arg(long, value_delimiter = ',', value_parser = parse_precision)]
     pub precision: Vec<Precision>,
-    /// Guards (default: all): naive_slab, williams, pbrt, ize.
+    /// Built-in guards (default: all, or none when a guard of yours is given): naive_slab,
+    /// williams, pbrt, ize.
     #[arg(long, value_delimiter = ',')]
     pub guard: Vec<String>,
+    /// A guard of yours (`--exec`, `--plugin`, `--name`, `--timeout`).
+    #[command(flatten)]
+    pub outside: super::outside::OutsideArgs,
     /// Write the rows as JSON.
     #[arg(long)]
     pub json: Option<PathBuf>,
-    /// Replay one case: GUARD PRECISION and 13 values (o, d, lo, hi, t_max) as printed.
+    /// Replay one case: GUARD PRECISION and the 13 values (o, d, lo, hi, t_max) as printed.
     #[arg(long, num_args = 15, value_name = "ARG", allow_hyphen_values = true)]
     pub replay: Vec<String>,
 }
 
 pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
+    let outside = a.outside.methods(&guard::INFO)?;
+    for (m, _) in &outside {
+        if GUARDS.contains(&m.name()) {
+            anyhow::bail!("--name {}: a built-in guard's name; give another", m.name());
+        }
+    }
     if !a.replay.is_empty() {
-        return replay(&a.replay);
+        return replay(&a.replay, &outside);
     }
     if !(1..=100_000).contains(&a.per_cell) {
         anyhow::bail!("--per-cell {}: from 1 to 100000", a.per_cell);
     }
-    let guards: Vec<&str> = match a.guard.is_empty() {
-        true => GUARDS.to_vec(),
-        false => a
+    let names: Vec<&'static str> = match (a.guard.is_empty(), outside.is_empty()) {
+        (true, true) => GUARDS.to_vec(),
+        (true, false) => vec![],
+        _ => a
             .guard
             .iter()
             .map(|g| {
@@ -50,16 +64,43 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
             })
             .collect::<Result<_>>()?,
     };
-    let precs = match a.precision.is_empty() {
+    let mut precs = match a.precision.is_empty() {
         true => Precision::ALL.to_vec(),
         false => a.precision.clone(),
     };
+    // A plugin answers the precisions it has symbols for
+    for (m, has) in &outside {
+        if let Some(has) = has {
+            match a.precision.is_empty() {
+                true => precs.retain(|p| has.contains(p)),
+                false => {
+                    if let Some(p) = precs.iter().find(|p| !has.contains(p)) {
+                        anyhow::bail!("--plugin {}: no {} symbol", m.name(), p.name());
+                    }
+                }
+            }
+        }
+    }
+    if precs.is_empty() {
+        anyhow::bail!("no precision every guard answers: give --precision");
+    }
     if let Some(p) = &a.json {
         rayproof::output::check_output_dirs(&[&Some(p.clone())])?;
     }
-    let rows = guard::rows(a.seed, &guards, &precs, a.per_cell);
+    let guards: Vec<Guard> = names
+        .iter()
+        .map(|g| Guard::BuiltIn(g))
+        .chain(outside.iter().map(|(m, _)| Guard::Outside(m.as_ref())))
+        .collect();
+    let rows = match guard::rows(a.seed, &guards, &precs, a.per_cell) {
+        Ok(r) => r,
+        Err(e) => {
+            eprintln!("error: {}", rayproof::images::one_line(&e));
+            return Ok(4);
+        }
+    };
     say!(
-        "{:<11} {:<4} {:<8} {:>7} {:>6} {:>11} {:>8}  judged",
+        "{:<14} {:<4} {:<8} {:>7} {:>6} {:>10} {:>9}  judged",
         "guard",
         "prec",
         "class",
@@ -70,7 +111,7 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
     );
     for r in &rows {
         say!(
-            "{:<11} {:<4} {:<8} {:>7} {:>6} {:>11} {:>8.2}  {}",
+            "{:<14} {:<4} {:<8} {:>7} {:>6} {:>10} {:>9.2}  {}",
             r.guard,
             r.precision,
             r.class,
@@ -108,20 +149,9 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
     Ok(failed as u8)
 }
 
-/// `--replay GUARD PREC v×13`: the guard's answer, and the truth it is held to (the box holds
-/// a hit at t ≤ t_max's exact value: it must let the ray in).
-fn replay(args: &[String]) -> Result<u8> {
-    let g = GUARDS
-        .iter()
-        .copied()
-        .find(|k| *k == args[0])
-        .ok_or_else(|| {
-            anyhow::anyhow!(
-                "--replay {}: not a guard (known: {})",
-                args[0],
-                GUARDS.join(", ")
-            )
-        })?;
+/// `--replay GUARD PREC v×13`: the guard's answer (exit 0 entered, 1 culled: the box holds a
+/// hit at t ≤ t_max's exact value, so a cull is lost geometry).
+fn replay(args: &[String], outside: &[super::outside::Outside]) -> Result<u8> {
     let prec = parse_precision(&args[1]).map_err(anyhow::Error::msg)?;
     let mut v = [0f64; 13];
     for (k, s) in args[2..].iter().enumerate() {
@@ -140,9 +170,32 @@ fn replay(args: &[String]) -> Result<u8> {
         }
         v[k] = x;
     }
-    let admitted = guard::admits(g, prec, &v);
+    let admitted = match GUARDS.iter().copied().find(|k| *k == args[0]) {
+        Some(g) => guard::admits(g, prec, &v),
+        None => {
+            let (m, _) = outside
+                .iter()
+                .find(|(m, _)| m.name() == args[0])
+                .ok_or_else(|| {
+                    anyhow::anyhow!(
+                        "--replay {}: not a guard (built-in: {}; or give yours with --exec/--plugin and --name)",
+                        args[0],
+                        GUARDS.join(", ")
+                    )
+                })?;
+            let c = guard::Case { values: v };
+            match guard::rows_of_one(m.as_ref(), prec, &c) {
+                Ok(a) => a,
+                Err(e) => {
+                    eprintln!("error: {}", rayproof::images::one_line(&e));
+                    return Ok(4);
+                }
+            }
+        }
+    };
     say!(
-        "{g} {}: {}",
+        "{} {}: {}",
+        args[0],
         prec.name(),
         if admitted {
             "hit (the box is entered)"

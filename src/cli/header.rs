@@ -11,6 +11,9 @@ pub(super) fn run_header(a: HeaderArgs) -> Result<u8> {
             "\n{}",
             rayproof::audit::robustness::spawn::rules::C_SIGNATURE
         );
+    } else if a.guard {
+        say_raw!("{}", rayproof::audit::robustness::guard::PROTOCOL);
+        say_raw!("\n{}", rayproof::audit::robustness::guard::C_SIGNATURE);
     } else if a.exec {
         say_raw!("{}", rayproof::audit::exec::protocol(&shapes));
     } else {
@@ -28,4 +31,7 @@ pub struct HeaderArgs {
     /// Print the line protocol of a spawn rule run by `rayproof spawn --exec`.
     #[arg(long, conflicts_with = "exec")]
     pub spawn: bool,
+    /// Print the line protocol and C signatures of a ray–box guard (`rayproof guard`).
+    #[arg(long, conflicts_with_all = ["exec", "spawn"])]
+    pub guard: bool,
 }

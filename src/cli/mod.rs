@@ -42,6 +42,7 @@ mod guard;
 mod header;
 mod implicit;
 mod offline;
+mod once;
 mod outside;
 mod probe;
 mod reference;
@@ -56,6 +57,7 @@ pub use diff::{run_diff, DiffArgs};
 use guard::GuardArgs;
 use implicit::ImplicitCheckArgs;
 use offline::{CasesArgs, ScoreArgs};
+use once::OnceArgs;
 use probe::ProbeCommand;
 use reference::ReferenceArgs;
 use render::{DownsampleArgs, ExportArgs, RenderArgs};
@@ -106,6 +108,9 @@ pub enum Command {
     /// Audit the box that guards the primitive: slab tests with t_max = a primitive's rounded
     /// hit, on boxes holding that hit (lost geometry counted; exit 1 if `ize` loses a box).
     Guard(GuardArgs),
+    /// Count how many times each triangle routine reports a ray through a shared vertex or edge
+    /// of a mesh (exactly once is right: 0 is a leak, 2 a double hit).
+    Once(OnceArgs),
     /// Measure what accuracy costs in time: write DIR/index.html, report.md, report.json and figures.
     Report(ReportArgs),
     /// Render an implicit scene per pixel and by image-space subdivision (seed 004), shadows off
@@ -201,6 +206,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Report(r) => report::run_report(r),
         Command::Spawn(a) => spawn::run_spawn(a),
         Command::Guard(a) => guard::run_guard(a),
+        Command::Once(a) => once::run_once(a),
         Command::ImplicitCheck(a) => implicit::run_implicit_check(a),
         Command::PluginWorker {
             path,

@@ -38,13 +38,120 @@
 use crate::numerics::real::{gamma, Real};
 use crate::numerics::Precision;
 use crate::shapes::oracle::sample;
-use crate::shapes::shape::{case_rng, hex_text};
+use crate::shapes::shape::{case_rng, hex_text, Method, ShapeInfo};
 use crate::shapes::triangle::exact_tri;
 use rand::Rng;
 use serde::Serialize;
 
 /// The guards, in the order of the table.
 pub const GUARDS: [&str; 4] = ["naive_slab", "williams", "pbrt", "ize"];
+
+/// A guard from outside the crate (`--exec` or `--plugin`): the 13 values `o d lo hi t_max` in,
+/// one value out, 1 (the box is entered) or 0 (culled), with count 1.
+pub const INFO: ShapeInfo = ShapeInfo {
+    name: "guard",
+    about: "a ray–box guard: is the box entered within [0, t_max]",
+    args: &[
+        "ox", "oy", "oz", "dx", "dy", "dz", "lox", "loy", "loz", "hix", "hiy", "hiz", "tmax",
+    ],
+    values: &["hit"],
+    ..ShapeInfo::DEFAULTS
+};
+
+/// The line protocol of a guard run by `rayproof guard --exec`.
+pub const PROTOCOL: &str = "# The guard line protocol: rayproof guard --exec CMD --name NAME
+#
+# Input (the child's stdin), one case per line: the precision, then 13 values as C99 hex floats,
+# exact in that precision:
+#   f32 OX OY OZ DX DY DZ LOX LOY LOZ HIX HIY HIZ TMAX
+# the ray o + t d, the box [LO, HI], and TMAX, the closest hit so far (the hit of a triangle in
+# the box, rounded to the precision).
+#
+# Output (the child's stdout), one line per case, in order:
+#   1 HIT
+# HIT = 1 when the ray enters the box for some t in [0, TMAX], 0 when the box is culled.
+# Anything else stops the run with one line naming the case (exit 4). Cases come in batches of
+# up to 4096 under the rules of `audit --exec` (rayproof header --exec).
+";
+
+/// The C signatures of a guard given as `--plugin PATH:SYMBOL`.
+pub const C_SIGNATURE: &str =
+    "/* A ray-box guard through its C ABI: rayproof guard --plugin PATH:SYMBOL. in[i] is case i
+ * (o d lo hi t_max: 13 values in the precision); it sets count[i] = 1 and out[i][0] = 1 when
+ * the ray enters the box within [0, t_max], 0 when it culls it, and returns 0. Build with -shared
+ * -fPIC; it runs in a worker process, in batches of up to 4096, under --timeout. */
+typedef int rayproof_guard_f32(size_t n, const float in[][13], uint32_t count[], float out[][1]);
+typedef int rayproof_guard_f64(size_t n, const double in[][13], uint32_t count[], double out[][1]);
+";
+
+/// A guard under audit: built in, or a user's routine (judged: it must lose nothing).
+pub enum Guard<'a> {
+    /// One of [`GUARDS`].
+    BuiltIn(&'static str),
+    /// A user's, through the machinery that runs outside intersectors.
+    Outside(&'a (dyn Method + Send)),
+}
+
+impl Guard<'_> {
+    fn name(&self) -> &str {
+        match self {
+            Guard::BuiltIn(n) => n,
+            Guard::Outside(m) => m.name(),
+        }
+    }
+
+    /// Whether it enters each case's box; its nanoseconds per case.
+    fn admits_all(&self, prec: Precision, cases: &[&Case]) -> Result<(Vec<bool>, f64), String> {
+        match self {
+            Guard::BuiltIn(g) => {
+                let admitted = cases.iter().map(|c| admits(g, prec, &c.values)).collect();
+                // Its cost: the fastest of 16 timed passes over the cases (one pass is at the
+                // mercy of a page fault or the other core)
+                let ns = (0..16)
+                    .map(|_| {
+                        let start = std::time::Instant::now();
+                        let n = cases
+                            .iter()
+                            .filter(|c| std::hint::black_box(admits(g, prec, &c.values)))
+                            .count();
+                        std::hint::black_box(n);
+                        start.elapsed().as_nanos() as f64 / cases.len().max(1) as f64
+                    })
+                    .fold(f64::INFINITY, f64::min);
+                Ok((admitted, ns))
+            }
+            Guard::Outside(m) => {
+                let start = std::time::Instant::now();
+                let mut out = Vec::with_capacity(cases.len());
+                let inputs: Vec<Vec<f64>> = cases.iter().map(|c| c.values.to_vec()).collect();
+                for chunk in inputs.chunks(crate::audit::run::CHUNK as usize) {
+                    let answers = crate::audit::run::answers(&[*m as &dyn Method], prec, chunk)?;
+                    for (a, q) in answers[0].iter().zip(chunk) {
+                        // Held to the contract: count 1 and a value of 0 or 1
+                        if a.count != 1
+                            || a.values.len() != 1
+                            || !(a.values[0] == 0.0 || a.values[0] == 1.0)
+                        {
+                            return Err(format!(
+                                "guard '{}': answered {} {:?} to the case {}; want count 1 and HIT = 1 (entered) or 0 (culled)",
+                                m.name(),
+                                a.count,
+                                a.values,
+                                crate::audit::exec::case_line(prec, q).trim_end()
+                            ));
+                        }
+                        out.push(a.values[0] == 1.0);
+                    }
+                }
+                m.finish()?;
+                Ok((
+                    out,
+                    start.elapsed().as_nanos() as f64 / cases.len().max(1) as f64,
+                ))
+            }
+        }
+    }
+}
 /// The case classes.
 pub const CLASSES: [&str; 4] = ["inside", "tight", "on_face", "grazing"];
 /// Scene sizes, as powers of ten.
@@ -299,18 +406,29 @@ pub struct GuardRow {
     pub replay: Option<String>,
 }
 
-/// The replay line of a case.
-pub fn replay_line(name: &str, prec: Precision, v: &[f64; 13]) -> String {
+/// The replay line of a case: `rayproof guard [OUTSIDE ARGS] --replay NAME PREC v×13`.
+pub fn replay_line(outside: Option<&str>, name: &str, prec: Precision, v: &[f64; 13]) -> String {
     let vals: Vec<String> = v.iter().map(|x| hex_text(*x)).collect();
+    let args = outside.map(|a| format!(" {a}")).unwrap_or_default();
     format!(
-        "rayproof guard --replay {name} {} {}",
+        "rayproof guard{args} --replay {name} {} {}",
         prec.name(),
         vals.join(" ")
     )
 }
 
+/// A user's guard on one case: entered or culled (its contract checked).
+pub fn rows_of_one(m: &(dyn Method + Send), prec: Precision, c: &Case) -> Result<bool, String> {
+    Guard::Outside(m).admits_all(prec, &[c]).map(|(a, _)| a[0])
+}
+
 /// The rows of `guards` × `precs` × classes, `n` cases per class, scale and placement.
-pub fn rows(seed: u64, guards: &[&str], precs: &[Precision], n: u64) -> Vec<GuardRow> {
+pub fn rows(
+    seed: u64,
+    guards: &[Guard],
+    precs: &[Precision],
+    n: u64,
+) -> Result<Vec<GuardRow>, String> {
     let mut out = vec![];
     for &prec in precs {
         for class in CLASSES {
@@ -323,45 +441,36 @@ pub fn rows(seed: u64, guards: &[&str], precs: &[Precision], n: u64) -> Vec<Guar
                     })
                 })
                 .collect();
-            for &g in guards {
-                let admitted: Vec<bool> = all
-                    .iter()
-                    .map(|(_, c)| admits(g, prec, &c.values))
-                    .collect();
-                // Its cost: the fastest of 16 timed passes over the cases (one pass is at the
-                // mercy of a page fault or the other core)
-                let ns = (0..16)
-                    .map(|_| {
-                        let start = std::time::Instant::now();
-                        let n = all
-                            .iter()
-                            .filter(|(_, c)| std::hint::black_box(admits(g, prec, &c.values)))
-                            .count();
-                        std::hint::black_box(n);
-                        start.elapsed().as_nanos() as f64 / all.len().max(1) as f64
-                    })
-                    .fold(f64::INFINITY, f64::min);
+            let refs: Vec<&Case> = all.iter().map(|(_, c)| c).collect();
+            for g in guards {
+                let (admitted, ns) = g.admits_all(prec, &refs)?;
                 let lost: Vec<&(i32, Case)> = all
                     .iter()
                     .zip(&admitted)
                     .filter(|(_, a)| !**a)
                     .map(|(c, _)| c)
                     .collect();
+                let judged = matches!(g, Guard::Outside(_) | Guard::BuiltIn("ize"));
                 out.push(GuardRow {
-                    guard: g.to_string(),
+                    guard: g.name().to_string(),
                     precision: prec.name(),
                     class,
                     cases: all.len() as u64,
                     lost: lost.len() as u64,
                     first_scale: lost.iter().map(|(s, _)| *s).min(),
                     ns_per_test: ns,
-                    judged: g == "ize",
-                    replay: lost.first().map(|(_, c)| replay_line(g, prec, &c.values)),
+                    judged,
+                    replay: lost.first().map(|(_, c)| match g {
+                        Guard::BuiltIn(n) => replay_line(None, n, prec, &c.values),
+                        Guard::Outside(m) => {
+                            replay_line(m.replay().as_deref(), m.name(), prec, &c.values)
+                        }
+                    }),
                 });
             }
         }
     }
-    out
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -370,7 +479,8 @@ mod tests {
 
     #[test]
     fn ize_loses_no_box_and_the_naive_slab_loses_face_hits() {
-        let rows = rows(1, &GUARDS, &Precision::ALL, 4);
+        let guards: Vec<Guard> = GUARDS.iter().map(|g| Guard::BuiltIn(g)).collect();
+        let rows = rows(1, &guards, &Precision::ALL, 4).unwrap();
         for r in &rows {
             assert!(r.cases > 0, "{r:?}");
             if r.guard == "ize" {

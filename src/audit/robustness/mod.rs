@@ -34,6 +34,7 @@
 
 pub mod guard;
 pub mod offset;
+pub mod once;
 pub mod reintersect;
 pub mod rules;
 pub mod spawn;
