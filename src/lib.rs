@@ -63,6 +63,9 @@
 //! `spawn` uses them too: 0 when no rule given by `--exec` self-hits (the built-in rules are
 //! reported), 1 when one does (and for `--replay`, when the replayed ray self-hits), 2 for bad
 //! usage, 4 when an `--exec` rule's child fails or answers a line that is not `1 OX OY OZ TMIN`.
+//! `guard` uses them too: 0 when no judged guard (`ize`, and every guard of yours) loses a box,
+//! 1 when one does (and for `--replay`, when the replayed box is culled), 2 for bad usage, 4 when
+//! a guard of yours fails or answers other than `1 HIT`. `once` reports: 0, or 2 for bad usage.
 //! `implicit-check` uses them too: 0 when the certified mode matches per-pixel tracing pixel for
 //! pixel, 1 when it loses or adds a pixel, 2 for bad input. `downsample` exits 4 when its input
 //! image is unreadable or too large, as `diff` does. `check` uses 0 when every comparison

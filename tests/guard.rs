@@ -126,8 +126,11 @@ fn a_users_guard_is_judged_through_exec_and_plugin_alike() {
     let plugin = rows_of(&["--plugin", &plugin_spec, "--name", "mine"], 1);
     assert_eq!(lost(&exec, "mine"), lost(&exec, "naive_slab"));
     // The library has the f32 symbol: its rows are the command's f32 rows
-    let f32_rows: Vec<serde_json::Value> =
-        exec.iter().filter(|r| r["precision"] == "f32").cloned().collect();
+    let f32_rows: Vec<serde_json::Value> = exec
+        .iter()
+        .filter(|r| r["precision"] == "f32")
+        .cloned()
+        .collect();
     assert_eq!(lost(&plugin, "mine"), lost(&f32_rows, "mine"));
     assert!(lost(&exec, "mine").iter().sum::<u64>() > 0);
     assert!(exec

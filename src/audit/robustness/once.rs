@@ -9,8 +9,9 @@
 //! triangles. Heights vary by at most 0.2 of a cell, so each face's slope is at most 0.4.
 //!
 //! **Rays** come down at most 26.6° from the vertical (|d_xy| ≤ 0.5 |d_z|) at a shared interior
-//! vertex (`vertex`) or a point of a shared interior edge (`edge`, the point rounded to the
-//! precision, so on or beside the edge), from above the whole mesh. **The truth needs no
+//! vertex (`vertex`) or a point of a shared interior edge (`edge`), from above the whole mesh;
+//! the point, the origin and the direction are rounded to the precision, so a ray passes
+//! through the vertex or edge or within rounding of it. **The truth needs no
 //! oracle:** a continuous height field whose slopes times the ray's horizontal spread stay below
 //! 1 (0.4 × 0.5) is crossed exactly once by such a ray, wherever exactly it lands in the interior.
 //!
