@@ -481,6 +481,19 @@ fn check_containment(outputs: &[(&Path, bool)], inputs: &[&Path]) -> Result<()> 
 /// another output (`check_containment`), or if an output exists and may not be replaced
 /// (checked before a long run, so that the run is not wasted). Directory outputs go in `dirs`.
 pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Result<()> {
+    check_outputs_with(files, dirs, inputs, false)
+}
+
+/// [`check_outputs`]; with `make_dirs`, an output's directory that does not exist yet is
+/// allowed (the run's [`Outputs::making_dirs`] makes it): its nearest existing ancestor must be
+/// a directory that takes a temporary. `check` does so, as its `--report` and `--json` into a
+/// fresh `out/` are one command line of the README.
+pub fn check_outputs_with(
+    files: &[&Path],
+    dirs: &[&Path],
+    inputs: &[&Path],
+    make_dirs: bool,
+) -> Result<()> {
     let mut seen: Vec<(Identity, &Path)> = inputs.iter().map(|p| (identity(p), *p)).collect();
     let n_inputs = seen.len();
     for (p, is_dir) in files
@@ -512,6 +525,13 @@ pub fn check_outputs(files: &[&Path], dirs: &[&Path], inputs: &[&Path]) -> Resul
             .filter(|d| !d.as_os_str().is_empty())
             .find(|d| std::fs::symlink_metadata(d).is_ok())
             .unwrap_or(Path::new("."));
+        if !make_dirs && !dir.is_dir() {
+            bail!(
+                "{}: directory {} does not exist",
+                p.display(),
+                dir.display()
+            );
+        }
         if !existing.is_dir() {
             bail!("{}: {} is not a directory", p.display(), existing.display());
         }
@@ -566,6 +586,8 @@ pub struct Outputs {
     /// Directories made for outputs whose directory did not exist (outermost first): removed
     /// again, when still empty, if the outputs are dropped uncommitted.
     made_dirs: Vec<PathBuf>,
+    /// Whether an output's missing directories are made ([`Outputs::making_dirs`]).
+    make_dirs: bool,
 }
 
 /// An exclusive advisory lock (`flock(2)`) on a directory, released when dropped.
@@ -625,6 +647,13 @@ impl Outputs {
         self.locks.push(lock);
     }
 
+    /// Makes an output's missing directories when it is staged (removed again if the outputs
+    /// are dropped uncommitted); without it, an output into a missing directory fails to stage.
+    pub fn making_dirs(mut self) -> Outputs {
+        self.make_dirs = true;
+        self
+    }
+
     /// Declares the run's inputs: no output may be one of them.
     pub fn reading(mut self, inputs: &[&Path]) -> Outputs {
         self.inputs
@@ -654,6 +683,9 @@ impl Outputs {
         let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) else {
             return Ok(());
         };
+        if !self.make_dirs {
+            return Ok(());
+        }
         let missing: Vec<&Path> = dir
             .ancestors()
             .filter(|d| !d.as_os_str().is_empty())
@@ -958,12 +990,16 @@ mod tests {
         let tmp = std::env::temp_dir().join(format!("rayproof-parents-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&tmp);
         std::fs::create_dir_all(&tmp).unwrap();
+        // Not asked to: no directory made, the output fails to stage
         let mut out = Outputs::new();
+        assert!(out.write(&tmp.join("a/b/c.json"), b"{}").is_err());
+        assert!(!tmp.join("a").exists());
+        let mut out = Outputs::new().making_dirs();
         out.write(&tmp.join("a/b/c.json"), b"{}").unwrap();
         assert!(tmp.join("a/b").is_dir());
         drop(out);
         assert!(!tmp.join("a").exists());
-        let mut out = Outputs::new();
+        let mut out = Outputs::new().making_dirs();
         out.write(&tmp.join("a/b/c.json"), b"{}").unwrap();
         out.commit().unwrap();
         assert_eq!(std::fs::read(tmp.join("a/b/c.json")).unwrap(), b"{}");

@@ -703,6 +703,17 @@ fn noise(line: &str) -> bool {
 /// cannot (or can't, failed, traceback, out of memory), and the last `last` non-empty lines (a
 /// renderer's first line is often noise, its last ones the reason).
 pub fn explaining_lines(stderr: &str, says_max: usize, last: usize) -> Vec<&str> {
+    explaining_lines_with(stderr, says_max, last, &[])
+}
+
+/// [`explaining_lines`], `also` words counting as saying something (a row's log tail keeps a
+/// renderer's `warning` lines).
+pub fn explaining_lines_with<'a>(
+    stderr: &'a str,
+    says_max: usize,
+    last: usize,
+    also: &[&str],
+) -> Vec<&'a str> {
     let lines: Vec<&str> = stderr
         .lines()
         .map(str::trim)
@@ -720,6 +731,7 @@ pub fn explaining_lines(stderr: &str, says_max: usize, last: usize) -> Vec<&str>
             "out of memory",
         ]
         .iter()
+        .chain(also)
         .any(|w| l.contains(w))
     };
     let says_idx: Vec<usize> = (0..lines.len())

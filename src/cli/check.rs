@@ -12,7 +12,7 @@ use super::*;
 use anyhow::Result;
 use clap::Args;
 use rayproof::numerics::Precision;
-use rayproof::output::{check_outputs, Outputs};
+use rayproof::output::{check_outputs_with, Outputs};
 use rayproof::shapes::sphere::methods::Method;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -107,7 +107,7 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
         .map(|p| p.as_path())
         .collect();
     let dirs: Vec<&Path> = a.report.iter().map(|p| p.as_path()).collect();
-    check_outputs(&files, &dirs, &kept)?;
+    check_outputs_with(&files, &dirs, &kept, true)?;
     // The step summary GitHub's runner names: appended to, so checked as an output too
     let step_summary = std::env::var_os("GITHUB_STEP_SUMMARY")
         .filter(|p| !p.is_empty() && a.summary.is_none())
@@ -136,7 +136,7 @@ pub(super) fn run_check(a: CheckArgs) -> Result<u8> {
     if annotate {
         say!("::stop-commands::{token}");
     }
-    let mut outputs = Outputs::new().reading(&inputs);
+    let mut outputs = Outputs::new().reading(&inputs).making_dirs();
     if let Some(n) = a.calibrate {
         if a.update || a.report.is_some() || !files.is_empty() || !a.method.is_empty() {
             anyhow::bail!("--calibrate writes goldens and their variance only: run check again for reports (--report, --json, --junit, --markdown) and --update");

@@ -24,8 +24,7 @@ use crate::images::{self, Image};
 use anyhow::{bail, Result};
 use std::path::{Path, PathBuf};
 
-/// The largest number of calibration renders.
-pub const MAX_RENDERS: u32 = 1000;
+pub use super::references::MAX_RENDERS;
 
 /// What one test's calibration made.
 #[derive(Debug)]
@@ -44,14 +43,7 @@ pub struct Calibrated {
     pub sigma: (f64, f64),
 }
 
-/// The variance image beside a golden: `DIR/STEM.variance.exr`.
-pub fn variance_path(golden: &Path) -> PathBuf {
-    let stem = golden
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    golden.with_file_name(format!("{stem}.variance.exr"))
-}
+pub use super::suite::variance_path;
 
 /// Whether a test can be calibrated: a renderer command with `{seed}` and an OpenEXR golden.
 fn calibratable(t: &Test) -> Result<&Path, String> {

@@ -274,7 +274,7 @@ fn details(r: &Row) -> String {
     }
     if let Some(log) = &r.log_tail {
         s += &format!(
-            "renderer log (its last {} non-empty lines at most):\n{log}\n",
+            "renderer log (the lines that explain how it ended, {} at most):\n{log}\n",
             super::rows::LOG_TAIL_LINES
         );
     }

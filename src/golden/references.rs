@@ -337,8 +337,12 @@ pub fn verified_reference(
     Ok((img, prov, stale))
 }
 
+/// The largest number of `check --calibrate` renders (a manifest that records more is not one
+/// rayproof wrote).
+pub const MAX_RENDERS: u32 = 1000;
+
 /// A golden's calibration, as its manifest entry records it: the renders (2 to
-/// [`super::calibrate::MAX_RENDERS`]) and the variance image's name, a file beside it.
+/// [`MAX_RENDERS`]) and the variance image's name, a file beside it.
 fn calibration(
     entry: &serde_json::Value,
     dir: &Path,
@@ -353,7 +357,7 @@ fn calibration(
     let renders = c
         .get("renders")
         .and_then(|r| r.as_u64())
-        .filter(|r| (2..=super::calibrate::MAX_RENDERS as u64).contains(r));
+        .filter(|r| (2..=MAX_RENDERS as u64).contains(r));
     let name = c
         .get("variance")
         .and_then(|v| v.as_str())
@@ -364,7 +368,7 @@ fn calibration(
         _ => bail!(
             "{}: the manifest's calibration is not {{renders: 2 to {}, variance: a file name beside it, variance_sha256}}",
             path.display(),
-            super::calibrate::MAX_RENDERS
+            MAX_RENDERS
         ),
     }
 }

@@ -116,12 +116,13 @@ pub struct Row {
 pub const LOG_TAIL_LINES: usize = 20;
 
 /// The lines of a renderer's standard error a row keeps: those that explain how it ended
-/// ([`crate::process::explaining_lines`]: lines that say error, fatal, cannot, failed, …, and
-/// for a render that failed its last 5 lines), at most [`LOG_TAIL_LINES`], the last kept; `None`
+/// ([`crate::process::explaining_lines`]: lines that say error, fatal, cannot, failed, …, or
+/// warning, and for a render that failed its last 5 lines), at most [`LOG_TAIL_LINES`], the last kept; `None`
 /// when none explains anything (a render that worked and printed only its banner and
 /// statistics, as POV-Ray does: its credits are not a reason).
 pub fn log_tail(stderr: &str, failed: bool) -> Option<String> {
-    let lines = crate::process::explaining_lines(stderr, usize::MAX, if failed { 5 } else { 0 });
+    let last = if failed { 5 } else { 0 };
+    let lines = crate::process::explaining_lines_with(stderr, usize::MAX, last, &["warning"]);
     let tail = &lines[lines.len().saturating_sub(LOG_TAIL_LINES)..];
     (!tail.is_empty()).then(|| tail.join("\n"))
 }

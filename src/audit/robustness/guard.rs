@@ -256,10 +256,7 @@ pub fn cases(
             prec,
             i,
         );
-        let at = match placement {
-            "near" => sample::mul(sample::ball(&mut rng), 4.0 * s),
-            _ => sample::mul(sample::unit(&mut rng), s * sample::lu(&mut rng, 3.0, 5.0)),
-        };
+        let at = sample::placed(&mut rng, placement, s);
         let on_face = class == "on_face" || class == "grazing";
         let axis = rng.random_range(0..3usize);
         // The triangle (flat in axis a at one value of the precision, for the face classes)
@@ -306,15 +303,7 @@ pub fn cases(
             continue;
         }
         // The ray: from 3s away at a random point of the triangle (from below the entry face)
-        let (u, v): (f64, f64) = (rng.random_range(0.02..0.96), rng.random_range(0.02..0.96));
-        let (u, v) = if u + v > 0.95 {
-            (1.0 - u, 1.0 - v)
-        } else {
-            (u, v)
-        };
-        let aim: [f64; 3] = std::array::from_fn(|k| {
-            tri[0][k] + u * (tri[1][k] - tri[0][k]) + v * (tri[2][k] - tri[0][k])
-        });
+        let aim = sample::point_in(&mut rng, &tri);
         let mut w = sample::unit(&mut rng);
         if on_face {
             let angle = match class {

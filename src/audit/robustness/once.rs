@@ -179,13 +179,7 @@ pub fn rows(seed: u64, precs: &[Precision], n: u64) -> Vec<OnceRow> {
                         let class = format!("{kind}-{placement}-{scale}");
                         let mut rng = case_rng(seed, "once", &class, prec, i);
                         let s = 10f64.powi(scale);
-                        let at = match placement {
-                            "near" => sample::mul(sample::ball(&mut rng), 4.0 * s),
-                            _ => sample::mul(
-                                sample::unit(&mut rng),
-                                s * sample::lu(&mut rng, 3.0, 5.0),
-                            ),
-                        };
+                        let at = sample::placed(&mut rng, placement, s);
                         let m = mesh(&mut rng, prec, kind, s, at);
                         let mut aims: Vec<(&'static str, V)> =
                             m.vertices.iter().map(|v| ("vertex", *v)).collect();

@@ -40,6 +40,27 @@ pub fn ball(rng: &mut ChaCha8Rng) -> V {
     mul(unit(rng), rng.random::<f64>().cbrt())
 }
 /// A random unit vector perpendicular to `v` (any length).
+/// Where a scene of size `s` sits: `near` the origin (within 4 s of it) or `far` (10³–10⁵ s
+/// away, in a random direction): the placements of the robustness audits (spawn, guard, once).
+pub fn placed(rng: &mut ChaCha8Rng, placement: &str, s: f64) -> V {
+    match placement {
+        "near" => mul(ball(rng), 4.0 * s),
+        _ => mul(unit(rng), s * lu(rng, 3.0, 5.0)),
+    }
+}
+
+/// A random point of a triangle, away from its edges: barycentrics u, v in [0.02, 0.96], folded
+/// back when u + v > 0.95.
+pub fn point_in(rng: &mut ChaCha8Rng, tri: &[V; 3]) -> V {
+    let (u, v): (f64, f64) = (rng.random_range(0.02..0.96), rng.random_range(0.02..0.96));
+    let (u, v) = if u + v > 0.95 {
+        (1.0 - u, 1.0 - v)
+    } else {
+        (u, v)
+    };
+    std::array::from_fn(|k| tri[0][k] + u * (tri[1][k] - tri[0][k]) + v * (tri[2][k] - tri[0][k]))
+}
+
 pub fn perp(rng: &mut ChaCha8Rng, v: V) -> V {
     let d = normalize(v);
     loop {

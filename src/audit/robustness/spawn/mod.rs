@@ -50,7 +50,6 @@ use crate::numerics::Precision;
 use crate::shapes::oracle::sample;
 use crate::shapes::shape::{case_rng, hex_text};
 use crate::shapes::triangle::{self, exact_tri, ExactTri};
-use rand::Rng;
 use rug::Rational;
 use serde::{Deserialize, Serialize};
 
@@ -266,10 +265,7 @@ fn cell_in<F: Real>(seed: u64, scale: i32, placement: &str, n: u64) -> Vec<Ray> 
         }
         let class = format!("spawn-{placement}-{scale}");
         let mut rng = case_rng(seed, "spawn", &class, prec, i);
-        let at = match placement {
-            "near" => sample::mul(sample::ball(&mut rng), 4.0 * s),
-            _ => sample::mul(sample::unit(&mut rng), s * sample::lu(&mut rng, 3.0, 5.0)),
-        };
+        let at = sample::placed(&mut rng, placement, s);
         // A triangle of size s, not degenerate in the precision
         let tri = loop {
             let t: [[f64; 3]; 3] = std::array::from_fn(|_| {
@@ -284,15 +280,7 @@ fn cell_in<F: Real>(seed: u64, scale: i32, placement: &str, n: u64) -> Vec<Ray> 
             }
         };
         // A primary ray from outside at a random point of it
-        let (u, v): (f64, f64) = (rng.random_range(0.02..0.96), rng.random_range(0.02..0.96));
-        let (u, v) = if u + v > 0.95 {
-            (1.0 - u, 1.0 - v)
-        } else {
-            (u, v)
-        };
-        let aim: [f64; 3] = std::array::from_fn(|k| {
-            tri[0][k] + u * (tri[1][k] - tri[0][k]) + v * (tri[2][k] - tri[0][k])
-        });
+        let aim = sample::point_in(&mut rng, &tri);
         let o = sample::rpv(
             prec,
             sample::add(aim, sample::mul(sample::unit(&mut rng), 3.0 * s)),
