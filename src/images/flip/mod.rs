@@ -9,6 +9,11 @@
 use super::io::{srgb8, Image};
 use serde::Serialize;
 
+mod ldr;
+
+/// ꟻLIP's default viewing: 67 pixels per degree (0.7 m from a 0.7 m wide 4K screen).
+const PIXELS_PER_DEGREE: f32 = 67.0;
+
 /// Which ꟻLIP the comparison carries.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "lowercase")]
@@ -92,10 +97,73 @@ fn exposure_range(rgb: impl Iterator<Item = [f64; 3]>) -> (f64, f64) {
     (start, (x / y_median).log2().max(start))
 }
 
+/// One exposure's x ↦ sRGB8(clamp(ACES(m · x), 0, 1)) on a sample x, non-finite and negative
+/// samples counting as 0: the same value as [`srgb8`] of [`aces`] in f64, without a `pow` per
+/// sample. The map is a step function of x (both curves are nondecreasing), so it is held as
+/// its 255 steps: `steps[k − 1]` is the least non-negative f32 that encodes to k or more, found
+/// by bisection over the f32s' bit patterns (ordered as the values are). A sample's top 16 bits
+/// pick one of 2¹⁶ buckets of 2¹⁵ consecutive f32s; a bucket no step falls inside gives its code
+/// at once, and the few that hold a step compare with it (`encode_is_srgb8_of_aces` checks
+/// every f16 and a million f32s against the direct computation).
+struct Exposure {
+    steps: [f32; 255],
+    /// Per bucket: the code of its first f32, and how many steps lie strictly inside it.
+    buckets: Vec<(u8, u8)>,
+}
+
+impl Exposure {
+    fn new(m: f64) -> Exposure {
+        let direct = |bits: u32| srgb8(aces(f32::from_bits(bits) as f64 * m));
+        let finite = f32::MAX.to_bits();
+        let steps: [f32; 255] = std::array::from_fn(|k| {
+            // The least bit pattern in [0, MAX] encoding to k + 1 or more (MAX + 1 if none)
+            let (mut lo, mut hi) = (0u32, finite + 1);
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                match direct(mid) as usize > k {
+                    true => hi = mid,
+                    false => lo = mid + 1,
+                }
+            }
+            match lo > finite {
+                true => f32::INFINITY,
+                false => f32::from_bits(lo),
+            }
+        });
+        let code = |x: f32| steps.partition_point(|&t| t <= x) as u8;
+        let buckets = (0..1u32 << 16)
+            .map(|b| {
+                let (first, last) = (b << 15, (b << 15) | 0x7fff);
+                let inside = steps
+                    .iter()
+                    .filter(|t| (first + 1..=last).contains(&t.to_bits()))
+                    .count();
+                (code(f32::from_bits(first)), inside as u8)
+            })
+            .collect();
+        Exposure { steps, buckets }
+    }
+
+    fn encode(&self, x: f32) -> u8 {
+        if !(x > 0.0) || !x.is_finite() {
+            return self.buckets[0].0;
+        }
+        let (code, inside) = self.buckets[(x.to_bits() >> 15) as usize];
+        match inside {
+            0 => code,
+            _ => {
+                code + self.steps[code as usize..]
+                    .iter()
+                    .take(inside as usize)
+                    .filter(|&&t| t <= x)
+                    .count() as u8
+            }
+        }
+    }
+}
+
 fn flip_ldr8(w: usize, h: usize, reference: &[u8], test: &[u8]) -> Vec<f32> {
-    let r = nv_flip::FlipImageRgb8::with_data(w as u32, h as u32, reference);
-    let t = nv_flip::FlipImageRgb8::with_data(w as u32, h as u32, test);
-    nv_flip::flip(r, t, nv_flip::DEFAULT_PIXELS_PER_DEGREE).to_vec()
+    ldr::flip_rgb8(w, h, reference, test, PIXELS_PER_DEGREE)
 }
 
 fn mean(v: &[f32]) -> f64 {
@@ -229,12 +297,17 @@ fn hdr_flip_in_bands(reference: &Image, test: &Image, rows: usize) -> (f64, Vec<
     };
     let count = ((stop - start).ceil() as usize).max(2);
     let step = (stop - start) / (count - 1) as f64;
-    // Exposure k of rows y0..y1: sRGB8(ACES(2^e · x))
+    // Exposure k of rows y0..y1: sRGB8(ACES(2^e · x)), through each exposure's table
+    let tables: Vec<Exposure> = (0..count)
+        .map(|k| Exposure::new((start + k as f64 * step).exp2()))
+        .collect();
     let enc = |k: usize, y0: usize, y1: usize| {
-        let m = (start + k as f64 * step).exp2();
-        let rows = |img: &Image, idx| -> Vec<u8> {
-            (y0 * w..y1 * w)
-                .flat_map(|p| sanitized(img, idx, p).map(|c| srgb8(aces(c * m))))
+        let t = &tables[k];
+        let rows = |img: &Image, idx: [usize; 3]| -> Vec<u8> {
+            let n = img.channels.len().max(1);
+            img.data[y0 * w * n..y1 * w * n]
+                .chunks(n)
+                .flat_map(|px| idx.map(|i| t.encode(px.get(i).copied().unwrap_or(0.0))))
                 .collect()
         };
         (rows(reference, ri), rows(test, ti))
@@ -315,6 +388,36 @@ mod tests {
         // Mostly black: the median is floored at f32::EPSILON, not 0
         let (_, stop) = exposure_range([px(0.0), px(0.0), px(0.0), px(1.0)].into_iter());
         assert!((stop - (x / f32::EPSILON as f64).log2()).abs() < 1e-9);
+    }
+
+    /// The exposure table gives what `srgb8(aces(m · x))` gives: every f16 (the samples of a half
+    /// EXR) and a million f32s, at exposures from very dark to very bright.
+    #[test]
+    fn encode_is_srgb8_of_aces() {
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        for m in [1e-9, 0.013, 0.5, 1.0, 3.7, 1e4, 1e30] {
+            let e = Exposure::new(m);
+            let direct = |x: f32| match x.is_finite() {
+                true => srgb8(aces(x.max(0.0) as f64 * m)),
+                false => srgb8(0.0),
+            };
+            let halves = (0..=u16::MAX).map(|h| exr::prelude::f16::from_bits(h).to_f32());
+            let floats = (0..1_000_000).map(|_| f32::from_bits(rnd() as u32));
+            for x in halves.chain(floats) {
+                assert_eq!(
+                    e.encode(x),
+                    direct(x),
+                    "x = {x:e} ({:#x}), m = {m}",
+                    x.to_bits()
+                );
+            }
+        }
     }
 
     /// The bands' map is the whole image's, bit for bit: bands of 1, 7 and 37 rows (each with
