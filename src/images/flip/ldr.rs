@@ -6,27 +6,35 @@
 //! each for Y and Cx, two for Cz), YCxCz → linear RGB clamped → CIELab with Hunt's adjustment,
 //! HyAB, the feature filters (a Gaussian and its first and second derivatives on Y), and
 //! `colour^(1 − feature)`. Every value is computed with the same f32 operations in the same
-//! order, so the map is the C++ map (`the_kernel_is_nv_flips`: bit for bit on random images
-//! with edges). What differs is only how it is laid out:
-//! - planes instead of colour triples, and each row padded with its edge pixels instead of a
-//!   clamped index per tap, so the filters' inner loops run along a row and vectorise;
+//! order (the filters' sums too), laid out so that it vectorises:
+//! - planes instead of colour triples, each row padded with its edge pixels instead of a
+//!   clamped index per tap, a block of 128 columns summed over all taps in registers, and the
+//!   filters along y a strip of 512 columns at a time (the rows they read stay in cache);
 //! - sRGB → linear through a 256-entry table (the input has 256 values per channel);
-//! - where the filtered colours of both images are equal, the colour difference is 0 without
-//!   its seven `powf`s, and where their features are equal the error is the colour difference
-//!   without two more. Both are exact: `powf(0, y) = 0` for y > 0 and `powf(x, 1) = x`.
+//! - the powers without a call: [`pow`] in f64, and the feature difference's (·)^½ as a square
+//!   root. Both are correctly rounded but for rare last-ulp cases, as glibc's `powf` is, so a
+//!   power can differ from the C++'s by one ulp where either slips.
+//!
+//! How far such a slip moves the map: the map is continuous, and Lipschitz except where two
+//! filtered colours are nearly equal. There the colour difference d^0.7 has an infinite slope at
+//! d = 0: a perturbation δ of the HyAB distance (an ulp or two of L ≤ 100: δ ≲ 3e-5) moves the
+//! remapped colour error by at most δ^0.7 · 0.95 / (0.4 · cmax) = 3.9e-5 (cmax = 203.3^0.7 =
+//! 41.3), and the final power `c^e`, e ∈ [0, 1], moves it no further than c itself moved.
+//! `the_kernel_is_nv_flips` holds every pixel within 1e-4 of nv-flip's (measured: worst 3.6e-6,
+//! 99.5 % of pixels bit for bit).
 
 /// ꟻLIP's constants (`sharedflip.h` `FLIPConstants`).
 const GQC: f32 = 0.7;
 const GPC: f32 = 0.4;
 const GPT: f32 = 0.95;
 const GW: f32 = 0.082;
-const GQF: f32 = 0.5;
 const PI: f32 = 3.141_592_653_589_79;
 
 /// D65 white and its inverse (`color.h` `DEFAULT_ILLUMINANT`, `INV_DEFAULT_ILLUMINANT`).
 const WHITE: [f32; 3] = [0.950_428_545, 1.0, 1.088_900_371];
 const INV_WHITE: [f32; 3] = [1.052_156_925, 1.0, 0.918_357_670];
 
+#[inline(always)]
 fn linear_to_xyz([r, g, b]: [f32; 3]) -> [f32; 3] {
     const A: [[f32; 3]; 3] = [
         [
@@ -45,16 +53,26 @@ fn linear_to_xyz([r, g, b]: [f32; 3]) -> [f32; 3] {
             70074185.0 / 73733382.0,
         ],
     ];
-    A.map(|a| a[0] * r + a[1] * g + a[2] * b)
+    // Written out (not `A.map`), so that a loop of them vectorises
+    [
+        A[0][0] * r + A[0][1] * g + A[0][2] * b,
+        A[1][0] * r + A[1][1] * g + A[1][2] * b,
+        A[2][0] * r + A[2][1] * g + A[2][2] * b,
+    ]
 }
 
+#[inline(always)]
 fn xyz_to_linear([x, y, z]: [f32; 3]) -> [f32; 3] {
     const A: [[f32; 3]; 3] = [
         [3.241_003_275, -1.537_398_934, -0.498_615_861],
         [-0.969_224_334, 1.875_930_071, 0.041_554_224],
         [0.055_639_423, -0.204_011_202, 1.057_148_933],
     ];
-    A.map(|a| a[0] * x + a[1] * y + a[2] * z)
+    [
+        A[0][0] * x + A[0][1] * y + A[0][2] * z,
+        A[1][0] * x + A[1][1] * y + A[1][2] * z,
+        A[2][0] * x + A[2][1] * y + A[2][2] * z,
+    ]
 }
 
 fn xyz_to_ycxcz(xyz: [f32; 3]) -> [f32; 3] {
@@ -66,21 +84,28 @@ fn xyz_to_ycxcz(xyz: [f32; 3]) -> [f32; 3] {
     [116.0 * y - 16.0, 500.0 * (x - y), 200.0 * (y - z)]
 }
 
+#[inline(always)]
 fn ycxcz_to_xyz([yy, cx, cz]: [f32; 3]) -> [f32; 3] {
     let y = (yy + 16.0) / 116.0;
     let (cx, cz) = (cx / 500.0, cz / 200.0);
     [(y + cx) * WHITE[0], y * WHITE[1], (y - cz) * WHITE[2]]
 }
 
+#[inline(always)]
 fn xyz_to_lab(xyz: [f32; 3]) -> [f32; 3] {
     let delta = 6.0f32 / 29.0;
     let delta_square = delta * delta;
     let delta_cube = delta * delta_square;
     let factor = 1.0 / (3.0 * delta_square);
     let term = 4.0f32 / 29.0;
-    let f = |v: f32| match v > delta_cube {
-        true => v.powf(1.0 / 3.0),
-        false => factor * v + term,
+    // Both sides computed and one kept: a select, not a branch
+    let f = |v: f32| {
+        let (root, line) = (pow(v, 1.0 / 3.0), factor * v + term);
+        if v > delta_cube {
+            root
+        } else {
+            line
+        }
     };
     let [x, y, z] = [
         f(xyz[0] * INV_WHITE[0]),
@@ -91,6 +116,7 @@ fn xyz_to_lab(xyz: [f32; 3]) -> [f32; 3] {
 }
 
 /// The C++ `Max` and `Min` macros (a NaN falls to the second argument).
+#[inline(always)]
 fn max(x: f32, y: f32) -> f32 {
     if x > y {
         x
@@ -99,6 +125,7 @@ fn max(x: f32, y: f32) -> f32 {
     }
 }
 
+#[inline(always)]
 fn min(x: f32, y: f32) -> f32 {
     if x > y {
         y
@@ -107,17 +134,81 @@ fn min(x: f32, y: f32) -> f32 {
     }
 }
 
+#[inline(always)]
 fn clamp01(v: f32) -> f32 {
     min(max(v, 0.0), 1.0)
 }
 
+/// `x^y` for x ≥ 0 finite and y ∈ [0, 1] (the only powers ꟻLIP takes), without a branch or a
+/// call, so that a loop of them vectorises: 2^(y · log2 x) in f64, rounded once to f32.
+///
+/// Error analysis. x = 2^e · m with m ∈ [√½, √2) (exact, from the bits). With
+/// t = (m − 1)/(m + 1), |t| ≤ 0.1716, log2 m = (2/ln 2)·(t + t³/3 + … + t¹⁵/15): the series
+/// left out is below t¹⁷/17 ≤ 3.5e-14 · |t| relative, and m − 1 is exact (Sterbenz), so
+/// L = e + log2 m carries a relative error of a few 1e-16 and z = y · L an absolute one below
+/// 1e-13 (|L| ≤ 150). 2^z = 2^n · 2^f with n = round(z) and |f| ≤ ½: the Taylor series of
+/// e^(f ln 2) to the 10th power leaves out less than 0.347¹¹/11! = 2.2e-13 relative. The f64
+/// result is therefore within 5e-13 relative of xʸ, and its rounding to f32 is the correctly
+/// rounded xʸ unless xʸ lies within 5e-13 relative of a midpoint between two f32s, where it can
+/// be the other neighbour: one ulp at most, as glibc's `powf` (which the C++ calls, "< 1 ULP")
+/// can be. x = 0 gives 0 (y > 0), 1 (y = 0) or ∞ (y < 0), as `powf`.
+#[inline(always)]
+fn pow(x: f32, y: f32) -> f32 {
+    const SQRT2: f64 = std::f64::consts::SQRT_2;
+    const LOG2E2: f64 = 2.0 * std::f64::consts::LOG2_E;
+    const LN2: f64 = std::f64::consts::LN_2;
+    const ROUND: f64 = 6_755_399_441_055_744.0; // 1.5 · 2⁵², adding it rounds to an integer
+    let (x, y) = (x as f64, y as f64);
+    let bits = x.to_bits();
+    let e0 = ((bits >> 52) & 0x7ff) as i64 - 1023;
+    let m0 = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
+    let big = m0 > SQRT2;
+    let m = if big { m0 * 0.5 } else { m0 };
+    let e = (if big { e0 + 1 } else { e0 }) as f64;
+    let t = (m - 1.0) / (m + 1.0);
+    let t2 = t * t;
+    let mut s = 1.0 / 15.0;
+    for k in [13.0, 11.0, 9.0, 7.0, 5.0, 3.0, 1.0] {
+        s = s * t2 + 1.0 / k;
+    }
+    let z = y * (e + LOG2E2 * t * s);
+    let n = (z + ROUND) - ROUND;
+    let a = (z - n) * LN2;
+    let mut p = 1.0;
+    for k in [10.0, 9.0, 8.0, 7.0, 6.0, 5.0, 4.0, 3.0, 2.0, 1.0] {
+        p = 1.0 + a * (1.0 / k) * p;
+    }
+    let r = f64::from_bits(p.to_bits().wrapping_add(((n as i64) << 52) as u64)) as f32;
+    match x == 0.0 {
+        true if y == 0.0 => 1.0,
+        true if y < 0.0 => f32::INFINITY,
+        true => 0.0,
+        false => r,
+    }
+}
+
+/// [`lab_hunt`] of a row's Y, Cx and Cz, into three rows.
+#[inline(always)]
+fn lab_rows(y: &[f32], cx: &[f32], cz: &[f32], out: &mut [Vec<f32>; 3]) {
+    let n = y.len();
+    let (cx, cz) = (&cx[..n], &cz[..n]);
+    let [l, a, b] = out;
+    let (l, a, b) = (&mut l[..n], &mut a[..n], &mut b[..n]);
+    for x in 0..n {
+        [l[x], a[x], b[x]] = lab_hunt([y[x], cx[x], cz[x]]);
+    }
+}
+
 /// CIELab with Hunt's adjustment of a and b.
+#[inline(always)]
 fn lab_hunt(ycxcz: [f32; 3]) -> [f32; 3] {
-    let rgb = xyz_to_linear(ycxcz_to_xyz(ycxcz)).map(clamp01);
+    let [r, g, b] = xyz_to_linear(ycxcz_to_xyz(ycxcz));
+    let rgb = [clamp01(r), clamp01(g), clamp01(b)];
     let [l, a, b] = xyz_to_lab(linear_to_xyz(rgb));
     [l, 0.01 * l * a, 0.01 * l * b]
 }
 
+#[inline(always)]
 fn hyab(r: [f32; 3], t: [f32; 3]) -> f32 {
     (r[0] - t[0]).abs() + ((r[1] - t[1]) * (r[1] - t[1]) + (r[2] - t[2]) * (r[2] - t[2])).sqrt()
 }
@@ -211,25 +302,44 @@ fn linear_table() -> [f32; 256] {
 }
 
 /// One image's Y, Cx and Cz planes.
+#[inline(always)]
 fn ycxcz_planes(rgb8: &[u8], lin: &[f32; 256]) -> [Vec<f32>; 3] {
     let n = rgb8.len() / 3;
-    let mut p: [Vec<f32>; 3] = std::array::from_fn(|_| Vec::with_capacity(n));
-    for px in rgb8.chunks_exact(3) {
+    let mut p: [Vec<f32>; 3] = std::array::from_fn(|_| plane(n));
+    let [py, pcx, pcz] = &mut p;
+    for (i, px) in rgb8.chunks_exact(3).enumerate() {
         let c = xyz_to_ycxcz(linear_to_xyz([
             lin[px[0] as usize],
             lin[px[1] as usize],
             lin[px[2] as usize],
         ]));
-        for k in 0..3 {
-            p[k].push(c[k]);
-        }
+        (py[i], pcx[i], pcz[i]) = (c[0], c[1], c[2]);
     }
     p
 }
 
+thread_local! {
+    /// Planes a thread used before: the kernel runs once per band and exposure, and memory
+    /// the process already touched costs no page faults.
+    static PLANES: std::cell::RefCell<Vec<Vec<f32>>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// A plane of `n` values (their contents are whatever a former use left: every caller writes
+/// each value before it reads it).
+fn plane(n: usize) -> Vec<f32> {
+    let mut v = PLANES.with(|p| p.borrow_mut().pop()).unwrap_or_default();
+    v.resize(n, 0.0);
+    v
+}
+
+/// Gives planes back for the next band.
+fn give_back(planes: impl IntoIterator<Item = Vec<f32>>) {
+    PLANES.with(|p| p.borrow_mut().extend(planes));
+}
+
 /// Columns summed at once: as many accumulators as keep the vector units busy (4 AVX-512
 /// registers, 8 AVX2, 16 SSE), all in registers.
-const BLOCK: usize = 64;
+const BLOCK: usize = 128;
 
 /// `out[x] = Σₖ f[k] · rows[k][x]` for every x, each sum taken in k's order from 0.0, as the
 /// C++ takes its taps. A block of columns is summed over all taps before it is stored, so each
@@ -272,30 +382,49 @@ fn along_x(
     let r = filters[0].len() / 2;
     let mut padded = vec![0f32; w + 2 * r];
     for d in dst.iter_mut() {
-        d.resize(w * h, 0.0);
+        *d = plane(w * h);
     }
     for y in 0..h {
-        for (i, p) in padded.iter_mut().enumerate() {
-            *p = src(y * w + i.saturating_sub(r).min(w - 1));
+        for (i, p) in padded[r..r + w].iter_mut().enumerate() {
+            *p = src(y * w + i);
         }
-        let taps: Vec<&[f32]> = (0..2 * r + 1).map(|k| &padded[k..]).collect();
+        let (first, last) = (padded[r], padded[r + w - 1]);
+        padded[..r].fill(first);
+        padded[r + w..].fill(last);
+        let taps: [&[f32]; 64] = std::array::from_fn(|k| &padded[k.min(2 * r)..]);
         for (f, d) in filters.iter().zip(dst.iter_mut()) {
-            weighted_sum(&mut d[y * w..(y + 1) * w], f, &taps);
+            weighted_sum(&mut d[y * w..(y + 1) * w], f, &taps[..2 * r + 1]);
         }
     }
 }
 
 /// Row `y` of `src` (w × h) convolved along y with `f`, edges clamped, into `out`.
 #[inline(always)]
-fn along_y(out: &mut [f32], src: &[f32], w: usize, h: usize, y: usize, f: &[f32]) {
+fn along_y(
+    out: &mut [f32],
+    src: &[f32],
+    w: usize,
+    h: usize,
+    y: usize,
+    cols: (usize, usize),
+    f: &[f32],
+) {
     let r = f.len() / 2;
-    let rows: Vec<&[f32]> = (0..f.len())
-        .map(|k| {
-            let yy = (y + k).saturating_sub(r).min(h - 1);
-            &src[yy * w..(yy + 1) * w]
-        })
-        .collect();
-    weighted_sum(out, f, &rows);
+    let rows: [&[f32]; 64] = std::array::from_fn(|k| {
+        let yy = (y + k.min(2 * r)).saturating_sub(r).min(h - 1);
+        &src[yy * w + cols.0..yy * w + cols.1]
+    });
+    weighted_sum(&mut out[..cols.1 - cols.0], f, &rows[..f.len()]);
+}
+
+/// Columns taken a strip at a time by the filters along y: a strip of the rows one output row
+/// reads (8 planes × 21 rows × 512 columns × 4 bytes = 344 KiB) stays in the L2 cache from
+/// one row to the next, where whole rows (2.5 MiB at 3840 columns) would not.
+fn strips(w: usize) -> impl Iterator<Item = (usize, usize)> {
+    const STRIP: usize = 512;
+    (0..w)
+        .step_by(STRIP)
+        .map(move |x0| (x0, (x0 + STRIP).min(w)))
 }
 
 /// The LDR-ꟻLIP error map of two `w × h` images given as 8-bit sRGB triples, at `ppd` pixels
@@ -339,7 +468,9 @@ fn flip_impl(w: usize, h: usize, reference: &[u8], test: &[u8], ppd: f32) -> Vec
     let lin = linear_table();
     let (r, t) = (ycxcz_planes(reference, &lin), ycxcz_planes(test, &lin));
     let color = color_difference(&r, &t, w, h, ppd);
-    features_and_error(&r[0], &t[0], color, w, h, ppd)
+    let o = features_and_error(&r[0], &t[0], color, w, h, ppd);
+    give_back(r.into_iter().chain(t));
+    o
 }
 
 /// The colour difference remapped to [0, 1] (`computeColorDifference`).
@@ -364,26 +495,44 @@ fn color_difference(
     let filters = [&fy, &fcx, &fz1, &fz2, &fy, &fcx, &fz1, &fz2];
     let mut acc = vec![vec![0f32; w]; 8];
     let mut out = vec![0f32; w * h];
-    for y in 0..h {
-        for ((a, m), f) in acc.iter_mut().zip(&mid).zip(filters) {
-            along_y(a, m, w, h, y, f);
-        }
-        for x in 0..w {
-            let fr = [acc[0][x], acc[1][x], acc[2][x] + acc[3][x]];
-            let ft = [acc[4][x], acc[5][x], acc[6][x] + acc[7][x]];
-            // Equal filtered colours: HyAB 0, and 0^GQC = 0
-            if fr == ft {
-                continue;
+    let mut lab_r = vec![0f32; w];
+    let (mut lr, mut lt) = (
+        [vec![0f32; w], vec![0f32; w], vec![0f32; w]],
+        [vec![0f32; w], vec![0f32; w], vec![0f32; w]],
+    );
+    for cols in strips(w) {
+        for y in 0..h {
+            for ((a, m), f) in acc.iter_mut().zip(&mid).zip(filters) {
+                along_y(a, m, w, h, y, cols, f);
             }
-            let mut d = hyab(lab_hunt(fr), lab_hunt(ft)).powf(GQC);
-            if d < pccmax {
-                d *= GPT / pccmax;
-            } else {
-                d = GPT + ((d - pccmax) / (cmax - pccmax)) * (1.0 - GPT);
+            // Every column without a branch, so that the loop vectorises
+            let row = &mut out[y * w + cols.0..y * w + cols.1];
+            let n = row.len();
+            let (a0, a1, a2, a3) = (&acc[0][..n], &acc[1][..n], &acc[2][..n], &acc[3][..n]);
+            let (a4, a5, a6, a7) = (&acc[4][..n], &acc[5][..n], &acc[6][..n], &acc[7][..n]);
+            for x in 0..n {
+                row[x] = a2[x] + a3[x];
+                lab_r[x] = a6[x] + a7[x];
             }
-            out[y * w + x] = d;
+            lab_rows(a0, a1, row, &mut lr);
+            lab_rows(a4, a5, &lab_r, &mut lt);
+            for x in 0..n {
+                row[x] = hyab(
+                    [lr[0][x], lr[1][x], lr[2][x]],
+                    [lt[0][x], lt[1][x], lt[2][x]],
+                );
+            }
+            for o in row.iter_mut() {
+                let d = pow(*o, GQC);
+                let (low, high) = (
+                    d * (GPT / pccmax),
+                    GPT + ((d - pccmax) / (cmax - pccmax)) * (1.0 - GPT),
+                );
+                *o = if d < pccmax { low } else { high };
+            }
         }
     }
+    give_back(mid);
     out
 }
 
@@ -424,30 +573,35 @@ fn features_and_error(
         (5, &ddg),
     ];
     let mut acc = vec![vec![0f32; w]; 8];
-    for y in 0..h {
-        for (a, &(m, f)) in acc.iter_mut().zip(&plan) {
-            along_y(a, &mid[m], w, h, y, f);
-        }
-        for x in 0..w {
-            let [dxr, ddxr, dyr, ddyr, dxt, ddxt, dyt, ddyt] = std::array::from_fn(|k| acc[k][x]);
-            let edge_r = (dxr * dxr + dyr * dyr).sqrt();
-            let edge_t = (dxt * dxt + dyt * dyt).sqrt();
-            let point_r = (ddxr * ddxr + ddyr * ddyr).sqrt();
-            let point_t = (ddxt * ddxt + ddyt * ddyt).sqrt();
-            let m = max((edge_r - edge_t).abs(), (point_r - point_t).abs());
-            let c = &mut color[y * w + x];
-            // Equal features: the feature difference is 0^GQF = 0, and c^1 = c
-            if m == 0.0 {
-                continue;
+    for cols in strips(w) {
+        for y in 0..h {
+            for (a, &(m, f)) in acc.iter_mut().zip(&plan) {
+                along_y(a, &mid[m], w, h, y, cols, f);
             }
-            let e = 1.0 - (norm * m).powf(GQF);
-            *c = match *c == 0.0 {
-                // 0^e: 0 for e > 0, 1 for e = 0, ∞ below
-                true if e > 0.0 => 0.0,
-                _ => c.powf(e),
-            };
+            // Every column without a branch, so that the loop vectorises
+            let row = &mut color[y * w + cols.0..y * w + cols.1];
+            let n = row.len();
+            let (a0, a1, a2, a3) = (&acc[0][..n], &acc[1][..n], &acc[2][..n], &acc[3][..n]);
+            let (a4, a5, a6, a7) = (&acc[4][..n], &acc[5][..n], &acc[6][..n], &acc[7][..n]);
+            for x in 0..n {
+                let c = &mut row[x];
+                let (dxr, ddxr, dyr, ddyr) = (a0[x], a1[x], a2[x], a3[x]);
+                let (dxt, ddxt, dyt, ddyt) = (a4[x], a5[x], a6[x], a7[x]);
+                let edge_r = (dxr * dxr + dyr * dyr).sqrt();
+                let edge_t = (dxt * dxt + dyt * dyt).sqrt();
+                let point_r = (ddxr * ddxr + ddyr * ddyr).sqrt();
+                let point_t = (ddxt * ddxt + ddyt * ddyt).sqrt();
+                let m = max((edge_r - edge_t).abs(), (point_r - point_t).abs());
+                // The feature difference: (·)^GQF with GQF = ½ is the square root (correctly rounded,
+                // as `powf` is but for its rare last-ulp slips). Y normalised lies in [0, 1] and
+                // each derivative filter's positive and negative weights sum to ±1, so |dx|, |dy|,
+                // |ddx|, |ddy| ≤ 1, m ≤ √2 and the exponent 1 − √(m/√2) lies in [0, 1]
+                let e = 1.0 - (norm * m).sqrt();
+                *c = pow(*c, e);
+            }
         }
     }
+    give_back(mid);
     color
 }
 
@@ -468,7 +622,8 @@ mod tests {
     }
 
     /// The kernel against nv-flip's C++ on images with flat areas, edges and noise, odd sizes
-    /// and a one-pixel row: bit for bit.
+    /// and a one-pixel row: every pixel within 1e-4 (the module's analysis), at least 98 % bit
+    /// for bit, on each instruction set this machine has.
     #[test]
     fn the_kernel_is_nv_flips() {
         assert_eq!(nv_flip::DEFAULT_PIXELS_PER_DEGREE, 67.0);
@@ -500,7 +655,18 @@ mod tests {
                     _ => v.wrapping_add((i % 5) as u8),
                 };
             }
-            let ours = flip_rgb8(w, h, &a2, &b, 67.0);
+            let ours = flip_impl(w, h, &a2, &b, 67.0);
+            // Each vector unit gives the baseline's bits
+            #[cfg(target_arch = "x86_64")]
+            {
+                use crate::numerics::cpu;
+                if cpu::avx2() {
+                    assert!(unsafe { flip_avx2(w, h, &a2, &b, 67.0) } == ours);
+                }
+                if cpu::avx512() {
+                    assert!(unsafe { flip_avx512(w, h, &a2, &b, 67.0) } == ours);
+                }
+            }
             let theirs = nv_flip::flip(
                 nv_flip::FlipImageRgb8::with_data(w as u32, h as u32, &a2),
                 nv_flip::FlipImageRgb8::with_data(w as u32, h as u32, &b),
@@ -512,7 +678,9 @@ mod tests {
                 .zip(&theirs)
                 .filter(|(x, y)| x.to_bits() != y.to_bits())
                 .count();
-            assert_eq!(differ, 0, "{w}×{h}: {differ} of {} pixels differ", w * h);
+            let worst = ours.iter().zip(&theirs).map(|(x, y)| (x - y).abs()).fold(0f32, f32::max);
+            assert!(worst <= 1e-4, "{w}×{h}: worst difference {worst:e}");
+            assert!(differ * 50 <= w * h, "{w}×{h}: {differ} of {} pixels differ", w * h);
             assert!(ours.iter().any(|&v| v > 0.0));
         }
     }
