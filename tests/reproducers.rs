@@ -1758,8 +1758,9 @@ fn flip_of_a_large_pair_in_bands(d: &Path) -> Result<(), String> {
     });
     let r = run(d, &["diff", "--flip", "a.exr", "b.exr"], 120);
     r.exited(2)?;
-    if !r.stdout.contains("Mean HDR-FLIP") || r.peak > 700 << 20 {
-        return Err(format!("want ꟻLIP within 700 MB: {}", r.ended()));
+    // Measured on this pair: about 300 MB in bands, 650 MB with the whole image in one band
+    if !r.stdout.contains("Mean HDR-FLIP") || r.peak > 450 << 20 {
+        return Err(format!("want ꟻLIP within 450 MB: {}", r.ended()));
     }
     let r = run(d, &["diff", "a.exr", "b.exr"], 120);
     r.exited(2)?;
