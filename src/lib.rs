@@ -58,6 +58,7 @@
 //! | 2 | bad usage or input: one line on stderr names the argument (malformed number, unknown shape, method, class or precision, bad shard, unwritable output, a tolerance file with an unknown name or a dead rule); for `merge`, a shard file that is unreadable, truncated, corrupt or not a shard |
 //! | 3 | `reference`: a renderer is missing (one line saying how to install it; nothing rendered) or failed, or made an image that cannot be a reference (another size than the frame, NaN or Inf; nothing written). `merge`: the shard files are not one audit's shards 0/N … N−1/N (a shard missing or given twice, or a different seed, `--cases`, selection, N, rayproof version or tolerance table), or `--tolerances` is not the table the shards were run with |
 //! | 4 | `audit` or `probe` with `--exec` or `--plugin`: the outside routine failed (the child crashed, hung past `--timeout`, wrote more than its output cap, answered a line that is not an answer — not a count and numbers — or the wrong number of lines; the library routine, in its worker process, crashed, aborted, overflowed its stack, called `exit()`, hung past `--timeout`, returned non-zero or left a count unwritten; the line names the batch and, where one case does it, the case); no report is written. An answer that parses but breaks the answer contract ([`audit::contract`]) is not a failure of the routine's run but a wrong answer, counted in its row |
+//! | 71 | out of memory (every command): an allocation failed, under the machine's memory or the process's address-space limit (`ulimit -v`); one line gives its size, and the run ends as an interrupt does (outside commands killed, temporaries removed, no output replaced; sysexits' `EX_OSERR`). Before, an abort with a stack trace (exit 134) |
 //! | 130 | interrupted by SIGINT or SIGTERM: the temporaries of outputs being written are removed, no output is replaced |
 //!
 //! `spawn` uses them too: 0 when no rule given by `--exec` self-hits (the built-in rules are
@@ -81,6 +82,7 @@
 //! | 3 | the images differ in display window, channels or layer (with `--idiff-compat`, which compares them over the union of their data windows as idiff does, only when `--diff-exr` or `--variance` needs them to show one frame) |
 //! | 4 | an input is unreadable: missing, empty, truncated, corrupt, not EXR/PNG, or over a limit; or it has no layer `--layer` names, or several layers and none the default takes (a `Combined` layer, else one with `R`, `G`, `B`) |
 //! | 64 | bad usage: an unknown option or a bad value, or an idiff option rayproof refuses (`-p`, `-a`, `-od`; sysexits' `EX_USAGE`): never a verdict's code, so a CI tells a typo from a regression |
+//! | 71 | out of memory, as for every command (above) |
 //! | 73 | an output that cannot be written: its directory missing, not writable, or an input (sysexits' `EX_CANTCREAT`) |
 //!
 //! How output files are written, and what an interrupted command leaves: [`output`].

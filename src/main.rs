@@ -5,7 +5,47 @@ use clap::error::ErrorKind;
 mod cli;
 
 use cli::{error_exit_code, one_line, parse, run};
+use std::alloc::{GlobalAlloc, Layout, System};
 use std::process::ExitCode;
+
+/// The system's allocator, but an allocation that fails ends the run with one line and exit 71
+/// ([`rayproof::output::out_of_memory`]) instead of an abort with a stack trace.
+struct Allocator;
+
+// SAFETY: every call is the system allocator's, with its arguments; a null it returns is never
+// handed on (the run ends)
+unsafe impl GlobalAlloc for Allocator {
+    unsafe fn alloc(&self, l: Layout) -> *mut u8 {
+        let p = unsafe { System.alloc(l) };
+        if p.is_null() {
+            rayproof::output::out_of_memory(l.size());
+        }
+        p
+    }
+
+    unsafe fn alloc_zeroed(&self, l: Layout) -> *mut u8 {
+        let p = unsafe { System.alloc_zeroed(l) };
+        if p.is_null() {
+            rayproof::output::out_of_memory(l.size());
+        }
+        p
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, l: Layout, new: usize) -> *mut u8 {
+        let p = unsafe { System.realloc(ptr, l, new) };
+        if p.is_null() {
+            rayproof::output::out_of_memory(new);
+        }
+        p
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, l: Layout) {
+        unsafe { System.dealloc(ptr, l) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Allocator = Allocator;
 
 fn main() -> ExitCode {
     // Usage errors: one line naming the argument, exit 2 (`diff`: 64, never a verdict's code);

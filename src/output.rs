@@ -85,7 +85,7 @@ fn remove_temporary(p: &Path) {
 /// On SIGINT or SIGTERM: stop the outside commands, let a commit in progress finish, remove
 /// every temporary, exit with 130 (the shell's code for an interrupted command).
 pub fn clean_up_on_signals() {
-    let _ = ctrlc::set_handler(|| {
+    let installed = ctrlc::set_handler(|| {
         // From now on no other thread decides how the run ends and no commit starts; the
         // outside commands running now, and all they started, go first
         crate::process::interrupt();
@@ -103,6 +103,12 @@ pub fn clean_up_on_signals() {
                 remove_temporary(&p);
             }
         });
+        // An allocation that failed ends the run as an interrupt does, with its own line
+        let oom = OUT_OF_MEMORY.load(std::sync::atomic::Ordering::SeqCst);
+        if oom != 0 {
+            eprintln!("error: {}", OutOfMemory(oom));
+            std::process::exit(EXIT_OUT_OF_MEMORY as i32);
+        }
         // Whether a commit replaced anything before the signal (it waited for the commit)
         if RENAMED.load(std::sync::atomic::Ordering::SeqCst) {
             eprintln!("error: interrupted after its outputs were written (all in place); temporary files removed");
@@ -111,6 +117,59 @@ pub fn clean_up_on_signals() {
         }
         std::process::exit(130);
     });
+    HANDLER.store(installed.is_ok(), std::sync::atomic::Ordering::SeqCst);
+}
+
+/// The exit code of a run that ran out of memory (sysexits' `EX_OSERR`).
+pub const EXIT_OUT_OF_MEMORY: u8 = 71;
+
+/// The size of an allocation that failed (0: none yet), for the interrupt handler.
+static OUT_OF_MEMORY: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+
+/// Whether [`clean_up_on_signals`] installed its handler.
+static HANDLER: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// The line of a failed allocation (formatting it allocates nothing).
+struct OutOfMemory(usize);
+
+impl std::fmt::Display for OutOfMemory {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        write!(
+            f,
+            "out of memory: an allocation of {} bytes failed (the machine's memory or the process's \
+             address-space limit, `ulimit -v`); temporary files removed, no output replaced",
+            self.0
+        )
+    }
+}
+
+/// Ends the run because an allocation of `bytes` failed, for the binary's global allocator: one
+/// line and exit [`EXIT_OUT_OF_MEMORY`], never an abort. The interrupt handler does it, so the
+/// outside commands are killed and the temporaries removed as for SIGINT and no output is
+/// replaced (a commit under way finishes whole). Where no handler was installed, or it has not
+/// ended the process within 20 s (the handler waits up to 10 s for writers; a lock it needs
+/// may be held by the thread that ran out), the line is written here and the process exits.
+/// Allocates nothing itself.
+pub fn out_of_memory(bytes: usize) -> ! {
+    use std::sync::atomic::Ordering::SeqCst;
+    let first = OUT_OF_MEMORY
+        .compare_exchange(0, bytes.max(1), SeqCst, SeqCst)
+        .is_ok();
+    if HANDLER.load(SeqCst) {
+        if first {
+            // SAFETY: raise has no preconditions; the handler runs on its own thread
+            unsafe { libc::raise(libc::SIGINT) };
+        }
+        std::thread::sleep(std::time::Duration::from_secs(20));
+    }
+    use std::io::Write;
+    let _ = writeln!(
+        std::io::stderr(),
+        "error: {}",
+        OutOfMemory(OUT_OF_MEMORY.load(SeqCst))
+    );
+    // SAFETY: _exit ends the process at once, running nothing that could allocate
+    unsafe { libc::_exit(EXIT_OUT_OF_MEMORY as i32) }
 }
 
 /// Runs `f`, which creates and writes the temporary `path`, registered for removal on SIGINT or

@@ -172,6 +172,11 @@ fn run(dir: &Path, args: &[&str], deadline: u64) -> Run {
 
 /// [`run`] with these variables in its environment (and GitHub's own cleared).
 fn run_env(dir: &Path, args: &[&str], deadline: u64, env: &[(&str, &str)]) -> Run {
+    run_in(dir, args, deadline, env, ADDRESS_SPACE)
+}
+
+/// [`run_env`] under an address space of `space` bytes.
+fn run_in(dir: &Path, args: &[&str], deadline: u64, env: &[(&str, &str)], space: u64) -> Run {
     let logs = dir.join(".logs");
     std::fs::create_dir_all(&logs).unwrap();
     let (out, err) = (logs.join("stdout"), logs.join("stderr"));
@@ -187,11 +192,11 @@ fn run_env(dir: &Path, args: &[&str], deadline: u64, env: &[(&str, &str)]) -> Ru
         .stderr(std::fs::File::create(&err).unwrap());
     // SAFETY: async-signal-safe calls only (setpgid, setrlimit) between fork and exec
     unsafe {
-        c.pre_exec(|| {
+        c.pre_exec(move || {
             libc::setpgid(0, 0);
             let lim = libc::rlimit {
-                rlim_cur: ADDRESS_SPACE as libc::rlim_t,
-                rlim_max: ADDRESS_SPACE as libc::rlim_t,
+                rlim_cur: space as libc::rlim_t,
+                rlim_max: space as libc::rlim_t,
             };
             if libc::setrlimit(libc::RLIMIT_AS, &lim) != 0 {
                 return Err(std::io::Error::last_os_error());
@@ -1770,6 +1775,29 @@ fn flip_of_a_large_pair_in_bands(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// Issue 46 (F4): a pair within every limit but larger than the memory the process may have
+/// (8192² RGBA under a 3 GB address space, here 2048² RGB under 120 MB) aborted on an
+/// allocation: "memory allocation of 50331648 bytes failed", a stack trace, exit 134. Any failed
+/// allocation now ends the run with one line and exit 71, as an interrupt ends it.
+fn diff_out_of_memory(d: &Path) -> Result<(), String> {
+    let n = 2048;
+    let g = |x: usize, y: usize, c: usize| (x * (c + 1) + y) as f32 / n as f32;
+    exr_window(&d.join("a.exr"), (n, n), (0, 0), n, g);
+    exr_window(&d.join("b.exr"), (n, n), (0, 0), n, |x, y, c| {
+        g(x, y, c) + 0.01
+    });
+    for extra in [&[][..], &["--flip"][..]] {
+        let args: Vec<&str> = ["diff", "a.exr", "b.exr"]
+            .iter()
+            .chain(extra)
+            .copied()
+            .collect();
+        let r = run_in(d, &args, 120, &[], 120 << 20);
+        r.refused(71, &["out of memory", "bytes failed"])?;
+    }
+    Ok(())
+}
+
 /// Issue 46 (8): a 4×4 PNG whose 1.4 MB `iCCP` chunk inflates to 1.5 GB aborted under a 1 GB
 /// address space. The profile is inflated under a 16 MiB cap (and not used): the image is read.
 fn png_whose_icc_profile_inflates_to_gigabytes(d: &Path) -> Result<(), String> {
@@ -2565,6 +2593,7 @@ const ROWS: &[Row] = &[
         "flip_over_a_mostly_empty_union",
         flip_over_a_mostly_empty_union,
     ),
+    ("diff_out_of_memory", diff_out_of_memory),
     (
         "flip_of_a_large_pair_in_bands",
         flip_of_a_large_pair_in_bands,

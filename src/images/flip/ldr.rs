@@ -678,9 +678,17 @@ mod tests {
                 .zip(&theirs)
                 .filter(|(x, y)| x.to_bits() != y.to_bits())
                 .count();
-            let worst = ours.iter().zip(&theirs).map(|(x, y)| (x - y).abs()).fold(0f32, f32::max);
+            let worst = ours
+                .iter()
+                .zip(&theirs)
+                .map(|(x, y)| (x - y).abs())
+                .fold(0f32, f32::max);
             assert!(worst <= 1e-4, "{w}×{h}: worst difference {worst:e}");
-            assert!(differ * 50 <= w * h, "{w}×{h}: {differ} of {} pixels differ", w * h);
+            assert!(
+                differ * 50 <= w * h,
+                "{w}×{h}: {differ} of {} pixels differ",
+                w * h
+            );
             assert!(ours.iter().any(|&v| v > 0.0));
         }
     }
