@@ -67,6 +67,9 @@
 //! `guard` uses them too: 0 when no judged guard (`ize`, and every guard of yours) loses a box,
 //! 1 when one does (and for `--replay`, when the replayed box is culled), 2 for bad usage, 4 when
 //! a guard of yours fails or answers other than `1 HIT`. `once` reports: 0, or 2 for bad usage.
+//! `builds` exits 0 when every build of the routine gives the baseline's verdicts (contraction
+//! off), 1 when one flips a verdict, 2 for bad usage, a missing compiler or a source that does
+//! not build, 4 when a build's routine fails as a plugin does.
 //! `implicit-check` uses them too: 0 when the certified mode matches per-pixel tracing pixel for
 //! pixel, 1 when it loses or adds a pixel, 2 for bad input. `downsample` exits 4 when its input
 //! image is unreadable or too large, as `diff` does. `check` uses 0 when every comparison

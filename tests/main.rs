@@ -7,6 +7,7 @@ mod common;
 
 mod batch;
 mod bounds;
+mod builds;
 mod certified;
 mod check;
 mod cli;

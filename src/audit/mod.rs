@@ -102,6 +102,7 @@
 //! 14 of 14 caught.
 
 pub mod api;
+pub mod builds;
 pub mod contract;
 pub mod exec;
 pub mod hexfloat;

@@ -36,6 +36,7 @@ macro_rules! say_raw {
 
 mod args;
 mod audit;
+mod builds;
 mod check;
 pub mod diff;
 mod guard;
@@ -52,6 +53,7 @@ mod spawn;
 
 use args::*;
 use audit::{AuditArgs, MergeArgs};
+use builds::BuildsArgs;
 use check::CheckArgs;
 pub use diff::{run_diff, DiffArgs};
 use guard::GuardArgs;
@@ -108,6 +110,9 @@ pub enum Command {
     /// Audit the box that guards the primitive: slab tests with t_max = a primitive's rounded
     /// hit, on boxes holding that hit (lost geometry counted; exit 1 if `ize` loses a box).
     Guard(GuardArgs),
+    /// One C routine compiled under several compilers and flags (contraction off, on with FMA,
+    /// fast-math) and audited side by side: the cases where builds flip hit or miss (exit 1).
+    Builds(BuildsArgs),
     /// Count how many times each triangle routine reports a ray through a shared vertex or edge
     /// of a mesh (exactly once is right: 0 is a leak, 2 a double hit).
     Once(OnceArgs),
@@ -207,6 +212,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Spawn(a) => spawn::run_spawn(a),
         Command::Guard(a) => guard::run_guard(a),
         Command::Once(a) => once::run_once(a),
+        Command::Builds(a) => builds::run_builds(a),
         Command::ImplicitCheck(a) => implicit::run_implicit_check(a),
         Command::PluginWorker {
             path,

@@ -1,0 +1,178 @@
+//! `rayproof builds`: one C routine under several compilers and flags, side by side (issue 49
+//! item 3). Exit 0 when every build gives the baseline's verdicts, 1 when one flips a verdict,
+//! 2 for bad usage or a source that does not build.
+
+use super::*;
+use anyhow::{anyhow, Context, Result};
+use clap::Args;
+use rayproof::audit::builds;
+use rayproof::audit::plugin::{parse_spec, Plugin};
+use std::path::{Path, PathBuf};
+
+#[derive(Args, Debug)]
+pub struct BuildsArgs {
+    /// The routine: FILE.c:SYMBOL, with the plugin signature (`rayproof header`); the precision
+    /// from the symbol's `_f32`/`_f64` suffix or a third field `:f32`/`:f64`.
+    #[arg(long)]
+    pub source: String,
+    /// The shape the routine answers.
+    #[arg(long)]
+    pub shape: String,
+    /// Cases per class.
+    #[arg(long, default_value_t = 2000)]
+    pub cases: u64,
+    /// Seed of the cases (as `audit --seed`).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Compilers (default: gcc and clang, each where installed).
+    #[arg(long, value_delimiter = ',')]
+    pub compiler: Vec<String>,
+    /// Flipped cases printed (all are in the JSON).
+    #[arg(long, default_value_t = 10)]
+    pub show: usize,
+    /// Seconds per batch for each build's worker.
+    #[arg(long, default_value_t = 60)]
+    pub timeout: u64,
+    /// Write the comparison as JSON.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+}
+
+pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
+    let (file, symbol, prec) = parse_spec(&a.source).map_err(|e| anyhow!("--source: {e}"))?;
+    let source = Path::new(&file);
+    if !source.is_file() {
+        anyhow::bail!("--source: no file {file}");
+    }
+    let source = source.canonicalize().context("--source")?;
+    let shape = rayproof::shapes::shape_by_name(&a.shape)
+        .ok_or_else(|| anyhow!("--shape {}: unknown shape", a.shape))?;
+    if !(1..=1_000_000).contains(&a.cases) {
+        anyhow::bail!("--cases {}: from 1 to 1000000", a.cases);
+    }
+    if let Some(p) = &a.json {
+        rayproof::output::check_output_dirs(&[&Some(p.clone())])?;
+    }
+    // The compilers: asked for (each must run), or gcc and clang where installed
+    let runs = |c: &str| {
+        let line = format!("{} --version", rayproof::audit::exec::shell_word(c));
+        rayproof::process::run_with_timeout(
+            c,
+            &line,
+            None,
+            String::new(),
+            std::time::Duration::from_secs(20),
+        )
+        .is_ok()
+    };
+    let compilers: Vec<String> = match a.compiler.is_empty() {
+        false => {
+            if let Some(c) = a.compiler.iter().find(|c| !runs(c)) {
+                anyhow::bail!("--compiler {c}: it does not run (`{c} --version` failed)");
+            }
+            a.compiler.clone()
+        }
+        true => {
+            let found: Vec<String> = ["gcc", "clang"]
+                .into_iter()
+                .filter(|c| runs(c))
+                .map(String::from)
+                .collect();
+            for c in ["gcc", "clang"]
+                .iter()
+                .filter(|c| !found.iter().any(|f| f == *c))
+            {
+                say!("{c}: not installed, its builds left out");
+            }
+            if found.is_empty() {
+                anyhow::bail!("no C compiler: neither gcc nor clang runs (give --compiler)");
+            }
+            found
+        }
+    };
+    let fma = builds::machine_has_fma();
+    if !fma {
+        say!("this machine has no FMA: only the builds with contraction off are made");
+    }
+    let list = builds::standard(
+        &compilers.iter().map(String::as_str).collect::<Vec<_>>(),
+        fma,
+    );
+    let dir = rayproof::output::ScratchDir::new("builds")?;
+    let worker = std::env::current_exe().context("cannot find rayproof's own executable")?;
+    let timeout = std::time::Duration::from_secs(a.timeout.max(1));
+    let mut loaded = vec![];
+    for b in &list {
+        let lib = builds::compile(b, &source, &dir.0).map_err(|e| anyhow!("{e}"))?;
+        let line = b.line(&source, &lib);
+        say!("{:<16} {line}", b.name);
+        let spec = format!("{}:{symbol}:{}", lib.display(), prec.name());
+        let p = Plugin::load(&[spec], Some(&b.name), shape.info(), &worker, timeout)
+            .map_err(|e| anyhow!(e))?;
+        loaded.push((b.name.clone(), line, p));
+    }
+    let methods: Vec<(&str, String, &dyn rayproof::shapes::shape::Method)> = loaded
+        .iter()
+        .map(|(n, l, p)| {
+            (
+                n.as_str(),
+                l.clone(),
+                p as &dyn rayproof::shapes::shape::Method,
+            )
+        })
+        .collect();
+    let c = builds::compare(shape, &methods, prec, a.seed, a.cases).map_err(|e| anyhow!(e))?;
+    say!();
+    say!(
+        "{:<16} {:>8} {:>7} {:>11} {:>7} {:>12} {:>12}",
+        "build",
+        "cases",
+        "wrong",
+        "worst ulps",
+        "flips",
+        "flips right",
+        "adds ulps"
+    );
+    for r in &c.rows {
+        say!(
+            "{:<16} {:>8} {:>7} {:>11} {:>7} {:>12} {:>12}",
+            r.build,
+            r.cases,
+            r.wrong,
+            r.worst_ulps,
+            r.flips,
+            r.flips_right,
+            r.added_ulps
+        );
+    }
+    let names: Vec<&str> = c.rows.iter().map(|r| r.build.as_str()).collect();
+    say!();
+    say!(
+        "{} cases where the builds disagree on hit or miss (flips against {}){}",
+        c.flips.len(),
+        names[0],
+        if c.flips.is_empty() { "" } else { ":" }
+    );
+    for f in c.flips.iter().take(a.show) {
+        let hits: Vec<String> = names
+            .iter()
+            .zip(&f.hits)
+            .map(|(n, h)| format!("{n} {}", if *h { "hit" } else { "miss" }))
+            .collect();
+        say!(
+            "  {} (exact: {}): {}\n    {} --plugin LIB:{symbol}:{}",
+            f.class,
+            if f.exact_hit { "hit" } else { "miss" },
+            hits.join(", "),
+            f.probe,
+            prec.name()
+        );
+    }
+    if c.flips.len() > a.show {
+        say!("  … {} more (--show, --json)", c.flips.len() - a.show);
+    }
+    if let Some(p) = &a.json {
+        rayproof::output::write_atomic(p, (serde_json::to_string_pretty(&c)? + "\n").as_bytes())?;
+    }
+    Ok(u8::from(!c.flips.is_empty()))
+}
