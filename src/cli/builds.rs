@@ -121,7 +121,9 @@ pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
             )
         })
         .collect();
-    let c = builds::compare(shape, &methods, prec, a.seed, a.cases).map_err(|e| anyhow!(e))?;
+    // A build's routine that crashes, hangs or answers no answer: exit 4, as for `audit --plugin`
+    let c = builds::compare(shape, &methods, prec, a.seed, a.cases)
+        .map_err(|e| anyhow::Error::new(rayproof::audit::run::MethodFailed(e)))?;
     say!();
     say!(
         "{:<16} {:>8} {:>7} {:>11} {:>7} {:>12} {:>12}",
