@@ -1775,6 +1775,141 @@ fn flip_of_a_large_pair_in_bands(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// Issue 49 (helper-12, F1): a routine that writes to its standard output (a debug dump of
+/// 4 + 8·n zero bytes on its first call) had those bytes read as its answers: `builds` ended
+/// with other rows (58 wrong instead of 12) and no error. The worker's protocol now has its own
+/// descriptors; what a routine prints goes to standard error.
+fn builds_routine_that_prints(d: &Path) -> Result<(), String> {
+    let base = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/outside/contraction.c"
+    ))
+    .unwrap();
+    let forge = r#"
+#include <stdio.h>
+#include <stdlib.h>
+#include <unistd.h>
+int tri_forge_f32(size_t n, const float in[][15], uint32_t count[], float out[][1]) {
+    static int first = 1;
+    if (first) { first = 0; size_t sz = 4 + 8 * n; char *b = calloc(sz, 1); write(1, b, sz); free(b); }
+    printf("1 2.0\n"); fflush(stdout);
+    return tri_mt_f32(n, in, count, out);
+}
+"#;
+    std::fs::write(d.join("forge.c"), format!("{base}{forge}")).unwrap();
+    let rows = |symbol: &str| -> Result<String, String> {
+        let json = format!("{symbol}.json");
+        let r = run(
+            d,
+            &[
+                "builds",
+                "--shape",
+                "triangle",
+                "--source",
+                &format!("forge.c:{symbol}"),
+                "--cases",
+                "40",
+                "--compiler",
+                "gcc",
+                "--json",
+                &json,
+            ],
+            120,
+        );
+        if r.code != Some(0) && r.code != Some(1) {
+            return Err(format!("want a comparison: {}", r.ended()));
+        }
+        let v: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(d.join(&json)).map_err(|e| e.to_string())?,
+        )
+        .map_err(|e| e.to_string())?;
+        // Every count of every row (the build lines name the run's scratch directory)
+        let rows = v["rows"].as_array().cloned().unwrap_or_default();
+        Ok(rows
+            .iter()
+            .map(|r| {
+                [
+                    "build",
+                    "cases",
+                    "wrong",
+                    "worst_ulps",
+                    "flips",
+                    "flips_right",
+                    "added_ulps",
+                ]
+                .map(|k| r[k].to_string())
+                .join(" ")
+            })
+            .collect::<Vec<_>>()
+            .join("; "))
+    };
+    let (honest, printing) = (rows("tri_mt_f32")?, rows("tri_forge_f32")?);
+    if honest.is_empty() || honest != printing {
+        return Err(format!(
+            "a routine that prints got other rows:\n{honest}\n{printing}"
+        ));
+    }
+    Ok(())
+}
+
+/// Issue 49 (helper-12, F2 and F3): `builds --json victim.c` wrote the JSON over the source it
+/// compiled (exit 1, nothing said); `--compiler /usr/bin/gcc` built into `lib/usr/bin/gcc-off.so`
+/// and failed. The source is an input like any other, and a build is named by the compiler's
+/// file name.
+fn builds_json_over_its_source_and_a_compiler_by_path(d: &Path) -> Result<(), String> {
+    let src = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/outside/contraction.c"
+    ))
+    .unwrap();
+    std::fs::write(d.join("victim.c"), &src).unwrap();
+    let r = run(
+        d,
+        &[
+            "builds",
+            "--shape",
+            "triangle",
+            "--source",
+            "victim.c:tri_mt_f32",
+            "--cases",
+            "5",
+            "--compiler",
+            "gcc",
+            "--json",
+            "victim.c",
+        ],
+        120,
+    );
+    r.refused(2, &["victim.c", "input"])?;
+    if std::fs::read(d.join("victim.c")).unwrap() != src {
+        return Err("the source was written over".into());
+    }
+    let gcc = ["/usr/bin/gcc", "/usr/local/bin/gcc", "/bin/gcc"]
+        .into_iter()
+        .find(|p| Path::new(p).exists());
+    if let Some(gcc) = gcc {
+        let r = run(
+            d,
+            &[
+                "builds",
+                "--shape",
+                "triangle",
+                "--source",
+                "victim.c:tri_mt_f32",
+                "--cases",
+                "5",
+                "--compiler",
+                gcc,
+            ],
+            120,
+        );
+        if !matches!(r.code, Some(0) | Some(1)) || !r.stdout.contains("gcc-off ") {
+            return Err(format!("want builds named gcc-off: {}", r.ended()));
+        }
+    }
+    Ok(())
+}
+
 /// Issue 46 (F4): a pair within every limit but larger than the memory the process may have
 /// (8192² RGBA under a 3 GB address space, here 2048² RGB under 120 MB) aborted on an
 /// allocation: "memory allocation of 50331648 bytes failed", a stack trace, exit 134. Any failed
@@ -2594,6 +2729,11 @@ const ROWS: &[Row] = &[
         flip_over_a_mostly_empty_union,
     ),
     ("diff_out_of_memory", diff_out_of_memory),
+    ("builds_routine_that_prints", builds_routine_that_prints),
+    (
+        "builds_json_over_its_source_and_a_compiler_by_path",
+        builds_json_over_its_source_and_a_compiler_by_path,
+    ),
     (
         "flip_of_a_large_pair_in_bands",
         flip_of_a_large_pair_in_bands,

@@ -48,6 +48,24 @@ impl Build {
     }
 }
 
+/// A compiler's name in build names and library files: its file name (`/usr/bin/gcc-12` →
+/// `gcc-12`), anything but letters, digits, `.`, `+` and `-` as `_`.
+pub fn compiler_name(compiler: &str) -> String {
+    let base = Path::new(compiler)
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| compiler.to_string());
+    base.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || matches!(c, '.' | '+' | '-') {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
 /// The standard builds, for each of `gcc` and `clang` given as installed: contraction off (the
 /// baseline, first), contraction on with FMA, and `-O3 -ffast-math` with FMA. `fma`: whether
 /// this machine runs FMA instructions (else the FMA builds are left out; on x86_64 `-mfma` is
@@ -60,8 +78,9 @@ pub fn standard(compilers: &[&str], fma: bool) -> Vec<Build> {
     };
     let mut v = vec![];
     for &c in compilers {
+        let name = compiler_name(c);
         v.push(Build::new(
-            &format!("{c}-off"),
+            &format!("{name}-off"),
             c,
             &["-O2", "-ffp-contract=off"],
         ));
@@ -71,9 +90,9 @@ pub fn standard(compilers: &[&str], fma: bool) -> Vec<Build> {
                 .chain(mfma)
                 .copied()
                 .collect();
-            v.push(Build::new(&format!("{c}-fma"), c, &on));
+            v.push(Build::new(&format!("{name}-fma"), c, &on));
             let fast: Vec<&str> = ["-O3", "-ffast-math"].iter().chain(mfma).copied().collect();
-            v.push(Build::new(&format!("{c}-fast-math"), c, &fast));
+            v.push(Build::new(&format!("{name}-fast-math"), c, &fast));
         }
     }
     v

@@ -123,6 +123,38 @@ fn library_path(path: &str) -> String {
 
 // ---- the worker: the routine's own process ----
 
+/// The worker's protocol streams, taken away from the routine: copies of standard input and
+/// output (closed on exec), after which standard input is `/dev/null` and standard output is
+/// standard error. A routine that prints (a debug dump, `printf`) or reads its standard input
+/// would otherwise write into its own answers or eat the next batch: a hostile run made a
+/// routine's 4 + 8·n zero bytes pass as answers, the run ending with other rows and no error.
+/// What it prints now reaches the parent as the worker's standard error.
+fn protocol_streams() -> Result<(std::fs::File, std::fs::File), String> {
+    use std::os::fd::FromRawFd;
+    let err = |what: &str| format!("plugin worker: {what}: {}", std::io::Error::last_os_error());
+    // SAFETY: fcntl, open and dup2 on the process's own descriptors; each new descriptor is
+    // owned by one File
+    unsafe {
+        let input = libc::fcntl(0, libc::F_DUPFD_CLOEXEC, 3);
+        if input < 0 {
+            return Err(err("copying standard input"));
+        }
+        let output = libc::fcntl(1, libc::F_DUPFD_CLOEXEC, 3);
+        if output < 0 {
+            return Err(err("copying standard output"));
+        }
+        let null = libc::open(c"/dev/null".as_ptr(), libc::O_RDONLY | libc::O_CLOEXEC);
+        if null < 0 || libc::dup2(null, 0) < 0 || libc::dup2(2, 1) < 0 {
+            return Err(err("setting the routine's standard streams"));
+        }
+        libc::close(null);
+        Ok((
+            std::fs::File::from_raw_fd(input),
+            std::fs::File::from_raw_fd(output),
+        ))
+    }
+}
+
 /// Serves one symbol: loads it, says `READY`, then answers batches on stdin/stdout until the
 /// end of its input (what `rayproof __plugin-worker` runs). A batch is `n` (u64 LE) and `n·inputs`
 /// values; the answer is the status (i32 LE), the routine's nanoseconds (u64 LE), `n` counts
@@ -134,12 +166,12 @@ pub fn serve(
     inputs: usize,
     outputs: usize,
 ) -> Result<(), String> {
+    let (mut stdin, mut stdout) = protocol_streams()?;
     // SAFETY: loading runs the library's initialisers; the user asked for this library
     let lib = unsafe { libloading::Library::new(library_path(path)) }
         .map_err(|e| format!("--plugin {path}: cannot load: {e}"))?;
     let cname =
         CString::new(symbol).map_err(|_| format!("--plugin {path}:{symbol}: bad symbol"))?;
-    let (mut stdin, mut stdout) = (std::io::stdin().lock(), std::io::stdout().lock());
     let io = |e: std::io::Error| format!("plugin worker: {e}");
     macro_rules! serve_as {
         ($T:ty, $F:ty) => {{

@@ -41,8 +41,11 @@ pub struct BuildsArgs {
 pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
     let (file, symbol, prec) = parse_spec(&a.source).map_err(|e| anyhow!("--source: {e}"))?;
     let source = Path::new(&file);
-    if !source.is_file() {
+    if !source.exists() {
         anyhow::bail!("--source: no file {file}");
+    }
+    if !source.is_file() {
+        anyhow::bail!("--source {file}: not a regular file");
     }
     let source = source.canonicalize().context("--source")?;
     let shape = rayproof::shapes::shape_by_name(&a.shape)
@@ -51,7 +54,8 @@ pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
         anyhow::bail!("--cases {}: from 1 to 1000000", a.cases);
     }
     if let Some(p) = &a.json {
-        rayproof::output::check_output_dirs(&[&Some(p.clone())])?;
+        // Never over the source it builds
+        rayproof::output::check_outputs(&[p.as_path()], &[], &[source.as_path()])?;
     }
     // The compilers: asked for (each must run), or gcc and clang where installed
     let runs = |c: &str| {
@@ -69,6 +73,14 @@ pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
         false => {
             if let Some(c) = a.compiler.iter().find(|c| !runs(c)) {
                 anyhow::bail!("--compiler {c}: it does not run (`{c} --version` failed)");
+            }
+            let mut seen = std::collections::HashSet::new();
+            if let Some(c) = a
+                .compiler
+                .iter()
+                .find(|c| !seen.insert(builds::compiler_name(c)))
+            {
+                anyhow::bail!("--compiler {c}: named twice");
             }
             a.compiler.clone()
         }
@@ -100,7 +112,10 @@ pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
     );
     let dir = rayproof::output::ScratchDir::new("builds")?;
     let worker = std::env::current_exe().context("cannot find rayproof's own executable")?;
-    let timeout = std::time::Duration::from_secs(a.timeout.max(1));
+    if a.timeout == 0 {
+        anyhow::bail!("--timeout 0: give at least 1 second per batch");
+    }
+    let timeout = std::time::Duration::from_secs(a.timeout);
     let mut loaded = vec![];
     for b in &list {
         let lib = builds::compile(b, &source, &dir.0).map_err(|e| anyhow!("{e}"))?;
