@@ -188,6 +188,7 @@ pub fn compare(
             added_ulps: 0,
         })
         .collect();
+    let methods: Vec<&dyn Method> = builds.iter().map(|(_, _, m)| *m).collect();
     let mut flips = vec![];
     for (class, &class_name) in info.classes.iter().enumerate() {
         let inputs: Vec<Vec<f64>> = (0..cases)
@@ -195,20 +196,7 @@ pub fn compare(
             .collect();
         for chunk in inputs.chunks(crate::audit::run::CHUNK as usize) {
             let truths: Vec<Truth> = chunk.iter().map(|x| shape.oracle(x, prec)).collect();
-            let answers: Vec<Vec<_>> = builds
-                .iter()
-                .map(|(_, _, m)| m.answer(prec, chunk))
-                .collect::<Result<_, _>>()?;
-            for (k, a) in answers.iter().enumerate() {
-                if a.len() != chunk.len() {
-                    return Err(format!(
-                        "{}: {} answers to {} cases",
-                        builds[k].0,
-                        a.len(),
-                        chunk.len()
-                    ));
-                }
-            }
+            let answers = crate::audit::run::answers(&methods, prec, chunk)?;
             for (i, input) in chunk.iter().enumerate() {
                 let Truth::Answer(exact) = &truths[i] else {
                     continue; // invalid input: not a question of contraction

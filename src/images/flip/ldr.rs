@@ -380,6 +380,7 @@ fn along_x(
     dst: &mut [Vec<f32>],
 ) {
     let r = filters[0].len() / 2;
+    assert!(2 * r < 64, "a filter of {} taps: at most 63", 2 * r + 1);
     let mut padded = vec![0f32; w + 2 * r];
     for d in dst.iter_mut() {
         *d = plane(w * h);

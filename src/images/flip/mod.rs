@@ -131,16 +131,17 @@ impl Exposure {
             }
         });
         let code = |x: f32| steps.partition_point(|&t| t <= x) as u8;
-        let buckets = (0..1u32 << 16)
-            .map(|b| {
-                let (first, last) = (b << 15, (b << 15) | 0x7fff);
-                let inside = steps
-                    .iter()
-                    .filter(|t| (first + 1..=last).contains(&t.to_bits()))
-                    .count();
-                (code(f32::from_bits(first)), inside as u8)
-            })
+        // Each bucket's first code; a step strictly inside a bucket (not on its first f32)
+        // adds to its count, one pass over the steps
+        let mut buckets: Vec<(u8, u8)> = (0..1u32 << 16)
+            .map(|b| (code(f32::from_bits(b << 15)), 0))
             .collect();
+        for t in steps.iter().filter(|t| t.is_finite()) {
+            let bits = t.to_bits();
+            if bits & 0x7fff != 0 {
+                buckets[(bits >> 15) as usize].1 += 1;
+            }
+        }
         Exposure { steps, buckets }
     }
 
