@@ -180,7 +180,8 @@ fn rays_through_shared_vertices_are_reported_once_by_the_wide_watertight_test_on
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     let rows: Vec<serde_json::Value> =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    assert_eq!(rows.len(), 4 * 2 * 2 * 2);
+    // 4 routines × 2 precisions × 3 meshes × 4 aims
+    assert_eq!(rows.len(), 4 * 2 * 3 * 4);
     let sum = |routine: &str, key: &str| -> u64 {
         rows.iter()
             .filter(|r| r["routine"] == routine)
@@ -198,13 +199,83 @@ fn rays_through_shared_vertices_are_reported_once_by_the_wide_watertight_test_on
     // f32/f64 watertight test hits at different t (two surfaces where there is one)
     assert!(sum("watertight_wide", "doubles") > 0);
     assert!(sum("watertight", "split") > 0);
-    // Every ray is counted once, in one of the four outcomes
+    // Rays exactly through a vertex: the wide test reports every triangle around it, at one t
+    let exact = |routine: &str, key: &str| -> u64 {
+        rows.iter()
+            .filter(|r| r["routine"] == routine && r["aim"] == "vertex_exact")
+            .map(|r| r[key].as_u64().unwrap())
+            .sum()
+    };
+    assert!(exact("watertight_wide", "rays") > 0);
+    assert!(exact("watertight_wide", "doubles") * 2 > exact("watertight_wide", "rays"));
+    // Every ray is counted once, in one of the outcomes; built-in rows are reported, not judged
     for r in &rows {
-        let bad = ["leaks", "doubles", "split"]
+        let bad = ["leaks", "doubles", "split", "bad"]
             .iter()
             .map(|k| r[k].as_u64().unwrap())
             .sum::<u64>();
         assert!(bad <= r["rays"].as_u64().unwrap(), "{r}");
-        assert_eq!(bad > 0, r["example"].is_string(), "{r}");
+        assert_eq!(bad > 0, r["first"].is_string(), "{r}");
+        assert_eq!(bad > 0, !r["replay"].as_array().unwrap().is_empty(), "{r}");
+        assert_eq!(r["bad"], 0, "{r}");
+        assert_eq!(r["verdict"], "reported", "{r}");
+    }
+    assert!(stdout(&o).contains("verdict: reported"), "{}", stdout(&o));
+}
+
+/// A routine of yours is judged: one that answers every case with a hit at t = −1 gives bad
+/// hits (exit 1, never "pass"), one that misses everything leaks (exit 1), one that answers
+/// outside the contract stops the run (one line, exit 4), and bad usage is one line, exit 2.
+#[test]
+fn once_judges_a_routine_of_yours() {
+    let dir = crate::common::temp_dir("once-yours");
+    let json = dir.join("once.json");
+    let run = |child: &str| {
+        rayproof(&[
+            "once",
+            "--per-cell",
+            "1",
+            "--precision",
+            "f32",
+            "--exec",
+            child,
+            "--name",
+            "mine",
+            "--json",
+            json.to_str().unwrap(),
+        ])
+    };
+    let rows = || -> Vec<serde_json::Value> {
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
+    };
+    let o = run("awk '{print \"1 -0x1p+0\"; fflush()}'");
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("verdict: FAIL"), "{}", stdout(&o));
+    for r in rows() {
+        assert_eq!(r["routine"], "mine");
+        assert_eq!(r["verdict"], "fail", "{r}");
+        assert_eq!(r["bad"], r["rays"], "{r}");
+    }
+    let o = run("awk '{print 0; fflush()}'");
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    for r in rows() {
+        assert_eq!(r["leaks"], r["rays"], "{r}");
+        assert_eq!(r["first"], "leak", "{r}");
+        // A leak replays on the triangle the exact oracle says the ray crosses first
+        let line = r["replay"][0].as_str().unwrap();
+        assert!(line.starts_with("rayproof probe triangle --precision f32 --exec"), "{line}");
+    }
+    let o = run("awk '{print \"2 1 2\"; fflush()}'");
+    assert_eq!(o.status.code(), Some(4), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
+    assert!(stderr(&o).contains("want count 0, or 1 and T"), "{}", stderr(&o));
+    for bad in [
+        &["once", "--method", "nope"][..],
+        &["once", "--per-cell", "0"],
+        &["once", "--exec", "cat", "--name", "watertight"],
+    ] {
+        let o = rayproof(bad);
+        assert_eq!(o.status.code(), Some(2), "{bad:?}: {}", stderr(&o));
+        assert_eq!(stderr(&o).lines().count(), 1, "{bad:?}: {}", stderr(&o));
     }
 }

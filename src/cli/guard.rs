@@ -64,26 +64,7 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
             })
             .collect::<Result<_>>()?,
     };
-    let mut precs = match a.precision.is_empty() {
-        true => Precision::ALL.to_vec(),
-        false => a.precision.clone(),
-    };
-    // A plugin answers the precisions it has symbols for
-    for (m, has) in &outside {
-        if let Some(has) = has {
-            match a.precision.is_empty() {
-                true => precs.retain(|p| has.contains(p)),
-                false => {
-                    if let Some(p) = precs.iter().find(|p| !has.contains(p)) {
-                        anyhow::bail!("--plugin {}: no {} symbol", m.name(), p.name());
-                    }
-                }
-            }
-        }
-    }
-    if precs.is_empty() {
-        anyhow::bail!("no precision every guard answers: give --precision");
-    }
+    let precs = super::outside::OutsideArgs::precisions(&a.precision, &outside)?;
     if let Some(p) = &a.json {
         rayproof::output::check_output_dirs(&[&Some(p.clone())])?;
     }

@@ -71,6 +71,31 @@ impl OutsideArgs {
         (builtin, theirs)
     }
 
+    /// The precisions of a run: those asked for (`asked`; none: both), which every plugin must
+    /// have a symbol for; when none is asked, those every plugin has.
+    pub fn precisions(asked: &[Precision], outside: &[Outside]) -> Result<Vec<Precision>> {
+        let mut precs = match asked.is_empty() {
+            true => Precision::ALL.to_vec(),
+            false => asked.to_vec(),
+        };
+        for (m, has) in outside {
+            if let Some(has) = has {
+                match asked.is_empty() {
+                    true => precs.retain(|p| has.contains(p)),
+                    false => {
+                        if let Some(p) = precs.iter().find(|p| !has.contains(p)) {
+                            bail!("--plugin {}: no {} symbol", m.name(), p.name());
+                        }
+                    }
+                }
+            }
+        }
+        if precs.is_empty() {
+            bail!("no precision every routine answers: give --precision");
+        }
+        Ok(precs)
+    }
+
     /// Whether any outside routine is given.
     pub fn any(&self) -> bool {
         !self.plugin.is_empty() || !self.exec.is_empty()

@@ -1,54 +1,92 @@
 //! Exactly one hit per mesh (issue 49, item 4): watertightness is counted per triangle pair
 //! (`watertight.rs`); a renderer needs more: a ray through a shared edge or vertex of a mesh
-//! must be reported **once** by the mesh, not zero times (a leak) nor twice (a double hit,
-//! which any-hit counting, inside tests and transparency take as two surfaces).
+//! must be reported **once** by the mesh, not zero times (a leak) nor at two different `t` (two
+//! surfaces where there is one, which any-hit counting, inside tests and transparency take as
+//! two crossings).
 //!
-//! **Meshes.** Height fields z = h(x, y) over a grid of n×n cells (two triangles each) and a
-//! fan of k triangles around a raised centre, of size s (10⁻⁴ … 10⁷), near the origin or
-//! 10³–10⁵ sizes away; every shared vertex is one value of the precision, shared exactly by its
-//! triangles. Heights vary by at most 0.2 of a cell, so each face's slope is at most 0.4.
+//! **Meshes.** Of size s (10⁻⁴ … 10⁷), near the origin or 10³–10⁵ sizes away; every shared
+//! vertex is one value of the precision, shared exactly by its triangles:
+//! - `grid`: a height field z = h(x, y) over 4×4 cells (two triangles each), heights within 0.2
+//!   of a cell, so each face's slope is at most 0.4;
+//! - `fan`: 5 to 11 triangles around a raised centre;
+//! - `sphere`: the level-1 icosphere (80 triangles, radius s), closed and convex. Its vertices
+//!   are rounded to the precision; a mesh is used only when it is still convex after rounding,
+//!   checked with a margin far above the check's own rounding (every vertex at least 10⁻⁹ s²·|n|
+//!   inside every other face's plane); a mesh that is not is counted in `meshes_dropped`.
 //!
-//! **Rays** come down at most 26.6° from the vertical (|d_xy| ≤ 0.5 |d_z|) at a shared interior
-//! vertex (`vertex`) or a point of a shared interior edge (`edge`), from above the whole mesh;
-//! the point, the origin and the direction are rounded to the precision, so a ray passes
-//! through the vertex or edge or within rounding of it. **The truth needs no
-//! oracle:** a continuous height field whose slopes times the ray's horizontal spread stay below
-//! 1 (0.4 × 0.5) is crossed exactly once by such a ray, wherever exactly it lands in the interior.
+//! **Rays** aim at a shared interior vertex or a point of a shared interior edge:
+//! - `vertex`, `edge`: the aim point, the origin and the direction rounded to the precision,
+//!   so the ray passes within rounding of the vertex or edge;
+//! - `vertex_exact`, `edge_exact`: rays that pass **exactly** through the vertex or the edge's
+//!   midpoint: o + 1·d = p with o, d and p values of the precision, the subtraction d = p − o
+//!   checked exact (error-free sums); an aim where no such ray is found in 4 tries gives none.
+//!   Here the ray meets two or more triangles exactly on their common boundary: only a routine
+//!   with a consistent tie-break reports it once.
 //!
-//! **Counts** per routine: rays with 0 hits (`leaks`), with 2 or more hits at one `t`
-//! (`doubles`), and at different `t` (`split`: two surfaces where there is one). The built-in
-//! triangle methods are reported.
+//! On the height fields, rays come down at most 26.6° from the vertical (|d_xy| ≤ 0.5 |d_z|) from
+//! above the whole mesh; on the sphere they start inside it (within 0.3 s of the centre). **The
+//! truth needs no oracle:** a continuous height field whose slopes times the ray's horizontal
+//! spread stay below 1 (0.4 × 0.5) is crossed exactly once by such a ray, and a ray from inside
+//! a closed convex mesh leaves it exactly once, wherever exactly it lands.
+//!
+//! **Counts** per routine: rays with no hit (`leaks`), with two or more hits all at one `t`
+//! (`doubles`: harmless to a closest-hit query, two crossings to an any-hit count), with hits at
+//! different `t` (`split`, with the widest gap in ulps), and hits no routine may give here (`bad`: a `t` that is not finite
+//! and positive). Each ray is put to the triangles near its aim point (those with a vertex within
+//! 1.5 of the mesh's longest edge), every routine the same. The built-in routines are reported;
+//! a routine from outside is judged: a leak, a split or a bad hit fails it.
 
-use crate::numerics::real::Real;
+use crate::audit::Method;
+use crate::numerics::dd::two_sum;
+use crate::numerics::exact::ulps;
 use crate::numerics::Precision;
-use crate::shapes::oracle::sample;
-use crate::shapes::shape::{case_rng, hex_text};
-use crate::shapes::triangle;
+use crate::shapes::oracle::sample::{self, add, ball, mul, sub};
+use crate::shapes::shape::{case_rng, probe_line_with};
+use crate::shapes::triangle::{self, exact_tri};
 use rand::Rng;
+use rayon::prelude::*;
 use serde::Serialize;
 
 /// Mesh kinds.
-pub const MESHES: [&str; 2] = ["grid", "fan"];
+pub const MESHES: [&str; 3] = ["grid", "fan", "sphere"];
 /// Where the rays aim.
-pub const AIMS: [&str; 2] = ["vertex", "edge"];
+pub const AIMS: [&str; 4] = ["vertex", "edge", "vertex_exact", "edge_exact"];
 /// Scene sizes, as powers of ten.
 pub const SCALES: std::ops::RangeInclusive<i32> = -4..=7;
 
 type V = [f64; 3];
 
-/// A mesh (vertices already values of the precision) and the points rays may aim at.
+/// A mesh (vertices already values of the precision), the points rays may aim at, and whether
+/// rays come from inside it (the sphere) or from above (height fields).
 struct Mesh {
     tris: Vec<[V; 3]>,
     /// Shared interior vertices.
     vertices: Vec<V>,
     /// Shared interior edges.
     edges: Vec<[V; 2]>,
+    /// The centre rays start around (closed meshes), or `None`: rays come from above.
+    inside: Option<V>,
+    /// The longest edge.
+    longest: f64,
 }
 
-/// A grid of n×n cells or a fan of k triangles, of size s at `at`.
-fn mesh(rng: &mut rand_chacha::ChaCha8Rng, prec: Precision, kind: &str, s: f64, at: V) -> Mesh {
+fn longest(tris: &[[V; 3]]) -> f64 {
+    tris.iter()
+        .flat_map(|t| (0..3).map(move |k| sample::norm(sub(t[k], t[(k + 1) % 3]))))
+        .fold(0.0, f64::max)
+}
+
+/// A grid of n×n cells, a fan of k triangles or an icosphere, of size s at `at`; `None` for an
+/// icosphere that rounding made not certainly convex.
+fn mesh(
+    rng: &mut rand_chacha::ChaCha8Rng,
+    prec: Precision,
+    kind: &str,
+    s: f64,
+    at: V,
+) -> Option<Mesh> {
     let rp = |v: V| sample::rpv(prec, v);
-    match kind {
+    let (tris, vertices, edges, inside) = match kind {
         "grid" => {
             let n = 4usize;
             let cell = s / n as f64;
@@ -83,13 +121,9 @@ fn mesh(rng: &mut rand_chacha::ChaCha8Rng, prec: Precision, kind: &str, s: f64, 
                 .flat_map(|j| (1..n).map(move |i| (i, j)))
                 .map(|(i, j)| pts[j][i])
                 .collect();
-            Mesh {
-                tris,
-                vertices,
-                edges,
-            }
+            (tris, vertices, edges, None)
         }
-        _ => {
+        "fan" => {
             let k = rng.random_range(5..12usize);
             let centre = rp([at[0], at[1], at[2] + 0.2 * s]);
             let ring: Vec<V> = (0..k)
@@ -108,34 +142,115 @@ fn mesh(rng: &mut rand_chacha::ChaCha8Rng, prec: Precision, kind: &str, s: f64, 
                 .map(|i| [centre, ring[i], ring[(i + 1) % k]])
                 .collect();
             let edges = (0..k).map(|i| [centre, ring[i]]).collect();
-            Mesh {
-                tris,
-                vertices: vec![centre],
-                edges,
+            (tris, vec![centre], edges, None)
+        }
+        _ => {
+            let m = super::watertight::icosphere(1, at, s, prec);
+            if !convex(&m.vertices, &m.faces, s) {
+                return None;
             }
+            let tris: Vec<[V; 3]> = m.faces.iter().map(|f| f.map(|i| m.vertices[i])).collect();
+            // Every vertex and edge of a closed mesh is shared: a sample of each, as many as the
+            // grid's (9 and 40)
+            let mut edges: Vec<[V; 2]> = m
+                .faces
+                .iter()
+                .flat_map(|f| (0..3).map(move |k| (f[k], f[(k + 1) % 3])))
+                .filter(|(a, b)| a < b)
+                .map(|(a, b)| [m.vertices[a], m.vertices[b]])
+                .collect();
+            let mut vertices = m.vertices.clone();
+            let pick = |rng: &mut rand_chacha::ChaCha8Rng, n: usize, len: usize| {
+                rand::seq::index::sample(rng, len, n).into_vec()
+            };
+            let vi = pick(rng, 9, vertices.len());
+            let ei = pick(rng, 40, edges.len());
+            vertices = vi.iter().map(|&i| vertices[i]).collect();
+            edges = ei.iter().map(|&i| edges[i]).collect();
+            (tris, vertices, edges, Some(at))
+        }
+    };
+    let longest = longest(&tris);
+    Some(Mesh {
+        tris,
+        vertices,
+        edges,
+        inside,
+        longest,
+    })
+}
+
+/// Whether every vertex lies inside every face's plane (outward faces) by at least
+/// 10⁻⁹ · s · |n|: far above the f64 rounding of the test (about 10⁻¹⁵ relative), so a mesh that
+/// passes is convex in exact arithmetic.
+fn convex(vs: &[V], faces: &[[usize; 3]], s: f64) -> bool {
+    faces.iter().all(|f| {
+        let (a, b, c) = (vs[f[0]], vs[f[1]], vs[f[2]]);
+        let n = sample::cross(sub(b, a), sub(c, a));
+        let margin = 1e-9 * s * sample::norm(n);
+        vs.iter()
+            .enumerate()
+            .filter(|(i, _)| !f.contains(i))
+            .all(|(_, v)| sample::dot(n, sub(*v, a)) < -margin)
+    })
+}
+
+/// A ray from `o` through `p` exactly (o + 1·d = p, every value one of the precision), if the
+/// subtraction d = p − o is exact and d is a value of the precision.
+fn exact_through(prec: Precision, o: V, p: V) -> Option<(V, V)> {
+    let mut d = [0.0; 3];
+    for k in 0..3 {
+        let (s, e) = two_sum(p[k], -o[k]);
+        if e != 0.0 || !s.is_finite() || sample::rp(prec, s) != s {
+            return None;
+        }
+        d[k] = s;
+    }
+    // o + d = p again, exactly (the sum is the one just checked, in reverse)
+    (0..3)
+        .all(|k| two_sum(o[k], d[k]) == (p[k], 0.0))
+        .then_some((o, d))
+}
+
+/// The exact midpoint of an edge, when it is a value of the precision.
+fn midpoint(prec: Precision, e: [V; 2]) -> Option<V> {
+    let mut m = [0.0; 3];
+    for k in 0..3 {
+        let (s, err) = two_sum(e[0][k], e[1][k]);
+        let h = s * 0.5;
+        if err != 0.0 || h * 2.0 != s || sample::rp(prec, h) != h {
+            return None;
+        }
+        m[k] = h;
+    }
+    Some(m)
+}
+
+/// One ray, its mesh's candidate triangles, and where it came from.
+struct OnceRay {
+    scale: i32,
+    o: V,
+    d: V,
+    /// The triangles the ray is put to (near its aim point).
+    tris: Vec<[V; 3]>,
+}
+
+/// A routine: a built-in triangle method (its index) or one from outside the crate.
+#[derive(Clone, Copy)]
+pub enum Routine<'a> {
+    /// `triangle::METHODS[i]`.
+    BuiltIn(usize),
+    /// A triangle routine through `--plugin` or `--exec`.
+    Outside(&'a dyn Method),
+}
+
+impl Routine<'_> {
+    fn name(&self) -> &str {
+        match self {
+            Routine::BuiltIn(i) => triangle::METHODS[*i].name,
+            Routine::Outside(m) => m.name(),
         }
     }
-}
-
-/// One ray: its origin and direction, values of the precision.
-#[derive(Clone, Debug)]
-pub struct OnceRay {
-    /// Which mesh (its seed's index) and the ray.
-    pub o: V,
-    /// Direction.
-    pub d: V,
-}
-
-/// What one routine made of one ray: how many triangles it hit, and whether at more than one t.
-fn count<F: Real>(m: usize, tris: &[[V; 3]], ray: &OnceRay) -> (usize, bool) {
-    let f = |v: V| v.map(F::from_f64);
-    let (o, d) = (f(ray.o), f(ray.d));
-    let ts: Vec<F> = tris
-        .iter()
-        .filter_map(|t| triangle::method::<F>(m)(o, d, t.map(f)).map(|h| h.t))
-        .collect();
-    let split = ts.iter().any(|t| *t != ts[0]);
-    (ts.len(), split)
 }
 
 /// One row: a routine, a precision, a mesh kind and an aim over every size and placement.
@@ -145,123 +260,359 @@ pub struct OnceRow {
     pub routine: String,
     /// `f32` or `f64`.
     pub precision: &'static str,
-    /// `grid` or `fan`.
+    /// `grid`, `fan` or `sphere`.
     pub mesh: &'static str,
-    /// `vertex` or `edge`.
+    /// `vertex`, `edge`, `vertex_exact` or `edge_exact`.
     pub aim: &'static str,
     /// Rays.
     pub rays: u64,
+    /// Meshes left out because rounding may have made them not convex (the sphere's).
+    pub meshes_dropped: u64,
     /// Rays no triangle reported: the mesh leaks.
     pub leaks: u64,
-    /// Rays reported by two or more triangles at one t.
+    /// Rays reported by two or more triangles, all at one t.
     pub doubles: u64,
     /// Rays reported at two or more different t.
     pub split: u64,
+    /// The widest split: ulps of the precision between a split ray's smallest and largest t.
+    pub split_ulps: u64,
+    /// Rays with a hit at a t that is not finite and positive.
+    pub bad: u64,
     /// The smallest scene size (power of ten) with a leak.
     pub first_leak: Option<i32>,
-    /// The first ray that was not reported exactly once, replayable with `rayproof probe
-    /// --shape triangle` on each of its triangles: `o d` in hex floats, then the mesh's seed
-    /// cell.
-    pub example: Option<String>,
+    /// `pass` or `fail` (a routine from outside: no leak, split or bad hit), `reported` (a
+    /// built-in routine).
+    pub verdict: &'static str,
+    /// The first ray that was not reported exactly once: one `rayproof probe triangle` line per
+    /// triangle it hit (or, for a leak, the triangle the exact oracle says it crosses first).
+    pub replay: Vec<String>,
+    /// What the first such ray was: `leak`, `double`, `split` or `bad`.
+    pub first: Option<&'static str>,
 }
 
-/// The rows of the built-in triangle routines × `precs`, `n` meshes per cell (size × placement),
-/// a ray at each of their shared vertices and edges.
-pub fn rows(seed: u64, precs: &[Precision], n: u64) -> Vec<OnceRow> {
+/// The 15 inputs of a ray and a triangle.
+fn flat(o: V, d: V, t: &[V; 3]) -> Vec<f64> {
+    [&o[..], &d[..], &t.concat()[..]].concat()
+}
+
+/// The rays of one precision, mesh kind and aim, over every size and placement, `n` meshes per
+/// cell, and how many meshes were dropped.
+fn rays(seed: u64, prec: Precision, kind: &'static str, n: u64) -> (Vec<(&'static str, OnceRay)>, u64) {
     let mut out = vec![];
-    for &prec in precs {
-        for kind in MESHES {
-            // Every mesh of this kind, with its rays by aim
-            let mut cases: Vec<(i32, Vec<[V; 3]>, &'static str, OnceRay)> = vec![];
-            for scale in SCALES {
-                for placement in ["near", "far"] {
-                    for i in 0..n {
-                        let class = format!("{kind}-{placement}-{scale}");
-                        let mut rng = case_rng(seed, "once", &class, prec, i);
-                        let s = 10f64.powi(scale);
-                        let at = sample::placed(&mut rng, placement, s);
-                        let m = mesh(&mut rng, prec, kind, s, at);
-                        let mut aims: Vec<(&'static str, V)> =
-                            m.vertices.iter().map(|v| ("vertex", *v)).collect();
-                        for e in &m.edges {
-                            let u = rng.random_range(0.1..0.9);
-                            let p = std::array::from_fn(|k| e[0][k] + u * (e[1][k] - e[0][k]));
-                            aims.push(("edge", sample::rpv(prec, p)));
+    let mut dropped = 0;
+    for scale in SCALES {
+        for placement in ["near", "far"] {
+            for i in 0..n {
+                let class = format!("{kind}-{placement}-{scale}");
+                let mut rng = case_rng(seed, "once", &class, prec, i);
+                let s = 10f64.powi(scale);
+                let at = sample::placed(&mut rng, placement, s);
+                let Some(m) = mesh(&mut rng, prec, kind, s, at) else {
+                    dropped += 1;
+                    continue;
+                };
+                let mut aims: Vec<(&'static str, V, Option<V>)> = m
+                    .vertices
+                    .iter()
+                    .map(|v| ("vertex", *v, Some(*v)))
+                    .collect();
+                for e in &m.edges {
+                    let u = rng.random_range(0.1..0.9);
+                    let p = std::array::from_fn(|k| e[0][k] + u * (e[1][k] - e[0][k]));
+                    aims.push(("edge", sample::rpv(prec, p), midpoint(prec, *e)));
+                }
+                let near = |p: V| -> Vec<[V; 3]> {
+                    m.tris
+                        .iter()
+                        .filter(|t| {
+                            t.iter()
+                                .any(|v| sample::norm(sub(*v, p)) <= 1.5 * m.longest)
+                        })
+                        .copied()
+                        .collect()
+                };
+                for (aim, p, exact) in aims {
+                    // An origin: above the height field, or inside the sphere
+                    let origin = |rng: &mut rand_chacha::ChaCha8Rng, p: V| -> (V, V) {
+                        match m.inside {
+                            Some(c) => {
+                                let o = sample::rpv(prec, add(c, mul(ball(rng), 0.3 * s)));
+                                (o, sample::rpv(prec, sub(p, o)))
+                            }
+                            None => {
+                                let d = sample::rpv(
+                                    prec,
+                                    [
+                                        rng.random_range(-0.5..0.5),
+                                        rng.random_range(-0.5..0.5),
+                                        -1.0,
+                                    ]
+                                    .map(|x| x * s),
+                                );
+                                (sample::rpv(prec, sub(p, mul(d, 2.0))), d)
+                            }
                         }
-                        for (aim, p) in aims {
-                            let d = sample::rpv(
-                                prec,
-                                [
-                                    rng.random_range(-0.5..0.5),
-                                    rng.random_range(-0.5..0.5),
-                                    -1.0,
-                                ]
-                                .map(|x| x * s),
-                            );
-                            let o = sample::rpv(prec, std::array::from_fn(|k| p[k] - 2.0 * d[k]));
-                            cases.push((scale, m.tris.clone(), aim, OnceRay { o, d }));
+                    };
+                    let (o, d) = origin(&mut rng, p);
+                    out.push((
+                        aim,
+                        OnceRay {
+                            scale,
+                            o,
+                            d,
+                            tris: near(p),
+                        },
+                    ));
+                    if let Some(q) = exact {
+                        let exact_aim = match aim {
+                            "vertex" => "vertex_exact",
+                            _ => "edge_exact",
+                        };
+                        if let Some((o, d)) =
+                            (0..4).find_map(|_| exact_through(prec, origin(&mut rng, q).0, q))
+                        {
+                            out.push((
+                                exact_aim,
+                                OnceRay {
+                                    scale,
+                                    o,
+                                    d,
+                                    tris: near(q),
+                                },
+                            ));
                         }
                     }
                 }
             }
-            for (r, info) in triangle::METHODS.iter().enumerate() {
+        }
+    }
+    (out, dropped)
+}
+
+/// What a routine answered for every triangle of every ray: `Some(t)` for a hit.
+fn hits(
+    r: Routine,
+    prec: Precision,
+    rays: &[&OnceRay],
+) -> Result<Vec<Vec<Option<f64>>>, String> {
+    match r {
+        Routine::BuiltIn(m) => Ok(rays
+            .par_iter()
+            .map(|ray| {
+                ray.tris
+                    .iter()
+                    .map(|t| match prec {
+                        Precision::F32 => builtin::<f32>(m, ray, t),
+                        Precision::F64 => builtin::<f64>(m, ray, t),
+                    })
+                    .collect()
+            })
+            .collect()),
+        Routine::Outside(m) => {
+            let inputs: Vec<Vec<f64>> = rays
+                .iter()
+                .flat_map(|ray| ray.tris.iter().map(|t| flat(ray.o, ray.d, t)))
+                .collect();
+            let mut answers = Vec::with_capacity(inputs.len());
+            for chunk in inputs.chunks(crate::audit::run::CHUNK as usize) {
+                let a = crate::audit::run::answers(&[m], prec, chunk)?;
+                for (a, q) in a[0].iter().zip(chunk) {
+                    // Held to the triangle's contract: a miss, or one hit with its t first
+                    match (a.count, &a.values[..]) {
+                        (0, []) => answers.push(None),
+                        (1, &[t]) => answers.push(Some(t)),
+                        _ => {
+                            return Err(format!(
+                                "triangle routine '{}': answered {} {:?} to the case {}; want count 0, or 1 and T",
+                                m.name(),
+                                a.count,
+                                a.values,
+                                crate::audit::exec::case_line(prec, q).trim_end()
+                            ))
+                        }
+                    }
+                }
+            }
+            let mut at = 0;
+            Ok(rays
+                .iter()
+                .map(|ray| {
+                    let h = answers[at..at + ray.tris.len()].to_vec();
+                    at += ray.tris.len();
+                    h
+                })
+                .collect())
+        }
+    }
+}
+
+fn builtin<F: crate::numerics::real::Real>(m: usize, ray: &OnceRay, t: &[V; 3]) -> Option<f64> {
+    let f = |v: V| v.map(F::from_f64);
+    triangle::method::<F>(m)(f(ray.o), f(ray.d), t.map(f)).map(|h| h.t.to_f64())
+}
+
+/// The rows of `routines` × `precs` × meshes × aims, `n` meshes per kind, size and placement.
+pub fn rows(
+    seed: u64,
+    routines: &[Routine],
+    precs: &[Precision],
+    n: u64,
+) -> Result<Vec<OnceRow>, String> {
+    let mut out = vec![];
+    for &prec in precs {
+        for kind in MESHES {
+            let (all, dropped) = rays(seed, prec, kind, n);
+            for r in routines {
                 for aim in AIMS {
+                    let these: Vec<&OnceRay> =
+                        all.iter().filter(|c| c.0 == aim).map(|c| &c.1).collect();
+                    let hits = hits(*r, prec, &these)?;
                     let mut row = OnceRow {
-                        routine: info.name.to_string(),
+                        routine: r.name().to_string(),
                         precision: prec.name(),
                         mesh: kind,
                         aim,
-                        rays: 0,
+                        rays: these.len() as u64,
+                        meshes_dropped: dropped,
                         leaks: 0,
                         doubles: 0,
                         split: 0,
+                        split_ulps: 0,
+                        bad: 0,
                         first_leak: None,
-                        example: None,
+                        verdict: "reported",
+                        replay: vec![],
+                        first: None,
                     };
-                    for (scale, tris, a, ray) in cases.iter().filter(|c| c.2 == aim) {
-                        let _ = a;
-                        let (hits, split) = match prec {
-                            Precision::F32 => count::<f32>(r, tris, ray),
-                            Precision::F64 => count::<f64>(r, tris, ray),
+                    for (ray, h) in these.iter().zip(&hits) {
+                        let ts: Vec<f64> = h.iter().flatten().copied().collect();
+                        let what = if ts.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+                            row.bad += 1;
+                            "bad"
+                        } else if ts.is_empty() {
+                            row.leaks += 1;
+                            row.first_leak = Some(row.first_leak.map_or(ray.scale, |f| f.min(ray.scale)));
+                            "leak"
+                        } else if ts.len() == 1 {
+                            continue;
+                        } else if ts.iter().any(|t| *t != ts[0]) {
+                            row.split += 1;
+                            let lo = ts.iter().copied().fold(f64::INFINITY, f64::min);
+                            let hi = ts.iter().copied().fold(0.0, f64::max);
+                            row.split_ulps = row.split_ulps.max(ulps(lo, hi, prec));
+                            "split"
+                        } else {
+                            row.doubles += 1;
+                            "double"
                         };
-                        row.rays += 1;
-                        match hits {
-                            0 => {
-                                row.leaks += 1;
-                                row.first_leak =
-                                    Some(row.first_leak.map_or(*scale, |f: i32| f.min(*scale)));
-                            }
-                            1 => continue,
-                            _ if split => row.split += 1,
-                            _ => row.doubles += 1,
+                        if row.first.is_none() {
+                            row.first = Some(what);
+                            row.replay = replay(*r, prec, ray, h);
                         }
-                        if row.example.is_none() {
-                            let v: Vec<String> =
-                                ray.o.iter().chain(&ray.d).map(|x| hex_text(*x)).collect();
-                            row.example = Some(format!("{} hits: o d = {}", hits, v.join(" ")));
-                        }
+                    }
+                    if let Routine::Outside(_) = r {
+                        row.verdict = match row.leaks + row.split + row.bad {
+                            0 => "pass",
+                            _ => "fail",
+                        };
                     }
                     out.push(row);
                 }
             }
         }
     }
-    out
+    // A child kept for the run ends here, and how it ended is checked
+    for r in routines {
+        if let Routine::Outside(m) = r {
+            m.finish()?;
+        }
+    }
+    Ok(out)
+}
+
+/// The probe lines of a ray: with each triangle the routine hit, or for a leak the triangle the
+/// exact oracle says the ray crosses first.
+fn replay(r: Routine, prec: Precision, ray: &OnceRay, hits: &[Option<f64>]) -> Vec<String> {
+    let extra = match r {
+        Routine::BuiltIn(i) => format!("--method {}", triangle::METHODS[i].name),
+        Routine::Outside(m) => m.replay().unwrap_or_else(|| format!("--method {}", m.name())),
+    };
+    let line = |t: &[V; 3]| probe_line_with("triangle", prec, Some(&extra), &flat(ray.o, ray.d, t));
+    let hit: Vec<String> = ray
+        .tris
+        .iter()
+        .zip(hits)
+        .filter(|(_, h)| h.is_some())
+        .map(|(t, _)| line(t))
+        .collect();
+    if !hit.is_empty() {
+        return hit;
+    }
+    ray.tris
+        .iter()
+        .filter_map(|t| exact_tri(&flat(ray.o, ray.d, t)).t().map(|x| (x, t)))
+        .min_by(|a, b| a.0.cmp(&b.0))
+        .map(|(_, t)| vec![line(t)])
+        .unwrap_or_default()
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn all_builtin() -> Vec<Routine<'static>> {
+        (0..triangle::METHODS.len()).map(Routine::BuiltIn).collect()
+    }
+
     #[test]
     fn the_wide_watertight_test_never_leaks_and_every_ray_is_counted() {
-        let rows = rows(1, &Precision::ALL, 2);
+        let rows = rows(1, &all_builtin(), &Precision::ALL, 2).unwrap();
         for r in &rows {
             assert!(r.rays > 0, "{r:?}");
-            assert!(r.leaks + r.doubles + r.split <= r.rays);
+            assert_eq!(r.meshes_dropped, 0, "{r:?}");
+            assert!(r.leaks + r.doubles + r.split + r.bad <= r.rays);
+            assert_eq!(r.bad, 0, "{r:?}");
             if r.routine == "watertight_wide" {
                 assert_eq!(r.leaks, 0, "{r:?}");
             }
+            // A ray not reported once names what it hit (or the oracle's triangle)
+            assert_eq!(r.first.is_some(), !r.replay.is_empty(), "{r:?}");
         }
+    }
+
+    /// The exact rays are exact: o + d is the aim point with no rounding; at least half of the
+    /// vertices and a twelfth of the edges get one (measured at seed 3: 79–96 % and 11–31 %).
+    #[test]
+    fn exact_rays_pass_through_their_aim() {
+        for prec in Precision::ALL {
+            for kind in MESHES {
+                let (all, _) = rays(3, prec, kind, 1);
+                let n = |a: &str| all.iter().filter(|c| c.0 == a).count();
+                assert!(n("vertex_exact") * 2 >= n("vertex"), "{kind} {prec:?}");
+                assert!(n("edge_exact") * 12 >= n("edge"), "{kind} {prec:?}");
+                for (_, r) in all.iter().filter(|c| c.0.ends_with("_exact")) {
+                    assert_eq!(sample::rpv(prec, r.d), r.d, "d is a value of the precision");
+                    assert_eq!(sample::rpv(prec, r.o), r.o, "o is a value of the precision");
+                    let p: V = std::array::from_fn(|k| r.o[k] + r.d[k]);
+                    // p is a vertex or an edge's midpoint of some candidate triangle, exactly
+                    let on = r.tris.iter().any(|t| {
+                        (0..3).any(|k| {
+                            t[k] == p || std::array::from_fn(|j| (t[k][j] + t[(k + 1) % 3][j]) * 0.5) == p
+                        })
+                    });
+                    assert!(on, "{kind} {prec:?}: {r:?}", r = (r.o, r.d));
+                }
+            }
+        }
+    }
+
+    /// The convexity check refuses a dent: one vertex pushed inwards.
+    #[test]
+    fn a_dented_sphere_is_not_convex() {
+        let m = super::super::watertight::icosphere(1, [0.0; 3], 1.0, Precision::F64);
+        assert!(convex(&m.vertices, &m.faces, 1.0));
+        let mut v = m.vertices.clone();
+        v[0] = mul(v[0], 0.8);
+        assert!(!convex(&v, &m.faces, 1.0));
     }
 }
