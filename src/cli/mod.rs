@@ -50,6 +50,7 @@ mod reference;
 mod render;
 mod report;
 mod spawn;
+mod transform;
 
 use args::*;
 use audit::{AuditArgs, MergeArgs};
@@ -65,6 +66,7 @@ use reference::ReferenceArgs;
 use render::{DownsampleArgs, ExportArgs, RenderArgs};
 use report::ReportArgs;
 use spawn::SpawnArgs;
+use transform::TransformArgs;
 
 /// Proves how accurate ray–sphere intersection methods are, against an exact MPFR oracle.
 #[derive(Parser, Debug)]
@@ -116,6 +118,9 @@ pub enum Command {
     /// Count how many times each triangle routine reports a ray through a shared vertex or edge
     /// of a mesh (exactly once is right: 0 is a leak, 2 a double hit).
     Once(OnceArgs),
+    /// Audit shapes behind an instance transform: the ray carried into object space in the
+    /// working precision, judged by the exact oracle in world space (rows reported).
+    Transform(TransformArgs),
     /// Measure what accuracy costs in time: write DIR/index.html, report.md, report.json and figures.
     Report(ReportArgs),
     /// Render an implicit scene per pixel and by image-space subdivision (seed 004), shadows off
@@ -212,6 +217,7 @@ pub fn run(cli: Cli) -> Result<u8> {
         Command::Spawn(a) => spawn::run_spawn(a),
         Command::Guard(a) => guard::run_guard(a),
         Command::Once(a) => once::run_once(a),
+        Command::Transform(a) => transform::run_transform(a),
         Command::Builds(a) => builds::run_builds(a),
         Command::ImplicitCheck(a) => implicit::run_implicit_check(a),
         Command::PluginWorker {

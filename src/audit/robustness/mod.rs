@@ -38,6 +38,7 @@ pub mod once;
 pub mod reintersect;
 pub mod rules;
 pub mod spawn;
+pub mod transform;
 pub mod watertight;
 
 use crate::numerics::Precision;
