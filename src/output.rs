@@ -962,6 +962,14 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     write_atomic_with(path, |tmp| Ok(std::fs::write(tmp, bytes)?))
 }
 
+/// Writes `value` as pretty JSON (with a final newline) to `path` atomically.
+pub fn write_json(path: &Path, value: &impl serde::Serialize) -> Result<()> {
+    write_atomic(
+        path,
+        (serde_json::to_string_pretty(value)? + "\n").as_bytes(),
+    )
+}
+
 /// A scratch directory under the system's temp directory (`rayproof-TAG-PID-NANOS`), removed
 /// with everything in it when dropped, and on SIGINT or SIGTERM.
 pub struct ScratchDir(pub PathBuf);

@@ -424,7 +424,12 @@ fn exactly_once_on_embree_robust_and_default_and_mitsuba() {
     let mitsuba = |mode: &str| format!("python3 '{}' {mode}", script.display());
     let o = Command::new(env!("CARGO_BIN_EXE_rayproof"))
         .args(["once", "--precision", "f32", "--per-cell", "2"])
-        .args(["--plugin", &symbol("tri_f32"), "--plugin", &symbol("tri_robust_f32")])
+        .args([
+            "--plugin",
+            &symbol("tri_f32"),
+            "--plugin",
+            &symbol("tri_robust_f32"),
+        ])
         .args(["--exec", &mitsuba("triangle"), "--exec", &mitsuba("scene")])
         .args(["--name", "tri", "--name", "tri_robust"])
         .args(["--name", "mitsuba_triangle", "--name", "mitsuba_scene"])
@@ -443,16 +448,26 @@ fn exactly_once_on_embree_robust_and_default_and_mitsuba() {
         for r in of(m) {
             let failing = n(r, "leaks") + n(r, "split") > 0;
             assert_eq!(r["verdict"], if failing { "fail" } else { "pass" }, "{r}");
-            assert_eq!(failing || n(r, "doubles") > 0, r["first"].is_string(), "{r}");
+            assert_eq!(
+                failing || n(r, "doubles") > 0,
+                r["first"].is_string(),
+                "{r}"
+            );
         }
     }
     assert_eq!(sum("tri_robust", "leaks"), 0, "{out}");
-    assert!(sum("tri_robust", "doubles") > 0 && sum("tri_robust", "split") > 0, "{out}");
+    assert!(
+        sum("tri_robust", "doubles") > 0 && sum("tri_robust", "split") > 0,
+        "{out}"
+    );
     assert!(sum("tri", "leaks") > 0, "{out}");
     assert!(sum("mitsuba_triangle", "leaks") > 0, "{out}");
     for (a, b) in of("tri").iter().zip(of("mitsuba_scene")) {
         for k in ["rays", "leaks", "doubles", "split"] {
-            assert_eq!(a[k], b[k], "{k}: Embree's default mode {a} and Mitsuba's scene {b}");
+            assert_eq!(
+                a[k], b[k],
+                "{k}: Embree's default mode {a} and Mitsuba's scene {b}"
+            );
         }
     }
     eprintln!("{out}");

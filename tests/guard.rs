@@ -263,12 +263,19 @@ fn once_judges_a_routine_of_yours() {
         assert_eq!(r["first"], "leak", "{r}");
         // A leak replays on the triangle the exact oracle says the ray crosses first
         let line = r["replay"][0].as_str().unwrap();
-        assert!(line.starts_with("rayproof probe triangle --precision f32 --exec"), "{line}");
+        assert!(
+            line.starts_with("rayproof probe triangle --precision f32 --exec"),
+            "{line}"
+        );
     }
     let o = run("awk '{print \"2 1 2\"; fflush()}'");
     assert_eq!(o.status.code(), Some(4), "{}{}", stdout(&o), stderr(&o));
     assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
-    assert!(stderr(&o).contains("want count 0, or 1 and T"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("want count 0, or 1 and T"),
+        "{}",
+        stderr(&o)
+    );
     for bad in [
         &["once", "--method", "nope"][..],
         &["once", "--per-cell", "0"],
@@ -290,7 +297,13 @@ fn once_judges_a_routine_of_yours() {
 fn transforms_lose_verdicts_where_the_carrying_rounds() {
     let dir = crate::common::temp_dir("transform");
     let json = dir.join("t.json");
-    let o = rayproof(&["transform", "--cases", "400", "--json", json.to_str().unwrap()]);
+    let o = rayproof(&[
+        "transform",
+        "--cases",
+        "400",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
     let rows: Vec<serde_json::Value> =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
@@ -313,7 +326,13 @@ fn transforms_lose_verdicts_where_the_carrying_rounds() {
         let line = r["replay"].as_str().unwrap();
         let args: Vec<&str> = line.split(' ').skip(1).collect();
         let o = rayproof(&args);
-        assert_eq!(o.status.code(), Some(1), "{line}: {}{}", stdout(&o), stderr(&o));
+        assert_eq!(
+            o.status.code(),
+            Some(1),
+            "{line}: {}{}",
+            stdout(&o),
+            stderr(&o)
+        );
         let mut ideal = args.clone();
         ideal[4] = "ideal";
         let o = rayproof(&ideal);
@@ -321,7 +340,14 @@ fn transforms_lose_verdicts_where_the_carrying_rounds() {
     }
     // A routine of yours that breaks the contract stops the run: one line, exit 4
     let o = rayproof(&[
-        "transform", "--cases", "5", "--shape", "triangle", "--precision", "f32", "--exec",
+        "transform",
+        "--cases",
+        "5",
+        "--shape",
+        "triangle",
+        "--precision",
+        "f32",
+        "--exec",
         "awk '{print \"2 1 2\"; fflush()}'",
     ]);
     assert_eq!(o.status.code(), Some(4), "{}{}", stdout(&o), stderr(&o));
@@ -332,7 +358,16 @@ fn transforms_lose_verdicts_where_the_carrying_rounds() {
         &["transform", "--cases", "0"],
         &["transform", "--exec", "cat"],
         &["transform", "--method", "nope"],
-        &["transform", "--replay", "sphere", "rtg7", "matrix", "f32", "1", "2"],
+        &[
+            "transform",
+            "--replay",
+            "sphere",
+            "rtg7",
+            "matrix",
+            "f32",
+            "1",
+            "2",
+        ],
         &["transform", "--replay", "sphere", "rtg7", "sideways", "f32"],
     ] {
         let o = rayproof(bad);

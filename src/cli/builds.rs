@@ -189,7 +189,7 @@ pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
         say!("  … {} more (--show, --json)", c.flips.len() - a.show);
     }
     if let Some(p) = &a.json {
-        rayproof::output::write_atomic(p, (serde_json::to_string_pretty(&c)? + "\n").as_bytes())?;
+        rayproof::output::write_json(p, &c)?;
     }
     Ok(u8::from(!c.flips.is_empty()))
 }

@@ -113,10 +113,7 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
         );
     }
     if let Some(p) = &a.json {
-        rayproof::output::write_atomic(
-            p,
-            (serde_json::to_string_pretty(&rows)? + "\n").as_bytes(),
-        )?;
+        rayproof::output::write_json(p, &rows)?;
     }
     let failed = rows.iter().any(|r| r.judged && r.lost > 0);
     say!(

@@ -40,8 +40,8 @@ pub struct OnceArgs {
 }
 
 pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
-    if !(1..=10_000).contains(&a.per_cell) {
-        anyhow::bail!("--per-cell {}: from 1 to 10000", a.per_cell);
+    if !(1..=1_000).contains(&a.per_cell) {
+        anyhow::bail!("--per-cell {}: from 1 to 1000", a.per_cell);
     }
     let info = rayproof::shapes::shape_by_name("triangle")
         .expect("the triangle shape")
@@ -50,7 +50,10 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
     let builtin = |n: &str| triangle::METHODS.iter().position(|m| m.name == n);
     for (m, _) in &outside {
         if builtin(m.name()).is_some() {
-            anyhow::bail!("--name {}: a built-in routine's name; give another", m.name());
+            anyhow::bail!(
+                "--name {}: a built-in routine's name; give another",
+                m.name()
+            );
         }
     }
     let chosen: Vec<usize> = match (a.method.is_empty(), outside.is_empty()) {
@@ -62,7 +65,10 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
             .map(|n| {
                 builtin(n).ok_or_else(|| {
                     let known: Vec<&str> = triangle::METHODS.iter().map(|m| m.name).collect();
-                    anyhow::anyhow!("--method {n}: not a triangle routine (known: {})", known.join(", "))
+                    anyhow::anyhow!(
+                        "--method {n}: not a triangle routine (known: {})",
+                        known.join(", ")
+                    )
                 })
             })
             .collect::<Result<_>>()?,
@@ -139,10 +145,7 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
         }
     }
     if let Some(p) = &a.json {
-        rayproof::output::write_atomic(
-            p,
-            (serde_json::to_string_pretty(&rows)? + "\n").as_bytes(),
-        )?;
+        rayproof::output::write_json(p, &rows)?;
     }
     let failed = rows.iter().any(|r| r.verdict == "fail");
     say!(

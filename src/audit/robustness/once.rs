@@ -290,111 +290,160 @@ pub struct OnceRow {
     pub first: Option<&'static str>,
 }
 
+impl OnceRow {
+    fn new(routine: &str, prec: Precision, mesh: &'static str, aim: &'static str) -> OnceRow {
+        OnceRow {
+            routine: routine.to_string(),
+            precision: prec.name(),
+            mesh,
+            aim,
+            rays: 0,
+            meshes_dropped: 0,
+            leaks: 0,
+            doubles: 0,
+            split: 0,
+            split_ulps: 0,
+            bad: 0,
+            first_leak: None,
+            verdict: "reported",
+            replay: vec![],
+            first: None,
+        }
+    }
+
+    /// Counts one ray by what the routine answered for each of its triangles.
+    fn count(&mut self, r: Routine, prec: Precision, ray: &OnceRay, h: &[Option<f64>]) {
+        self.rays += 1;
+        let ts: Vec<f64> = h.iter().flatten().copied().collect();
+        let what = if ts.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
+            self.bad += 1;
+            "bad"
+        } else if ts.is_empty() {
+            self.leaks += 1;
+            self.first_leak = Some(self.first_leak.map_or(ray.scale, |f| f.min(ray.scale)));
+            "leak"
+        } else if ts.len() == 1 {
+            return;
+        } else if ts.iter().any(|t| *t != ts[0]) {
+            self.split += 1;
+            let lo = ts.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = ts.iter().copied().fold(0.0, f64::max);
+            self.split_ulps = self.split_ulps.max(ulps(lo, hi, prec));
+            "split"
+        } else {
+            self.doubles += 1;
+            "double"
+        };
+        if self.first.is_none() {
+            self.first = Some(what);
+            self.replay = replay(r, prec, ray, h);
+        }
+    }
+}
+
 /// The 15 inputs of a ray and a triangle.
 fn flat(o: V, d: V, t: &[V; 3]) -> Vec<f64> {
     [&o[..], &d[..], &t.concat()[..]].concat()
 }
 
-/// The rays of one precision, mesh kind and aim, over every size and placement, `n` meshes per
-/// cell, and how many meshes were dropped.
-fn rays(seed: u64, prec: Precision, kind: &'static str, n: u64) -> (Vec<(&'static str, OnceRay)>, u64) {
+/// The meshes of a kind: `n` per scene size and placement.
+fn cells(n: u64) -> impl Iterator<Item = (i32, &'static str, u64)> {
+    SCALES.flat_map(move |scale| {
+        ["near", "far"]
+            .into_iter()
+            .flat_map(move |placement| (0..n).map(move |i| (scale, placement, i)))
+    })
+}
+
+/// The rays of one mesh, each with its aim; `None` for a mesh left out (not certainly convex).
+fn mesh_rays(
+    seed: u64,
+    prec: Precision,
+    kind: &'static str,
+    (scale, placement, i): (i32, &'static str, u64),
+) -> Option<Vec<(&'static str, OnceRay)>> {
     let mut out = vec![];
-    let mut dropped = 0;
-    for scale in SCALES {
-        for placement in ["near", "far"] {
-            for i in 0..n {
-                let class = format!("{kind}-{placement}-{scale}");
-                let mut rng = case_rng(seed, "once", &class, prec, i);
-                let s = 10f64.powi(scale);
-                let at = sample::placed(&mut rng, placement, s);
-                let Some(m) = mesh(&mut rng, prec, kind, s, at) else {
-                    dropped += 1;
-                    continue;
-                };
-                let mut aims: Vec<(&'static str, V, Option<V>)> = m
-                    .vertices
-                    .iter()
-                    .map(|v| ("vertex", *v, Some(*v)))
-                    .collect();
-                for e in &m.edges {
-                    let u = rng.random_range(0.1..0.9);
-                    let p = std::array::from_fn(|k| e[0][k] + u * (e[1][k] - e[0][k]));
-                    aims.push(("edge", sample::rpv(prec, p), midpoint(prec, *e)));
+    let class = format!("{kind}-{placement}-{scale}");
+    let mut rng = case_rng(seed, "once", &class, prec, i);
+    let s = 10f64.powi(scale);
+    let at = sample::placed(&mut rng, placement, s);
+    let m = mesh(&mut rng, prec, kind, s, at)?;
+    let mut aims: Vec<(&'static str, V, Option<V>)> = m
+        .vertices
+        .iter()
+        .map(|v| ("vertex", *v, Some(*v)))
+        .collect();
+    for e in &m.edges {
+        let u = rng.random_range(0.1..0.9);
+        let p = std::array::from_fn(|k| e[0][k] + u * (e[1][k] - e[0][k]));
+        aims.push(("edge", sample::rpv(prec, p), midpoint(prec, *e)));
+    }
+    let near = |p: V| -> Vec<[V; 3]> {
+        m.tris
+            .iter()
+            .filter(|t| {
+                t.iter()
+                    .any(|v| sample::norm(sub(*v, p)) <= 1.5 * m.longest)
+            })
+            .copied()
+            .collect()
+    };
+    for (aim, p, exact) in aims {
+        // An origin: above the height field, or inside the sphere
+        let origin = |rng: &mut rand_chacha::ChaCha8Rng, p: V| -> (V, V) {
+            match m.inside {
+                Some(c) => {
+                    let o = sample::rpv(prec, add(c, mul(ball(rng), 0.3 * s)));
+                    (o, sample::rpv(prec, sub(p, o)))
                 }
-                let near = |p: V| -> Vec<[V; 3]> {
-                    m.tris
-                        .iter()
-                        .filter(|t| {
-                            t.iter()
-                                .any(|v| sample::norm(sub(*v, p)) <= 1.5 * m.longest)
-                        })
-                        .copied()
-                        .collect()
-                };
-                for (aim, p, exact) in aims {
-                    // An origin: above the height field, or inside the sphere
-                    let origin = |rng: &mut rand_chacha::ChaCha8Rng, p: V| -> (V, V) {
-                        match m.inside {
-                            Some(c) => {
-                                let o = sample::rpv(prec, add(c, mul(ball(rng), 0.3 * s)));
-                                (o, sample::rpv(prec, sub(p, o)))
-                            }
-                            None => {
-                                let d = sample::rpv(
-                                    prec,
-                                    [
-                                        rng.random_range(-0.5..0.5),
-                                        rng.random_range(-0.5..0.5),
-                                        -1.0,
-                                    ]
-                                    .map(|x| x * s),
-                                );
-                                (sample::rpv(prec, sub(p, mul(d, 2.0))), d)
-                            }
-                        }
-                    };
-                    let (o, d) = origin(&mut rng, p);
-                    out.push((
-                        aim,
-                        OnceRay {
-                            scale,
-                            o,
-                            d,
-                            tris: near(p),
-                        },
-                    ));
-                    if let Some(q) = exact {
-                        let exact_aim = match aim {
-                            "vertex" => "vertex_exact",
-                            _ => "edge_exact",
-                        };
-                        if let Some((o, d)) =
-                            (0..4).find_map(|_| exact_through(prec, origin(&mut rng, q).0, q))
-                        {
-                            out.push((
-                                exact_aim,
-                                OnceRay {
-                                    scale,
-                                    o,
-                                    d,
-                                    tris: near(q),
-                                },
-                            ));
-                        }
-                    }
+                None => {
+                    let d = sample::rpv(
+                        prec,
+                        [
+                            rng.random_range(-0.5..0.5),
+                            rng.random_range(-0.5..0.5),
+                            -1.0,
+                        ]
+                        .map(|x| x * s),
+                    );
+                    (sample::rpv(prec, sub(p, mul(d, 2.0))), d)
                 }
+            }
+        };
+        let (o, d) = origin(&mut rng, p);
+        out.push((
+            aim,
+            OnceRay {
+                scale,
+                o,
+                d,
+                tris: near(p),
+            },
+        ));
+        if let Some(q) = exact {
+            let exact_aim = match aim {
+                "vertex" => "vertex_exact",
+                _ => "edge_exact",
+            };
+            if let Some((o, d)) = (0..4).find_map(|_| exact_through(prec, origin(&mut rng, q).0, q))
+            {
+                out.push((
+                    exact_aim,
+                    OnceRay {
+                        scale,
+                        o,
+                        d,
+                        tris: near(q),
+                    },
+                ));
             }
         }
     }
-    (out, dropped)
+    Some(out)
 }
 
 /// What a routine answered for every triangle of every ray: `Some(t)` for a hit.
-fn hits(
-    r: Routine,
-    prec: Precision,
-    rays: &[&OnceRay],
-) -> Result<Vec<Vec<Option<f64>>>, String> {
+fn hits(r: Routine, prec: Precision, rays: &[&OnceRay]) -> Result<Vec<Vec<Option<f64>>>, String> {
     match r {
         Routine::BuiltIn(m) => Ok(rays
             .par_iter()
@@ -461,64 +510,36 @@ pub fn rows(
     let mut out = vec![];
     for &prec in precs {
         for kind in MESHES {
-            let (all, dropped) = rays(seed, prec, kind, n);
-            for r in routines {
-                for aim in AIMS {
-                    let these: Vec<&OnceRay> =
-                        all.iter().filter(|c| c.0 == aim).map(|c| &c.1).collect();
-                    let hits = hits(*r, prec, &these)?;
-                    let mut row = OnceRow {
-                        routine: r.name().to_string(),
-                        precision: prec.name(),
-                        mesh: kind,
-                        aim,
-                        rays: these.len() as u64,
-                        meshes_dropped: dropped,
-                        leaks: 0,
-                        doubles: 0,
-                        split: 0,
-                        split_ulps: 0,
-                        bad: 0,
-                        first_leak: None,
-                        verdict: "reported",
-                        replay: vec![],
-                        first: None,
-                    };
-                    for (ray, h) in these.iter().zip(&hits) {
-                        let ts: Vec<f64> = h.iter().flatten().copied().collect();
-                        let what = if ts.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
-                            row.bad += 1;
-                            "bad"
-                        } else if ts.is_empty() {
-                            row.leaks += 1;
-                            row.first_leak = Some(row.first_leak.map_or(ray.scale, |f| f.min(ray.scale)));
-                            "leak"
-                        } else if ts.len() == 1 {
-                            continue;
-                        } else if ts.iter().any(|t| *t != ts[0]) {
-                            row.split += 1;
-                            let lo = ts.iter().copied().fold(f64::INFINITY, f64::min);
-                            let hi = ts.iter().copied().fold(0.0, f64::max);
-                            row.split_ulps = row.split_ulps.max(ulps(lo, hi, prec));
-                            "split"
-                        } else {
-                            row.doubles += 1;
-                            "double"
-                        };
-                        if row.first.is_none() {
-                            row.first = Some(what);
-                            row.replay = replay(*r, prec, ray, h);
-                        }
+            let mut rows: Vec<OnceRow> = routines
+                .iter()
+                .flat_map(|r| AIMS.map(|aim| OnceRow::new(&r.name(), prec, kind, aim)))
+                .collect();
+            let mut dropped = 0;
+            for cell in cells(n) {
+                // One mesh at a time: the memory is one mesh's
+                let Some(rays) = mesh_rays(seed, prec, kind, cell) else {
+                    dropped += 1;
+                    continue;
+                };
+                let refs: Vec<&OnceRay> = rays.iter().map(|c| &c.1).collect();
+                for (k, r) in routines.iter().enumerate() {
+                    let hits = hits(*r, prec, &refs)?;
+                    for ((aim, ray), h) in rays.iter().zip(&hits) {
+                        let a = AIMS.iter().position(|x| x == aim).expect("an aim");
+                        rows[k * AIMS.len() + a].count(*r, prec, ray, h);
                     }
-                    if let Routine::Outside(_) = r {
-                        row.verdict = match row.leaks + row.split + row.bad {
-                            0 => "pass",
-                            _ => "fail",
-                        };
-                    }
-                    out.push(row);
                 }
             }
+            for (k, row) in rows.iter_mut().enumerate() {
+                row.meshes_dropped = dropped;
+                if let Routine::Outside(_) = routines[k / AIMS.len()] {
+                    row.verdict = match row.leaks + row.split + row.bad {
+                        0 => "pass",
+                        _ => "fail",
+                    };
+                }
+            }
+            out.extend(rows);
         }
     }
     // A child kept for the run ends here, and how it ended is checked
@@ -535,7 +556,9 @@ pub fn rows(
 fn replay(r: Routine, prec: Precision, ray: &OnceRay, hits: &[Option<f64>]) -> Vec<String> {
     let extra = match r {
         Routine::BuiltIn(i) => format!("--method {}", triangle::METHODS[i].name),
-        Routine::Outside(m) => m.replay().unwrap_or_else(|| format!("--method {}", m.name())),
+        Routine::Outside(m) => m
+            .replay()
+            .unwrap_or_else(|| format!("--method {}", m.name())),
     };
     let line = |t: &[V; 3]| probe_line_with("triangle", prec, Some(&extra), &flat(ray.o, ray.d, t));
     let hit: Vec<String> = ray
@@ -586,7 +609,9 @@ mod tests {
     fn exact_rays_pass_through_their_aim() {
         for prec in Precision::ALL {
             for kind in MESHES {
-                let (all, _) = rays(3, prec, kind, 1);
+                let all: Vec<(&str, OnceRay)> = cells(1)
+                    .flat_map(|c| mesh_rays(3, prec, kind, c).unwrap())
+                    .collect();
                 let n = |a: &str| all.iter().filter(|c| c.0 == a).count();
                 assert!(n("vertex_exact") * 2 >= n("vertex"), "{kind} {prec:?}");
                 assert!(n("edge_exact") * 12 >= n("edge"), "{kind} {prec:?}");
@@ -597,7 +622,8 @@ mod tests {
                     // p is a vertex or an edge's midpoint of some candidate triangle, exactly
                     let on = r.tris.iter().any(|t| {
                         (0..3).any(|k| {
-                            t[k] == p || std::array::from_fn(|j| (t[k][j] + t[(k + 1) % 3][j]) * 0.5) == p
+                            t[k] == p
+                                || std::array::from_fn(|j| (t[k][j] + t[(k + 1) % 3][j]) * 0.5) == p
                         })
                     });
                     assert!(on, "{kind} {prec:?}: {r:?}", r = (r.o, r.d));

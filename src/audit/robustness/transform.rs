@@ -97,7 +97,10 @@ impl Case {
     pub fn from_values(shape: &'static str, v: &[f64]) -> Result<Case, String> {
         let n = 18 + object_len(shape);
         if v.len() != n {
-            return Err(format!("{shape}: {} values, want {n} (M's 12, o, d, the object)", v.len()));
+            return Err(format!(
+                "{shape}: {} values, want {n} (M's 12, o, d, the object)",
+                v.len()
+            ));
         }
         let m = std::array::from_fn(|i| std::array::from_fn(|j| v[i * 4 + j]));
         Ok(Case {
@@ -124,9 +127,21 @@ fn rotation(rng: &mut ChaCha8Rng) -> [V; 3] {
     let (s, c) = th.sin_cos();
     let k = 1.0 - c;
     [
-        [c + a[0] * a[0] * k, a[0] * a[1] * k - a[2] * s, a[0] * a[2] * k + a[1] * s],
-        [a[1] * a[0] * k + a[2] * s, c + a[1] * a[1] * k, a[1] * a[2] * k - a[0] * s],
-        [a[2] * a[0] * k - a[1] * s, a[2] * a[1] * k + a[0] * s, c + a[2] * a[2] * k],
+        [
+            c + a[0] * a[0] * k,
+            a[0] * a[1] * k - a[2] * s,
+            a[0] * a[2] * k + a[1] * s,
+        ],
+        [
+            a[1] * a[0] * k + a[2] * s,
+            c + a[1] * a[1] * k,
+            a[1] * a[2] * k - a[0] * s,
+        ],
+        [
+            a[2] * a[0] * k - a[1] * s,
+            a[2] * a[1] * k + a[0] * s,
+            c + a[2] * a[2] * k,
+        ],
     ]
 }
 
@@ -154,11 +169,17 @@ fn transform(rng: &mut ChaCha8Rng, prec: Precision, class: &str) -> Affine {
         }
         "non_uniform" => {
             let s = [1.0, lu(rng, -4.0, 4.0), lu(rng, -4.0, 4.0)];
-            (matmul(&matmul(&r, &diag(s)), &transpose(&r)), mul(ball(rng), 4.0))
+            (
+                matmul(&matmul(&r, &diag(s)), &transpose(&r)),
+                mul(ball(rng), 4.0),
+            )
         }
         _ => {
             let e = lu(rng, -6.0, -3.0);
-            (matmul(&matmul(&r, &diag([1.0, 1.0, e])), &rotation(rng)), mul(ball(rng), 4.0))
+            (
+                matmul(&matmul(&r, &diag([1.0, 1.0, e])), &rotation(rng)),
+                mul(ball(rng), 4.0),
+            )
         }
     };
     std::array::from_fn(|i| {
@@ -326,7 +347,10 @@ pub fn exact(c: &Case) -> Exact {
             // 1 − h²/r² = disc / (a r²)
             let well_posed = far(&(Q::from(&disc / &a) / &r2)) && far(&Q::from(&cw / &r2));
             if disc < 0 || (b >= 0 && cw >= 0) {
-                return Exact { t: None, well_posed };
+                return Exact {
+                    t: None,
+                    well_posed,
+                };
             }
             let p = 256;
             let sq = Float::with_val(p, &disc).sqrt();
@@ -440,7 +464,11 @@ impl Routine<'_> {
     }
 
     /// Its `t` (or a miss) on each input, held to the shape's contract (count 0, or 1 and t).
-    pub fn answers(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Option<f64>>, String> {
+    pub fn answers(
+        &self,
+        prec: Precision,
+        inputs: &[Vec<f64>],
+    ) -> Result<Vec<Option<f64>>, String> {
         let answers = match self {
             Routine::BuiltIn(s, i) => {
                 let sh = crate::shapes::shape_by_name(s).expect("a built-in shape");
@@ -500,7 +528,13 @@ pub struct TransformRow {
 }
 
 /// The replay line of a case.
-pub fn replay_line(c: &Case, routine: &str, mode: &str, prec: Precision, extra: Option<&str>) -> String {
+pub fn replay_line(
+    c: &Case,
+    routine: &str,
+    mode: &str,
+    prec: Precision,
+    extra: Option<&str>,
+) -> String {
     let v: Vec<String> = c.values().iter().map(|x| hex_text(*x)).collect();
     let extra = extra.map(|e| format!("{e} ")).unwrap_or_default();
     format!(
@@ -584,7 +618,11 @@ pub fn rows(
                                 }
                                 (Some(t), Some(et)) => {
                                     let u = ulps_of(t, et, prec);
-                                    row.worst_ulps = row.worst_ulps.max(if u.is_nan() { f64::INFINITY } else { u });
+                                    row.worst_ulps = row.worst_ulps.max(if u.is_nan() {
+                                        f64::INFINITY
+                                    } else {
+                                        u
+                                    });
                                     false
                                 }
                                 (None, None) => false,
@@ -594,8 +632,13 @@ pub fn rows(
                                     Routine::Outside(m) => m.replay(),
                                     Routine::BuiltIn(..) => None,
                                 };
-                                row.replay =
-                                    Some(replay_line(c, &row.routine, mode, prec, extra.as_deref()));
+                                row.replay = Some(replay_line(
+                                    c,
+                                    &row.routine,
+                                    mode,
+                                    prec,
+                                    extra.as_deref(),
+                                ));
                             }
                         }
                         out.push(row);
@@ -637,7 +680,11 @@ mod tests {
     /// Without a transform (M = identity) the exact answer is the object's own exact oracle's.
     #[test]
     fn under_the_identity_the_oracle_is_the_shapes() {
-        let id: Affine = [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]];
+        let id: Affine = [
+            [1.0, 0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0, 0.0],
+            [0.0, 0.0, 1.0, 0.0],
+        ];
         for shape in ["sphere", "triangle"] {
             let sh = crate::shapes::shape_by_name(shape).unwrap();
             for mut c in cases(2, shape, Precision::F64, "rotation", 64) {
