@@ -257,7 +257,13 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     }
     let user_table = read_user_table(&a.out.tolerances)?;
     let table = table_of(&user_table, &plan.known())?;
-    let inputs: Vec<PathBuf> = a.out.tolerances.iter().cloned().collect();
+    let inputs: Vec<PathBuf> = a
+        .out
+        .tolerances
+        .iter()
+        .cloned()
+        .chain(a.outside.input_files())
+        .collect();
     let mut outputs = a.out.outputs(&[&a.shard_out], &inputs)?;
     let shard_label = format!("{}/{}", a.shard.0, a.shard.1);
     // A shard is judged by its merge, not here

@@ -66,7 +66,7 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
     };
     let precs = super::outside::OutsideArgs::precisions(&a.precision, &outside)?;
     if let Some(p) = &a.json {
-        rayproof::output::check_output_dirs(&[&Some(p.clone())])?;
+        a.outside.check_outputs(&[p.as_path()])?;
     }
     let guards: Vec<Guard> = names
         .iter()

@@ -96,6 +96,35 @@ impl OutsideArgs {
         Ok(precs)
     }
 
+    /// The files the outside routines are made of, inputs no output may replace: each plugin's
+    /// library, and each word of an --exec command that names an existing regular file (the
+    /// script or program it runs; quotes stripped, words split at spaces).
+    pub fn input_files(&self) -> Vec<std::path::PathBuf> {
+        let plugins = self
+            .plugin
+            .iter()
+            .filter_map(|spec| rayproof::audit::plugin::parse_spec(spec).ok())
+            .map(|(path, _, _)| std::path::PathBuf::from(path));
+        let words = self.exec.iter().flat_map(|cmd| {
+            cmd.split_whitespace()
+                .map(|w| w.trim_matches(|c| c == '\'' || c == '"'))
+                .map(std::path::PathBuf::from)
+                .collect::<Vec<_>>()
+        });
+        plugins
+            .chain(words)
+            .filter(|p| p.metadata().is_ok_and(|m| m.is_file()))
+            .collect()
+    }
+
+    /// Refuses a `--json` (or any output file) that is, or would replace, one of the routines'
+    /// files ([`OutsideArgs::input_files`]), that is named twice or cannot be written.
+    pub fn check_outputs(&self, files: &[&std::path::Path]) -> Result<()> {
+        let inputs = self.input_files();
+        let inputs: Vec<&std::path::Path> = inputs.iter().map(|p| p.as_path()).collect();
+        rayproof::output::check_outputs(files, &[], &inputs)
+    }
+
     /// Whether any outside routine is given.
     pub fn any(&self) -> bool {
         !self.plugin.is_empty() || !self.exec.is_empty()

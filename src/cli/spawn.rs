@@ -192,7 +192,9 @@ pub(super) fn run_spawn(a: SpawnArgs) -> Result<u8> {
         .map(|p| p.as_path())
         .collect();
     let dirs: Vec<&Path> = a.plots.iter().map(|p| p.as_path()).collect();
-    check_outputs(&files, &dirs, &[])?;
+    let inputs = a.outside.input_files();
+    let inputs: Vec<&Path> = inputs.iter().map(|p| p.as_path()).collect();
+    check_outputs(&files, &dirs, &inputs)?;
     let mut precs = a.precision.clone();
     precs.dedup();
     let cells = spawn::cells(a.seed, &precs, a.per_cell);

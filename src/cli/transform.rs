@@ -114,7 +114,7 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
     }
     let precs = super::outside::OutsideArgs::precisions(&a.precision, &outside)?;
     if let Some(p) = &a.json {
-        rayproof::output::check_output_dirs(&[&Some(p.clone())])?;
+        a.outside.check_outputs(&[p.as_path()])?;
     }
     let rows = match transform::rows(a.seed, &routines, &precs, a.cases) {
         Ok(r) => r,
