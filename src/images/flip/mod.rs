@@ -102,13 +102,21 @@ fn exposure_range(rgb: impl Iterator<Item = [f64; 3]>) -> (f64, f64) {
 /// sample. The map is a step function of x (both curves are nondecreasing), so it is held as
 /// its 255 steps: `steps[k − 1]` is the least non-negative f32 that encodes to k or more, found
 /// by bisection over the f32s' bit patterns (ordered as the values are). A sample's top 16 bits
-/// pick one of 2¹⁶ buckets of 2¹⁵ consecutive f32s; a bucket no step falls inside gives its code
-/// at once, and the few that hold a step compare with it (`encode_is_srgb8_of_aces` checks
-/// every f16 and a million f32s against the direct computation).
+/// pick one of 2¹⁶ buckets of 2¹⁵ consecutive f32s: its code is the bucket's first f32's, plus
+/// one if it lies at or above the step inside the bucket, if there is one. A bucket spans 2⁻⁹
+/// to 2⁻⁸ of its value and the steps lie about that far apart at the closest, so a bucket holds
+/// at most one step inside (measured at exposures 10⁻¹² to 10¹² in steps of ×1.37); an exposure
+/// where one holds more counts the steps at or below each sample instead
+/// (`encode_is_srgb8_of_aces` checks every f16 and a million f32s against the direct
+/// computation, both ways).
 struct Exposure {
     steps: [f32; 255],
-    /// Per bucket: the code of its first f32, and how many steps lie strictly inside it.
-    buckets: Vec<(u8, u8)>,
+    /// Per bucket: the code of its first f32
+    codes: Vec<u8>,
+    /// Per bucket: the step strictly inside it (not on its first f32), or +∞
+    inside: Vec<f32>,
+    /// A bucket holds two steps or more inside: `codes` and `inside` are not used
+    several: bool,
 }
 
 impl Exposure {
@@ -131,36 +139,76 @@ impl Exposure {
             }
         });
         let code = |x: f32| steps.partition_point(|&t| t <= x) as u8;
-        // Each bucket's first code; a step strictly inside a bucket (not on its first f32)
-        // adds to its count, one pass over the steps
-        let mut buckets: Vec<(u8, u8)> = (0..1u32 << 16)
-            .map(|b| (code(f32::from_bits(b << 15)), 0))
+        let codes: Vec<u8> = (0..1u32 << 16)
+            .map(|b| code(f32::from_bits(b << 15)))
             .collect();
+        // The steps strictly inside a bucket, one pass over the steps (they are sorted)
+        let mut inside = vec![f32::INFINITY; 1 << 16];
+        let mut several = false;
         for t in steps.iter().filter(|t| t.is_finite()) {
             let bits = t.to_bits();
             if bits & 0x7fff != 0 {
-                buckets[(bits >> 15) as usize].1 += 1;
+                let b = &mut inside[(bits >> 15) as usize];
+                several |= b.is_finite();
+                *b = b.min(*t);
             }
         }
-        Exposure { steps, buckets }
+        Exposure {
+            steps,
+            codes,
+            inside,
+            several,
+        }
     }
 
+    #[inline(always)]
     fn encode(&self, x: f32) -> u8 {
-        if !(x > 0.0) || !x.is_finite() {
-            return self.buckets[0].0;
+        // Non-finite, negative and NaN samples count as 0 (bucket 0's first f32; a step inside
+        // bucket 0 lies above 0)
+        let x = if x > 0.0 && x <= f32::MAX { x } else { 0.0 };
+        if self.several {
+            return self.steps.partition_point(|&t| t <= x) as u8;
         }
-        let (code, inside) = self.buckets[(x.to_bits() >> 15) as usize];
-        match inside {
-            0 => code,
-            _ => {
-                code + self.steps[code as usize..]
-                    .iter()
-                    .take(inside as usize)
-                    .filter(|&&t| t <= x)
-                    .count() as u8
+        let b = (x.to_bits() >> 15) as usize;
+        self.codes[b] + (self.inside[b] <= x) as u8
+    }
+
+    /// `encode` of samples `idx` of each pixel (`n` samples each) of `src`, into `dst`.
+    fn encode_rows(&self, src: &[f32], n: usize, idx: [usize; 3], dst: &mut [u8]) {
+        if idx.iter().all(|&i| i < n) {
+            for (o, px) in dst.chunks_exact_mut(3).zip(src.chunks_exact(n)) {
+                for c in 0..3 {
+                    o[c] = self.encode(px[idx[c]]);
+                }
+            }
+        } else {
+            for (o, px) in dst.chunks_exact_mut(3).zip(src.chunks(n)) {
+                for c in 0..3 {
+                    o[c] = self.encode(px.get(idx[c]).copied().unwrap_or(0.0));
+                }
             }
         }
     }
+}
+
+/// Exposures encoded in one pass over the samples: the image's rows are read from memory once
+/// for the group (a band's samples do not stay in cache from one exposure to the next).
+const GROUP: usize = 4;
+
+/// `encode` by each of `tables` of the samples `idx` of each pixel of `src` (`n` samples a
+/// pixel): one 8-bit sRGB image per table. A chunk of pixels is encoded by every table while it
+/// is in the L1 cache.
+fn encode_group(tables: &[Exposure], src: &[f32], n: usize, idx: [usize; 3]) -> Vec<Vec<u8>> {
+    const CHUNK: usize = 512;
+    let px = src.len() / n;
+    let mut outs: Vec<Vec<u8>> = tables.iter().map(|_| vec![0u8; px * 3]).collect();
+    for (i, chunk) in src.chunks(CHUNK * n).enumerate() {
+        let m = chunk.len() / n;
+        for (t, o) in tables.iter().zip(outs.iter_mut()) {
+            t.encode_rows(chunk, n, idx, &mut o[i * CHUNK * 3..(i * CHUNK + m) * 3]);
+        }
+    }
+    outs
 }
 
 fn flip_ldr8(w: usize, h: usize, reference: &[u8], test: &[u8]) -> Vec<f32> {
@@ -171,16 +219,18 @@ fn mean(v: &[f32]) -> f64 {
     v.iter().map(|&x| x as f64).sum::<f64>() / v.len().max(1) as f64
 }
 
-/// Rows above and below a band that ꟻLIP reads but does not keep: at least the radius of its
-/// spatial filter (⌈3·√(0.04 / 2π²)·67⌉ = 10 at 67 pixels per degree) and of its feature filter
-/// (⌈3 · ½ · 0.082 · 67⌉ = 9). Its filters clamp at the image's edge and reach no further than
-/// their radius, so a band's rows come out bit for bit as over the whole image
+/// Rows above and below a band that ꟻLIP reads but does not keep: the larger of the radii of
+/// its spatial filter (⌈3·√(0.04 / 2π²)·67⌉ = 10 at 67 pixels per degree) and of its feature
+/// filter (⌈3 · ½ · 0.082 · 67⌉ = 9); `halo_is_the_filters_reach` checks it against the filters
+/// the kernel makes. Its filters clamp at the image's edge and reach no further than their
+/// radius (a pixel of the map is a function of the filtered values at that pixel alone), so a
+/// band's rows come out bit for bit as over the whole image
 /// (`banded_flip_is_the_whole_image_flip` checks it).
-const HALO: usize = 16;
+const HALO: usize = 10;
 
 /// The rows of one band: about 2²⁰ pixels (ꟻLIP keeps some 200 bytes per pixel it is given, so
 /// its memory is a band's, not the image's), and at least 256 rows, so that the halo costs at
-/// most 1/8 more work.
+/// most 5/64 more work.
 fn band_rows(w: usize) -> usize {
     ((1 << 20) / w.max(1)).max(256)
 }
@@ -193,12 +243,13 @@ fn max_into(out: &mut [f32], m: &[f32]) {
 }
 
 /// The per-pixel maximum over `count` LDR-ꟻLIP maps of a `w × h` image, the k-th made from the
-/// 8-bit sRGB rows `enc(k, y0, y1)` gives for both images (rows `y0..y1`). Computed in bands of
+/// 8-bit sRGB rows `enc(k..k + j, y0, y1)[i]` gives for both images (rows `y0..y1`, exposure
+/// k + i, [`GROUP`] exposures at most at a time). Computed in bands of
 /// `rows` rows (each with [`HALO`] rows more above and below), spread over threads: by band
 /// when there are enough bands, else by exposure within each band.
 fn banded_flip<E>(w: usize, h: usize, rows: usize, count: usize, enc: E) -> Vec<f32>
 where
-    E: Fn(usize, usize, usize) -> (Vec<u8>, Vec<u8>) + Sync,
+    E: Fn(std::ops::Range<usize>, usize, usize) -> Vec<(Vec<u8>, Vec<u8>)> + Sync,
 {
     let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
     let rows = rows.max(1);
@@ -207,14 +258,16 @@ where
         let (y0, y1) = (b * rows, ((b + 1) * rows).min(h));
         let (lo, hi) = (y0.saturating_sub(HALO), (y1 + HALO).min(h));
         let one = |k: usize| {
-            let (r, t) = enc(k, lo, hi);
-            flip_ldr8(w, hi - lo, &r, &t)
+            let (r, t) = &enc(k..k + 1, lo, hi)[0];
+            flip_ldr8(w, hi - lo, r, t)
         };
         let keep = |out: &mut [f32], m: &[f32]| max_into(out, &m[(y0 - lo) * w..(y1 - lo) * w]);
         let split = split.clamp(1, count.max(1));
         if split == 1 {
-            for k in 0..count {
-                keep(out, &one(k));
+            for k0 in (0..count).step_by(GROUP) {
+                for (r, t) in enc(k0..(k0 + GROUP).min(count), lo, hi) {
+                    keep(out, &flip_ldr8(w, hi - lo, &r, &t));
+                }
             }
             return;
         }
@@ -302,16 +355,20 @@ fn hdr_flip_in_bands(reference: &Image, test: &Image, rows: usize) -> (f64, Vec<
     let tables: Vec<Exposure> = (0..count)
         .map(|k| Exposure::new((start + k as f64 * step).exp2()))
         .collect();
-    let enc = |k: usize, y0: usize, y1: usize| {
-        let t = &tables[k];
-        let rows = |img: &Image, idx: [usize; 3]| -> Vec<u8> {
+    let enc = |ks: std::ops::Range<usize>, y0: usize, y1: usize| {
+        let rows = |img: &Image, idx: [usize; 3]| {
             let n = img.channels.len().max(1);
-            img.data[y0 * w * n..y1 * w * n]
-                .chunks(n)
-                .flat_map(|px| idx.map(|i| t.encode(px.get(i).copied().unwrap_or(0.0))))
-                .collect()
+            encode_group(
+                &tables[ks.clone()],
+                &img.data[y0 * w * n..y1 * w * n],
+                n,
+                idx,
+            )
         };
-        (rows(reference, ri), rows(test, ti))
+        rows(reference, ri)
+            .into_iter()
+            .zip(rows(test, ti))
+            .collect()
     };
     let map = banded_flip(w, h, rows, count, enc);
     (mean(&map), map)
@@ -322,7 +379,7 @@ fn hdr_flip_in_bands(reference: &Image, test: &Image, rows: usize) -> (f64, Vec<
 pub fn ldr_flip(reference: &Image, test: &Image) -> (f64, Vec<f32>) {
     assert!(reference.width == test.width && reference.height == test.height);
     let w = reference.width;
-    let enc = |_: usize, y0: usize, y1: usize| {
+    let enc = |_: std::ops::Range<usize>, y0: usize, y1: usize| {
         let rows = |img: &Image| -> Vec<u8> {
             let n = img.channels.len().max(1);
             let idx = img.rgb_indices();
@@ -331,7 +388,7 @@ pub fn ldr_flip(reference: &Image, test: &Image) -> (f64, Vec<f32>) {
                 .flat_map(|p| idx.map(|i| (p[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u8))
                 .collect()
         };
-        (rows(reference), rows(test))
+        vec![(rows(reference), rows(test))]
     };
     let map = banded_flip(w, reference.height, band_rows(w), 1, enc);
     (mean(&map), map)
@@ -402,8 +459,14 @@ mod tests {
             seed ^= seed << 17;
             seed
         };
-        for m in [1e-9, 0.013, 0.5, 1.0, 3.7, 1e4, 1e30] {
-            let e = Exposure::new(m);
+        for (m, several) in [1e-9, 0.013, 0.5, 1.0, 3.7, 1e4, 1e30, 0.7]
+            .into_iter()
+            .zip([false, false, false, false, false, false, false, true])
+        {
+            let mut e = Exposure::new(m);
+            assert!(!e.several, "m = {m}: a bucket with two steps");
+            // The way taken if one did
+            e.several = several;
             let direct = |x: f32| match x.is_finite() {
                 true => srgb8(aces(x.max(0.0) as f64 * m)),
                 false => srgb8(0.0),
@@ -419,6 +482,11 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn halo_is_the_filters_reach() {
+        assert_eq!(ldr::reach(PIXELS_PER_DEGREE), HALO);
     }
 
     /// The bands' map is the whole image's, bit for bit: bands of 1, 7 and 37 rows (each with
