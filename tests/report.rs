@@ -126,8 +126,39 @@ fn quick_report_has_every_part_with_measured_numbers() {
         .iter()
         .filter(|r| r["rule"] == "pbrt")
         .all(|r| r["verdict"] == "pass"));
+    // The seams (issue 49): every built-in guard and triangle routine × 2 precisions, the
+    // default transform routines in every mode; Ize's guard loses no box and the naive slab
+    // loses face hits, the wide watertight test never leaks, the ideal carrying loses nothing
+    let seams = &json["seams"];
+    let guard = seams["guard"].as_array().unwrap();
+    assert_eq!(guard.len(), 4 * 2 * 4);
+    let lost = |g: &str| -> u64 {
+        guard
+            .iter()
+            .filter(|r| r["guard"] == g)
+            .map(|r| r["lost"].as_u64().unwrap())
+            .sum()
+    };
+    assert_eq!(lost("ize"), 0);
+    assert!(lost("naive_slab") > 0);
+    assert!(guard
+        .iter()
+        .all(|r| r["ns_per_test"].as_f64().unwrap() > 0.0));
+    let once = seams["once"].as_array().unwrap();
+    assert_eq!(once.len(), 4 * 2 * 3 * 4);
+    assert!(once
+        .iter()
+        .filter(|r| r["routine"] == "watertight_wide")
+        .all(|r| r["leaks"] == 0 && r["rays"].as_u64().unwrap() > 0));
+    let transform = seams["transform"].as_array().unwrap();
+    assert_eq!(transform.len(), 4 * 4 * 2 * 6);
+    assert!(transform
+        .iter()
+        .filter(|r| r["mode"] == "ideal")
+        .all(|r| r["false_hit"] == 0 && r["false_miss"] == 0));
     // The Markdown and HTML carry the paper's figures and the plots
     let md = std::fs::read_to_string(out.join("report.md")).unwrap();
+    assert!(md.contains("## 8. The seams between routines"));
     assert!(md.contains("3.43× (2 h ÷ 35 min)") && md.contains("pareto-max-ulps.svg"));
     let html = std::fs::read_to_string(out.join("index.html")).unwrap();
     assert!(html.contains("<table") && html.contains("<img"));

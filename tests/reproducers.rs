@@ -2636,6 +2636,79 @@ fn masks_and_replays_as_written(d: &Path) -> Result<(), String> {
     }
 }
 
+/// Issue 49 (50e510d): `once --json tri.py --exec "python3 tri.py"` wrote the rows over the
+/// script it runs (exit 0); a plugin's library is an input alike. The files routines are made of
+/// are inputs of the run: `--json` over one is refused in one line, exit 2, in once, transform
+/// and guard, the file byte for byte as it was.
+fn json_over_the_routines_own_file(d: &Path) -> Result<(), String> {
+    let script = b"import sys\nfor line in sys.stdin:\n    print(0)\n";
+    std::fs::write(d.join("tri.py"), script).unwrap();
+    let lib = crate::common::build_library("routines.c", d);
+    let lib_bytes = std::fs::read(&lib).unwrap();
+    let spec = format!("{}:triangle_mt_f32", lib.display());
+    let libname = lib.display().to_string();
+    let runs: [(Vec<&str>, &str); 4] = [
+        (
+            vec![
+                "once",
+                "--exec",
+                "python3 tri.py",
+                "--name",
+                "t",
+                "--precision",
+                "f64",
+                "--json",
+                "tri.py",
+            ],
+            "tri.py",
+        ),
+        (
+            vec![
+                "transform",
+                "--shape",
+                "triangle",
+                "--exec",
+                "python3 tri.py",
+                "--precision",
+                "f64",
+                "--json",
+                "./tri.py",
+            ],
+            "tri.py",
+        ),
+        (
+            vec!["once", "--plugin", &spec, "--json", &libname],
+            &libname,
+        ),
+        (
+            vec![
+                "transform",
+                "--shape",
+                "triangle",
+                "--plugin",
+                &spec,
+                "--json",
+                &libname,
+            ],
+            &libname,
+        ),
+    ];
+    for (args, named) in runs {
+        let r = run(d, &args, 60);
+        r.refused(2, &[named.rsplit('/').next().unwrap(), "input"])
+            .map_err(|e| format!("{}: {e}", args.join(" ")))?;
+        ensure!(
+            std::fs::read(d.join("tri.py")).unwrap() == script,
+            "the script was written over"
+        );
+        ensure!(
+            std::fs::read(&lib).unwrap() == lib_bytes,
+            "the library was written over"
+        );
+    }
+    Ok(())
+}
+
 const ROWS: &[Row] = &[
     (
         "update_beside_an_external_reference",
@@ -2817,6 +2890,10 @@ const ROWS: &[Row] = &[
         report_url_that_breaks_the_summary,
     ),
     ("masks_and_replays_as_written", masks_and_replays_as_written),
+    (
+        "json_over_the_routines_own_file",
+        json_over_the_routines_own_file,
+    ),
 ];
 
 #[test]

@@ -1,6 +1,7 @@
 //! `rayproof transform`: shapes behind an instance transform (issue 49 item 2). The ray carried
 //! into object space by the stored world-to-object matrix in the working precision (`matrix`)
-//! or with the translation taken off first (`translate_first`), the object's routine run there,
+//! or with the translation taken off first (`translate_first`), or by the inverse the renderer
+//! computes itself from M (`inverted`), the object's routine run there,
 //! judged by the exact oracle in world space; classes of transforms from rotations to large
 //! translations and near-singular scales. Rows are reported: exit 0, 2 bad usage, 4 a routine
 //! of yours that breaks its contract, crashes or hangs; `--replay` exits 1 on a wrong answer.
@@ -8,17 +9,9 @@
 use super::*;
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
-use rayproof::audit::robustness::transform::{self, Case, Routine, MODES};
+use rayproof::audit::robustness::transform::{self, builtin, Case, Routine, DEFAULT, MODES};
 use rayproof::numerics::Precision;
 use std::path::PathBuf;
-
-/// The built-in routines run by default: the textbook and a robust one of each shape.
-const DEFAULT: [(&str, &str); 4] = [
-    ("sphere", "algebraic"),
-    ("sphere", "rtg7"),
-    ("triangle", "moller_trumbore"),
-    ("triangle", "watertight"),
-];
 
 #[derive(Args, Debug)]
 pub struct TransformArgs {
@@ -57,14 +50,6 @@ fn shape_name(s: &str) -> Result<&'static str> {
         "triangle" => Ok("triangle"),
         _ => bail!("--shape {s}: sphere or triangle"),
     }
-}
-
-fn builtin(shape: &'static str, name: &str) -> Option<Routine<'static>> {
-    let info = rayproof::shapes::shape_by_name(shape)?.info();
-    info.methods
-        .iter()
-        .position(|m| m.name == name)
-        .map(|i| Routine::BuiltIn(shape, i))
 }
 
 pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
@@ -221,7 +206,9 @@ fn replay(args: &[String], routines: &[(&'static str, Routine)]) -> Result<u8> {
     };
     let e = transform::exact(&case);
     let input = transform::object_input(&case, prec, mode)
-        .ok_or_else(|| anyhow!("--replay: M is singular"))?;
+        .ok_or_else(|| {
+            anyhow!("--replay: no object-space ray (M singular, or its determinant 0 or not finite in the precision: a miss)")
+        })?;
     let t = match routine.answers(prec, &[input.clone()]) {
         Ok(t) => t[0],
         Err(e) => {

@@ -17,7 +17,11 @@
 //!    with the images side by side;
 //! 5. Fan, Shen, Wang & Feng's (1996) speed claim reproduced on `seed1996` ([`seed`]);
 //! 6. the cost of Newton refinement for 1/x and 1/√x over every f32 of a range, against MPFR
-//!    (Lengyel's ray-tracing chapter, §1.5).
+//!    (Lengyel's ray-tracing chapter, §1.5);
+//! 7. the built-in spawn rules, self-hits against the smallest resolved gap ([`spawn`]);
+//! 8. the seams between routines ([`seams`]): the box guards' lost geometry and cost, the
+//!    default routines behind instance transforms in each carrying mode, and exactly one hit
+//!    per closed mesh for each built-in triangle routine.
 //!
 //! `--plugin PATH:SYMBOL` (one precision is enough; the audit and the timing then run in the
 //! precisions it has) or `--exec CMD` puts your own ray–sphere routine beside the built-in
@@ -51,6 +55,7 @@
 use crate::audit::robustness::spawn::SpawnRow;
 pub mod plot;
 pub mod renders;
+pub mod seams;
 pub mod seed;
 pub mod spawn;
 
@@ -128,6 +133,7 @@ struct Numbers<'a> {
     newton: &'a [crate::shapes::recip::newton::NewtonRow],
     newton_starts: &'a [crate::shapes::recip::newton::StartRow],
     spawn: &'a [SpawnRow],
+    seams: &'a seams::Seams,
 }
 
 /// Where the numbers were measured.
@@ -270,6 +276,9 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
     // 6. Spawn rules
     say("auditing the five built-in spawn rules at every scale");
     let spawn_rows = spawn_rows(o.seed, if o.quick { 4 } else { 16 })?;
+    // 8. The seams between routines
+    say("auditing the box guards, the instance transforms and exactly one hit per mesh");
+    let seams = seams::rows(o.seed, o.quick)?;
     // Write
     say("writing");
     let md = markdown(
@@ -285,6 +294,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
         &newton,
         &starts,
         &spawn_rows,
+        &seams,
         dir,
     )?;
     let html = to_html(&md);
@@ -298,6 +308,7 @@ fn build(o: &ReportOptions, dir: &Path) -> Result<()> {
         newton: &newton,
         newton_starts: &starts,
         spawn: &spawn_rows,
+        seams: &seams,
     };
     crate::output::write_atomic(&dir.join("report.md"), md.as_bytes())?;
     crate::output::write_atomic(&dir.join("index.html"), html.as_bytes())?;
@@ -514,6 +525,7 @@ fn markdown(
     newton: &[crate::shapes::recip::newton::NewtonRow],
     starts: &[crate::shapes::recip::newton::StartRow],
     spawn_rows: &[SpawnRow],
+    seams: &seams::Seams,
     dir: &Path,
 ) -> Result<String> {
     let mut md = Markdown {
@@ -536,6 +548,8 @@ fn markdown(
     md.newton(newton, starts);
     // 7. Spawn rules
     md.spawn(spawn_rows)?;
+    // 8. The seams between routines
+    md.s += &seams::markdown(seams)?;
     Ok(md.s)
 }
 

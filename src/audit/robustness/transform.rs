@@ -26,7 +26,11 @@
 //! **Modes** of carrying the origin: `matrix`, o' = L_W·o + b_W (the 3×4 product renderers
 //! store), and `translate_first`, o' = L_W·(o − T) with M's own translation T. For an origin
 //! near a far instance the subtraction o − T is exact (Sterbenz), where L_W·o + b_W cancels two
-//! large numbers. The direction is d' = L_W·d in both. Sums are in order, with no FMA. The
+//! large numbers. The direction is d' = L_W·d in both. A renderer given M without its inverse
+//! computes it: `inverted` is W found in the working precision, L_W the adjugate of L over its
+//! determinant (the rows are cross products of L's columns, each divided by det = c₀·(c₁×c₂))
+//! and b_W = −L_W·T, then carried as `matrix` carries; its rounding adds cond(L)·ε to the
+//! stored inverse's. Sums are in order, with no FMA. The
 //! yardstick `ideal` is the object-space ray computed exactly (M⁻¹ in rationals) and rounded
 //! once to the precision (through f64): what remains there is the routine's own error on a
 //! rounded ray, and what `matrix` and `translate_first` add beyond it is the carrying's: the
@@ -57,7 +61,7 @@ pub const CLASSES: [&str; 6] = [
     "near_singular",
 ];
 /// How the ray's origin is carried into object space.
-pub const MODES: [&str; 3] = ["matrix", "translate_first", "ideal"];
+pub const MODES: [&str; 4] = ["matrix", "translate_first", "inverted", "ideal"];
 /// The margin a judged case keeps from the boundary (barycentrics, 1 − h²/r²).
 pub const MARGIN: f64 = 1e-4;
 
@@ -407,6 +411,34 @@ pub fn stored_inverse(m: &Affine, prec: Precision) -> Option<([V; 3], V)> {
     Some((l, b))
 }
 
+/// W = M⁻¹ computed in `F` as a renderer given only M computes it: the rows of L_W are the cross
+/// products of L's columns over det = c₀·(c₁ × c₂), b_W = −L_W·T (`None`: det is 0 or not
+/// finite in `F`).
+fn computed_inverse<F: crate::numerics::real::Real>(m: &Affine) -> Option<([V; 3], V)> {
+    let f = F::from_f64;
+    let col = |j: usize| [f(m[0][j]), f(m[1][j]), f(m[2][j])];
+    let cross = |a: [F; 3], b: [F; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let (c0, c1, c2) = (col(0), col(1), col(2));
+    let r0 = cross(c1, c2);
+    let det = c0[0] * r0[0] + c0[1] * r0[1] + c0[2] * r0[2];
+    if det.to_f64() == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let rows = [r0, cross(c2, c0), cross(c0, c1)].map(|r| r.map(|x| x / det));
+    let t = col(3);
+    let b: [F; 3] = std::array::from_fn(|i| {
+        F::from_f64(0.0) - (rows[i][0] * t[0] + rows[i][1] * t[1] + rows[i][2] * t[2])
+    });
+    let l: [V; 3] = rows.map(|r| r.map(|x| x.to_f64()));
+    Some((l, b.map(|x| x.to_f64())))
+}
+
 /// The object-space ray as the renderer computes it in `F`, by `mode`.
 fn carried<F: crate::numerics::real::Real>(c: &Case, w: &([V; 3], V), mode: &str) -> (V, V) {
     let f = F::from_f64;
@@ -414,7 +446,7 @@ fn carried<F: crate::numerics::real::Real>(c: &Case, w: &([V; 3], V), mode: &str
     let o = c.o.map(f);
     let d = c.d.map(f);
     let oo: [F; 3] = match mode {
-        "matrix" => std::array::from_fn(|i| row(&w.0[i], o) + f(w.1[i])),
+        "matrix" | "inverted" => std::array::from_fn(|i| row(&w.0[i], o) + f(w.1[i])),
         _ => {
             let rel: [F; 3] = std::array::from_fn(|k| o[k] - f(c.m[k][3]));
             std::array::from_fn(|i| row(&w.0[i], rel))
@@ -433,7 +465,11 @@ pub fn object_input(c: &Case, prec: Precision, mode: &str) -> Option<Vec<f64>> {
             (o.each_ref().map(round), d.each_ref().map(round))
         }
         _ => {
-            let w = stored_inverse(&c.m, prec)?;
+            let w = match (mode, prec) {
+                ("inverted", Precision::F32) => computed_inverse::<f32>(&c.m)?,
+                ("inverted", Precision::F64) => computed_inverse::<f64>(&c.m)?,
+                _ => stored_inverse(&c.m, prec)?,
+            };
             match prec {
                 Precision::F32 => carried::<f32>(c, &w, mode),
                 Precision::F64 => carried::<f64>(c, &w, mode),
@@ -441,6 +477,23 @@ pub fn object_input(c: &Case, prec: Precision, mode: &str) -> Option<Vec<f64>> {
         }
     };
     Some([&o[..], &d[..], &c.object[..]].concat())
+}
+
+/// The built-in routines run by default: the textbook and a robust one of each shape.
+pub const DEFAULT: [(&str, &str); 4] = [
+    ("sphere", "algebraic"),
+    ("sphere", "rtg7"),
+    ("triangle", "moller_trumbore"),
+    ("triangle", "watertight"),
+];
+
+/// The built-in method `name` of `shape`.
+pub fn builtin(shape: &'static str, name: &str) -> Option<Routine<'static>> {
+    let info = crate::shapes::shape_by_name(shape)?.info();
+    info.methods
+        .iter()
+        .position(|m| m.name == name)
+        .map(|i| Routine::BuiltIn(shape, i))
 }
 
 /// A routine: a built-in method of the shape (its index) or one from outside the crate.
@@ -507,7 +560,7 @@ pub struct TransformRow {
     pub shape: &'static str,
     /// The object-space routine.
     pub routine: String,
-    /// `matrix` or `translate_first`.
+    /// `matrix`, `translate_first`, `inverted` or `ideal`.
     pub mode: &'static str,
     /// `f32` or `f64`.
     pub precision: &'static str,
@@ -575,8 +628,9 @@ pub fn rows(
                 let cs = cases(seed, shape, prec, class, n);
                 let truth: Vec<Exact> = cs.par_iter().map(exact).collect();
                 for mode in MODES {
-                    // A singular stored M gives no object-space ray: such a case is skipped
-                    // as ill-posed (none at these classes' conditioning)
+                    // A W the renderer cannot have (M singular, or its determinant 0 or not
+                    // finite in the precision: `inverted`) gives no object-space ray: the
+                    // renderer sees no instance, a miss
                     let inputs: Vec<Option<Vec<f64>>> =
                         cs.iter().map(|c| object_input(c, prec, mode)).collect();
                     let asked: Vec<Vec<f64>> = inputs.iter().flatten().cloned().collect();
@@ -597,11 +651,10 @@ pub fn rows(
                             replay: None,
                         };
                         for ((c, x), e) in cs.iter().zip(&inputs).zip(&truth) {
-                            let Some(_) = x else {
-                                row.ill_posed += 1;
-                                continue;
+                            let t = match x {
+                                Some(_) => got.next().flatten(),
+                                None => None,
                             };
-                            let t = got.next().flatten();
                             if !e.well_posed {
                                 row.ill_posed += 1;
                                 continue;
@@ -675,6 +728,35 @@ mod tests {
                 assert_eq!(back, x, "{class}");
             }
         }
+    }
+
+    /// The inverse a renderer computes in the precision (`inverted`): exact where every step is
+    /// (a scale by powers of two and a translation of small integers), and on the rounded
+    /// rotations of the classes within a few ulps of the stored (correctly rounded) inverse but
+    /// not equal to it: it is computed, not looked up.
+    #[test]
+    fn the_computed_inverse_is_the_adjugate_over_the_determinant() {
+        let m: Affine = [
+            [2.0, 0.0, 0.0, 3.0],
+            [0.0, 0.25, 0.0, -5.0],
+            [0.0, 0.0, 8.0, 7.0],
+        ];
+        let want = (
+            [[0.5, 0.0, 0.0], [0.0, 4.0, 0.0], [0.0, 0.0, 0.125]],
+            [-1.5, 20.0, -0.875],
+        );
+        assert_eq!(computed_inverse::<f32>(&m), Some(want));
+        assert_eq!(stored_inverse(&m, Precision::F32), Some(want));
+        let mut differ = 0;
+        for c in cases(3, "sphere", Precision::F32, "rotation", 64) {
+            let (l, _) = computed_inverse::<f32>(&c.m).unwrap();
+            let (ls, _) = stored_inverse(&c.m, Precision::F32).unwrap();
+            for (a, b) in l.iter().flatten().zip(ls.iter().flatten()) {
+                assert!((a - b).abs() <= 8.0 * f32::EPSILON as f64, "{a} {b}");
+                differ += (a != b) as u32;
+            }
+        }
+        assert!(differ > 0, "the computed inverse is the stored one");
     }
 
     /// Without a transform (M = identity) the exact answer is the object's own exact oracle's.

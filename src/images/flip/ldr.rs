@@ -863,6 +863,11 @@ mod tests {
                 .zip(&theirs)
                 .map(|(x, y)| (x - y).abs())
                 .fold(0f32, f32::max);
+            // The module's figures (`--nocapture`)
+            println!(
+                "{w}×{h}: worst {worst:e}, {differ} of {} pixels differ",
+                w * h
+            );
             assert!(worst <= 1e-4, "{w}×{h}: worst difference {worst:e}");
             assert!(
                 differ * 50 <= w * h,
