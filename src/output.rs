@@ -535,6 +535,32 @@ fn check_containment(outputs: &[(&Path, bool)], inputs: &[&Path]) -> Result<()> 
     Ok(())
 }
 
+/// Fails with one line if `p` exists and is not a JSON document (its first byte other than
+/// white space is neither `[` nor `{`): a `--json` output replaces only a file rayproof could
+/// have written. What an outside routine runs (a script named through the shell's quoting, a
+/// glob or a variable) is not always a word of its command line; it is never JSON.
+pub fn check_json_target(p: &Path) -> Result<()> {
+    use std::io::Read;
+    let Ok(m) = std::fs::metadata(p) else {
+        return Ok(());
+    };
+    if !m.is_file() {
+        // The other checks name what it is
+        return Ok(());
+    }
+    let mut head = vec![0u8; 4096];
+    let n = std::fs::File::open(p)
+        .and_then(|mut f| f.read(&mut head))
+        .with_context(|| format!("{}: cannot be read", p.display()))?;
+    match head[..n].iter().find(|b| !b.is_ascii_whitespace()) {
+        None | Some(b'[') | Some(b'{') => Ok(()),
+        Some(_) => bail!(
+            "{}: exists and is not a JSON file; --json replaces only JSON (a file rayproof could have written)",
+            p.display()
+        ),
+    }
+}
+
 /// Fails with one line if an output's directory does not exist or cannot take a temporary, if
 /// an output is one of the inputs or is named twice, if a directory output holds an input or
 /// another output (`check_containment`), or if an output exists and may not be replaced
@@ -554,6 +580,11 @@ pub fn check_outputs_with(
     make_dirs: bool,
 ) -> Result<()> {
     let mut seen: Vec<(Identity, &Path)> = inputs.iter().map(|p| (identity(p), *p)).collect();
+    // rayproof itself is an input of every run
+    let exe = std::env::current_exe().ok();
+    if let Some(e) = &exe {
+        seen.push((identity(e), e.as_path()));
+    }
     let n_inputs = seen.len();
     for (p, is_dir) in files
         .iter()

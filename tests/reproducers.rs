@@ -2636,75 +2636,353 @@ fn masks_and_replays_as_written(d: &Path) -> Result<(), String> {
     }
 }
 
-/// Issue 49 (50e510d): `once --json tri.py --exec "python3 tri.py"` wrote the rows over the
-/// script it runs (exit 0); a plugin's library is an input alike. The files routines are made of
-/// are inputs of the run: `--json` over one is refused in one line, exit 2, in once, transform
-/// and guard, the file byte for byte as it was.
+/// Issue 49 (50e510d; helper-15, F8): `once --json tri.py --exec "python3 tri.py"` wrote the
+/// rows over the script it runs (exit 0); so did `--exec 'python3 tri_c\opy.py' --json
+/// tri_copy.py` (the shell's quoting hid the name from the check of the command's words), and
+/// `--json` naming the rayproof binary replaced it. A routine's files are inputs of the run (its
+/// plugin library, each --exec word naming a file: here a JSON configuration), rayproof itself
+/// is an input of every run, and a `--json` output replaces only JSON: each refused in one line,
+/// exit 2, in once and transform, every file byte for byte as it was.
 fn json_over_the_routines_own_file(d: &Path) -> Result<(), String> {
     let script = b"import sys\nfor line in sys.stdin:\n    print(0)\n";
     std::fs::write(d.join("tri.py"), script).unwrap();
+    std::fs::write(d.join("tri_copy.py"), script).unwrap();
+    std::fs::write(d.join("conf.json"), b"{}\n").unwrap();
     let lib = crate::common::build_library("routines.c", d);
-    let lib_bytes = std::fs::read(&lib).unwrap();
     let spec = format!("{}:triangle_mt_f32", lib.display());
     let libname = lib.display().to_string();
-    let runs: [(Vec<&str>, &str); 4] = [
+    let exe = env!("CARGO_BIN_EXE_rayproof");
+    let files = [
+        d.join("tri.py"),
+        d.join("tri_copy.py"),
+        d.join("conf.json"),
+        lib.clone(),
+        PathBuf::from(exe),
+    ];
+    let before: Vec<Vec<u8>> = files.iter().map(|f| std::fs::read(f).unwrap()).collect();
+    let exec = |cmd: &'static str, json: &'static str| -> Vec<String> {
+        ["--exec", cmd, "--precision", "f64", "--json", json]
+            .map(String::from)
+            .to_vec()
+    };
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (exec("python3 tri.py", "tri.py"), "tri.py"),
+        (exec("python3 tri.py", "./tri.py"), "tri.py"),
+        (exec("python3 tri_c\\opy.py", "tri_copy.py"), "tri_copy.py"),
+        (exec("python3 tri_copy.p?", "tri_copy.py"), "tri_copy.py"),
+        (exec("python3 tri.py conf.json", "conf.json"), "conf.json"),
         (
-            vec![
-                "once",
-                "--exec",
-                "python3 tri.py",
-                "--name",
-                "t",
-                "--precision",
-                "f64",
-                "--json",
-                "tri.py",
-            ],
-            "tri.py",
-        ),
-        (
-            vec![
-                "transform",
-                "--shape",
-                "triangle",
-                "--exec",
-                "python3 tri.py",
-                "--precision",
-                "f64",
-                "--json",
-                "./tri.py",
-            ],
-            "tri.py",
-        ),
-        (
-            vec!["once", "--plugin", &spec, "--json", &libname],
+            ["--plugin", &spec, "--json", &libname]
+                .map(String::from)
+                .to_vec(),
             &libname,
         ),
         (
-            vec![
-                "transform",
-                "--shape",
-                "triangle",
-                "--plugin",
-                &spec,
-                "--json",
-                &libname,
-            ],
-            &libname,
+            ["--plugin", &spec, "--json", exe]
+                .map(String::from)
+                .to_vec(),
+            "rayproof",
         ),
     ];
-    for (args, named) in runs {
-        let r = run(d, &args, 60);
-        r.refused(2, &[named.rsplit('/').next().unwrap(), "input"])
-            .map_err(|e| format!("{}: {e}", args.join(" ")))?;
-        ensure!(
-            std::fs::read(d.join("tri.py")).unwrap() == script,
-            "the script was written over"
+    for (tail, named) in &cases {
+        for cmd in [vec!["once"], vec!["transform", "--shape", "triangle"]] {
+            let args: Vec<&str> = cmd
+                .iter()
+                .copied()
+                .chain(tail.iter().map(|s| s.as_str()))
+                .collect();
+            let r = run(d, &args, 60);
+            r.refused(2, &[named.rsplit('/').next().unwrap()])
+                .map_err(|e| format!("{}: {e}", args.join(" ")))?;
+            for (f, b) in files.iter().zip(&before) {
+                ensure!(
+                    &std::fs::read(f).unwrap() == b,
+                    "{}: {} was written over",
+                    args.join(" "),
+                    f.display()
+                );
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Issue 49 (helper-15, F1): `once --exec` of a child that answers "hit at t = 1" to every
+/// triangle got "verdict: pass", exit 0 (every ray a double at t = 1, the ray's parameter at its
+/// aim); so did a child with the right verdicts at t = 2⁻¹⁴⁹, and a plugin alike. A hit on a
+/// triangle away from the aimed vertex or edge that the exact oracle says the ray misses, or
+/// farther along the ray than twice the mesh's longest edge, is not the ray's crossing: the
+/// routine fails, exit 1, and the first such ray replays.
+fn once_hits_that_are_not_the_crossing(d: &Path) -> Result<(), String> {
+    std::fs::write(
+        d.join("always.py"),
+        "import sys\nfor line in sys.stdin:\n    print('1 0x1p+0', flush=True)\n",
+    )
+    .unwrap();
+    // Möller–Trumbore's verdicts (with a margin, so that it never leaks), at a t far from the
+    // crossing
+    std::fs::write(
+        d.join("tiny_t.py"),
+        r#"import sys
+def sub(a, b): return [a[i] - b[i] for i in range(3)]
+def dot(a, b): return sum(a[i] * b[i] for i in range(3))
+def cross(a, b): return [a[1]*b[2] - a[2]*b[1], a[2]*b[0] - a[0]*b[2], a[0]*b[1] - a[1]*b[0]]
+for line in sys.stdin:
+    x = [float.fromhex(w) for w in line.split()[1:]]
+    o, d, p0, p1, p2 = x[0:3], x[3:6], x[6:9], x[9:12], x[12:15]
+    e1, e2 = sub(p1, p0), sub(p2, p0)
+    pv = cross(d, e2)
+    det = dot(e1, pv)
+    if det == 0:
+        print('0', flush=True)
+        continue
+    tv = sub(o, p0)
+    qv = cross(tv, e1)
+    u, v = dot(tv, pv) / det, dot(d, qv) / det
+    m = 1e-9
+    print('1 0x1p-149' if u >= -m and v >= -m and u + v <= 1 + m else '0', flush=True)
+"#,
+    )
+    .unwrap();
+    // Every candidate hit where the ray meets its plane: the t is the crossing's (the mesh's
+    // faces meet the ray near the aim), the triangles are not all the ray's
+    std::fs::write(
+        d.join("plane_t.py"),
+        r#"import sys
+def sub(a, b): return [a[i] - b[i] for i in range(3)]
+def dot(a, b): return sum(a[i] * b[i] for i in range(3))
+def cross(a, b): return [a[1]*b[2] - a[2]*b[1], a[2]*b[0] - a[0]*b[2], a[0]*b[1] - a[1]*b[0]]
+for line in sys.stdin:
+    x = [float.fromhex(w) for w in line.split()[1:]]
+    o, d, p0, p1, p2 = x[0:3], x[3:6], x[6:9], x[9:12], x[12:15]
+    n = cross(sub(p1, p0), sub(p2, p0))
+    dn = dot(d, n)
+    t = dot(sub(p0, o), n) / dn if dn != 0 else 0.0
+    print('1 ' + t.hex() if t > 0 else '0', flush=True)
+"#,
+    )
+    .unwrap();
+    for child in [
+        "python3 always.py",
+        "python3 tiny_t.py",
+        "python3 plane_t.py",
+    ] {
+        let r = run(
+            d,
+            &[
+                "once",
+                "--exec",
+                child,
+                "--name",
+                "c",
+                "--precision",
+                "f64",
+                "--per-cell",
+                "1",
+                "--json",
+                "o.json",
+            ],
+            120,
         );
+        r.exited(1)?;
+        ensure!(r.stdout.contains("verdict: FAIL"), "{child}: {}", r.ended());
+        ensure!(r.stdout.contains("first wrong"), "{child}: {}", r.ended());
+    }
+    Ok(())
+}
+
+/// Issue 49 (helper-15, F3): the `rayproof probe` lines `once` printed for a built-in routine
+/// carried `--method NAME`, which `probe` does not take ("takes 15 values, got 18"). Probe runs
+/// every built-in method: the line is the ray and the triangle, and it runs.
+fn once_probe_lines_of_a_builtin_run(d: &Path) -> Result<(), String> {
+    let r = run(
+        d,
+        &[
+            "once",
+            "--method",
+            "moller_trumbore",
+            "--precision",
+            "f32",
+            "--per-cell",
+            "1",
+            "--json",
+            "o.json",
+        ],
+        120,
+    );
+    r.exited(0)?;
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("o.json")).unwrap()).unwrap();
+    let line = rows
+        .as_array()
+        .unwrap()
+        .iter()
+        .flat_map(|r| r["replay"].as_array().unwrap().iter())
+        .filter_map(|l| l.as_str())
+        .next()
+        .ok_or("no replay line")?
+        .to_string();
+    let args: Vec<&str> = line.split_whitespace().skip(1).collect();
+    let p = run(d, &args, 60);
+    p.exited(0).map_err(|e| format!("{line}: {e}"))?;
+    ensure!(
+        p.stdout.contains("moller_trumbore"),
+        "{line}: {}",
+        p.ended()
+    );
+    Ok(())
+}
+
+/// Issue 49 (helper-15, F2, F4, F6, F7, F9): `transform`'s replay lines for a routine of yours
+/// lacked `--shape` (exit 2 as printed); `--replay` with a zero radius or a zero direction
+/// panicked (division by zero, exit 101); a hit at t NaN, ∞, 0 or −t counted as a right answer
+/// in the rows and replayed with exit 0; the answer `0 1.0` was taken as a miss (once refuses
+/// it); a replay of a case within the margin (not judged by the rows) exited 1.
+fn transform_answers_and_replays(d: &Path) -> Result<(), String> {
+    let child = |name: &str, body: &str| {
+        std::fs::write(
+            d.join(name),
+            format!("import sys\nfor line in sys.stdin:\n    print({body}, flush=True)\n"),
+        )
+        .unwrap()
+    };
+    child("miss.py", "'0'");
+    child("nan.py", "'1 nan'");
+    child("neg.py", "'1 -0x1p+0'");
+    child("count0.py", "'0 1.0'");
+    let rows = |args: &[&str]| -> Result<(Run, Vec<serde_json::Value>), String> {
+        let mut a = vec![
+            "transform",
+            "--shape",
+            "triangle",
+            "--cases",
+            "40",
+            "--precision",
+            "f64",
+            "--json",
+            "t.json",
+        ];
+        a.extend_from_slice(args);
+        let r = run(d, &a, 120);
+        let rows = std::fs::read_to_string(d.join("t.json"))
+            .ok()
+            .and_then(|j| serde_json::from_str(&j).ok())
+            .unwrap_or_default();
+        let _ = std::fs::remove_file(d.join("t.json"));
+        Ok((r, rows))
+    };
+    // F2: the printed replay runs as printed, and says wrong (exit 1)
+    let (r, got) = rows(&["--exec", "python3 miss.py", "--name", "m"])?;
+    r.exited(0)?;
+    let line = got
+        .iter()
+        .filter_map(|r| r["replay"].as_str())
+        .next()
+        .ok_or("no replay line for a routine that never hits")?
+        .to_string();
+    ensure!(line.contains("--shape triangle"), "{line}");
+    let args = shell_words(&line);
+    let args: Vec<&str> = args.iter().skip(1).map(|s| s.as_str()).collect();
+    run(d, &args, 60)
+        .exited(1)
+        .map_err(|e| format!("{line}: {e}"))?;
+    // F6: a t that is not finite and positive is wrong, in the rows and in a replay
+    for c in ["python3 nan.py", "python3 neg.py"] {
+        let (r, got) = rows(&["--exec", c, "--name", "b"])?;
+        r.exited(1).map_err(|e| format!("{c}: {e}"))?;
         ensure!(
-            std::fs::read(&lib).unwrap() == lib_bytes,
-            "the library was written over"
+            got.iter().all(|r| r["bad_t"].as_u64().unwrap() > 0),
+            "{c}: rows without bad_t"
         );
+    }
+    // F7: a miss with a value breaks the contract
+    let (r, _) = rows(&["--exec", "python3 count0.py", "--name", "z"])?;
+    r.refused(4, &["0 [1.0]"])?;
+    // F4: a zero radius or direction is bad input, one line, exit 2
+    let m = "1 0 0 0 0 1 0 0 0 0 1 0";
+    for (vals, why) in [
+        ("-5 0 0 1 0 0 0 0 0 0", "radius"),
+        ("-5 0 0 0 0 0 0 0 0 1", "direction"),
+    ] {
+        let mut a = vec![
+            "transform",
+            "--replay",
+            "sphere",
+            "algebraic",
+            "matrix",
+            "f32",
+        ];
+        a.extend(m.split(' '));
+        a.extend(vals.split(' '));
+        run(d, &a, 30).refused(2, &[why])?;
+    }
+    // F9: a case within the margin is not judged: exit 0, said
+    let mut a = vec![
+        "transform",
+        "--shape",
+        "triangle",
+        "--exec",
+        "python3 miss.py",
+        "--name",
+        "m",
+        "--replay",
+        "triangle",
+        "m",
+        "ideal",
+        "f64",
+    ];
+    a.extend(m.split(' '));
+    a.extend("0x1p-1 0 -5 0 0 1 0 0 0 1 0 0 0 1 0".split(' '));
+    let r = run(d, &a, 60);
+    r.exited(0)?;
+    ensure!(r.stdout.contains("not judged"), "{}", r.ended());
+    Ok(())
+}
+
+/// The words of a printed command line (single quotes as rayproof writes them).
+fn shell_words(line: &str) -> Vec<String> {
+    let (mut out, mut cur, mut quoted, mut any) = (vec![], String::new(), false, false);
+    for c in line.chars() {
+        match c {
+            '\'' => {
+                quoted = !quoted;
+                any = true;
+            }
+            ' ' if !quoted => {
+                if any {
+                    out.push(std::mem::take(&mut cur));
+                }
+                any = false;
+            }
+            c => {
+                cur.push(c);
+                any = true;
+            }
+        }
+    }
+    if any {
+        out.push(cur);
+    }
+    out
+}
+
+/// Issue 49 (helper-15, F5): `--plugin ./fifo:sym` hung past `--timeout` (the library read
+/// whole for its hash, a FIFO blocks), and `--plugin /dev/zero:sym` grew without bound. A
+/// plugin that is not a regular file is refused in one line, exit 2; a library is hashed in
+/// blocks.
+fn plugin_that_is_a_fifo_or_a_device(d: &Path) -> Result<(), String> {
+    let fifo = d.join("fifo1");
+    let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+    // SAFETY: mkfifo on a path in the test's own directory
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    for spec in ["./fifo1:good_f32", "/dev/zero:r_f32"] {
+        for cmd in [vec!["once"], vec!["transform", "--shape", "triangle"]] {
+            let mut a = cmd.clone();
+            a.extend(["--plugin", spec, "--timeout", "2"]);
+            run(d, &a, 20)
+                .refused(2, &["not a regular file"])
+                .map_err(|e| format!("{}: {e}", a.join(" ")))?;
+        }
     }
     Ok(())
 }
@@ -2893,6 +3171,22 @@ const ROWS: &[Row] = &[
     (
         "json_over_the_routines_own_file",
         json_over_the_routines_own_file,
+    ),
+    (
+        "once_hits_that_are_not_the_crossing",
+        once_hits_that_are_not_the_crossing,
+    ),
+    (
+        "once_probe_lines_of_a_builtin_run",
+        once_probe_lines_of_a_builtin_run,
+    ),
+    (
+        "transform_answers_and_replays",
+        transform_answers_and_replays,
+    ),
+    (
+        "plugin_that_is_a_fifo_or_a_device",
+        plugin_that_is_a_fifo_or_a_device,
     ),
 ];
 

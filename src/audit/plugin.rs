@@ -112,6 +112,21 @@ pub fn parse_spec(spec: &str) -> Result<(String, String, Precision), String> {
     Ok((path.to_string(), symbol.to_string(), prec))
 }
 
+/// The SHA-256 of a file, read in blocks (a library's size is not held in memory).
+fn file_sha256(path: &Path) -> std::io::Result<String> {
+    use sha2::{Digest, Sha256};
+    let mut f = std::fs::File::open(path)?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 16];
+    loop {
+        match f.read(&mut buf)? {
+            0 => break,
+            n => h.update(&buf[..n]),
+        }
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
 /// A path without a slash would be searched for by the loader: make it explicit.
 fn library_path(path: &str) -> String {
     if path.contains('/') {
@@ -295,14 +310,14 @@ impl Plugin {
             if p.symbols.iter().any(|s| s.prec == prec) {
                 return Err(format!("--plugin: two {} symbols", prec.name()));
             }
-            let sha256 = match std::fs::read(&path) {
-                Ok(bytes) => {
-                    use sha2::{Digest, Sha256};
-                    Sha256::digest(&bytes)
-                        .iter()
-                        .map(|b| format!("{b:02x}"))
-                        .collect()
+            // A FIFO or a device is no library: opening or reading it may block or never end
+            if let Ok(m) = std::fs::metadata(&path) {
+                if !m.is_file() {
+                    return Err(format!("--plugin '{spec}': {path} is not a regular file"));
                 }
+            }
+            let sha256 = match file_sha256(Path::new(&path)) {
+                Ok(h) => h,
                 // Found by the loader's search path, not as a file here: named as given
                 Err(_) => format!("(not read: {path})"),
             };

@@ -56,6 +56,7 @@ pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
     if let Some(p) = &a.json {
         // Never over the source it builds
         rayproof::output::check_outputs(&[p.as_path()], &[], &[source.as_path()])?;
+        rayproof::output::check_json_target(p)?;
     }
     // The compilers: asked for (each must run), or gcc and clang where installed
     let runs = |c: &str| {

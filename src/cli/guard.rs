@@ -66,7 +66,7 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
     };
     let precs = super::outside::OutsideArgs::precisions(&a.precision, &outside)?;
     if let Some(p) = &a.json {
-        a.outside.check_outputs(&[p.as_path()])?;
+        a.outside.check_json(p)?;
     }
     let guards: Vec<Guard> = names
         .iter()
@@ -162,7 +162,7 @@ fn replay(args: &[String], outside: &[super::outside::Outside]) -> Result<u8> {
                     )
                 })?;
             let c = guard::Case { values: v };
-            match guard::rows_of_one(m.as_ref(), prec, &c) {
+            match guard::admits_one(m.as_ref(), prec, &c) {
                 Ok(a) => a,
                 Err(e) => {
                     eprintln!("error: {}", rayproof::images::one_line(&e));

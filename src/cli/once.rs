@@ -4,7 +4,7 @@
 //! triangle routine, the rays it leaks (0 hits), doubles (2 or more at one t), splits (hits at
 //! different t) or answers with a t that is not finite and positive. The built-in routines are
 //! reported; a routine of yours (`--exec`, `--plugin`) is judged: exit 0 when it never leaks,
-//! splits or answers a bad t, 1 otherwise, 2 bad usage, 4 a routine that breaks its contract,
+//! splits, answers a bad t or a hit that cannot be the crossing, 1 otherwise, 2 bad usage, 4 a routine that breaks its contract,
 //! crashes or hangs.
 
 use super::*;
@@ -75,7 +75,7 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
     };
     let precs = super::outside::OutsideArgs::precisions(&a.precision, &outside)?;
     if let Some(p) = &a.json {
-        a.outside.check_outputs(&[p.as_path()])?;
+        a.outside.check_json(p)?;
     }
     let routines: Vec<Routine> = chosen
         .into_iter()
@@ -90,7 +90,7 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
         }
     };
     say!(
-        "{:<16} {:<4} {:<6} {:<12} {:>6} {:>6} {:>8} {:>6} {:>9} {:>5} {:>10}  judged",
+        "{:<16} {:<4} {:<6} {:<12} {:>6} {:>6} {:>8} {:>6} {:>9} {:>5} {:>5} {:>10}  judged",
         "routine",
         "prec",
         "mesh",
@@ -101,11 +101,12 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
         "split",
         "split ulps",
         "bad",
+        "wrong",
         "leak from"
     );
     for r in &rows {
         say!(
-            "{:<16} {:<4} {:<6} {:<12} {:>6} {:>6} {:>8} {:>6} {:>9} {:>5} {:>10}  {}",
+            "{:<16} {:<4} {:<6} {:<12} {:>6} {:>6} {:>8} {:>6} {:>9} {:>5} {:>5} {:>10}  {}",
             r.routine,
             r.precision,
             r.mesh,
@@ -116,6 +117,7 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
             r.split,
             r.split_ulps,
             r.bad,
+            r.wrong,
             r.first_leak.map_or("-".into(), |s| format!("1e{s}")),
             r.verdict
         );
@@ -151,7 +153,9 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
     say!(
         "verdict: {}",
         match (failed, rows.iter().any(|r| r.verdict == "pass")) {
-            (true, _) => "FAIL (a routine of yours leaked, split or answered a bad t)",
+            (true, _) => {
+                "FAIL (a routine of yours leaked, split, answered a bad t or a hit that is not the crossing)"
+            }
             (false, true) => "pass",
             (false, false) => "reported (built-in routines only)",
         }

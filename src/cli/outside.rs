@@ -125,6 +125,13 @@ impl OutsideArgs {
         rayproof::output::check_outputs(files, &[], &inputs)
     }
 
+    /// [`OutsideArgs::check_outputs`] of a `--json` file, which may replace only JSON
+    /// ([`rayproof::output::check_json_target`]).
+    pub fn check_json(&self, p: &std::path::Path) -> Result<()> {
+        self.check_outputs(&[p])?;
+        rayproof::output::check_json_target(p)
+    }
+
     /// Whether any outside routine is given.
     pub fn any(&self) -> bool {
         !self.plugin.is_empty() || !self.exec.is_empty()

@@ -3,8 +3,10 @@
 //! or with the translation taken off first (`translate_first`), or by the inverse the renderer
 //! computes itself from M (`inverted`), the object's routine run there,
 //! judged by the exact oracle in world space; classes of transforms from rotations to large
-//! translations and near-singular scales. Rows are reported: exit 0, 2 bad usage, 4 a routine
-//! of yours that breaks its contract, crashes or hangs; `--replay` exits 1 on a wrong answer.
+//! translations and near-singular scales. Rows are reported: exit 0, 1 when a routine answers
+//! a hit at a t that is not finite and positive, 2 bad usage, 4 a routine of yours that breaks
+//! its contract, crashes or hangs; `--replay` exits 1 on a wrong answer, 0 on a right one or a
+//! case within the margin (not judged).
 
 use super::*;
 use anyhow::{anyhow, bail, Result};
@@ -99,7 +101,7 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
     }
     let precs = super::outside::OutsideArgs::precisions(&a.precision, &outside)?;
     if let Some(p) = &a.json {
-        a.outside.check_outputs(&[p.as_path()])?;
+        a.outside.check_json(p)?;
     }
     let rows = match transform::rows(a.seed, &routines, &precs, a.cases) {
         Ok(r) => r,
@@ -109,7 +111,7 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
         }
     };
     say!(
-        "{:<9} {:<16} {:<16} {:<4} {:<14} {:>6} {:>6} {:>8} {:>9} {:>12}",
+        "{:<9} {:<16} {:<16} {:<4} {:<14} {:>6} {:>6} {:>8} {:>9} {:>5} {:>12}",
         "shape",
         "routine",
         "mode",
@@ -119,11 +121,12 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
         "ill",
         "false hit",
         "false miss",
+        "bad t",
         "worst ulps"
     );
     for r in &rows {
         say!(
-            "{:<9} {:<16} {:<16} {:<4} {:<14} {:>6} {:>6} {:>8} {:>9} {:>12}",
+            "{:<9} {:<16} {:<16} {:<4} {:<14} {:>6} {:>6} {:>8} {:>9} {:>5} {:>12}",
             r.shape,
             r.routine,
             r.mode,
@@ -133,6 +136,7 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
             r.ill_posed,
             r.false_hit,
             r.false_miss,
+            r.bad_t,
             format_ulps(r.worst_ulps)
         );
     }
@@ -148,6 +152,11 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
     }
     if let Some(p) = &a.json {
         rayproof::output::write_json(p, &rows)?;
+    }
+    // A t that is not finite and positive is wrong in any case: the one verdict of the run
+    if rows.iter().any(|r| r.bad_t > 0) {
+        say!("verdict: FAIL (a hit at a t that is not finite and positive)");
+        return Ok(1);
     }
     say!("rows reported: wrong verdicts on well-posed cases (at least {:e} from the boundary) and t errors", transform::MARGIN);
     Ok(0)
@@ -250,13 +259,26 @@ fn replay(args: &[String], routines: &[(&'static str, Routine)]) -> Result<u8> {
             None => "miss".into(),
         }
     );
-    let agree = t.is_some() == e.t.is_some();
-    if let (Some(t), Some(et)) = (t, &e.t) {
+    let v = transform::judge(t, &e);
+    if let (transform::Verdict::Right, Some(t), Some(et)) = (v, t, &e.t) {
         say!(
             "error: {} ulps of {}",
             format_ulps(transform::ulps_of(t, et, prec)),
             prec.name()
         );
     }
-    Ok((!agree) as u8)
+    say!(
+        "{}",
+        match v {
+            transform::Verdict::BadT => "wrong: a hit at a t that is not finite and positive",
+            transform::Verdict::NotJudged => "not judged (the rows count it as ill-posed)",
+            transform::Verdict::FalseHit => "wrong: a false hit",
+            transform::Verdict::FalseMiss => "wrong: a false miss",
+            transform::Verdict::Right => "right",
+        }
+    );
+    Ok(matches!(
+        v,
+        transform::Verdict::BadT | transform::Verdict::FalseHit | transform::Verdict::FalseMiss
+    ) as u8)
 }

@@ -149,7 +149,7 @@ pub fn markdown(s: &Seams) -> Result<String> {
          ulps).\n",
         s.sizes[1]
     )?;
-    t += "| routine | precision | rays | leaks | doubles | splits | widest split, ulps | bad t |\n|---|---|---:|---:|---:|---:|---:|---:|\n";
+    t += "| routine | precision | rays | leaks | doubles | splits | widest split, ulps | bad t | not the crossing |\n|---|---|---:|---:|---:|---:|---:|---:|---:|\n";
     for m in crate::shapes::triangle::METHODS.iter().map(|m| m.name) {
         for p in Precision::ALL {
             let mine: Vec<&OnceRow> = s
@@ -160,7 +160,7 @@ pub fn markdown(s: &Seams) -> Result<String> {
             let sum = |f: fn(&OnceRow) -> u64| mine.iter().map(|r| f(r)).sum::<u64>();
             writeln!(
                 t,
-                "| {m} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {m} | {} | {} | {} | {} | {} | {} | {} | {} |",
                 p.name(),
                 sum(|r| r.rays),
                 sum(|r| r.leaks),
@@ -168,6 +168,7 @@ pub fn markdown(s: &Seams) -> Result<String> {
                 sum(|r| r.split),
                 mine.iter().map(|r| r.split_ulps).max().unwrap_or(0),
                 sum(|r| r.bad),
+                sum(|r| r.wrong),
             )?;
         }
     }

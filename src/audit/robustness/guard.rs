@@ -272,21 +272,18 @@ pub fn cases(
         if sample::norm(n_) < 0.05 * s * s {
             continue;
         }
-        // The box
-        let mut lo: [f64; 3] =
+        // The box: the triangle's bounds (tight), or around them
+        let tight_lo: [f64; 3] =
             std::array::from_fn(|k| tri.iter().map(|v| v[k]).fold(f64::INFINITY, f64::min));
-        let mut hi: [f64; 3] =
+        let tight_hi: [f64; 3] =
             std::array::from_fn(|k| tri.iter().map(|v| v[k]).fold(f64::NEG_INFINITY, f64::max));
+        let (mut lo, mut hi) = (tight_lo, tight_hi);
         match class {
             "inside" => {
                 for k in 0..3 {
-                    lo[k] = sample::rp(prec, lo[k] - rng.random_range(0.0..s));
-                    hi[k] = sample::rp(prec, hi[k] + rng.random_range(0.0..s));
-                }
-                // Rounding may move a bound inward: the bounds at least
-                for k in 0..3 {
-                    lo[k] = lo[k].min(tri.iter().map(|v| v[k]).fold(f64::INFINITY, f64::min));
-                    hi[k] = hi[k].max(tri.iter().map(|v| v[k]).fold(f64::NEG_INFINITY, f64::max));
+                    // Rounding may move a bound inward: the tight bounds at least
+                    lo[k] = sample::rp(prec, lo[k] - rng.random_range(0.0..s)).min(tight_lo[k]);
+                    hi[k] = sample::rp(prec, hi[k] + rng.random_range(0.0..s)).max(tight_hi[k]);
                 }
             }
             "tight" => {}
@@ -407,7 +404,7 @@ pub fn replay_line(outside: Option<&str>, name: &str, prec: Precision, v: &[f64;
 }
 
 /// A user's guard on one case: entered or culled (its contract checked).
-pub fn rows_of_one(m: &(dyn Method + Send), prec: Precision, c: &Case) -> Result<bool, String> {
+pub fn admits_one(m: &(dyn Method + Send), prec: Precision, c: &Case) -> Result<bool, String> {
     Guard::Outside(m).admits_all(prec, &[c]).map(|(a, _)| a[0])
 }
 

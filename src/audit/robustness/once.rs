@@ -31,10 +31,22 @@
 //!
 //! **Counts** per routine: rays with no hit (`leaks`), with two or more hits all at one `t`
 //! (`doubles`: harmless to a closest-hit query, two crossings to an any-hit count), with hits at
-//! different `t` (`split`, with the widest gap in ulps), and hits no routine may give here (`bad`: a `t` that is not finite
-//! and positive). Each ray is put to the triangles near its aim point (those with a vertex within
+//! different `t` (`split`, with the widest gap in ulps), and hits no routine may give here
+//! (`bad`: a `t` that is not finite and positive; `wrong`: a hit that cannot be the ray's one
+//! crossing). Each ray is put to the triangles near its aim point (those with a vertex within
 //! 1.5 of the mesh's longest edge), every routine the same. The built-in routines are reported;
-//! a routine from outside is judged: a leak, a split or a bad hit fails it.
+//! a routine from outside is judged: a leak, a split, a bad or a wrong hit fails it.
+//!
+//! **Which hits can be the crossing.** The ray crosses the mesh within rounding of its aim
+//! point p (exactly at p for the exact aims): at most a few ulps of |p| away, where the mesh's
+//! longest edge is s/4 or more, and p is 10⁵ s from the origin at most (in f32, 10⁵ · 6·10⁻⁸ s
+//! = 0.006 s). So a hit may lie on a triangle that holds the aimed vertex or both ends of the
+//! aimed edge (the star of the aim covers p's neighbourhood: a robust routine may report any of
+//! them, which is a double or a split), and anywhere else only where the exact oracle says the
+//! ray crosses that triangle; its point o + t·d must lie within half the longest edge of p
+//! along the ray (measured from the t nearest p; the rays meet the surface at 40° or more, so
+//! the crossing lies within 2× the ray's rounding distance of p, far inside that). A routine that reports every candidate at
+//! t = 1, or a plausible verdict at a t far from the crossing, fails here.
 
 use crate::audit::Method;
 use crate::numerics::dd::two_sum;
@@ -231,8 +243,32 @@ struct OnceRay {
     scale: i32,
     o: V,
     d: V,
+    /// The aim point: the ray crosses the mesh within rounding of it.
+    p: V,
     /// The triangles the ray is put to (near its aim point).
     tris: Vec<[V; 3]>,
+    /// Per triangle: it holds the aimed vertex, or both ends of the aimed edge.
+    incident: Vec<bool>,
+    /// Half the mesh's longest edge: how far along the ray a hit may lie from the aim point.
+    reach: f64,
+}
+
+impl OnceRay {
+    /// Whether a hit at `t` on triangle `i` cannot be the ray's one crossing: the triangle holds
+    /// neither the aimed vertex nor the aimed edge and the exact oracle says the ray misses it,
+    /// or the hit lies farther along the ray from the aim point than [`OnceRay::reach`] (measured
+    /// from the t nearest the aim point).
+    fn wrong_hit(&self, i: usize, t: f64) -> bool {
+        let d2 = sample::dot(self.d, self.d);
+        let tp = sample::dot(sub(self.p, self.o), self.d) / d2;
+        if (t - tp).abs() * d2.sqrt() > self.reach {
+            return true;
+        }
+        !self.incident[i]
+            && exact_tri(&flat(self.o, self.d, &self.tris[i]))
+                .t()
+                .is_none()
+    }
 }
 
 /// A routine: a built-in triangle method (its index) or one from outside the crate.
@@ -278,6 +314,10 @@ pub struct OnceRow {
     pub split_ulps: u64,
     /// Rays with a hit at a t that is not finite and positive.
     pub bad: u64,
+    /// Rays with a hit that cannot be their crossing: on a triangle away from the aimed vertex
+    /// or edge that the exact oracle says the ray misses, or farther along the ray from the aim
+    /// point than half the mesh's longest edge.
+    pub wrong: u64,
     /// The smallest scene size (power of ten) with a leak.
     pub first_leak: Option<i32>,
     /// `pass` or `fail` (a routine from outside: no leak, split or bad hit), `reported` (a
@@ -286,7 +326,7 @@ pub struct OnceRow {
     /// The first ray that was not reported exactly once: one `rayproof probe triangle` line per
     /// triangle it hit (or, for a leak, the triangle the exact oracle says it crosses first).
     pub replay: Vec<String>,
-    /// What the first such ray was: `leak`, `double`, `split` or `bad`.
+    /// What the first such ray was: `leak`, `double`, `split`, `bad` or `wrong`.
     pub first: Option<&'static str>,
 }
 
@@ -304,6 +344,7 @@ impl OnceRow {
             split: 0,
             split_ulps: 0,
             bad: 0,
+            wrong: 0,
             first_leak: None,
             verdict: "reported",
             replay: vec![],
@@ -318,6 +359,13 @@ impl OnceRow {
         let what = if ts.iter().any(|t| !(t.is_finite() && *t > 0.0)) {
             self.bad += 1;
             "bad"
+        } else if h
+            .iter()
+            .enumerate()
+            .any(|(i, t)| t.is_some_and(|t| ray.wrong_hit(i, t)))
+        {
+            self.wrong += 1;
+            "wrong"
         } else if ts.is_empty() {
             self.leaks += 1;
             self.first_leak = Some(self.first_leak.map_or(ray.scale, |f| f.min(ray.scale)));
@@ -368,27 +416,42 @@ fn mesh_rays(
     let s = 10f64.powi(scale);
     let at = sample::placed(&mut rng, placement, s);
     let m = mesh(&mut rng, prec, kind, s, at)?;
-    let mut aims: Vec<(&'static str, V, Option<V>)> = m
+    // Each aim: its kind, the point, the exact point (if any) and the feature (a vertex, or an
+    // edge's two ends) whose triangles the ray may legitimately hit
+    let mut aims: Vec<(&'static str, V, Option<V>, Vec<V>)> = m
         .vertices
         .iter()
-        .map(|v| ("vertex", *v, Some(*v)))
+        .map(|v| ("vertex", *v, Some(*v), vec![*v]))
         .collect();
     for e in &m.edges {
         let u = rng.random_range(0.1..0.9);
         let p = std::array::from_fn(|k| e[0][k] + u * (e[1][k] - e[0][k]));
-        aims.push(("edge", sample::rpv(prec, p), midpoint(prec, *e)));
+        aims.push(("edge", sample::rpv(prec, p), midpoint(prec, *e), e.to_vec()));
     }
-    let near = |p: V| -> Vec<[V; 3]> {
-        m.tris
+    let ray = |o: V, d: V, p: V, feature: &[V]| {
+        let tris: Vec<[V; 3]> = m
+            .tris
             .iter()
             .filter(|t| {
                 t.iter()
                     .any(|v| sample::norm(sub(*v, p)) <= 1.5 * m.longest)
             })
             .copied()
-            .collect()
+            .collect();
+        OnceRay {
+            scale,
+            o,
+            d,
+            p,
+            incident: tris
+                .iter()
+                .map(|t| feature.iter().all(|f| t.contains(f)))
+                .collect(),
+            tris,
+            reach: 0.5 * m.longest,
+        }
     };
-    for (aim, p, exact) in aims {
+    for (aim, p, exact, feature) in aims {
         // An origin: above the height field, or inside the sphere
         let origin = |rng: &mut rand_chacha::ChaCha8Rng, p: V| -> (V, V) {
             match m.inside {
@@ -411,15 +474,7 @@ fn mesh_rays(
             }
         };
         let (o, d) = origin(&mut rng, p);
-        out.push((
-            aim,
-            OnceRay {
-                scale,
-                o,
-                d,
-                tris: near(p),
-            },
-        ));
+        out.push((aim, ray(o, d, p, &feature)));
         if let Some(q) = exact {
             let exact_aim = match aim {
                 "vertex" => "vertex_exact",
@@ -427,15 +482,7 @@ fn mesh_rays(
             };
             if let Some((o, d)) = (0..4).find_map(|_| exact_through(prec, origin(&mut rng, q).0, q))
             {
-                out.push((
-                    exact_aim,
-                    OnceRay {
-                        scale,
-                        o,
-                        d,
-                        tris: near(q),
-                    },
-                ));
+                out.push((exact_aim, ray(o, d, q, &feature)));
             }
         }
     }
@@ -533,7 +580,7 @@ pub fn rows(
             for (k, row) in rows.iter_mut().enumerate() {
                 row.meshes_dropped = dropped;
                 if let Routine::Outside(_) = routines[k / AIMS.len()] {
-                    row.verdict = match row.leaks + row.split + row.bad {
+                    row.verdict = match row.leaks + row.split + row.bad + row.wrong {
                         0 => "pass",
                         _ => "fail",
                     };
@@ -554,13 +601,13 @@ pub fn rows(
 /// The probe lines of a ray: with each triangle the routine hit, or for a leak the triangle the
 /// exact oracle says the ray crosses first.
 fn replay(r: Routine, prec: Precision, ray: &OnceRay, hits: &[Option<f64>]) -> Vec<String> {
+    // `probe` runs every built-in method; a routine of yours is named by its options
     let extra = match r {
-        Routine::BuiltIn(i) => format!("--method {}", triangle::METHODS[i].name),
-        Routine::Outside(m) => m
-            .replay()
-            .unwrap_or_else(|| format!("--method {}", m.name())),
+        Routine::BuiltIn(_) => None,
+        Routine::Outside(m) => m.replay(),
     };
-    let line = |t: &[V; 3]| probe_line_with("triangle", prec, Some(&extra), &flat(ray.o, ray.d, t));
+    let line =
+        |t: &[V; 3]| probe_line_with("triangle", prec, extra.as_deref(), &flat(ray.o, ray.d, t));
     let hit: Vec<String> = ray
         .tris
         .iter()
@@ -595,6 +642,9 @@ mod tests {
             assert_eq!(r.meshes_dropped, 0, "{r:?}");
             assert!(r.leaks + r.doubles + r.split + r.bad <= r.rays);
             assert_eq!(r.bad, 0, "{r:?}");
+            // A built-in routine's hits are all the crossing (the textbook ones too: their
+            // errors are ulps, the reach half an edge)
+            assert_eq!(r.wrong, 0, "{r:?}");
             if r.routine == "watertight_wide" {
                 assert_eq!(r.leaks, 0, "{r:?}");
             }

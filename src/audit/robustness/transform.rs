@@ -107,6 +107,12 @@ impl Case {
             ));
         }
         let m = std::array::from_fn(|i| std::array::from_fn(|j| v[i * 4 + j]));
+        if v[15..18].iter().all(|x| *x == 0.0) {
+            return Err("the direction d is zero".into());
+        }
+        if shape == "sphere" && !(v[21] > 0.0) {
+            return Err(format!("the radius {} is not positive", v[21]));
+        }
         Ok(Case {
             shape,
             object: v[18..].to_vec(),
@@ -347,6 +353,13 @@ pub fn exact(c: &Case) -> Exact {
             let a = qdot(&d, &d);
             let b = qdot(&d, &w);
             let cw = qdot(&w, &w) - &r2;
+            // No ray or no sphere: nothing to judge (a replay's values; the cases have neither)
+            if a == 0 || r2 == 0 {
+                return Exact {
+                    t: None,
+                    well_posed: false,
+                };
+            }
             let disc = Q::from(&b * &b) - Q::from(&a * &cw);
             // 1 − h²/r² = disc / (a r²)
             let well_posed = far(&(Q::from(&disc / &a) / &r2)) && far(&Q::from(&cw / &r2));
@@ -535,12 +548,16 @@ impl Routine<'_> {
                 out
             }
         };
+        let outside = matches!(self, Routine::Outside(_));
         answers
             .into_iter()
             .zip(inputs)
             .map(|(a, x)| match (a.count, &a.values[..]) {
-                (0, _) => Ok(None),
-                (1, &[t, ..]) => Ok(Some(t)),
+                // A routine of yours is held to the contract: a miss, or one hit and its t
+                (0, []) => Ok(None),
+                (1, &[t]) => Ok(Some(t)),
+                (0, _) if !outside => Ok(None),
+                (1, &[t, ..]) if !outside => Ok(Some(t)),
                 _ => Err(format!(
                     "routine '{}': answered {} {:?} to the case {}; want count 0, or 1 and T",
                     self.name(),
@@ -550,6 +567,32 @@ impl Routine<'_> {
                 )),
             })
             .collect()
+    }
+}
+
+/// What a routine's answer to a case is worth against the exact oracle.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Verdict {
+    /// A hit at a t that is not finite and positive: wrong whatever the case.
+    BadT,
+    /// Within [`MARGIN`] of the boundary: not judged.
+    NotJudged,
+    /// A hit where the exact oracle misses.
+    FalseHit,
+    /// A miss where the exact oracle hits.
+    FalseMiss,
+    /// The exact oracle's verdict.
+    Right,
+}
+
+/// The verdict of an answer `t` (`Some(t)` a hit) against the exact answer `e`.
+pub fn judge(t: Option<f64>, e: &Exact) -> Verdict {
+    match (t, &e.t) {
+        (Some(t), _) if !(t.is_finite() && t > 0.0) => Verdict::BadT,
+        _ if !e.well_posed => Verdict::NotJudged,
+        (Some(_), None) => Verdict::FalseHit,
+        (None, Some(_)) => Verdict::FalseMiss,
+        _ => Verdict::Right,
     }
 }
 
@@ -574,6 +617,8 @@ pub struct TransformRow {
     pub false_hit: u64,
     /// Judged cases the exact oracle hits and the routine misses.
     pub false_miss: u64,
+    /// Cases (judged or not) the routine hits at a t that is not finite and positive.
+    pub bad_t: u64,
     /// The largest error of t, in ulps of the precision, where both hit.
     pub worst_ulps: f64,
     /// The first wrong case: `rayproof transform --replay …`.
@@ -589,7 +634,10 @@ pub fn replay_line(
     extra: Option<&str>,
 ) -> String {
     let v: Vec<String> = c.values().iter().map(|x| hex_text(*x)).collect();
-    let extra = extra.map(|e| format!("{e} ")).unwrap_or_default();
+    // A routine of yours is run as the shape it is given for
+    let extra = extra
+        .map(|e| format!("--shape {} {e} ", c.shape))
+        .unwrap_or_default();
     format!(
         "rayproof transform {extra}--replay {} {routine} {mode} {} {}",
         c.shape,
@@ -647,6 +695,7 @@ pub fn rows(
                             ill_posed: 0,
                             false_hit: 0,
                             false_miss: 0,
+                            bad_t: 0,
                             worst_ulps: 0.0,
                             replay: None,
                         };
@@ -655,30 +704,31 @@ pub fn rows(
                                 Some(_) => got.next().flatten(),
                                 None => None,
                             };
-                            if !e.well_posed {
-                                row.ill_posed += 1;
-                                continue;
+                            match e.well_posed {
+                                true => row.cases += 1,
+                                false => row.ill_posed += 1,
                             }
-                            row.cases += 1;
-                            let wrong = match (t, &e.t) {
-                                (Some(_), None) => {
+                            let wrong = match judge(t, e) {
+                                Verdict::NotJudged => false,
+                                Verdict::BadT => {
+                                    row.bad_t += 1;
+                                    true
+                                }
+                                Verdict::FalseHit => {
                                     row.false_hit += 1;
                                     true
                                 }
-                                (None, Some(_)) => {
+                                Verdict::FalseMiss => {
                                     row.false_miss += 1;
                                     true
                                 }
-                                (Some(t), Some(et)) => {
-                                    let u = ulps_of(t, et, prec);
-                                    row.worst_ulps = row.worst_ulps.max(if u.is_nan() {
-                                        f64::INFINITY
-                                    } else {
-                                        u
-                                    });
+                                Verdict::Right => {
+                                    if let (Some(t), Some(et)) = (t, &e.t) {
+                                        let u = ulps_of(t, et, prec);
+                                        row.worst_ulps = row.worst_ulps.max(u);
+                                    }
                                     false
                                 }
-                                (None, None) => false,
                             };
                             if wrong && row.replay.is_none() {
                                 let extra = match r {
@@ -757,6 +807,15 @@ mod tests {
             }
         }
         assert!(differ > 0, "the computed inverse is the stored one");
+        // And the mode carries the ray by it: not the stored inverse's object rays
+        for prec in Precision::ALL {
+            let cs = cases(3, "sphere", prec, "non_uniform", 64);
+            let moved = cs
+                .iter()
+                .filter(|c| object_input(c, prec, "inverted") != object_input(c, prec, "matrix"))
+                .count();
+            assert!(moved > 0, "{}: inverted carries as matrix", prec.name());
+        }
     }
 
     /// Without a transform (M = identity) the exact answer is the object's own exact oracle's.
