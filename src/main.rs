@@ -76,10 +76,11 @@ fn main() -> ExitCode {
             return ExitCode::from(usage);
         }
     };
-    // An instruction-set cap the kernels cannot follow (RAYPROOF_ISA): one line, exit 2
+    // An instruction-set cap the kernels cannot follow (RAYPROOF_ISA): one line, a usage
+    // error's exit (2; `diff`: 64, where 2 is a comparison's FAILURE)
     if let Err(e) = rayproof::numerics::cpu::check_env() {
         eprintln!("error: {e}");
-        return ExitCode::from(2);
+        return ExitCode::from(usage);
     }
     // A TERM or INT removes the temporaries of outputs being written
     rayproof::output::clean_up_on_signals();

@@ -2987,6 +2987,42 @@ fn plugin_that_is_a_fifo_or_a_device(d: &Path) -> Result<(), String> {
     Ok(())
 }
 
+/// Issue 46 (helper-16, F5): `RAYPROOF_ISA=bogus rayproof diff a b` exited 2, which `diff`
+/// uses for a comparison's FAILURE: CI could not tell a typo from a regression. A bad cap is a
+/// usage error: `diff`'s 64, other commands' 2.
+fn isa_cap_typo_under_diff(d: &Path) -> Result<(), String> {
+    for (args, code) in [(vec!["diff", "a.exr", "b.exr"], 64), (vec!["probe", "rcp", "2"], 2)] {
+        for cap in ["bogus", ""] {
+            run_env(d, &args, 30, &[("RAYPROOF_ISA", cap)])
+                .refused(code, &["RAYPROOF_ISA"])
+                .map_err(|e| format!("RAYPROOF_ISA={cap:?} {}: {e}", args.join(" ")))?;
+        }
+    }
+    Ok(())
+}
+
+/// Issue 46 (helper-16, F4): `diff --idiff-compat --flip` of a 96×64 and a 50×40 image printed
+/// no ꟻLIP line and no word why (exit 2, the size mismatch's FAILURE; `"flip_mean": null`). A
+/// ꟻLIP asked for and not computed is said, before the verdict line.
+fn flip_asked_for_images_of_two_shapes(d: &Path) -> Result<(), String> {
+    let g = |x: usize, y: usize, c: usize| ((x + 2 * y + c) % 7) as f32 / 7.0;
+    exr_window(&d.join("a.exr"), (96, 64), (0, 0), 96, g);
+    exr_window(&d.join("b.exr"), (50, 40), (0, 0), 50, g);
+    let r = run(d, &["diff", "a.exr", "b.exr", "--idiff-compat", "--flip"], 30);
+    r.exited(2)?;
+    ensure!(
+        r.stdout.contains("ꟻLIP: not computed"),
+        "nothing said of ꟻLIP: {}",
+        r.ended()
+    );
+    ensure!(
+        r.stdout.trim_end().lines().last() == Some("FAILURE"),
+        "the verdict is not the last line: {}",
+        r.ended()
+    );
+    Ok(())
+}
+
 const ROWS: &[Row] = &[
     (
         "update_beside_an_external_reference",
@@ -3187,6 +3223,11 @@ const ROWS: &[Row] = &[
     (
         "plugin_that_is_a_fifo_or_a_device",
         plugin_that_is_a_fifo_or_a_device,
+    ),
+    ("isa_cap_typo_under_diff", isa_cap_typo_under_diff),
+    (
+        "flip_asked_for_images_of_two_shapes",
+        flip_asked_for_images_of_two_shapes,
     ),
 ];
 

@@ -223,6 +223,16 @@ pub fn diff(a: &DiffRequest) -> Result<DiffOutcome, DiffError> {
         };
     } else {
         stdout = report.text();
+        // Asked for and not computed: said, not left out in silence (its map needs one frame
+        // and one set of channels; --idiff-compat compares others and fails them)
+        // (before the verdict, which stays the last line)
+        if a.flip && !same_shape {
+            let at = stdout.trim_end().rfind('\n').map_or(0, |i| i + 1);
+            stdout.insert_str(
+                at,
+                "  ꟻLIP: not computed: the images differ in data window or channels\n",
+            );
+        }
     }
     Ok(DiffOutcome {
         code: verdict.exit_code(),
