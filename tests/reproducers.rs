@@ -2684,6 +2684,22 @@ fn json_over_the_routines_own_file(d: &Path) -> Result<(), String> {
             "rayproof",
         ),
     ];
+    // rayproof is an input of every run, whatever the output is (not only --json, which JSON
+    // alone may replace)
+    let r = run(
+        d,
+        &[
+            "audit",
+            "--shape",
+            "rcp",
+            "--cases",
+            "10",
+            "--markdown",
+            exe,
+        ],
+        60,
+    );
+    r.refused(2, &["rayproof", "input"])?;
     for (tail, named) in &cases {
         for cmd in [vec!["once"], vec!["transform", "--shape", "triangle"]] {
             let args: Vec<&str> = cmd
@@ -2991,7 +3007,10 @@ fn plugin_that_is_a_fifo_or_a_device(d: &Path) -> Result<(), String> {
 /// uses for a comparison's FAILURE: CI could not tell a typo from a regression. A bad cap is a
 /// usage error: `diff`'s 64, other commands' 2.
 fn isa_cap_typo_under_diff(d: &Path) -> Result<(), String> {
-    for (args, code) in [(vec!["diff", "a.exr", "b.exr"], 64), (vec!["probe", "rcp", "2"], 2)] {
+    for (args, code) in [
+        (vec!["diff", "a.exr", "b.exr"], 64),
+        (vec!["probe", "rcp", "2"], 2),
+    ] {
         for cap in ["bogus", ""] {
             run_env(d, &args, 30, &[("RAYPROOF_ISA", cap)])
                 .refused(code, &["RAYPROOF_ISA"])
@@ -3008,7 +3027,11 @@ fn flip_asked_for_images_of_two_shapes(d: &Path) -> Result<(), String> {
     let g = |x: usize, y: usize, c: usize| ((x + 2 * y + c) % 7) as f32 / 7.0;
     exr_window(&d.join("a.exr"), (96, 64), (0, 0), 96, g);
     exr_window(&d.join("b.exr"), (50, 40), (0, 0), 50, g);
-    let r = run(d, &["diff", "a.exr", "b.exr", "--idiff-compat", "--flip"], 30);
+    let r = run(
+        d,
+        &["diff", "a.exr", "b.exr", "--idiff-compat", "--flip"],
+        30,
+    );
     r.exited(2)?;
     ensure!(
         r.stdout.contains("ꟻLIP: not computed"),

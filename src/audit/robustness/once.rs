@@ -682,6 +682,39 @@ mod tests {
         }
     }
 
+    /// Which hits can be the crossing: on an exact ray (t = 1 at the aim), a triangle holding
+    /// the aim at t = 1 is; a triangle away from it that the exact oracle says the ray misses
+    /// is not, at any t; no triangle is at a t more than the reach away.
+    #[test]
+    fn a_hit_is_the_crossing_only_on_the_aims_triangles_and_near_its_t() {
+        for prec in Precision::ALL {
+            for kind in MESHES {
+                let rays: Vec<(&str, OnceRay)> = cells(1)
+                    .flat_map(|c| mesh_rays(5, prec, kind, c).unwrap())
+                    .filter(|(a, _)| a.ends_with("_exact"))
+                    .collect();
+                let (mut away, mut near) = (0, 0);
+                for (_, r) in &rays {
+                    let far = 1.0 + 2.0 * r.reach / sample::norm(r.d);
+                    for i in 0..r.tris.len() {
+                        assert!(r.wrong_hit(i, far), "{kind}: a hit past the reach");
+                        match r.incident[i] {
+                            true => {
+                                near += 1;
+                                assert!(!r.wrong_hit(i, 1.0), "{kind}: the aim's triangle");
+                            }
+                            false => {
+                                away += 1;
+                                assert!(r.wrong_hit(i, 1.0), "{kind}: a triangle away");
+                            }
+                        }
+                    }
+                }
+                assert!(away > 0 && near > 0, "{kind} {prec:?}: {away} {near}");
+            }
+        }
+    }
+
     /// The convexity check refuses a dent: one vertex pushed inwards.
     #[test]
     fn a_dented_sphere_is_not_convex() {
