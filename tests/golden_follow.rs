@@ -740,29 +740,42 @@ fn a_variance_image_is_an_input_no_golden_may_be_written_over() {
 
 /// Issue 46 (9): a suite of 10,000 tests is read and validated in under a second (it was
 /// quadratic in file-system calls: 2,000 tests took 72 s), measured with `--test t0`, which
-/// renders one.
+/// renders one, against the same run from a suite of that test alone.
 #[test]
 fn a_suite_of_10000_tests_validates_in_under_a_second() {
-    let dir = scratch("follow-10000");
-    std::fs::write(dir.join("a.scene"), "sphere 1\n").unwrap();
-    let mut suite = format!(
-        "[suite]\nname = \"big\"\nrenderer = \"{} {{out}} --width {{width}} --grid {{grid}}\"\ngoldens = \"goldens\"\ntimeout = 20\n",
-        standin()
-    );
-    for i in 0..10_000 {
-        suite +=
-            &format!("\n[[test]]\nname = \"t{i}\"\nscene = \"a.scene\"\nwidth = 8\ngrid = 1\n");
-    }
-    std::fs::write(dir.join("suite.toml"), suite).unwrap();
-    // The suite read and validated whole, one test rendered (its golden is new: exit 1)
-    let t0 = std::time::Instant::now();
-    let (code, out, err) = check(&dir, &["--test", "t0"]);
-    let took = t0.elapsed().as_secs_f64();
-    assert_eq!(code, Some(1), "{out}{err}");
-    assert_eq!(status(&out, "t0", "golden"), "NEW", "{out}");
+    // The same run (one test rendered: its golden is new, exit 1) from a suite of 10,000 tests
+    // and from a suite of that one test: the difference is what validating 9,999 more costs,
+    // start-up and the render cancelled (on a loaded 2-core machine the run of one test alone
+    // took over a second). Each the fastest of 3 runs.
+    let run = |n: usize| -> f64 {
+        let dir = scratch(&format!("follow-{n}"));
+        std::fs::write(dir.join("a.scene"), "sphere 1\n").unwrap();
+        let mut suite = format!(
+            "[suite]\nname = \"big\"\nrenderer = \"{} {{out}} --width {{width}} --grid {{grid}}\"\ngoldens = \"goldens\"\ntimeout = 20\n",
+            standin()
+        );
+        for i in 0..n {
+            suite +=
+                &format!("\n[[test]]\nname = \"t{i}\"\nscene = \"a.scene\"\nwidth = 8\ngrid = 1\n");
+        }
+        std::fs::write(dir.join("suite.toml"), suite).unwrap();
+        (0..3)
+            .map(|_| {
+                let t0 = std::time::Instant::now();
+                let (code, out, err) = check(&dir, &["--test", "t0"]);
+                let took = t0.elapsed().as_secs_f64();
+                assert_eq!(code, Some(1), "{out}{err}");
+                assert_eq!(status(&out, "t0", "golden"), "NEW", "{out}");
+                took
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let (one, all) = (run(1), run(10_000));
+    println!("10,000 tests: {all:.2} s, 1 test: {one:.2} s");
     assert!(
-        took < 1.0,
-        "validating 10,000 tests (and rendering one) took {took:.2} s"
+        all - one < 1.0,
+        "validating 9,999 more tests took {:.2} s ({all:.2} s against {one:.2} s)",
+        all - one
     );
 }
 

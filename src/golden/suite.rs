@@ -451,6 +451,8 @@ impl Suite {
             None => None,
         };
         let mut tests: Vec<Test> = vec![];
+        // The names seen so far: a set, not a search of `tests` (10,000 tests: 5·10⁷ compares)
+        let mut names: std::collections::HashSet<String> = Default::default();
         let mut others: Vec<PathBuf> = vec![];
         // Where the lines end, for the line of each test's name (one pass: a suite of 10,000
         // tests validates in well under a second)
@@ -481,7 +483,7 @@ impl Suite {
             if !file_name_safe(&test_name) {
                 bail!(ctx("a name must be letters, digits, '-', '_' or '.'".into()));
             }
-            if tests.iter().any(|o| o.name == test_name) {
+            if !names.insert(test_name.clone()) {
                 bail!(ctx("a second test with this name".into()));
             }
             // Exactly one image source
