@@ -45,6 +45,7 @@ mod reports;
 mod reproducers;
 mod routines;
 mod sacred;
+mod seams_audit;
 mod shard;
 mod signals;
 mod spawn;

@@ -151,7 +151,7 @@ fn quick_report_has_every_part_with_measured_numbers() {
         .filter(|r| r["routine"] == "watertight_wide")
         .all(|r| r["leaks"] == 0 && r["rays"].as_u64().unwrap() > 0));
     let transform = seams["transform"].as_array().unwrap();
-    assert_eq!(transform.len(), 4 * 4 * 2 * 6);
+    assert_eq!(transform.len(), 5 * 4 * 2 * 6);
     assert!(transform
         .iter()
         .filter(|r| r["mode"] == "ideal")

@@ -40,6 +40,11 @@ impl Merged {
                 k.spawn_rules.push(r.rule.clone());
             }
         }
+        for r in &self.outside.guard {
+            if !k.guards.contains(&r.guard) {
+                k.guards.push(r.guard.clone());
+            }
+        }
         k
     }
 

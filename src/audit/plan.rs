@@ -1,6 +1,7 @@
 //! What a `rayproof audit` covers: shapes, methods, classes and precisions resolved from names
 //! (an unknown name is a one-line error), the case count per shape, and whether the
-//! reintersection and watertightness tests run (with every shape).
+//! robustness tests (reintersection, watertightness) and the seams between routines (box
+//! guards, exactly one hit per mesh, instance transforms) run with a shape.
 
 use super::report::{Report, ShapeReport, TOOL};
 use super::robustness;
@@ -81,6 +82,8 @@ pub struct Plan {
     /// Spawn rules audited beside the shapes (`audit --spawn-rule`): their rows are run whole
     /// with the outside routines' robustness rows.
     pub spawn_rules: Vec<Box<dyn robustness::spawn::SpawnRule>>,
+    /// Box guards audited beside the shapes (`audit --guard`): run whole like the spawn rules.
+    pub guards: Vec<robustness::guard::Owned>,
 }
 
 /// Resolves names against a list, or all when empty.
@@ -169,6 +172,7 @@ impl Plan {
             shard: o.shard,
             every_shape,
             spawn_rules: vec![],
+            guards: vec![],
         })
     }
 
@@ -298,6 +302,11 @@ impl Plan {
                 continue;
             }
             let name = p.shape.name();
+            let (once, transform) =
+                robustness::seams::outside_seams(self.seed, name, &self.precisions, &outside)
+                    .map_err(super::run::MethodFailed)?;
+            rows.once.extend(once);
+            rows.transform.extend(transform);
             rows.reintersection.extend(
                 robustness::outside_reintersection(self.seed, name, &self.precisions, &outside)
                     .map_err(super::run::MethodFailed)?,
@@ -312,6 +321,9 @@ impl Plan {
         let rules: Vec<&dyn robustness::spawn::SpawnRule> =
             self.spawn_rules.iter().map(|r| r.as_ref()).collect();
         rows.spawn = robustness::spawn_rows(self.seed, &self.precisions, &rules)
+            .map_err(super::run::MethodFailed)?;
+        let guards: Vec<robustness::guard::Guard> = self.guards.iter().map(|g| g.guard()).collect();
+        rows.guard = robustness::seams::guard_rows(self.seed, &self.precisions, &guards)
             .map_err(super::run::MethodFailed)?;
         Ok(rows)
     }
@@ -333,6 +345,11 @@ impl Plan {
             .spawn_rules
             .iter()
             .map(|r| r.name().to_string())
+            .collect();
+        k.guards = self
+            .guards
+            .iter()
+            .map(|g| g.guard().name().to_string())
             .collect();
         k
     }
@@ -361,6 +378,7 @@ pub fn known_names(extra: Vec<(&'static str, String)>) -> Known<'static> {
             .map(|s| s.info().name)
             .collect(),
         spawn_rules: vec![],
+        guards: vec![],
     }
 }
 

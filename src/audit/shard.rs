@@ -40,10 +40,11 @@
 //! # The shard file
 //!
 //! A shard file (format [`SHARD_FORMAT`], version [`SHARD_FORMAT_VERSION`]) is one line of JSON
-//! with `"format": "rayproof-audit-shard"`, `"format_version": 7`, `tool`,
-//! `seed`, `every_shape`, `"shard": {"k", "n"}`, `tolerances`, `shapes` and `outside` (the
-//! reintersection and watertightness rows of routines from outside the crate, and the rows of
-//! `--spawn-rule` rules, unjudged): per shape its selection
+//! with `"format": "rayproof-audit-shard"`, `"format_version": 8`, `tool`,
+//! `seed`, `every_shape`, `"shard": {"k", "n"}`, `tolerances`, `shapes`, `spawn_rules`, `guards`
+//! and `outside` (the reintersection, watertightness, exactly-once and transform rows of routines
+//! from outside the crate, and the rows of `--spawn-rule` rules and `--guard` guards, unjudged:
+//! shard 0 holds every one of them, the others none): per shape its selection
 //! (`cases_per_class`, `methods` with their `robust` flag, `precisions`, `classes`) and `groups`,
 //! one per precision × class in selection order, each with one tally per method (counts, the value
 //! errors as a `{value: count}` histogram, err/cond and residuals as histograms of values rounded
@@ -71,7 +72,7 @@ use serde::{Deserialize, Serialize};
 /// The tag in the `format` field of a shard file.
 pub const SHARD_FORMAT: &str = "rayproof-audit-shard";
 /// The version in the `format_version` field; a reader refuses any other.
-pub const SHARD_FORMAT_VERSION: u32 = 7;
+pub const SHARD_FORMAT_VERSION: u32 = 8;
 
 /// The user's tolerance rules a shard was run with (`--tolerances FILE`), carried whole so that
 /// the merge judges with exactly them: the file's name as given (rule origins name it), its
@@ -167,6 +168,9 @@ pub struct Shard {
     /// rule from outside the crate, how it was given: every shard names the same, and shard 0
     /// holds their rows.
     pub spawn_rules: Vec<String>,
+    /// The box guards the audit was run with (`--guard`), named as the spawn rules are: every
+    /// shard names the same, and shard 0 holds their rows.
+    pub guards: Vec<String>,
     /// The reintersection and watertightness rows of routines from outside the crate: run whole
     /// by shard 0 (the built-in methods' are run by the merge; an outside routine may be gone by
     /// then).
@@ -189,7 +193,7 @@ impl Shard {
         (k, n): (u64, u64),
         tolerances: Option<UserTable>,
         parts: &[Tallies],
-        spawn_rules: Vec<String>,
+        [spawn_rules, guards]: [Vec<String>; 2],
         outside: Outside,
     ) -> Shard {
         let shapes = parts
@@ -236,6 +240,7 @@ impl Shard {
             tolerances,
             shapes,
             spawn_rules,
+            guards,
             outside,
         }
     }
@@ -380,6 +385,15 @@ impl Shard {
                 ));
             }
         }
+        if k == 0 {
+            crate::audit::robustness::seams::check_shard_rows(
+                &file.outside,
+                &outside_routines(&file),
+                &file.guards,
+                &file.shapes[0].precisions,
+            )
+            .map_err(|e| format!("corrupt shard: {e}"))?;
+        }
         if let Some(t) = &file.tolerances {
             if UserTable::new(&t.file, &t.text).sha256 != t.sha256 {
                 return corrupt(format!(
@@ -450,6 +464,24 @@ impl Shard {
     }
 }
 
+/// The routines from outside the crate of a shard's shapes, as `(shape, name)`.
+fn outside_routines(file: &Shard) -> Vec<(String, String)> {
+    let mut out = vec![];
+    for s in &file.shapes {
+        let builtin: Vec<&str> = crate::shapes::shape_by_name(&s.shape)
+            .map(|x| x.info().methods.iter().map(|m| m.name).collect())
+            .unwrap_or_default();
+        for m in s
+            .methods
+            .iter()
+            .filter(|m| !builtin.contains(&m.name.as_str()))
+        {
+            out.push((s.shape.clone(), m.name.clone()));
+        }
+    }
+    out
+}
+
 /// Shards that are each sound but do not make up one audit: different tool version, seed,
 /// cases or selection, or a shard missing or given twice. The CLI exits 3 on it.
 #[derive(Debug, thiserror::Error)]
@@ -506,6 +538,7 @@ fn check_one_audit(tool: &str, shards: &[(String, Shard)]) -> Result<(), Incompa
             ("shard count N", s.shard.n.to_string()),
             ("tolerance table", UserTable::label(&s.tolerances)),
             ("spawn rules", s.spawn_rules.join("; ")),
+            ("guards", s.guards.join("; ")),
         ]
     };
     let want = key(first);
@@ -601,9 +634,7 @@ pub fn merge(
     let tolerances = shards[0].1.tolerances.clone();
     let mut outside = Outside::default();
     let mut parts = shards.into_iter().map(|(_, mut s)| {
-        outside.reintersection.append(&mut s.outside.reintersection);
-        outside.watertight.append(&mut s.outside.watertight);
-        outside.spawn.append(&mut s.outside.spawn);
+        outside.append(&mut s.outside);
         s.shapes
     });
     let mut shapes: Vec<Tallies> = vec![];

@@ -200,6 +200,9 @@ pub struct Known<'a> {
     pub with_cond: Vec<&'a str>,
     /// The audit's spawn rules (`--spawn-rule`): what a `test = "spawn"` rule may name.
     pub spawn_rules: Vec<String>,
+    /// The audit's box guards (`--guard`): with the box's built-ins, what a `test = "guard"`
+    /// rule may name.
+    pub guards: Vec<String>,
 }
 
 /// The ordered rules of the user's file (if any) and the built-in table, and the measured
@@ -433,6 +436,7 @@ impl Table {
                         .map(|(s, ms, _)| (*s, ms.clone()))
                         .collect::<Vec<_>>(),
                     &known.spawn_rules,
+                    &known.guards,
                 ),
             )?,
         })

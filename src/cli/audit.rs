@@ -5,7 +5,7 @@ use super::*;
 use anyhow::{anyhow, bail, Result};
 use clap::Args;
 use rayproof::audit::plan::{Options, Plan, Progress};
-use rayproof::audit::robustness::{self, Robustness};
+use rayproof::audit::robustness::{self, guard, Robustness};
 use rayproof::audit::shard::{self, Shard, UserTable};
 use rayproof::audit::tolerance::{Known, Table};
 use rayproof::audit::{table, Report, ShapeReport, TOOL};
@@ -56,6 +56,18 @@ pub struct AuditArgs {
     /// its precision suffix; `exec`, `exec2`, …).
     #[arg(long, value_name = "NAME")]
     pub spawn_name: Vec<String>,
+    /// Audit a box guard beside the shapes (repeatable): a built-in (naive_slab, williams,
+    /// pbrt, ize), `exec:CMD` (a command speaking `rayproof header --guard`) or
+    /// `plugin:PATH:SYMBOL` (its C ABI, the same header). Its rows (precision × class, as
+    /// `rayproof guard`'s) are judged by the tolerance file's `test = "guard"` rules, else:
+    /// yours and ize lose no box, the other built-ins reported. The box shape's audit runs the
+    /// built-ins without it.
+    #[arg(long, value_name = "GUARD")]
+    pub guard: Vec<String>,
+    /// The `plugin:` then the `exec:` guards' names, in order (default: the symbol without its
+    /// precision suffix; `exec`, `exec2`, …).
+    #[arg(long, value_name = "NAME")]
+    pub guard_name: Vec<String>,
     #[command(flatten)]
     pub outside: OutsideArgs,
     #[command(flatten)]
@@ -247,6 +259,8 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         narrow_to(&mut plan, &builtin, &outside_named)?;
     }
     plan.spawn_rules = spawn_rules_of(&a)?;
+    let (guards, guard_inputs) = guards_of(&a, &plan.precisions)?;
+    plan.guards = guards;
     // A shard is judged by its merge: without its file it would end unjudged (exit 0)
     if a.shard.1 > 1 && a.shard_out.is_none() {
         bail!(
@@ -263,6 +277,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         .iter()
         .cloned()
         .chain(a.outside.input_files())
+        .chain(guard_inputs)
         .collect();
     let mut outputs = a.out.outputs(&[&a.shard_out], &inputs)?;
     let shard_label = format!("{}/{}", a.shard.0, a.shard.1);
@@ -275,6 +290,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     let outside = a.outside.any()
         || a.spawn_rule
             .iter()
+            .chain(&a.guard)
             .any(|r| r.starts_with("exec:") || r.starts_with("plugin:"));
     let mut progress: Vec<String> = vec![];
     let mut each = |p: Progress| {
@@ -317,7 +333,9 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         // The shard carries the rules it was run with: its merge judges with them
         // Outside routines' robustness tests are not sharded: shard 0 runs them whole
         let outside = if a.shard.0 == 0 {
-            plan.outside_robustness()?
+            let mut o = plan.outside_robustness()?;
+            robustness::seams::unjudged(&mut o);
+            o
         } else {
             Default::default()
         };
@@ -330,13 +348,19 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
             a.shard,
             user_table,
             &runs,
-            plan.spawn_rules
-                .iter()
-                .map(|r| match r.replay() {
-                    Some(how) => format!("{} ({how})", r.name()),
-                    None => r.name().to_string(),
-                })
-                .collect(),
+            [
+                plan.spawn_rules
+                    .iter()
+                    .map(|r| named_as_given(r.name(), r.replay()))
+                    .collect(),
+                plan.guards
+                    .iter()
+                    .map(|g| match g {
+                        guard::Owned::BuiltIn(n) => n.to_string(),
+                        guard::Owned::Outside(m) => named_as_given(m.name(), m.replay()),
+                    })
+                    .collect(),
+            ],
             outside,
         );
         outputs.write(p, file.to_json().as_bytes())?;
@@ -352,6 +376,77 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     let report = plan.run(&table, progress_bar, &mut each)?;
     progress.iter().for_each(|l| eprintln!("{l}"));
     finish(report, judge, outputs, &a.out)
+}
+
+/// A spawn rule's or a guard's name in a shard file: with how it was given, for one from outside
+/// the crate (shards of one audit name the same).
+fn named_as_given(name: &str, how: Option<String>) -> String {
+    match how {
+        Some(how) => format!("{name} ({how})"),
+        None => name.to_string(),
+    }
+}
+
+/// The box guards `--guard` names: built-ins, then `plugin:` and `exec:` guards (named by
+/// `--guard-name`), each batch under the audit's `--timeout`; and their files, inputs of the run.
+fn guards_of(a: &AuditArgs, precisions: &[Precision]) -> Result<(Vec<guard::Owned>, Vec<PathBuf>)> {
+    if let Some(r) = a
+        .guard
+        .iter()
+        .find(|r| r.strip_prefix("exec:").is_some_and(|c| c.trim().is_empty()))
+    {
+        bail!("--guard '{r}': give the command after exec:");
+    }
+    let (builtin, theirs) =
+        OutsideArgs::from_specs(&a.guard, &a.guard_name, a.outside.exec_timeout);
+    if theirs.name.len() > theirs.plugin.len() + theirs.exec.len() {
+        bail!(
+            "--guard-name given {} times for {} plugin: or exec: guard(s)",
+            theirs.name.len(),
+            theirs.plugin.len() + theirs.exec.len()
+        );
+    }
+    let mut out = vec![];
+    for n in &builtin {
+        let g = guard::GUARDS
+            .iter()
+            .copied()
+            .find(|g| g == n)
+            .ok_or_else(|| {
+                anyhow!(
+                    "--guard {n}: not a guard (built-in: {}; or exec:CMD, plugin:PATH:SYMBOL)",
+                    guard::GUARDS.join(", ")
+                )
+            })?;
+        out.push(guard::Owned::BuiltIn(g));
+    }
+    for (m, has) in theirs.methods(&guard::INFO)? {
+        if guard::GUARDS.contains(&m.name()) {
+            bail!(
+                "--guard-name {}: a built-in guard's name; give another",
+                m.name()
+            );
+        }
+        if let Some(p) = precisions
+            .iter()
+            .find(|p| has.as_ref().is_some_and(|h| !h.contains(p)))
+        {
+            bail!(
+                "--guard plugin {}: no {} symbol (give --precision, or a :{} symbol)",
+                m.name(),
+                p.name(),
+                p.name()
+            );
+        }
+        out.push(guard::Owned::Outside(m));
+    }
+    for (i, g) in out.iter().enumerate() {
+        let name = g.guard().name().to_string();
+        if out[..i].iter().any(|x| x.guard().name() == name) {
+            bail!("the guard {name} is named twice");
+        }
+    }
+    Ok((out, theirs.input_files()))
 }
 
 /// The spawn rules `--spawn-rule` names: built-ins, then `plugin:` and `exec:` rules (named by

@@ -73,7 +73,7 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
         .map(|g| Guard::BuiltIn(g))
         .chain(outside.iter().map(|(m, _)| Guard::Outside(m.as_ref())))
         .collect();
-    let rows = match guard::rows(a.seed, &guards, &precs, a.per_cell) {
+    let rows = match guard::rows(a.seed, &guards, &precs, a.per_cell, true) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: {}", rayproof::images::one_line(&e));
@@ -81,7 +81,7 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
         }
     };
     say!(
-        "{:<14} {:<4} {:<8} {:>7} {:>6} {:>10} {:>9}  judged",
+        "{:<14} {:<4} {:<8} {:>7} {:>6} {:>10} {:>9}  verdict",
         "guard",
         "prec",
         "class",
@@ -99,8 +99,8 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
             r.cases,
             r.lost,
             r.first_scale.map_or("-".into(), |s| format!("1e{s}")),
-            r.ns_per_test,
-            if r.judged { "yes" } else { "reported" }
+            r.ns_per_test.unwrap_or(f64::NAN),
+            r.verdict
         );
     }
     for r in rows.iter().filter(|r| r.replay.is_some()) {
@@ -115,11 +115,11 @@ pub(super) fn run_guard(a: GuardArgs) -> Result<u8> {
     if let Some(p) = &a.json {
         rayproof::output::write_json(p, &rows)?;
     }
-    let failed = rows.iter().any(|r| r.judged && r.lost > 0);
+    let failed = rows.iter().any(|r| r.verdict == "fail");
     say!(
         "verdict: {}",
         if failed {
-            "FAIL (a judged guard lost geometry)"
+            "FAIL (a judged guard lost geometry, or ran no case)"
         } else {
             "pass"
         }

@@ -133,7 +133,7 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
     for r in rows.iter().filter(|r| r.first.is_some()) {
         say!(
             "first {} ({} {} {} {}):",
-            r.first.unwrap_or_default(),
+            r.first.as_deref().unwrap_or_default(),
             r.routine,
             r.precision,
             r.mesh,
@@ -154,10 +154,10 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
         "verdict: {}",
         match (failed, rows.iter().any(|r| r.verdict == "pass")) {
             (true, _) => {
-                "FAIL (a routine of yours leaked, split, answered a bad t or a hit that is not the crossing)"
+                "FAIL (a judged routine leaked, split, answered a bad t or a hit that is not the crossing)"
             }
             (false, true) => "pass",
-            (false, false) => "reported (built-in routines only)",
+            (false, false) => "reported (no judged routine)",
         }
     );
     Ok(failed as u8)

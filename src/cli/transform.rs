@@ -3,7 +3,9 @@
 //! or with the translation taken off first (`translate_first`), or by the inverse the renderer
 //! computes itself from M (`inverted`), the object's routine run there,
 //! judged by the exact oracle in world space; classes of transforms from rotations to large
-//! translations and near-singular scales. Rows are reported: exit 0, 1 when a routine answers
+//! translations and near-singular scales. The `ideal` mode (the object-space ray correctly
+//! rounded) of a routine of yours and of the robust built-ins is judged (no wrong verdict), the
+//! other rows reported: exit 0, 1 when a judged row has a wrong verdict or any routine answers
 //! a hit at a t that is not finite and positive, 2 bad usage, 4 a routine of yours that breaks
 //! its contract, crashes or hangs; `--replay` exits 1 on a wrong answer, 0 on a right one or a
 //! case within the margin (not judged).
@@ -30,7 +32,7 @@ pub struct TransformArgs {
     #[arg(long)]
     pub shape: Option<String>,
     /// Built-in methods of the shapes (default: algebraic and rtg7 for the sphere,
-    /// moller_trumbore and watertight for the triangle; none when a routine of yours is given).
+    /// moller_trumbore, watertight and watertight_wide for the triangle; none when a routine of yours is given).
     #[arg(long, value_delimiter = ',')]
     pub method: Vec<String>,
     /// An object-space routine of yours (`--exec`, `--plugin`, `--name`, `--timeout`: the
@@ -111,7 +113,7 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
         }
     };
     say!(
-        "{:<9} {:<16} {:<16} {:<4} {:<14} {:>6} {:>6} {:>8} {:>9} {:>5} {:>12}",
+        "{:<9} {:<16} {:<16} {:<4} {:<14} {:>6} {:>6} {:>8} {:>9} {:>5} {:>12}  verdict",
         "shape",
         "routine",
         "mode",
@@ -126,7 +128,7 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
     );
     for r in &rows {
         say!(
-            "{:<9} {:<16} {:<16} {:<4} {:<14} {:>6} {:>6} {:>8} {:>9} {:>5} {:>12}",
+            "{:<9} {:<16} {:<16} {:<4} {:<14} {:>6} {:>6} {:>8} {:>9} {:>5} {:>12}  {}",
             r.shape,
             r.routine,
             r.mode,
@@ -137,7 +139,8 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
             r.false_hit,
             r.false_miss,
             r.bad_t,
-            format_ulps(r.worst_ulps)
+            format_ulps(r.worst_ulps),
+            r.verdict
         );
     }
     for r in rows.iter().filter(|r| r.replay.is_some()) {
@@ -153,12 +156,20 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
     if let Some(p) = &a.json {
         rayproof::output::write_json(p, &rows)?;
     }
-    // A t that is not finite and positive is wrong in any case: the one verdict of the run
-    if rows.iter().any(|r| r.bad_t > 0) {
-        say!("verdict: FAIL (a hit at a t that is not finite and positive)");
+    // A t that is not finite and positive is wrong in any row; the ideal mode holds the
+    // routines judged by default (yours, the robust built-ins) to no wrong verdict
+    if rows.iter().any(|r| r.verdict == "fail") {
+        say!("verdict: FAIL (a hit at a t that is not finite and positive, or a wrong verdict of a judged routine in the ideal mode)");
         return Ok(1);
     }
-    say!("rows reported: wrong verdicts on well-posed cases (at least {:e} from the boundary) and t errors", transform::MARGIN);
+    say!("other rows reported: wrong verdicts on well-posed cases (at least {:e} from the boundary) and t errors", transform::MARGIN);
+    say!(
+        "verdict: {}",
+        match rows.iter().any(|r| r.verdict == "pass") {
+            true => "pass (the ideal mode of every judged routine: no wrong verdict)",
+            false => "reported (no judged row)",
+        }
+    );
     Ok(0)
 }
 

@@ -28,7 +28,8 @@ pub struct Seams {
 pub fn rows(seed: u64, quick: bool) -> Result<Seams> {
     let sizes = if quick { [2, 1, 200] } else { [32, 8, 2000] };
     let guards: Vec<Guard> = GUARDS.iter().map(|g| Guard::BuiltIn(g)).collect();
-    let guard = guard::rows(seed, &guards, &Precision::ALL, sizes[0]).map_err(|e| anyhow!(e))?;
+    let guard =
+        guard::rows(seed, &guards, &Precision::ALL, sizes[0], true).map_err(|e| anyhow!(e))?;
     let routines: Vec<once::Routine> = (0..crate::shapes::triangle::METHODS.len())
         .map(once::Routine::BuiltIn)
         .collect();
@@ -78,7 +79,7 @@ pub fn markdown(s: &Seams) -> Result<String> {
                 .collect();
             let ns = mine
                 .iter()
-                .map(|r| r.ns_per_test * r.cases as f64)
+                .map(|r| r.ns_per_test.unwrap_or(f64::NAN) * r.cases as f64)
                 .sum::<f64>()
                 / cases.max(1) as f64;
             let first = mine.iter().filter_map(|r| r.first_scale).min();

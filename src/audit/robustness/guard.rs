@@ -41,7 +41,7 @@ use crate::shapes::oracle::sample;
 use crate::shapes::shape::{case_rng, hex_text, Method, ShapeInfo};
 use crate::shapes::triangle::exact_tri;
 use rand::Rng;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The guards, in the order of the table.
 pub const GUARDS: [&str; 4] = ["naive_slab", "williams", "pbrt", "ize"];
@@ -92,19 +92,46 @@ pub enum Guard<'a> {
     Outside(&'a (dyn Method + Send)),
 }
 
+/// A guard an audit holds (`audit --guard`): a built-in's name or a user's routine.
+pub enum Owned {
+    /// One of [`GUARDS`].
+    BuiltIn(&'static str),
+    /// A user's (`exec:CMD`, `plugin:PATH:SYMBOL`).
+    Outside(Box<dyn Method + Send>),
+}
+
+impl Owned {
+    /// The guard to run.
+    pub fn guard(&self) -> Guard<'_> {
+        match self {
+            Owned::BuiltIn(n) => Guard::BuiltIn(n),
+            Owned::Outside(m) => Guard::Outside(m.as_ref()),
+        }
+    }
+}
+
 impl Guard<'_> {
-    fn name(&self) -> &str {
+    /// Its name.
+    pub fn name(&self) -> &str {
         match self {
             Guard::BuiltIn(n) => n,
             Guard::Outside(m) => m.name(),
         }
     }
 
-    /// Whether it enters each case's box; its nanoseconds per case.
-    fn admits_all(&self, prec: Precision, cases: &[&Case]) -> Result<(Vec<bool>, f64), String> {
+    /// Whether it enters each case's box; with `timed`, its nanoseconds per case.
+    fn admits_all(
+        &self,
+        prec: Precision,
+        cases: &[&Case],
+        timed: bool,
+    ) -> Result<(Vec<bool>, Option<f64>), String> {
         match self {
             Guard::BuiltIn(g) => {
                 let admitted = cases.iter().map(|c| admits(g, prec, &c.values)).collect();
+                if !timed {
+                    return Ok((admitted, None));
+                }
                 // Its cost: the fastest of 16 timed passes over the cases (one pass is at the
                 // mercy of a page fault or the other core)
                 let ns = (0..16)
@@ -118,7 +145,7 @@ impl Guard<'_> {
                         start.elapsed().as_nanos() as f64 / cases.len().max(1) as f64
                     })
                     .fold(f64::INFINITY, f64::min);
-                Ok((admitted, ns))
+                Ok((admitted, Some(ns)))
             }
             Guard::Outside(m) => {
                 let start = std::time::Instant::now();
@@ -144,10 +171,8 @@ impl Guard<'_> {
                     }
                 }
                 m.finish()?;
-                Ok((
-                    out,
-                    start.elapsed().as_nanos() as f64 / cases.len().max(1) as f64,
-                ))
+                let ns = start.elapsed().as_nanos() as f64 / cases.len().max(1) as f64;
+                Ok((out, timed.then_some(ns)))
             }
         }
     }
@@ -369,14 +394,15 @@ pub fn admits(name: &str, prec: Precision, v: &[f64; 13]) -> bool {
 }
 
 /// One row: a guard, a precision and a class over every scale and placement.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
 pub struct GuardRow {
     /// The guard.
     pub guard: String,
     /// `f32` or `f64`.
-    pub precision: &'static str,
+    pub precision: String,
     /// The case class.
-    pub class: &'static str,
+    pub class: String,
     /// Cases (rays that hit a triangle inside the box).
     pub cases: u64,
     /// Boxes the guard culled: lost geometry.
@@ -384,12 +410,33 @@ pub struct GuardRow {
     /// The smallest scene size (power of ten) with a lost box.
     pub first_scale: Option<i32>,
     /// Nanoseconds per box test, this guard over these cases (the fastest of 16 timed passes,
-    /// the conversion of the 13 values to the precision included).
-    pub ns_per_test: f64,
-    /// Judged (must lose nothing) or reported.
-    pub judged: bool,
+    /// the conversion of the 13 values to the precision included). Not timed in `audit`, whose
+    /// report depends on the seed alone.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ns_per_test: Option<f64>,
+    /// `pass` or `fail` (a judged guard: it must lose nothing), `reported`; empty in a shard
+    /// file (the merge judges).
+    pub verdict: String,
     /// The first lost case, replayable: `rayproof guard --replay GUARD PREC o d lo hi tmax`.
     pub replay: Option<String>,
+}
+
+/// Whether a guard's rows are held to losing nothing by default: `ize` (robust by its
+/// analysis: `t_max` widened by 1 + 2γ₃ covers the slab's rounding) and every guard from
+/// outside the crate (a renderer's: lost geometry is a wrong picture). The other built-ins show
+/// the test's teeth and are reported.
+pub fn judged_by_default(guard: &str) -> bool {
+    guard == "ize" || !GUARDS.contains(&guard)
+}
+
+/// The default verdict of a row ([`judged_by_default`]; a row with no case shows nothing and
+/// fails).
+pub fn default_verdict(r: &GuardRow) -> &'static str {
+    match judged_by_default(&r.guard) {
+        false => "reported",
+        true if r.lost > 0 || r.cases == 0 => "fail",
+        true => "pass",
+    }
 }
 
 /// The replay line of a case: `rayproof guard [OUTSIDE ARGS] --replay NAME PREC v×13`.
@@ -405,15 +452,19 @@ pub fn replay_line(outside: Option<&str>, name: &str, prec: Precision, v: &[f64;
 
 /// A user's guard on one case: entered or culled (its contract checked).
 pub fn admits_one(m: &(dyn Method + Send), prec: Precision, c: &Case) -> Result<bool, String> {
-    Guard::Outside(m).admits_all(prec, &[c]).map(|(a, _)| a[0])
+    Guard::Outside(m)
+        .admits_all(prec, &[c], false)
+        .map(|(a, _)| a[0])
 }
 
-/// The rows of `guards` × `precs` × classes, `n` cases per class, scale and placement.
+/// The rows of `guards` × `precs` × classes, `n` cases per class, scale and placement, with
+/// their default verdicts; `timed`: each guard's cost measured too (`guard`, `report`).
 pub fn rows(
     seed: u64,
     guards: &[Guard],
     precs: &[Precision],
     n: u64,
+    timed: bool,
 ) -> Result<Vec<GuardRow>, String> {
     let mut out = vec![];
     for &prec in precs {
@@ -429,30 +480,31 @@ pub fn rows(
                 .collect();
             let refs: Vec<&Case> = all.iter().map(|(_, c)| c).collect();
             for g in guards {
-                let (admitted, ns) = g.admits_all(prec, &refs)?;
+                let (admitted, ns) = g.admits_all(prec, &refs, timed)?;
                 let lost: Vec<&(i32, Case)> = all
                     .iter()
                     .zip(&admitted)
                     .filter(|(_, a)| !**a)
                     .map(|(c, _)| c)
                     .collect();
-                let judged = matches!(g, Guard::Outside(_) | Guard::BuiltIn("ize"));
-                out.push(GuardRow {
+                let mut row = GuardRow {
                     guard: g.name().to_string(),
-                    precision: prec.name(),
-                    class,
+                    precision: prec.name().to_string(),
+                    class: class.to_string(),
                     cases: all.len() as u64,
                     lost: lost.len() as u64,
                     first_scale: lost.iter().map(|(s, _)| *s).min(),
                     ns_per_test: ns,
-                    judged,
+                    verdict: String::new(),
                     replay: lost.first().map(|(_, c)| match g {
                         Guard::BuiltIn(n) => replay_line(None, n, prec, &c.values),
                         Guard::Outside(m) => {
                             replay_line(m.replay().as_deref(), m.name(), prec, &c.values)
                         }
                     }),
-                });
+                };
+                row.verdict = default_verdict(&row).to_string();
+                out.push(row);
             }
         }
     }
@@ -466,7 +518,7 @@ mod tests {
     #[test]
     fn ize_loses_no_box_and_the_naive_slab_loses_face_hits() {
         let guards: Vec<Guard> = GUARDS.iter().map(|g| Guard::BuiltIn(g)).collect();
-        let rows = rows(1, &guards, &Precision::ALL, 4).unwrap();
+        let rows = rows(1, &guards, &Precision::ALL, 4, true).unwrap();
         for r in &rows {
             assert!(r.cases > 0, "{r:?}");
             if r.guard == "ize" {

@@ -37,16 +37,20 @@ pub mod offset;
 pub mod once;
 pub mod reintersect;
 pub mod rules;
+pub mod seams;
 pub mod spawn;
 pub mod transform;
 pub mod watertight;
 
 use crate::numerics::Precision;
 use crate::shapes::triangle;
+use guard::GuardRow;
 use offset::{ReintersectRow, Rule};
+use once::OnceRow;
 use rules::{RobustRule, Test, Tested};
 use serde::{Deserialize, Serialize};
 use spawn::SpawnRow;
+use transform::TransformRow;
 pub use watertight::WatertightRow;
 
 /// Instances per decade of scale (1e-4 … 1e4) in the reintersection test.
@@ -56,6 +60,15 @@ pub const WATERTIGHT_RAYS: u64 = 3000;
 /// Triangles per precision × scene size × placement of an `audit --spawn-rule` rule (each with
 /// [`spawn::SPAWNED`] spawned rays: 6,144 rays per rule in both precisions).
 pub const SPAWN_PER_CELL: u64 = 16;
+/// Cases per class, scene size and placement of the box-guard rows (`rayproof guard`'s default:
+/// 768 boxes per guard, precision and class).
+pub const GUARD_PER_CELL: u64 = 32;
+/// Meshes per kind, scene size and placement of the exactly-once rows (`rayproof once`'s
+/// default: about 28,000 rays per routine and precision).
+pub const ONCE_PER_CELL: u64 = 8;
+/// Cases per shape, class and precision of the transform rows (half `rayproof transform`'s
+/// default: the exact oracle in rationals is the cost).
+pub const TRANSFORM_CASES: u64 = 1000;
 
 /// Both tests' rows.
 #[derive(Clone, Debug, Serialize, PartialEq)]
@@ -69,6 +82,15 @@ pub struct Robustness {
     /// One row per spawn rule (`audit --spawn-rule`) × precision × scene size × placement.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub spawn: Vec<SpawnRow>,
+    /// The box test before the primitive: one row per guard × precision × class.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub guard: Vec<GuardRow>,
+    /// Exactly one hit per mesh: one row per triangle routine × precision × mesh × aim.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub once: Vec<OnceRow>,
+    /// Shapes behind an instance transform: one row per routine × mode × precision × class.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub transform: Vec<TransformRow>,
 }
 
 /// The reintersection surfaces of an audited shape (the triangle has two: alone and hinged).
@@ -84,11 +106,21 @@ fn surfaces_of(shape: &str) -> Vec<&'static str> {
 }
 
 /// The methods that can have rows of each test, of `shapes` as `(shape, its methods: built-in
-/// and outside)`, and the audit's spawn rules. Reintersection runs every built-in method of the
-/// surfaces it knows and outside routines of the sphere and the triangle; watertightness the
-/// triangle's methods, built-in and outside.
-pub fn tested_methods(shapes: &[(&str, Vec<String>)], spawn_rules: &[String]) -> Tested {
-    let (mut re, mut wt) = (vec![], vec![]);
+/// and outside)`, and the audit's spawn rules and guards. Reintersection runs every built-in
+/// method of the surfaces it knows and outside routines of the sphere and the triangle;
+/// watertightness and exactly-once the triangle's routines, built-in and outside; transforms
+/// the default methods of the sphere and the triangle and their outside routines; the box
+/// guards the built-ins (with the box shape) and `--guard`'s.
+pub fn tested_methods(
+    shapes: &[(&str, Vec<String>)],
+    spawn_rules: &[String],
+    guards: &[String],
+) -> Tested {
+    let mut t = Tested {
+        spawn: spawn_rules.to_vec(),
+        guard: guards.to_vec(),
+        ..Tested::default()
+    };
     for (shape, methods) in shapes {
         let builtin: Vec<&str> = crate::shapes::shape_by_name(shape)
             .map(|s| s.info().methods.iter().map(|m| m.name).collect())
@@ -97,18 +129,22 @@ pub fn tested_methods(shapes: &[(&str, Vec<String>)], spawn_rules: &[String]) ->
         for m in methods {
             let outside = !builtin.contains(&m.as_str());
             if has_surface && (!outside || matches!(*shape, "sphere" | "triangle")) {
-                re.push(m.clone());
+                t.reintersection.push(m.clone());
             }
             if *shape == "triangle" {
-                wt.push(m.clone());
+                t.watertight.push(m.clone());
+                t.once.push(m.clone());
+            }
+            let default = transform::DEFAULT.contains(&(*shape, m.as_str()));
+            if matches!(*shape, "sphere" | "triangle") && (outside || default) {
+                t.transform.push(m.clone());
             }
         }
+        if *shape == "box" {
+            t.guard.extend(guard::GUARDS.iter().map(|g| g.to_string()));
+        }
     }
-    Tested {
-        reintersection: re,
-        watertight: wt,
-        spawn: spawn_rules.to_vec(),
-    }
+    t
 }
 
 /// Whether an audit of `shape` covers all its built-in methods (by name, in order) and all its
@@ -173,6 +209,27 @@ pub struct Outside {
     /// Rows of the spawn rules (`audit --spawn-rule`).
     #[serde(default)]
     pub spawn: Vec<SpawnRow>,
+    /// Box-guard rows of the audit's guards (`audit --guard`).
+    #[serde(default)]
+    pub guard: Vec<GuardRow>,
+    /// Exactly-once rows of outside triangle routines.
+    #[serde(default)]
+    pub once: Vec<OnceRow>,
+    /// Transform rows of outside sphere and triangle routines.
+    #[serde(default)]
+    pub transform: Vec<TransformRow>,
+}
+
+impl Outside {
+    /// Appends another's rows (a merge's shard 0).
+    pub fn append(&mut self, o: &mut Outside) {
+        self.reintersection.append(&mut o.reintersection);
+        self.watertight.append(&mut o.watertight);
+        self.spawn.append(&mut o.spawn);
+        self.guard.append(&mut o.guard);
+        self.once.append(&mut o.once);
+        self.transform.append(&mut o.transform);
+    }
 }
 
 /// The rows of the spawn rules `rules` over the audit's precisions (the seed's cells,
@@ -212,11 +269,17 @@ pub fn with_outside(
         reintersection: vec![],
         watertight: vec![],
         spawn: vec![],
+        guard: vec![],
+        once: vec![],
+        transform: vec![],
     });
     let built_in = (r.reintersection.len(), r.watertight.len());
     r.reintersection.extend(outside.reintersection);
     r.watertight.extend(outside.watertight);
     r.spawn.extend(outside.spawn);
+    r.guard.extend(outside.guard);
+    r.once.extend(outside.once);
+    r.transform.extend(outside.transform);
     Some(judge(r, built_in, rules))
 }
 
@@ -274,6 +337,34 @@ pub fn judge(mut r: Robustness, built_in: (usize, usize), rules: &[RobustRule]) 
         .into();
     }
     spawn::judge_rows(&mut r.spawn, &|x| spawn_goal(x, rules));
+    // The seams: the first rule naming the row, else the test's default (a bad t fails any)
+    for x in r.guard.iter_mut() {
+        x.verdict = match rule(&x.guard, Test::Guard, &x.precision) {
+            Some(u) if x.cases > 0 => u.verdict(Test::Guard, x.lost),
+            Some(_) => "fail",
+            None => guard::default_verdict(x),
+        }
+        .into();
+    }
+    for x in r.once.iter_mut() {
+        x.verdict = match rule(&x.routine, Test::Once, &x.precision) {
+            Some(_) if x.bad > 0 || x.rays == 0 => "fail",
+            Some(u) => u.verdict(Test::Once, once::failures(x)),
+            None => once::default_verdict(x),
+        }
+        .into();
+    }
+    for x in r.transform.iter_mut() {
+        let named = rules.iter().find(|u| {
+            u.applies(&x.routine, Test::Transform, &x.precision) && u.names_mode(&x.mode)
+        });
+        x.verdict = match named {
+            Some(_) if x.bad_t > 0 || x.cases == 0 => "fail",
+            Some(u) => u.verdict(Test::Transform, transform::failures(x)),
+            None => transform::default_verdict(x),
+        }
+        .into();
+    }
     r
 }
 
@@ -290,12 +381,19 @@ fn spawn_goal(x: &SpawnRow, rules: &[RobustRule]) -> Option<spawn::Goal> {
 }
 
 /// Runs the tests that belong to the audited `shapes` in the given precisions: reintersection
-/// for each closed shape and the triangle, watertightness with the triangle. `None` when no
-/// audited shape has either.
+/// for each closed shape and the triangle, watertightness and exactly-once with the triangle,
+/// the built-in box guards with the box, transforms of the default sphere and triangle methods
+/// with their shape. `None` when no audited shape has any.
 pub fn run(seed: u64, shapes: &[&str], precisions: &[Precision]) -> Option<Robustness> {
     let surfaces: Vec<&str> = shapes.iter().flat_map(|s| surfaces_of(s)).collect();
     let mesh = shapes.contains(&"triangle");
-    if surfaces.is_empty() && !mesh {
+    let boxes = shapes.contains(&"box");
+    let moved: Vec<(&'static str, transform::Routine)> = transform::DEFAULT
+        .iter()
+        .filter(|(s, _)| shapes.contains(s))
+        .map(|(s, m)| (*s, transform::builtin(s, m).expect("a built-in method")))
+        .collect();
+    if surfaces.is_empty() && !mesh && !boxes && moved.is_empty() {
         return None;
     }
     let mut reintersection = vec![];
@@ -308,11 +406,36 @@ pub fn run(seed: u64, shapes: &[&str], precisions: &[Precision]) -> Option<Robus
             watertight.extend(watertight::run(seed, WATERTIGHT_RAYS, p));
         }
     }
+    // Built-in routines cannot break their contract: the seams' errors are a bug here
+    let built_in = "a built-in routine answers by its contract";
+    let guard = match boxes {
+        true => {
+            let all: Vec<guard::Guard> = guard::GUARDS
+                .iter()
+                .map(|g| guard::Guard::BuiltIn(g))
+                .collect();
+            guard::rows(seed, &all, precisions, GUARD_PER_CELL, false).expect(built_in)
+        }
+        false => vec![],
+    };
+    let once = match mesh {
+        true => {
+            let all: Vec<once::Routine> = (0..triangle::METHODS.len())
+                .map(once::Routine::BuiltIn)
+                .collect();
+            once::rows(seed, &all, precisions, ONCE_PER_CELL).expect(built_in)
+        }
+        false => vec![],
+    };
+    let transform = transform::rows(seed, &moved, precisions, TRANSFORM_CASES).expect(built_in);
     Some(Robustness {
         seed,
         reintersection,
         watertight,
         spawn: vec![],
+        guard,
+        once,
+        transform,
     })
 }
 
@@ -369,6 +492,7 @@ pub fn check(r: &Robustness) -> Vec<String> {
     for row in r.spawn.iter().filter(|x| x.verdict == "fail") {
         out.push(spawn::failure(row));
     }
+    out.extend(seams::check(&r.guard, &r.once, &r.transform));
     for row in r.watertight.iter().filter(|x| x.verdict == "fail") {
         out.push(format!(
             "watertight {} {} {} {}: {} of {} rays escaped (goal 0); replay: {}",
@@ -479,6 +603,7 @@ pub fn summary(r: &Robustness) -> String {
         );
     }
     s += &spawn_summary(&r.spawn);
+    s += &seams::summary(&r.guard, &r.once, &r.transform);
     // How many rows were held to a goal, and how many only reported
     let verdicts: Vec<&str> = r
         .reintersection
@@ -486,6 +611,9 @@ pub fn summary(r: &Robustness) -> String {
         .map(|x| x.verdict.as_str())
         .chain(r.watertight.iter().map(|x| x.verdict.as_str()))
         .chain(r.spawn.iter().map(|x| x.verdict.as_str()))
+        .chain(r.guard.iter().map(|x| x.verdict.as_str()))
+        .chain(r.once.iter().map(|x| x.verdict.as_str()))
+        .chain(r.transform.iter().map(|x| x.verdict.as_str()))
         .collect();
     let n = |v: &str| verdicts.iter().filter(|x| **x == v).count();
     if !verdicts.is_empty() {
@@ -558,6 +686,7 @@ pub fn table(r: &Robustness, md: bool) -> String {
         };
         s += &spawn::markdown(&r.spawn);
     }
+    s += &seams::table(&r.guard, &r.once, &r.transform, md);
     s
 }
 

@@ -1,8 +1,11 @@
 //! A tolerance file's `[[robustness]]` rules: what a user holds a routine's reintersection,
-//! watertightness and spawn-rule rows to, instead of the default (no self-hit under the offset
-//! rule, no escape through a closed mesh or a fold, for robust built-in methods and every
+//! watertightness, spawn-rule and seam rows to, instead of the default (no self-hit under the
+//! offset rule, no escape through a closed mesh or a fold, for robust built-in methods and every
 //! outside routine; no self-hit and no ray behind the surface for `audit --spawn-rule` rules of
-//! the user's and for `pbrt`).
+//! the user's and for `pbrt`; for the seams between routines, no lost box for `ize` and every
+//! `--guard` of yours, every ray reported once for `watertight_wide` and every outside triangle
+//! routine, no wrong verdict in the `ideal` transform mode for the robust built-ins and every
+//! outside routine).
 //!
 //! ```toml
 //! [[robustness]]
@@ -15,11 +18,17 @@
 //!                            # spawn: self-hits, and rays behind the surface, allowed per row
 //! max_gap_ulps = 64          # spawn only: the widest resolved gap allowed per row, in ulps of
 //!                            # max|p| (left out: the gap is reported)
+//! max_failures = 0           # guard, once, transform: failures allowed per row (guard: boxes
+//!                            # lost; once: rays leaked, split or hit wrongly; transform: false
+//!                            # hits and misses on well-posed cases). A bad t fails any row.
+//! mode = "matrix"            # transform only: one mode or a list (left out: every mode)
 //! # reported = true          # instead of a bound: the rows are reported only
 //! why = "where the numbers came from"
 //! ```
-//! The first rule that names a row's method, test and precision judges it; rows of the offset
-//! rule's controls (`weak`, `off`) stay controls.
+//! The first rule that names a row's method, test and precision (and a transform row's mode)
+//! judges it; rows of the offset rule's controls (`weak`, `off`) stay controls. A rule for a
+//! spawn rule or a seam names its `test`; one without `test` is for reintersection and
+//! watertightness.
 
 use crate::numerics::Precision;
 use serde::Deserialize;
@@ -34,7 +43,42 @@ pub enum Test {
     /// A spawn rule's rays must not re-hit their surface nor start behind it (`audit
     /// --spawn-rule`).
     Spawn,
+    /// A box test before the primitive must not cull a box holding the hit (`audit --guard`).
+    Guard,
+    /// A closed mesh must report each ray through a shared edge or vertex exactly once.
+    Once,
+    /// A shape behind an instance transform must keep the exact verdict.
+    Transform,
 }
+
+impl Test {
+    /// The name a rule's `test` gives.
+    pub fn name(self) -> &'static str {
+        match self {
+            Test::Reintersection => "reintersection",
+            Test::Watertight => "watertight",
+            Test::Spawn => "spawn",
+            Test::Guard => "guard",
+            Test::Once => "once",
+            Test::Transform => "transform",
+        }
+    }
+
+    /// Whether its rows are bounded by `max_failures` (a seam's).
+    fn is_seam(self) -> bool {
+        matches!(self, Test::Guard | Test::Once | Test::Transform)
+    }
+}
+
+/// Every test, in the order a rule's error names them.
+const ALL: [Test; 6] = [
+    Test::Reintersection,
+    Test::Watertight,
+    Test::Spawn,
+    Test::Guard,
+    Test::Once,
+    Test::Transform,
+];
 
 /// The names that have rows of each test in an audit.
 #[derive(Clone, Debug, Default)]
@@ -45,16 +89,28 @@ pub struct Tested {
     pub watertight: Vec<String>,
     /// Spawn rules (`audit --spawn-rule`).
     pub spawn: Vec<String>,
+    /// Guards with rows (the built-ins with the box shape, `audit --guard`).
+    pub guard: Vec<String>,
+    /// Triangle routines with exactly-once rows.
+    pub once: Vec<String>,
+    /// Sphere and triangle routines with transform rows.
+    pub transform: Vec<String>,
 }
 
 impl Tested {
-    fn has(&self, name: &str, t: Test) -> bool {
-        let list = match t {
+    fn list(&self, t: Test) -> &[String] {
+        match t {
             Test::Reintersection => &self.reintersection,
             Test::Watertight => &self.watertight,
             Test::Spawn => &self.spawn,
-        };
-        list.iter().any(|x| x == name)
+            Test::Guard => &self.guard,
+            Test::Once => &self.once,
+            Test::Transform => &self.transform,
+        }
+    }
+
+    fn has(&self, name: &str, t: Test) -> bool {
+        self.list(t).iter().any(|x| x == name)
     }
 }
 
@@ -68,6 +124,8 @@ pub struct RobustRuleText {
     max_escapes: Option<u64>,
     max_self_hits: Option<u64>,
     max_gap_ulps: Option<f64>,
+    max_failures: Option<u64>,
+    mode: Option<OneOrMany>,
     reported: Option<bool>,
     why: String,
 }
@@ -107,6 +165,10 @@ pub struct RobustRule {
     pub max_self_hits: Option<u64>,
     /// The widest resolved gap allowed per spawn row, in ulps of `max|p|`.
     pub max_gap_ulps: Option<f64>,
+    /// Failures allowed per guard, once or transform row.
+    pub max_failures: Option<u64>,
+    /// The transform modes it names (`None`: every mode).
+    pub modes: Option<Vec<String>>,
     /// The rows are reported, not judged.
     pub reported: bool,
 }
@@ -122,11 +184,19 @@ impl RobustRule {
                 .is_none_or(|ps| ps.iter().any(|p| p.name() == precision))
     }
 
-    /// The verdict of a row of `test` with `count` escapes or self-hits.
+    /// Whether the rule names a transform row's mode (every mode when it names none).
+    pub fn names_mode(&self, mode: &str) -> bool {
+        self.modes
+            .as_ref()
+            .is_none_or(|ms| ms.iter().any(|m| m == mode))
+    }
+
+    /// The verdict of a row of `test` with `count` escapes, self-hits or failures.
     pub fn verdict(&self, test: Test, count: u64) -> &'static str {
         let bound = match test {
             Test::Watertight => self.max_escapes,
             Test::Reintersection | Test::Spawn => self.max_self_hits,
+            Test::Guard | Test::Once | Test::Transform => self.max_failures,
         };
         match bound {
             _ if self.reported => "reported",
@@ -168,11 +238,20 @@ pub fn parse(
             .precisions
             .clone()
             .unwrap_or(vec![Precision::F32, Precision::F64]);
+        let modes: Vec<&str> = match &r.modes {
+            Some(ms) => ms.iter().map(|m| m.as_str()).collect(),
+            None => super::transform::MODES.to_vec(),
+        };
         let shadowed = r.methods.iter().all(|m| {
             tests.iter().all(|&t| {
-                precs
-                    .iter()
-                    .all(|p| rules[..i].iter().any(|e| e.applies(m, t, p.name())))
+                precs.iter().all(|p| {
+                    modes.iter().all(|mode| {
+                        rules[..i].iter().any(|e| {
+                            e.applies(m, t, p.name())
+                                && (t != Test::Transform || e.names_mode(mode))
+                        })
+                    })
+                })
             })
         });
         if shadowed {
@@ -204,20 +283,41 @@ fn parse_each(
             }
             let test = match r.test.as_deref() {
                 None => None,
-                Some("reintersection") => Some(Test::Reintersection),
-                Some("watertight") => Some(Test::Watertight),
-                Some("spawn") => Some(Test::Spawn),
-                Some(t) => {
-                    return bad(format!(
-                        "test = \"{t}\" (\"reintersection\", \"watertight\" or \"spawn\")"
-                    ))
-                }
+                Some(t) => match ALL.into_iter().find(|x| x.name() == t) {
+                    Some(x) => Some(x),
+                    None => {
+                        let names: Vec<String> =
+                            ALL.iter().map(|x| format!("\"{}\"", x.name())).collect();
+                        return bad(format!("test = \"{t}\" ({})", names.join(", ")));
+                    }
+                },
             };
-            if test == Some(Test::Spawn) {
-                if let Some(m) = methods.iter().find(|m| !tested.spawn.contains(m)) {
+            if let Some(t) = test.filter(|t| *t == Test::Spawn || t.is_seam()) {
+                // A spawn rule's or a seam's names are those with rows of that test
+                let list = tested.list(t);
+                if let Some(m) = methods.iter().find(|m| !list.contains(m)) {
+                    let (what, hint) = match t {
+                        Test::Spawn => ("spawn rule", "an audit's --spawn-rule gives one"),
+                        Test::Guard => (
+                            "guard",
+                            "the box shape's audit runs the built-ins; --guard gives one",
+                        ),
+                        Test::Once => (
+                            "triangle routine with exactly-once rows",
+                            "the triangle's built-ins and yours have them",
+                        ),
+                        _ => (
+                            "routine with transform rows",
+                            "the sphere's and the triangle's default methods and yours have them",
+                        ),
+                    };
                     return bad(format!(
-                        "no spawn rule '{m}' in this audit (an audit's --spawn-rule gives one; this audit's: {})",
-                        if tested.spawn.is_empty() { "none".into() } else { tested.spawn.join(", ") }
+                        "no {what} '{m}' in this audit ({hint}; this audit's: {})",
+                        if list.is_empty() {
+                            "none".into()
+                        } else {
+                            list.join(", ")
+                        }
                     ));
                 }
             } else if let Some(m) = methods.iter().find(|m| !known_methods.contains(&m.as_str())) {
@@ -226,6 +326,35 @@ fn parse_each(
                     known_methods.join(", ")
                 ));
             }
+            let seam = test.is_some_and(|t| t.is_seam());
+            if r.max_failures.is_some() && !seam {
+                return bad("max_failures bounds a seam's rows (test = \"guard\", \"once\" or \"transform\")".into());
+            }
+            if seam && (r.max_escapes.is_some() || r.max_self_hits.is_some()) {
+                return bad("a seam's rows are bounded by max_failures (not max_escapes or max_self_hits)".into());
+            }
+            let modes = match &r.mode {
+                None => None,
+                Some(_) if test != Some(Test::Transform) => {
+                    return bad("mode names transform rows (test = \"transform\")".into())
+                }
+                Some(m) => {
+                    let list = m.list();
+                    if let Some(x) = list
+                        .iter()
+                        .find(|x| !super::transform::MODES.contains(&x.as_str()))
+                    {
+                        return bad(format!(
+                            "mode = \"{x}\" ({})",
+                            super::transform::MODES.join(", ")
+                        ));
+                    }
+                    if list.is_empty() {
+                        return bad("mode: name at least one".into());
+                    }
+                    Some(list)
+                }
+            };
             let precisions = match &r.precision {
                 None => None,
                 Some(n) => Some(
@@ -245,8 +374,8 @@ fn parse_each(
                 let what = match test {
                     Some(Test::Reintersection) => "reintersection rows (they run for the built-in methods of the box, sphere, ellipsoid, cylinder, torus and triangle, and for outside sphere and triangle routines)",
                     Some(Test::Watertight) => "watertightness rows (they run for triangle routines)",
-                    Some(Test::Spawn) => "spawn rows",
-                    None => "reintersection or watertightness rows (a spawn rule's rule says test = \"spawn\")",
+                    Some(t) => &format!("{} rows", t.name()),
+                    None => "reintersection or watertightness rows (a spawn rule's or a seam's rule names its test)",
                 };
                 return bad(format!("method '{m}' has no {what}: the rule could never judge a row"));
             }
@@ -274,15 +403,16 @@ fn parse_each(
                     return bad("max_gap_ulps goes with max_self_hits (the self-hits a row may have)".into());
                 }
             }
-            let bounds = r.max_escapes.is_some() || r.max_self_hits.is_some();
+            let bounds =
+                r.max_escapes.is_some() || r.max_self_hits.is_some() || r.max_failures.is_some();
             if reported == bounds {
                 return bad(
-                    "give reported = true or a bound (max_escapes, max_self_hits), exactly one".into(),
+                    "give reported = true or a bound (max_escapes, max_self_hits, max_failures), exactly one".into(),
                 );
             }
             // Every test the rule names is bounded: a rule for both needs both bounds
             let needs_escapes = test.is_none() || test == Some(Test::Watertight);
-            let needs_self_hits = test != Some(Test::Watertight);
+            let needs_self_hits = test.is_none_or(|t| !t.is_seam() && t != Test::Watertight);
             if bounds
                 && ((needs_escapes && r.max_escapes.is_none())
                     || (needs_self_hits && r.max_self_hits.is_none()))
@@ -299,6 +429,8 @@ fn parse_each(
                 max_escapes: r.max_escapes,
                 max_self_hits: r.max_self_hits,
                 max_gap_ulps: r.max_gap_ulps,
+                max_failures: r.max_failures,
+                modes,
                 reported,
             })
         })

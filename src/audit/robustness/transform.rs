@@ -49,7 +49,7 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use rug::{Float, Rational};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// The classes of transforms.
 pub const CLASSES: [&str; 6] = [
@@ -492,12 +492,14 @@ pub fn object_input(c: &Case, prec: Precision, mode: &str) -> Option<Vec<f64>> {
     Some([&o[..], &d[..], &c.object[..]].concat())
 }
 
-/// The built-in routines run by default: the textbook and a robust one of each shape.
-pub const DEFAULT: [(&str, &str); 4] = [
+/// The built-in routines run by default: of each shape the textbook one and a robust one (for
+/// the triangle also pbrt-v4's watertight test, in the precision).
+pub const DEFAULT: [(&str, &str); 5] = [
     ("sphere", "algebraic"),
     ("sphere", "rtg7"),
     ("triangle", "moller_trumbore"),
     ("triangle", "watertight"),
+    ("triangle", "watertight_wide"),
 ];
 
 /// The built-in method `name` of `shape`.
@@ -597,18 +599,19 @@ pub fn judge(t: Option<f64>, e: &Exact) -> Verdict {
 }
 
 /// One row: a routine × mode × precision × class.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
 pub struct TransformRow {
     /// `sphere` or `triangle`.
-    pub shape: &'static str,
+    pub shape: String,
     /// The object-space routine.
     pub routine: String,
     /// `matrix`, `translate_first`, `inverted` or `ideal`.
-    pub mode: &'static str,
+    pub mode: String,
     /// `f32` or `f64`.
-    pub precision: &'static str,
+    pub precision: String,
     /// The class of transforms.
-    pub class: &'static str,
+    pub class: String,
     /// Cases judged (well posed).
     pub cases: u64,
     /// Cases within [`MARGIN`] of the boundary: not judged.
@@ -623,6 +626,39 @@ pub struct TransformRow {
     pub worst_ulps: f64,
     /// The first wrong case: `rayproof transform --replay …`.
     pub replay: Option<String>,
+    /// `pass` or `fail` (a judged row), `reported`; empty in a shard file (the merge judges).
+    pub verdict: String,
+}
+
+/// Whether a routine's rows in a mode are held by default to no wrong verdict: in the `ideal`
+/// mode (the object-space ray correctly rounded), every routine from outside the crate and the
+/// built-in methods robust by design. There the routine's own error is all that remains: the
+/// rays start within a few object sizes of the object (|o'| ≲ 10 s), so rounding o' and d'
+/// moves the impact parameter or a barycentric by a few ε·|o'|/s ≤ 10⁻⁵ in `f32`, below
+/// [`MARGIN`], and a robust method's error is of that order too. The other modes add the
+/// renderer's carrying (cond(L)·ε, large translations) and are reported: they show what the
+/// transform costs, not the routine.
+pub fn judged_by_default(shape: &str, routine: &str, mode: &str) -> bool {
+    mode == "ideal"
+        && crate::shapes::shape_by_name(shape)
+            .and_then(|s| s.info().methods.iter().find(|m| m.name == routine))
+            .is_none_or(|m| m.robust)
+}
+
+/// The wrong verdicts of a row on judged cases: false hits and false misses.
+pub fn failures(r: &TransformRow) -> u64 {
+    r.false_hit + r.false_miss
+}
+
+/// The default verdict of a row: a hit at a bad t fails any row; then
+/// [`judged_by_default`] (a judged row with no case shows nothing and fails).
+pub fn default_verdict(r: &TransformRow) -> &'static str {
+    match judged_by_default(&r.shape, &r.routine, &r.mode) {
+        _ if r.bad_t > 0 => "fail",
+        false => "reported",
+        true if failures(r) > 0 || r.cases == 0 => "fail",
+        true => "pass",
+    }
 }
 
 /// The replay line of a case.
@@ -686,11 +722,11 @@ pub fn rows(
                         let got = r.answers(prec, &asked)?;
                         let mut got = got.into_iter();
                         let mut row = TransformRow {
-                            shape,
+                            shape: shape.to_string(),
                             routine: r.name(),
-                            mode,
-                            precision: prec.name(),
-                            class,
+                            mode: mode.to_string(),
+                            precision: prec.name().to_string(),
+                            class: class.to_string(),
                             cases: 0,
                             ill_posed: 0,
                             false_hit: 0,
@@ -698,6 +734,7 @@ pub fn rows(
                             bad_t: 0,
                             worst_ulps: 0.0,
                             replay: None,
+                            verdict: String::new(),
                         };
                         for ((c, x), e) in cs.iter().zip(&inputs).zip(&truth) {
                             let t = match x {
@@ -744,6 +781,7 @@ pub fn rows(
                                 ));
                             }
                         }
+                        row.verdict = default_verdict(&row).to_string();
                         out.push(row);
                     }
                 }

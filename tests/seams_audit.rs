@@ -1,0 +1,326 @@
+//! The seams between routines inside `rayproof audit` (issue 49 item 5): the box guards with the
+//! box shape and `--guard`, exactly-once and transform rows with the triangle and the sphere and
+//! for a routine of yours, judged by the tolerance file's `test = "guard" | "once" |
+//! "transform"` rules or the defaults, sharded (shard 0 carries yours, the merge runs the
+//! built-ins) and merged byte for byte.
+
+use crate::common::{rayproof, s, stderr, stdout};
+use serde_json::Value;
+use std::path::Path;
+
+fn json(p: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+fn rows<'a>(report: &'a Value, test: &str) -> Vec<&'a Value> {
+    report["robustness"][test]
+        .as_array()
+        .map(|a| a.iter().collect())
+        .unwrap_or_default()
+}
+
+/// The box shape's audit runs the four built-in guards: Ize's robust traversal loses no box
+/// (judged, pass), the naive slab loses face hits (reported: the test's teeth); the rows carry no
+/// timing (the report depends on the seed alone).
+#[test]
+fn the_box_audit_judges_the_guards() {
+    let dir = crate::common::temp_dir("seams-box");
+    let out = dir.join("a.json");
+    let o = rayproof(&[
+        "audit",
+        "--shape",
+        "box",
+        "--precision",
+        "f32",
+        "--json",
+        s(&out),
+    ]);
+    assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    assert!(stdout(&o).contains("box guards"), "{}", stdout(&o));
+    let r = json(&out);
+    let g = rows(&r, "guard");
+    assert_eq!(g.len(), 4 * 4, "4 guards × 4 classes in f32");
+    for x in &g {
+        assert!(x.get("ns_per_test").is_none(), "{x}");
+        let want = if x["guard"] == "ize" {
+            "pass"
+        } else {
+            "reported"
+        };
+        assert_eq!(x["verdict"], want, "{x}");
+        if x["guard"] == "ize" {
+            assert_eq!(x["lost"], 0, "{x}");
+        }
+    }
+    let naive: u64 = g
+        .iter()
+        .filter(|x| x["guard"] == "naive_slab")
+        .map(|x| x["lost"].as_u64().unwrap())
+        .sum();
+    assert!(naive > 0, "the naive slab lost nothing");
+    // The same seed gives the same report
+    let again = dir.join("b.json");
+    rayproof(&[
+        "audit",
+        "--shape",
+        "box",
+        "--precision",
+        "f32",
+        "--json",
+        s(&again),
+    ]);
+    assert_eq!(std::fs::read(&out).unwrap(), std::fs::read(&again).unwrap());
+}
+
+/// A triangle routine of yours (Möller–Trumbore in f32, through its C ABI) gets exactly-once and
+/// transform rows beside its watertightness rows. It leaks and splits rays through shared edges:
+/// its once rows fail the audit with probe lines that name it; in the `ideal` transform mode it
+/// keeps every verdict (pass), in the carrying modes its rows are reported. A tolerance file's
+/// rules judge them instead: `reported = true`, or `max_failures` per row, or a `mode`.
+#[test]
+fn a_routine_of_yours_is_held_to_one_hit_per_mesh_and_to_its_transforms() {
+    let dir = crate::common::temp_dir("seams-yours");
+    let lib = crate::common::build_library("routines.c", &dir);
+    let spec = format!("{}:triangle_mt_f32", lib.display());
+    let out = dir.join("a.json");
+    let audit = |extra: &[&str]| {
+        let mut a = vec![
+            "audit",
+            "--shape",
+            "triangle",
+            "--method",
+            "mine",
+            "--plugin",
+            &spec,
+            "--name",
+            "mine",
+            "--cases",
+            "200",
+            "--json",
+            s(&out),
+        ];
+        a.extend(extra);
+        rayproof(&a)
+    };
+    let o = audit(&[]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let text = stdout(&o);
+    assert!(
+        text.contains("once mine f32 grid edge:") && text.contains("--plugin"),
+        "{text}"
+    );
+    let r = json(&out);
+    let once = rows(&r, "once");
+    assert_eq!(once.len(), 3 * 4, "3 meshes × 4 aims in f32");
+    assert!(once
+        .iter()
+        .all(|x| x["routine"] == "mine" && x["verdict"] == "fail"));
+    let tr = rows(&r, "transform");
+    assert_eq!(tr.len(), 6 * 4, "6 classes × 4 modes");
+    for x in &tr {
+        let want = if x["mode"] == "ideal" {
+            "pass"
+        } else {
+            "reported"
+        };
+        assert_eq!(x["verdict"], want, "{x}");
+    }
+    assert!(tr.iter().any(|x| x["mode"] == "matrix"
+        && x["false_miss"].as_u64().unwrap() + x["false_hit"].as_u64().unwrap() > 0));
+    // The tolerance file's rules judge them first
+    let rules = dir.join("rules.toml");
+    let write = |text: &str| std::fs::write(&rules, text).unwrap();
+    write(
+        "[[robustness]]\nmethod = \"mine\"\ntest = \"once\"\nreported = true\nwhy = \"a known MT\"\n\n\
+         [[robustness]]\nmethod = \"mine\"\ntest = \"watertight\"\nreported = true\nwhy = \"a known MT\"\n\n\
+         [[robustness]]\nmethod = \"mine\"\ntest = \"transform\"\nmode = [\"matrix\", \"inverted\"]\nmax_failures = 0\nwhy = \"held\"\n",
+    );
+    let o = audit(&["--tolerances", s(&rules)]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let r = json(&out);
+    assert!(rows(&r, "once").iter().all(|x| x["verdict"] == "reported"));
+    for x in rows(&r, "transform") {
+        let want = match x["mode"].as_str().unwrap() {
+            "matrix" | "inverted"
+                if x["false_hit"].as_u64().unwrap() + x["false_miss"].as_u64().unwrap() > 0 =>
+            {
+                "fail"
+            }
+            "matrix" | "inverted" | "ideal" => "pass",
+            _ => "reported",
+        };
+        assert_eq!(x["verdict"], want, "{x}");
+    }
+    assert!(
+        stdout(&o).contains("transform triangle mine matrix f32 translation"),
+        "{}",
+        stdout(&o)
+    );
+    // Bad rules: one line, exit 2
+    for (text, says) in [
+        ("method = \"mine\"\ntest = \"once\"\nmax_escapes = 1\nwhy = \"x\"\n", "max_failures"),
+        ("method = \"mine\"\ntest = \"watertight\"\nmode = \"ideal\"\nreported = true\nwhy = \"x\"\n", "mode names transform rows"),
+        ("method = \"mine\"\ntest = \"transform\"\nmode = \"exact\"\nmax_failures = 0\nwhy = \"x\"\n", "mode = \"exact\""),
+        ("method = \"nope\"\ntest = \"once\"\nmax_failures = 0\nwhy = \"x\"\n", "no triangle routine with exactly-once rows 'nope'"),
+        ("method = \"mine\"\ntest = \"guard\"\nmax_failures = 0\nwhy = \"x\"\n", "no guard"),
+        ("method = \"mine\"\nmax_failures = 0\nwhy = \"x\"\n", "max_failures bounds a seam"),
+    ] {
+        write(&format!("[[robustness]]\n{text}"));
+        let o = audit(&["--tolerances", s(&rules)]);
+        assert_eq!(o.status.code(), Some(2), "{text}: {}{}", stdout(&o), stderr(&o));
+        assert_eq!(stderr(&o).trim_end().lines().count(), 1, "{text}: {}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{text}: {}", stderr(&o));
+    }
+}
+
+/// A sharded audit with a routine of yours and a guard of yours merges into exactly the unsharded
+/// report; shard 0 carries their seam rows, unjudged; a shard whose seam rows were edited, cut
+/// or judged by hand is refused (exit 2), and shards run with different guards are not one audit
+/// (exit 3).
+#[test]
+fn seams_shard_and_merge_byte_for_byte() {
+    let dir = crate::common::temp_dir("seams-shard");
+    let lib = crate::common::build_library("routines.c", &dir);
+    let spec = format!("{}:triangle_mt_f32", lib.display());
+    let guard = crate::common::build_library("guard_slab.c", &dir);
+    let guard_spec = format!("plugin:{}:guard_slab_f32", guard.display());
+    let args = |extra: &[&str]| -> Vec<String> {
+        let mut a: Vec<String> = [
+            "audit",
+            "--shape",
+            "triangle",
+            "--plugin",
+            &spec,
+            "--name",
+            "mine",
+            "--cases",
+            "60",
+            "--guard",
+            &guard_spec,
+            "--guard-name",
+            "slab",
+            "--guard",
+            "ize",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect();
+        a.extend(extra.iter().map(|x| x.to_string()));
+        a
+    };
+    let run = |a: Vec<String>| {
+        let a: Vec<&str> = a.iter().map(|x| x.as_str()).collect();
+        rayproof(&a)
+    };
+    let whole = dir.join("whole.json");
+    let o = run(args(&["--json", s(&whole)]));
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let w = json(&whole);
+    let g = rows(&w, "guard");
+    assert_eq!(
+        g.len(),
+        2 * 4,
+        "slab and ize × 4 classes in f32 (the libraries have f32 symbols)"
+    );
+    assert!(g
+        .iter()
+        .any(|x| x["guard"] == "slab" && x["verdict"] == "fail"));
+    assert!(g
+        .iter()
+        .all(|x| x["guard"] != "ize" || x["verdict"] == "pass"));
+    let shard = |k: &str| {
+        let p = dir.join(format!("s{}.json", &k[..1]));
+        let o = run(args(&["--shard", k, "--shard-out", s(&p)]));
+        assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+        p
+    };
+    let (s0, s1) = (shard("0/2"), shard("1/2"));
+    let file: Value = json(&s0);
+    assert!(file["outside"]["once"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|x| x["verdict"] == ""));
+    assert!(json(&s1)["outside"]["guard"].as_array().unwrap().is_empty());
+    let merged = dir.join("merged.json");
+    let o = rayproof(&["merge", s(&s1), s(&s0), "--json", s(&merged)]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(
+        std::fs::read(&whole).unwrap(),
+        std::fs::read(&merged).unwrap()
+    );
+    // Edited shards judge nothing
+    let text = std::fs::read_to_string(&s0).unwrap();
+    let edit = |f: &dyn Fn(&mut Value), says: &str, code: i32| {
+        let mut v: Value = serde_json::from_str(&text).unwrap();
+        f(&mut v);
+        let bad = dir.join("bad.json");
+        std::fs::write(&bad, serde_json::to_string(&v).unwrap()).unwrap();
+        let o = rayproof(&["merge", s(&bad), s(&s1)]);
+        assert_eq!(
+            o.status.code(),
+            Some(code),
+            "{says}: {}{}",
+            stdout(&o),
+            stderr(&o)
+        );
+        assert!(stderr(&o).contains(says), "{says}: {}", stderr(&o));
+    };
+    // A failing guard row made to lose nothing (its replay line left: counts a run cannot make)
+    edit(
+        &|v| {
+            for x in v["outside"]["guard"].as_array_mut().unwrap() {
+                x["lost"] = 0.into();
+                x["first_scale"] = Value::Null;
+            }
+        },
+        "counts a run cannot make",
+        2,
+    );
+    // Every failing once row cut
+    edit(
+        &|v| {
+            v["outside"]["once"]
+                .as_array_mut()
+                .unwrap()
+                .retain(|x| x["leaks"] == 0);
+        },
+        "exactly-once rows",
+        2,
+    );
+    // Judged by hand
+    edit(
+        &|v| {
+            for x in v["outside"]["transform"].as_array_mut().unwrap() {
+                x["verdict"] = "pass".into();
+            }
+        },
+        "counts a run cannot make",
+        2,
+    );
+    // Leaks forgiven, but counted rays kept
+    edit(
+        &|v| {
+            for x in v["outside"]["once"].as_array_mut().unwrap() {
+                x["leaks"] = 0.into();
+                x["split"] = 0.into();
+                x["split_ulps"] = 0.into();
+                x["first_leak"] = Value::Null;
+            }
+        },
+        "counts a run cannot make",
+        2,
+    );
+    // Another guard list is another audit
+    edit(
+        &|v| {
+            v["guards"] = serde_json::json!(["ize"]);
+            v["outside"]["guard"]
+                .as_array_mut()
+                .unwrap()
+                .retain(|x| x["guard"] == "ize");
+        },
+        "guards",
+        3,
+    );
+}
