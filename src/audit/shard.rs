@@ -27,8 +27,8 @@
 //! run with different tables (or some with and some without) are not one audit (exit 3), and so
 //! is a merge given a `--tolerances` file that is not the one the shards carry.
 //! The merge takes the files in any order, and runs the reintersection and watertightness tests
-//! itself for the shapes whose built-in methods and classes the audit covers (they are not
-//! sharded; about 12 s for every shape). The watertightness rows of triangle routines from
+//! and the built-in seam rows (box guards, exactly once, transforms) itself for the shapes whose
+//! built-in methods and classes the audit covers (they are not sharded). The watertightness rows of triangle routines from
 //! outside the crate are run whole by shard 0 and carried in its file, since the merge machine
 //! need not have the routine. It refuses, with one line on stderr, a set that is not
 //! exactly one audit's shards 0/N … N−1/N: a shard missing or given twice, or shards that differ

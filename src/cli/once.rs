@@ -3,7 +3,8 @@
 //! crossing the surface exactly once, rounded or exactly through the vertex or edge; per
 //! triangle routine, the rays it leaks (0 hits), doubles (2 or more at one t), splits (hits at
 //! different t) or answers with a t that is not finite and positive. The built-in routines are
-//! reported; a routine of yours (`--exec`, `--plugin`) is judged: exit 0 when it never leaks,
+//! reported, except `watertight_wide` (robust by design); it and a routine of yours (`--exec`,
+//! `--plugin`) are judged: exit 0 when none leaks,
 //! splits, answers a bad t or a hit that cannot be the crossing, 1 otherwise, 2 bad usage, 4 a routine that breaks its contract,
 //! crashes or hangs.
 

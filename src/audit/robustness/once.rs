@@ -34,8 +34,9 @@
 //! different `t` (`split`, with the widest gap in ulps), and hits no routine may give here
 //! (`bad`: a `t` that is not finite and positive; `wrong`: a hit that cannot be the ray's one
 //! crossing). Each ray is put to the triangles near its aim point (those with a vertex within
-//! 1.5 of the mesh's longest edge), every routine the same. The built-in routines are reported;
-//! a routine from outside is judged: a leak, a split, a bad or a wrong hit fails it.
+//! 1.5 of the mesh's longest edge), every routine the same. The built-in routines are reported,
+//! except `watertight_wide` (robust by design); it and a routine from outside are judged: a leak,
+//! a split, a bad or a wrong hit fails it ([`judged_by_default`]).
 //!
 //! **Which hits can be the crossing.** The ray crosses the mesh within rounding of its aim
 //! point p (exactly at p for the exact aims): at most a few ulps of |p| away, where the mesh's
