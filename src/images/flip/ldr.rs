@@ -575,6 +575,7 @@ const NARROW: usize = 64;
 
 /// The filter `f` along the axis that is not memory's, into whole planes: `dst[j]` is `src`
 /// (w × h as laid out) convolved along y (as laid out) with `filters[j]`, edges clamped.
+#[inline(always)]
 fn across_planes(src: &[f32], w: usize, h: usize, filters: &[&[f32]], dst: &mut [Vec<f32>]) {
     for (f, d) in filters.iter().zip(dst.iter_mut()) {
         *d = plane(w * h);
@@ -608,6 +609,7 @@ fn along_row(out: &mut [f32], row: &[f32], cols: (usize, usize), f: &[f32], pad:
 
 /// The filters along x of `src(i)` (pixel i of the planes as laid out) into whole planes:
 /// `dst[j]` takes `filters[j]` (all of one radius).
+#[inline(always)]
 fn first_pass(
     layout: Layout,
     src: impl Fn(usize) -> f32,
