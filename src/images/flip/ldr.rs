@@ -562,8 +562,8 @@ fn strips(w: usize) -> impl Iterator<Item = (usize, usize)> {
 /// columns and more rows. The filters along x, then along y, run over the planes as they lie,
 /// each along whichever axis it filters, so every value is the same sum in the same order
 /// either way (`narrow_images_transposed_are_the_same_map` checks it bit for bit); laid out by
-/// columns, a narrow image's rows cost no overhead each (a 1 × 4194304 pair took 9× idiff's
-/// CPU row by row).
+/// columns, a narrow image's rows cost no overhead each (a 1 × 4194304 pair took 26 s of CPU
+/// row by row, 3.2 s by columns; idiff 3.3 s to 8.7 s on a shared 2-core machine).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Layout {
     Rows,

@@ -242,14 +242,15 @@ const HALO: usize = 10;
 /// tile's per thread, not the image's.
 const TILE_PIXELS: usize = 1 << 20;
 
-/// A tile's least rows (and, when the image is that high, its least columns): the halo costs at
-/// most 5/64 more work.
+/// A tile's least rows, where the image has them (the halo costs at most 5/64 more work), and
+/// its least columns, where the image has them.
 const TILE_MIN: usize = 256;
 
 /// (columns, rows) of the tiles of a `w × h` image: whole rows, about [`TILE_PIXELS`] and at
-/// least [`TILE_MIN`] of them, as long as a tile is no wider than 2²⁰ / [`TILE_MIN`] columns;
-/// a wider image is cut into columns of tiles of equal width, each about [`TILE_PIXELS`]
-/// (4096 × 256; 2²⁰ × 1 for an image of one row: a very wide row is not one tile).
+/// least [`TILE_MIN`] of them (as the bands before the tiles), as long as that is no more than
+/// [`TILE_PIXELS`]; a wider image is cut into columns of tiles of equal width, each about
+/// [`TILE_PIXELS`] (8192 wide: 4096 × 256; 4194304 × 1: 2²⁰ × 1, where a whole row as one band
+/// held 3.1× idiff's memory).
 fn tile_shape(w: usize, h: usize) -> (usize, usize) {
     let (w, h) = (w.max(1), h.max(1));
     let rows = (TILE_PIXELS / w).max(TILE_MIN).min(h);
