@@ -3397,7 +3397,7 @@ fn flip_of_noise(d: &Path, (w, h): (usize, usize), deadline: u64) -> Run {
 /// Hostile run on `diff --flip`, F1: a 4194304×1 pair peaked at 3.1× idiff's memory (a band was
 /// whole rows, and one very wide row was a whole band: ꟻLIP's buffers of 4 M pixels per
 /// thread). Tiles are cut in columns too: its peak stays within 2× that of a 2048² pair, the
-/// same pixels (measured: 1.4× now, 4.2× before).
+/// same pixels (measured: 1.2× now, 4.0× before).
 fn flip_very_wide_image(d: &Path) -> Result<(), String> {
     let square = flip_of_noise(d, (2048, 2048), 120);
     square.exited(2)?;
@@ -3417,7 +3417,8 @@ fn flip_very_wide_image(d: &Path) -> Result<(), String> {
 /// of noise: about 10× idiff's CPU. Where both images agree within ꟻLIP's reach its map is
 /// exactly 0, so that work is skipped: a 1024² frame with 10 % noise (the rest black in both),
 /// and a 512² data window against a 1024² frame black around it (padded to the union), each
-/// within 3× the CPU of a 1024² pair of noise (measured: about 1×; 8× and 10× before).
+/// within 3× the CPU of a 1024² pair of noise (measured: 0.9× and 1.1×; 5.2× before for the
+/// first).
 fn flip_mostly_black_frame(d: &Path) -> Result<(), String> {
     let n = 1024;
     let noise = flip_of_noise(d, (n, n), 120);
@@ -3458,16 +3459,15 @@ fn flip_mostly_black_frame(d: &Path) -> Result<(), String> {
 
 /// Hostile run on `diff --flip`, F3: a 1×4194304 pair took 30 s against idiff's 3.25 s (the
 /// kernel's overhead per row, a row of one pixel). A narrow image is laid out by columns: a
-/// 1×2²⁰ pair within 3× the CPU of a 1024² pair, the same pixels (measured: about 1×, 12×
-/// before).
+/// 1×2²⁰ pair within 4× the CPU of a 1024² pair, the same pixels (measured: 1.5×; 14× before).
 fn flip_tall_narrow_image(d: &Path) -> Result<(), String> {
     let square = flip_of_noise(d, (1024, 1024), 120);
     square.exited(2)?;
     let tall = flip_of_noise(d, (1, 1 << 20), 120);
     tall.exited(2)?;
     ensure!(
-        tall.stdout.contains("Mean HDR-FLIP") && tall.cpu < 3.0 * square.cpu,
-        "want within 3× the CPU of a 1024² pair ({:.2} s): {:.2} s, {}",
+        tall.stdout.contains("Mean HDR-FLIP") && tall.cpu < 4.0 * square.cpu,
+        "want within 4× the CPU of a 1024² pair ({:.2} s): {:.2} s, {}",
         square.cpu,
         tall.cpu,
         tall.ended()
