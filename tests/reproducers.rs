@@ -107,6 +107,8 @@ struct Run {
     secs: f64,
     /// Peak resident memory, in bytes.
     peak: u64,
+    /// CPU time, user and system, in seconds.
+    cpu: f64,
 }
 
 impl Run {
@@ -256,6 +258,10 @@ fn run_in(dir: &Path, args: &[&str], deadline: u64, env: &[(&str, &str)], space:
         stderr: text(&err),
         secs: start.elapsed().as_secs_f64(),
         peak: usage.ru_maxrss as u64 * 1024,
+        cpu: [usage.ru_utime, usage.ru_stime]
+            .iter()
+            .map(|t| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6)
+            .sum(),
     };
     let _ = std::fs::remove_dir_all(&logs);
     r
@@ -3252,6 +3258,9 @@ const ROWS: &[Row] = &[
         "flip_asked_for_images_of_two_shapes",
         flip_asked_for_images_of_two_shapes,
     ),
+    ("flip_very_wide_image", flip_very_wide_image),
+    ("flip_mostly_black_frame", flip_mostly_black_frame),
+    ("flip_tall_narrow_image", flip_tall_narrow_image),
 ];
 
 #[test]
@@ -3356,4 +3365,112 @@ fn a_command_killed_at_its_output_cap_is_over_the_cap_in_every_later_exchange() 
         Err(Broken::Closed) => panic!("closed, not the cap"),
         Ok(b) => panic!("{} bytes of output after the kill, not the cap", b.len()),
     }
+}
+
+// ---- ꟻLIP over images of any shape (hostile run on `diff --flip`) -----------------------------
+
+/// Noise in [0.2, 0.8], a hash of (x, y, c, seed).
+fn hash_noise(x: usize, y: usize, c: usize, seed: u64) -> f32 {
+    let mut v =
+        (x as u64) << 40 ^ (y as u64) << 8 ^ (c as u64) ^ seed.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    for _ in 0..3 {
+        v ^= v >> 33;
+        v = v.wrapping_mul(0xff51_afd7_ed55_8ccd);
+    }
+    0.2 + 0.6 * (v >> 40) as f32 / (1u64 << 24) as f32
+}
+
+/// `diff --flip` of a pair of noise `w × h` (seeds 1 and 2) filling its frame.
+fn flip_of_noise(d: &Path, (w, h): (usize, usize), deadline: u64) -> Run {
+    for (name, seed) in [("a.exr", 1), ("b.exr", 2)] {
+        let plane = |c| {
+            (0..w * h)
+                .map(|p| hash_noise(p % w, p / w, c, seed))
+                .collect()
+        };
+        let channels = [("R", plane(0)), ("G", plane(1)), ("B", plane(2))];
+        crate::common::write_exr(&d.join(name), (w, h), (0, 0), ((0, 0), (w, h)), &channels);
+    }
+    run(d, &["diff", "--flip", "a.exr", "b.exr"], deadline)
+}
+
+/// Hostile run on `diff --flip`, F1: a 4194304×1 pair peaked at 3.1× idiff's memory (a band was
+/// whole rows, and one very wide row was a whole band: ꟻLIP's buffers of 4 M pixels per
+/// thread). Tiles are cut in columns too: its peak stays within 2× that of a 2048² pair, the
+/// same pixels (measured: 1.2× now, 4.0× before).
+fn flip_very_wide_image(d: &Path) -> Result<(), String> {
+    let square = flip_of_noise(d, (2048, 2048), 120);
+    square.exited(2)?;
+    let wide = flip_of_noise(d, (1 << 22, 1), 120);
+    wide.exited(2)?;
+    ensure!(
+        wide.stdout.contains("Mean HDR-FLIP") && wide.peak < 2 * square.peak,
+        "want ꟻLIP within 2× the 2048² pair's {} MB: {}",
+        square.peak >> 20,
+        wide.ended()
+    );
+    Ok(())
+}
+
+/// Hostile run on `diff --flip`, F2: a frame mostly exact black in both images has a black
+/// median, and HDR-ꟻLIP takes some 24 exposures (nv-flip's count) where it takes 2 on a frame
+/// of noise: about 10× idiff's CPU. Where both images agree within ꟻLIP's reach its map is
+/// exactly 0, so that work is skipped: a 1024² frame with 10 % noise (the rest black in both),
+/// and a 512² data window against a 1024² frame black around it (padded to the union), each
+/// within 3× the CPU of a 1024² pair of noise (measured: 0.9× and 1.1×; 5.2× before for the
+/// first).
+fn flip_mostly_black_frame(d: &Path) -> Result<(), String> {
+    let n = 1024;
+    let noise = flip_of_noise(d, (n, n), 120);
+    noise.exited(2)?;
+    // 324² of noise at (350, 350), different in each, black elsewhere in both
+    let block = |seed| {
+        move |x: usize, y: usize, c| match (350..674).contains(&x) && (350..674).contains(&y) {
+            true => hash_noise(x, y, c, seed),
+            false => 0.0,
+        }
+    };
+    exr_window(&d.join("a.exr"), (n, n), (0, 0), n, block(1));
+    exr_window(&d.join("b.exr"), (n, n), (0, 0), n, block(2));
+    let black = run(d, &["diff", "--flip", "a.exr", "b.exr"], 120);
+    black.exited(2)?;
+    // A 512² data window at (256, 256), and the whole frame, black outside that window
+    exr_window(&d.join("a.exr"), (512, 512), (256, 256), n, |x, y, c| {
+        hash_noise(x, y, c, 1)
+    });
+    let window = |x: usize, y: usize, c| match (256..768).contains(&x) && (256..768).contains(&y) {
+        true => hash_noise(x - 256, y - 256, c, 2),
+        false => 0.0,
+    };
+    exr_window(&d.join("b.exr"), (n, n), (0, 0), n, window);
+    let padded = run(d, &["diff", "--flip", "a.exr", "b.exr"], 120);
+    padded.exited(2)?;
+    for r in [&black, &padded] {
+        ensure!(
+            r.stdout.contains("Mean HDR-FLIP") && r.cpu < 3.0 * noise.cpu,
+            "want within 3× the CPU of a 1024² pair of noise ({:.2} s): {:.2} s, {}",
+            noise.cpu,
+            r.cpu,
+            r.ended()
+        );
+    }
+    Ok(())
+}
+
+/// Hostile run on `diff --flip`, F3: a 1×4194304 pair took 30 s against idiff's 3.25 s (the
+/// kernel's overhead per row, a row of one pixel). A narrow image is laid out by columns: a
+/// 1×2²⁰ pair within 4× the CPU of a 1024² pair, the same pixels (measured: 1.5×; 14× before).
+fn flip_tall_narrow_image(d: &Path) -> Result<(), String> {
+    let square = flip_of_noise(d, (1024, 1024), 120);
+    square.exited(2)?;
+    let tall = flip_of_noise(d, (1, 1 << 20), 120);
+    tall.exited(2)?;
+    ensure!(
+        tall.stdout.contains("Mean HDR-FLIP") && tall.cpu < 4.0 * square.cpu,
+        "want within 4× the CPU of a 1024² pair ({:.2} s): {:.2} s, {}",
+        square.cpu,
+        tall.cpu,
+        tall.ended()
+    );
+    Ok(())
 }

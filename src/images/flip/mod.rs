@@ -192,20 +192,29 @@ impl Exposure {
 }
 
 /// Exposures encoded in one pass over the samples: the image's rows are read from memory once
-/// for the group (a band's samples do not stay in cache from one exposure to the next).
+/// for the group (a tile's samples do not stay in cache from one exposure to the next).
 const GROUP: usize = 4;
 
-/// `encode` by each of `tables` of the samples `idx` of each pixel of `src` (`n` samples a
-/// pixel): one 8-bit sRGB image per table. A chunk of pixels is encoded by every table while it
-/// is in the L1 cache.
-fn encode_group(tables: &[Exposure], src: &[f32], n: usize, idx: [usize; 3]) -> Vec<Vec<u8>> {
+/// `encode` by each of `tables` of the samples `idx` of each pixel of `src` (`w` pixels a row,
+/// `n` samples a pixel) in `win`: one 8-bit sRGB image of `win` per table. A chunk of pixels is
+/// encoded by every table while it is in the L1 cache.
+fn encode_group(
+    tables: &[&Exposure],
+    src: &[f32],
+    (w, n): (usize, usize),
+    idx: [usize; 3],
+    win: Rect,
+) -> Vec<Vec<u8>> {
     const CHUNK: usize = 512;
-    let px = src.len() / n;
-    let mut outs: Vec<Vec<u8>> = tables.iter().map(|_| vec![0u8; px * 3]).collect();
-    for (i, chunk) in src.chunks(CHUNK * n).enumerate() {
-        let m = chunk.len() / n;
-        for (t, o) in tables.iter().zip(outs.iter_mut()) {
-            t.encode_rows(chunk, n, idx, &mut o[i * CHUNK * 3..(i * CHUNK + m) * 3]);
+    let mut outs: Vec<Vec<u8>> = tables.iter().map(|_| vec![0u8; win.pixels() * 3]).collect();
+    let mut o = 0;
+    for y in win.y0..win.y1 {
+        for chunk in src[(y * w + win.x0) * n..(y * w + win.x1) * n].chunks(CHUNK * n) {
+            let m = chunk.len() / n;
+            for (t, out) in tables.iter().zip(outs.iter_mut()) {
+                t.encode_rows(chunk, n, idx, &mut out[o * 3..(o + m) * 3]);
+            }
+            o += m;
         }
     }
     outs
@@ -219,20 +228,249 @@ fn mean(v: &[f32]) -> f64 {
     v.iter().map(|&x| x as f64).sum::<f64>() / v.len().max(1) as f64
 }
 
-/// Rows above and below a band that ꟻLIP reads but does not keep: the larger of the radii of
-/// its spatial filter (⌈3·√(0.04 / 2π²)·67⌉ = 10 at 67 pixels per degree) and of its feature
-/// filter (⌈3 · ½ · 0.082 · 67⌉ = 9); `halo_is_the_filters_reach` checks it against the filters
-/// the kernel makes. Its filters clamp at the image's edge and reach no further than their
-/// radius (a pixel of the map is a function of the filtered values at that pixel alone), so a
-/// band's rows come out bit for bit as over the whole image
-/// (`banded_flip_is_the_whole_image_flip` checks it).
+/// Rows above and below a tile, and columns left and right of it, that ꟻLIP reads but does not
+/// keep: the larger of the radii of its spatial filter (⌈3·√(0.04 / 2π²)·67⌉ = 10 at 67 pixels
+/// per degree) and of its feature filter (⌈3 · ½ · 0.082 · 67⌉ = 9); `halo_is_the_filters_reach`
+/// checks it against the filters the kernel makes. Its filters are separable, clamp at the
+/// image's edge and reach no further than their radius along x, then along y (a pixel's
+/// filtered values read the pixels within HALO of it in x and in y, and a pixel of the map is a
+/// function of the filtered values at that pixel alone), so a tile's pixels come out bit for
+/// bit as over the whole image (`tiled_flip_is_the_whole_image_flip` checks it).
 const HALO: usize = 10;
 
-/// The rows of one band: about 2²⁰ pixels (ꟻLIP keeps some 200 bytes per pixel it is given, so
-/// its memory is a band's, not the image's), and at least 256 rows, so that the halo costs at
-/// most 5/64 more work.
-fn band_rows(w: usize) -> usize {
-    ((1 << 20) / w.max(1)).max(256)
+/// Pixels of a tile: ꟻLIP keeps some 100 bytes per pixel it is given, so its memory is a
+/// tile's per thread, not the image's.
+const TILE_PIXELS: usize = 1 << 20;
+
+/// A tile's least rows, where the image has them (the halo costs at most 5/64 more work), and
+/// its least columns, where the image has them.
+const TILE_MIN: usize = 256;
+
+/// (columns, rows) of the tiles of a `w × h` image: whole rows, about [`TILE_PIXELS`] and at
+/// least [`TILE_MIN`] of them (as the bands before the tiles), as long as that is no more than
+/// [`TILE_PIXELS`]; a wider image is cut into columns of tiles of equal width, each about
+/// [`TILE_PIXELS`] (8192 wide: 4096 × 256; 4194304 × 1: 2²⁰ × 1, where a whole row as one band
+/// held 3.1× idiff's memory).
+fn tile_shape(w: usize, h: usize) -> (usize, usize) {
+    let (w, h) = (w.max(1), h.max(1));
+    let rows = (TILE_PIXELS / w).max(TILE_MIN).min(h);
+    let across = w.div_ceil((TILE_PIXELS / rows).max(TILE_MIN));
+    (w.div_ceil(across), rows)
+}
+
+/// Columns `x0..x1` of rows `y0..y1`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Rect {
+    x0: usize,
+    x1: usize,
+    y0: usize,
+    y1: usize,
+}
+
+impl Rect {
+    fn width(&self) -> usize {
+        self.x1.saturating_sub(self.x0)
+    }
+
+    fn pixels(&self) -> usize {
+        self.width() * self.y1.saturating_sub(self.y0)
+    }
+
+    /// [`HALO`] more on each side, within a `w × h` image.
+    fn grown(&self, (w, h): (usize, usize)) -> Rect {
+        Rect {
+            x0: self.x0.saturating_sub(HALO),
+            x1: (self.x1 + HALO).min(w),
+            y0: self.y0.saturating_sub(HALO),
+            y1: (self.y1 + HALO).min(h),
+        }
+    }
+
+    fn meet(&self, o: &Rect) -> Rect {
+        Rect {
+            x0: self.x0.max(o.x0),
+            x1: self.x1.min(o.x1),
+            y0: self.y0.max(o.y0),
+            y1: self.y1.min(o.y1),
+        }
+    }
+
+    /// Row `y` of `self` (`per` values a pixel) in a buffer of `of`.
+    fn row_in<'a, T>(&self, buf: &'a [T], of: &Rect, y: usize, per: usize) -> &'a [T] {
+        let i = ((y - of.y0) * of.width() + self.x0 - of.x0) * per;
+        &buf[i..i + self.width() * per]
+    }
+}
+
+/// The least rectangle of rows `rows` holding every column that `span(y)` says differs in row
+/// y (as `(first, last + 1)`); `None` if no row does.
+fn differing(
+    rows: std::ops::Range<usize>,
+    span: impl Fn(usize) -> Option<(usize, usize)>,
+) -> Option<Rect> {
+    let mut d: Option<Rect> = None;
+    for y in rows {
+        if let Some((x0, x1)) = span(y) {
+            d = Some(match d {
+                None => Rect {
+                    x0,
+                    x1,
+                    y0: y,
+                    y1: y + 1,
+                },
+                Some(d) => Rect {
+                    x0: d.x0.min(x0),
+                    x1: d.x1.max(x1),
+                    y0: d.y0,
+                    y1: y + 1,
+                },
+            });
+        }
+    }
+    d
+}
+
+/// `(first, last + 1)` of the indices in `0..n` where `differs`.
+fn span(n: usize, differs: impl Fn(usize) -> bool) -> Option<(usize, usize)> {
+    let first = (0..n).find(|&i| differs(i))?;
+    let last = (first..n).rev().find(|&i| differs(i))?;
+    Some((first, last + 1))
+}
+
+/// The per-pixel maximum over `count` LDR-ꟻLIP maps of two `w × h` images, the k-th made from
+/// the 8-bit sRGB images `enc(ks, win)[i]` gives for both images over the rectangle `win`
+/// (exposure `ks[i]`, [`GROUP`] exposures at most at a time). Computed in tiles of `tile`
+/// (columns, rows), each with [`HALO`] more on each side, spread over threads (each tile's
+/// exposures over several when there are fewer tiles than threads).
+///
+/// Work that is provably zero is skipped (`skip`): where two images agree on every pixel within
+/// [`HALO`] of a pixel, in x and in y, ꟻLIP's two inputs there are the same, and so are their
+/// filtered values: the colour difference is 0, 0^0.7 = 0, and 0 to the power
+/// 1 − √(feature difference of 0) = 1 is 0 (exactly +0.0, as the map starts). So a tile is
+/// computed only within [`HALO`] of the pixels where the images' R, G, B differ bit for bit
+/// (any encoding of equal samples is equal; none: the tile is skipped, as the black outside a
+/// data window is), and each exposure only within [`HALO`] of the pixels whose codes differ
+/// there (a frame that saturates to 255, or stays 0, in both images at an exposure costs
+/// nothing at it). `skip_is_exact` checks the map bit for bit against the one with nothing
+/// skipped.
+fn tiled_flip<E>(
+    reference: &Image,
+    test: &Image,
+    tile: (usize, usize),
+    count: usize,
+    skip: bool,
+    enc: E,
+) -> Vec<f32>
+where
+    E: Fn(&[usize], Rect) -> Vec<(Vec<u8>, Vec<u8>)> + Sync,
+{
+    let (w, h) = (reference.width, reference.height);
+    let (cols, rows) = (tile.0.max(1), tile.1.max(1));
+    let tiles: Vec<Rect> = (0..h)
+        .step_by(rows)
+        .flat_map(|y0| {
+            (0..w).step_by(cols).map(move |x0| Rect {
+                x0,
+                x1: (x0 + cols).min(w),
+                y0,
+                y1: (y0 + rows).min(h),
+            })
+        })
+        .collect();
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let split = (threads / tiles.len().max(1)).clamp(1, count.max(1));
+    // Where the images differ: R, G, B bit for bit (a missing channel as 0, as it is encoded)
+    let (ri, ti) = (reference.rgb_indices(), test.rgb_indices());
+    let (rn, tn) = (reference.channels.len().max(1), test.channels.len().max(1));
+    let rgb = |data: &[f32], n: usize, idx: [usize; 3], p: usize| {
+        idx.map(|i| data[p * n..(p + 1) * n].get(i).map_or(0, |v| v.to_bits()))
+    };
+    let raw = |y: usize, r: &Rect| {
+        let p = |x: usize| y * w + r.x0 + x;
+        span(r.width(), |x| {
+            rgb(&reference.data, rn, ri, p(x)) != rgb(&test.data, tn, ti, p(x))
+        })
+        .map(|(a, b)| (r.x0 + a, r.x0 + b))
+    };
+    let map = std::sync::Mutex::new(vec![0f32; w * h]);
+    let one = |item: usize| {
+        let (core, part) = (tiles[item / split], item % split);
+        // Where this tile's map can be other than 0
+        let reach = match skip {
+            true => {
+                let win = core.grown((w, h));
+                match differing(win.y0..win.y1, |y| raw(y, &win)) {
+                    Some(d) => d.grown((w, h)).meet(&core),
+                    None => return,
+                }
+            }
+            false => core,
+        };
+        if reach.pixels() == 0 {
+            return;
+        }
+        let win = reach.grown((w, h));
+        let mut acc = vec![0f32; reach.pixels()];
+        let ks: Vec<usize> = (part..count).step_by(split).collect();
+        for group in ks.chunks(GROUP) {
+            for (r, t) in enc(group, win) {
+                // Where this exposure's map can be other than 0
+                let keep = match skip {
+                    true => {
+                        let codes = |y| {
+                            span(win.width(), |x| {
+                                let i = ((y - win.y0) * win.width() + x) * 3;
+                                r[i..i + 3] != t[i..i + 3]
+                            })
+                        };
+                        let codes = |y| codes(y).map(|(a, b)| (win.x0 + a, win.x0 + b));
+                        match differing(win.y0..win.y1, codes) {
+                            Some(d) => d.grown((w, h)).meet(&reach),
+                            None => continue,
+                        }
+                    }
+                    false => reach,
+                };
+                if keep.pixels() == 0 {
+                    continue;
+                }
+                let sub = keep.grown((w, h));
+                let m = match sub == win {
+                    true => flip_ldr8(win.width(), win.y1 - win.y0, &r, &t),
+                    false => {
+                        let crop = |v: &[u8]| -> Vec<u8> {
+                            (sub.y0..sub.y1)
+                                .flat_map(|y| sub.row_in(v, &win, y, 3).iter().copied())
+                                .collect()
+                        };
+                        flip_ldr8(sub.width(), sub.y1 - sub.y0, &crop(&r), &crop(&t))
+                    }
+                };
+                for y in keep.y0..keep.y1 {
+                    let i = (y - reach.y0) * reach.width() + keep.x0 - reach.x0;
+                    max_into(&mut acc[i..i + keep.width()], keep.row_in(&m, &sub, y, 1));
+                }
+            }
+        }
+        let mut map = map.lock().expect("the FLIP map");
+        for y in reach.y0..reach.y1 {
+            let (i, j) = (y * w + reach.x0, (y - reach.y0) * reach.width());
+            max_into(&mut map[i..i + reach.width()], &acc[j..j + reach.width()]);
+        }
+    };
+    let items = tiles.len() * split;
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    std::thread::scope(|s| {
+        for _ in 0..threads.min(items) {
+            s.spawn(|| loop {
+                match next.fetch_add(1, std::sync::atomic::Ordering::Relaxed) {
+                    i if i < items => one(i),
+                    _ => break,
+                }
+            });
+        }
+    });
+    map.into_inner().expect("the FLIP map")
 }
 
 /// `out[i] = max(out[i], m[i])`.
@@ -242,91 +480,14 @@ fn max_into(out: &mut [f32], m: &[f32]) {
     }
 }
 
-/// The per-pixel maximum over `count` LDR-ꟻLIP maps of a `w × h` image, the k-th made from the
-/// 8-bit sRGB rows `enc(k..k + j, y0, y1)[i]` gives for both images (rows `y0..y1`, exposure
-/// k + i, [`GROUP`] exposures at most at a time). Computed in bands of
-/// `rows` rows (each with [`HALO`] rows more above and below), spread over threads: by band
-/// when there are enough bands, else by exposure within each band.
-fn banded_flip<E>(w: usize, h: usize, rows: usize, count: usize, enc: E) -> Vec<f32>
-where
-    E: Fn(std::ops::Range<usize>, usize, usize) -> Vec<(Vec<u8>, Vec<u8>)> + Sync,
-{
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let rows = rows.max(1);
-    // One band's maximum map, its exposures over `split` threads
-    let band = |b: usize, out: &mut [f32], split: usize| {
-        let (y0, y1) = (b * rows, ((b + 1) * rows).min(h));
-        let (lo, hi) = (y0.saturating_sub(HALO), (y1 + HALO).min(h));
-        let one = |k: usize| {
-            let (r, t) = &enc(k..k + 1, lo, hi)[0];
-            flip_ldr8(w, hi - lo, r, t)
-        };
-        let keep = |out: &mut [f32], m: &[f32]| max_into(out, &m[(y0 - lo) * w..(y1 - lo) * w]);
-        let split = split.clamp(1, count.max(1));
-        if split == 1 {
-            for k0 in (0..count).step_by(GROUP) {
-                for (r, t) in enc(k0..(k0 + GROUP).min(count), lo, hi) {
-                    keep(out, &flip_ldr8(w, hi - lo, &r, &t));
-                }
-            }
-            return;
-        }
-        let maps: Vec<Vec<f32>> = std::thread::scope(|s| {
-            let workers: Vec<_> = (0..split)
-                .map(|j| {
-                    let (one, keep) = (&one, &keep);
-                    s.spawn(move || {
-                        let mut acc = vec![0f32; (y1 - y0) * w];
-                        for k in (j..count).step_by(split) {
-                            let m = one(k);
-                            keep(&mut acc, &m);
-                        }
-                        acc
-                    })
-                })
-                .collect();
-            workers
-                .into_iter()
-                .map(|h| h.join().expect("FLIP worker"))
-                .collect()
-        });
-        for m in maps {
-            max_into(out, &m);
-        }
-    };
-    let mut map = vec![0f32; w * h];
-    let mut bands: Vec<(usize, &mut [f32])> = map.chunks_mut(rows * w.max(1)).enumerate().collect();
-    if bands.len() < threads {
-        for (b, out) in bands {
-            band(b, out, threads);
-        }
-    } else {
-        // Bands dealt round-robin to the threads
-        let mut per: Vec<Vec<(usize, &mut [f32])>> = (0..threads).map(|_| vec![]).collect();
-        for (k, item) in bands.drain(..).enumerate() {
-            per[k % threads].push(item);
-        }
-        std::thread::scope(|s| {
-            for mine in per {
-                let band = &band;
-                s.spawn(move || {
-                    for (b, out) in mine {
-                        band(b, out, 1);
-                    }
-                });
-            }
-        });
-    }
-    map
-}
-
 /// HDR-ꟻLIP of two scene-linear images (R, G, B; non-finite and negative values count as 0):
 /// the mean and the per-pixel error map in [0, 1]. The exposure range follows the reference
 /// (the test if the reference is black); 0 when both are black. Its memory is the map, the
-/// reference's luminances and a band per thread (`banded_flip`), not ꟻLIP's of the image.
+/// reference's luminances and a tile per thread (`tiled_flip`), not ꟻLIP's of the image.
 /// Panics if the sizes differ (check with [`compare`](crate::images::compare) first).
 pub fn hdr_flip(reference: &Image, test: &Image) -> (f64, Vec<f32>) {
-    hdr_flip_in_bands(reference, test, band_rows(reference.width))
+    let tile = tile_shape(reference.width, reference.height);
+    hdr_flip_tiled(reference, test, tile, true)
 }
 
 /// Every pixel's sanitised R, G, B.
@@ -334,7 +495,12 @@ fn pixels(img: &Image, idx: [usize; 3]) -> impl Iterator<Item = [f64; 3]> + '_ {
     (0..img.pixels()).map(move |p| sanitized(img, idx, p))
 }
 
-fn hdr_flip_in_bands(reference: &Image, test: &Image, rows: usize) -> (f64, Vec<f32>) {
+fn hdr_flip_tiled(
+    reference: &Image,
+    test: &Image,
+    tile: (usize, usize),
+    skip: bool,
+) -> (f64, Vec<f32>) {
     assert!(reference.width == test.width && reference.height == test.height);
     let (w, h) = (reference.width, reference.height);
     let (ri, ti) = (reference.rgb_indices(), test.rgb_indices());
@@ -351,46 +517,43 @@ fn hdr_flip_in_bands(reference: &Image, test: &Image, rows: usize) -> (f64, Vec<
     };
     let count = ((stop - start).ceil() as usize).max(2);
     let step = (stop - start) / (count - 1) as f64;
-    // Exposure k of rows y0..y1: sRGB8(ACES(2^e · x)), through each exposure's table
+    // Exposure k: sRGB8(ACES(2^e · x)), through each exposure's table
     let tables: Vec<Exposure> = (0..count)
         .map(|k| Exposure::new((start + k as f64 * step).exp2()))
         .collect();
-    let enc = |ks: std::ops::Range<usize>, y0: usize, y1: usize| {
-        let rows = |img: &Image, idx: [usize; 3]| {
+    let enc = |ks: &[usize], win: Rect| {
+        let tables: Vec<&Exposure> = ks.iter().map(|&k| &tables[k]).collect();
+        let codes = |img: &Image, idx: [usize; 3]| {
             let n = img.channels.len().max(1);
-            encode_group(
-                &tables[ks.clone()],
-                &img.data[y0 * w * n..y1 * w * n],
-                n,
-                idx,
-            )
+            encode_group(&tables, &img.data, (w, n), idx, win)
         };
-        rows(reference, ri)
+        codes(reference, ri)
             .into_iter()
-            .zip(rows(test, ti))
+            .zip(codes(test, ti))
             .collect()
     };
-    let map = banded_flip(w, h, rows, count, enc);
+    let map = tiled_flip(reference, test, tile, count, skip, enc);
     (mean(&map), map)
 }
 
 /// LDR-ꟻLIP of two display-referred images (the stored values, clamped, as 8-bit sRGB), in
-/// bands as [`hdr_flip`].
+/// tiles as [`hdr_flip`].
 pub fn ldr_flip(reference: &Image, test: &Image) -> (f64, Vec<f32>) {
     assert!(reference.width == test.width && reference.height == test.height);
     let w = reference.width;
-    let enc = |_: std::ops::Range<usize>, y0: usize, y1: usize| {
-        let rows = |img: &Image| -> Vec<u8> {
+    let enc = |_: &[usize], win: Rect| {
+        let codes = |img: &Image| -> Vec<u8> {
             let n = img.channels.len().max(1);
             let idx = img.rgb_indices();
-            img.data[y0 * w * n..y1 * w * n]
-                .chunks(n)
+            (win.y0..win.y1)
+                .flat_map(|y| img.data[(y * w + win.x0) * n..(y * w + win.x1) * n].chunks(n))
                 .flat_map(|p| idx.map(|i| (p[i].clamp(0.0, 1.0) * 255.0 + 0.5) as u8))
                 .collect()
         };
-        vec![(rows(reference), rows(test))]
+        vec![(codes(reference), codes(test))]
     };
-    let map = banded_flip(w, reference.height, band_rows(w), 1, enc);
+    let tile = tile_shape(w, reference.height);
+    let map = tiled_flip(reference, test, tile, 1, true, enc);
     (mean(&map), map)
 }
 
@@ -489,12 +652,9 @@ mod tests {
         assert_eq!(ldr::reach(PIXELS_PER_DEGREE), HALO);
     }
 
-    /// The bands' map is the whole image's, bit for bit: bands of 1, 7 and 37 rows (each with
-    /// its halo) against one band holding the image, on noise with edges and a bright spot.
-    #[test]
-    fn banded_flip_is_the_whole_image_flip() {
-        let (w, h) = (29, 83);
-        let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    /// Noise with edges and a bright spot (`a`), and `a` changed a little (`b`).
+    fn noise_pair(w: usize, h: usize, seed: u64) -> (Vec<f32>, Vec<f32>) {
+        let mut seed = seed;
         let mut rnd = || {
             seed ^= seed << 13;
             seed ^= seed >> 7;
@@ -503,14 +663,97 @@ mod tests {
         };
         let mut a: Vec<f32> = (0..w * h * 3).map(|_| rnd() * 2.0).collect();
         let b: Vec<f32> = a.iter().map(|&v| v + 0.2 * rnd() - 0.1).collect();
-        a[(40 * w + 10) * 3] = 60.0;
+        a[((h / 2) * w + w / 3) * 3] = 60.0;
+        (a, b)
+    }
+
+    /// The tiles' map is the whole image's, bit for bit: tiles of whole rows (1, 7 and 37 of
+    /// them), of a few columns, and of a single pixel (each with its halo) against one tile
+    /// holding the image, nothing skipped, on noise with edges and a bright spot.
+    #[test]
+    fn tiled_flip_is_the_whole_image_flip() {
+        let (w, h) = (29, 83);
+        let (a, b) = noise_pair(w, h, 0x9e37_79b9_7f4a_7c15);
         let (a, b) = (Image::rgb(w, h, a), Image::rgb(w, h, b));
-        let (m, whole) = hdr_flip_in_bands(&a, &b, h);
+        let (m, whole) = hdr_flip_tiled(&a, &b, (w, h), false);
         assert!(m > 0.01, "{m}");
-        for rows in [1, 7, 37] {
-            let (mb, banded) = hdr_flip_in_bands(&a, &b, rows);
-            assert_eq!(mb, m, "bands of {rows} rows");
-            assert!(banded == whole, "bands of {rows} rows");
+        for tile in [(w, 1), (w, 7), (w, 37), (5, h), (7, 37), (13, 11), (1, 1)] {
+            let (mt, tiled) = hdr_flip_tiled(&a, &b, tile, false);
+            assert_eq!(mt, m, "tiles of {tile:?}");
+            assert!(tiled == whole, "tiles of {tile:?}");
         }
+    }
+
+    /// A very wide image is cut into columns of tiles (its memory is a tile's per thread, not a
+    /// row's), a normal one into bands of whole rows as before, a tall narrow one into bands.
+    #[test]
+    fn tiles_are_bounded_for_every_shape() {
+        assert_eq!(tile_shape(3840, 2160), (3840, 273));
+        assert_eq!(tile_shape(2048, 2048), (2048, 512));
+        assert_eq!(tile_shape(8192, 8192), (4096, 256));
+        assert_eq!(tile_shape(4_194_304, 1), (1 << 20, 1));
+        assert_eq!(tile_shape(1, 4_194_304), (1, 1 << 20));
+        for (w, h) in [
+            (4_194_304, 1),
+            (1 << 22, 3),
+            (100_000, 300),
+            (5000, 5000),
+            (1, 1 << 22),
+        ] {
+            let (c, r) = tile_shape(w, h);
+            let window = (c + 2 * HALO).min(w) * (r + 2 * HALO).min(h);
+            assert!(window <= 2 * TILE_PIXELS, "{w}×{h}");
+        }
+    }
+
+    /// Skipping the work that is provably zero leaves the map bit for bit as computed in full:
+    /// a frame mostly exact black in both (its median black: ~24 exposures), an area the same in
+    /// both, one that saturates in both at the high exposures, NaN, −0, negatives and ∞ in
+    /// places, in tiles of several shapes; and a pair that differs in one pixel.
+    #[test]
+    fn skip_is_exact() {
+        let (w, h) = (61, 97);
+        let (mut a, mut b) = noise_pair(w, h, 0x2545_f491_4f6c_dd1d);
+        for y in 0..h {
+            for x in 0..w {
+                let p = (y * w + x) * 3;
+                for c in 0..3 {
+                    match (x, y) {
+                        // black in both, but a −0 here and there
+                        _ if y >= 40 || x >= 45 => {
+                            a[p + c] = 0.0;
+                            b[p + c] = if (x + y) % 7 == 0 { -0.0 } else { 0.0 };
+                        }
+                        // the same in both
+                        _ if y < 12 => b[p + c] = a[p + c],
+                        // bright: saturates in both at the higher exposures
+                        _ if x < 8 => (a[p + c], b[p + c]) = (50.0 + a[p + c], 40.0 + b[p + c]),
+                        _ => {}
+                    }
+                }
+            }
+        }
+        (a[(20 * w + 20) * 3], b[(21 * w + 30) * 3 + 1]) = (f32::NAN, -3.0);
+        b[(5 * w + 5) * 3 + 2] = f32::INFINITY;
+        let (a, b) = (Image::rgb(w, h, a), Image::rgb(w, h, b));
+        let (m, full) = hdr_flip_tiled(&a, &b, (w, h), false);
+        assert!(m > 0.001, "{m}");
+        assert!(full[(h - 1) * w..].iter().all(|&e| e == 0.0));
+        for tile in [(w, h), (w, 9), (17, 13), (4, 50)] {
+            let (ms, skipped) = hdr_flip_tiled(&a, &b, tile, true);
+            assert_eq!(ms, m, "tiles of {tile:?}");
+            let differ = skipped
+                .iter()
+                .zip(&full)
+                .filter(|(s, f)| s.to_bits() != f.to_bits())
+                .count();
+            assert_eq!(differ, 0, "tiles of {tile:?}");
+        }
+        // One pixel apart: only its reach is computed, and it is what the full map says
+        let mut c = a.clone();
+        c.data[(30 * w + 30) * 3] += 0.5;
+        let (m1, one) = hdr_flip_tiled(&a, &c, (w, h), true);
+        let (m2, all) = hdr_flip_tiled(&a, &c, (w, h), false);
+        assert!(m1 > 0.0 && m1 == m2 && one == all);
     }
 }
