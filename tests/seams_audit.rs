@@ -324,3 +324,118 @@ fn seams_shard_and_merge_byte_for_byte() {
         3,
     );
 }
+
+/// `--source FILE.c:SYMBOL` puts each build of a C routine into the audit as a routine of its
+/// own (`STEM.BUILD`): Möller–Trumbore as usually written gets other rows with contraction on
+/// than off (its verdicts flip near edges), every row of each build is judged and sharded like
+/// a plugin's, the merge is byte for byte the unsharded audit, and a failing row's replay line
+/// builds the same build again. A build this machine cannot make is one line, exit 2.
+#[test]
+fn contraction_side_by_side_in_the_audit() {
+    let dir = crate::common::temp_dir("seams-source");
+    let source = format!(
+        "{}:tri_mt_f32",
+        crate::common::outside("contraction.c").display()
+    );
+    let args = |extra: &[&str]| -> Vec<String> {
+        let mut a: Vec<String> = [
+            "audit",
+            "--shape",
+            "triangle",
+            "--method",
+            "tri_mt.gcc-off,tri_mt.gcc-fma",
+            "--source",
+            &source,
+            "--build",
+            "gcc-off,gcc-fma",
+            "--cases",
+            "400",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect();
+        a.extend(extra.iter().map(|x| x.to_string()));
+        a
+    };
+    let run = |a: Vec<String>| {
+        let a: Vec<&str> = a.iter().map(|x| x.as_str()).collect();
+        rayproof(&a)
+    };
+    let whole = dir.join("whole.json");
+    let o = run(args(&["--json", s(&whole)]));
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    // The build lines, as a user would type them
+    assert!(
+        stderr(&o).contains("gcc -O2 -ffp-contract=fast -mfma -shared -fPIC"),
+        "{}",
+        stderr(&o)
+    );
+    let w = json(&whole);
+    let mut methods: Vec<&str> = vec![];
+    for r in w["shapes"][0]["rows"].as_array().unwrap() {
+        let m = r["method"].as_str().unwrap();
+        if !methods.contains(&m) {
+            methods.push(m);
+        }
+    }
+    assert_eq!(methods, ["tri_mt.gcc-off", "tri_mt.gcc-fma"]);
+    // Contraction changes what the routine does at shared edges
+    let leaks = |m: &str| -> u64 {
+        rows(&w, "once")
+            .iter()
+            .filter(|x| x["routine"] == m)
+            .map(|x| x["leaks"].as_u64().unwrap())
+            .sum()
+    };
+    assert_ne!(leaks("tri_mt.gcc-off"), leaks("tri_mt.gcc-fma"));
+    // A failing row replays through the same build
+    let line = stdout(&o)
+        .lines()
+        .find(|l| l.contains("once tri_mt.gcc-fma") && l.contains("--build gcc-fma"))
+        .unwrap_or_else(|| panic!("{}", stdout(&o)))
+        .split("first: ")
+        .nth(1)
+        .unwrap()
+        .to_string();
+    let replay = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(line.replacen("rayproof", env!("CARGO_BIN_EXE_rayproof"), 1))
+        .output()
+        .unwrap();
+    assert!(
+        String::from_utf8_lossy(&replay.stdout).contains("tri_mt.gcc-fma"),
+        "{line}: {}",
+        String::from_utf8_lossy(&replay.stderr)
+    );
+    // Shards and their merge
+    let s0 = dir.join("s0.json");
+    let s1 = dir.join("s1.json");
+    for (k, p) in [("0/2", &s0), ("1/2", &s1)] {
+        let o = run(args(&["--shard", k, "--shard-out", s(p)]));
+        assert_eq!(o.status.code(), Some(0), "{}{}", stdout(&o), stderr(&o));
+    }
+    let merged = dir.join("merged.json");
+    let o = rayproof(&["merge", s(&s0), s(&s1), "--json", s(&merged)]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(
+        std::fs::read(&whole).unwrap(),
+        std::fs::read(&merged).unwrap()
+    );
+    // A build this machine does not make
+    let o = run(vec![
+        "audit".into(),
+        "--shape".into(),
+        "triangle".into(),
+        "--source".into(),
+        source.clone(),
+        "--build".into(),
+        "icc-fma".into(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert_eq!(stderr(&o).trim_end().lines().count(), 1, "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("--build icc-fma: not a build"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -11,7 +11,7 @@
 //! and the build line printed beside it.
 
 use crate::numerics::Precision;
-use crate::shapes::shape::{Method, Shape};
+use crate::shapes::shape::{Answer, Method, Shape};
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -111,6 +111,90 @@ pub fn compile(b: &Build, source: &Path, dir: &Path) -> Result<PathBuf, String> 
         String::new(),
         Duration::from_secs(120),
     )?;
+    Ok(out)
+}
+
+/// One build of a C routine loaded as a plugin (`--source FILE.c:SYMBOL` of `audit`, `probe`,
+/// `once`, `transform`, `report`), named `STEM.BUILD`; the directory of its library is kept while
+/// it lives (a plugin's worker loads the library again after a crash). Its replay lines name the
+/// source and the build, which every command with `--source` builds again.
+pub struct Built {
+    plugin: crate::audit::plugin::Plugin,
+    replay: String,
+    _dir: std::sync::Arc<crate::output::ScratchDir>,
+}
+
+impl Method for Built {
+    fn name(&self) -> &str {
+        self.plugin.name()
+    }
+    fn about(&self) -> &str {
+        self.plugin.about()
+    }
+    fn replay(&self) -> Option<String> {
+        Some(self.replay.clone())
+    }
+    fn identity(&self) -> Option<String> {
+        self.plugin.identity()
+    }
+    fn answer(&self, prec: Precision, inputs: &[Vec<f64>]) -> Result<Vec<Answer>, String> {
+        self.plugin.answer(prec, inputs)
+    }
+    fn finish(&self) -> Result<(), String> {
+        self.plugin.finish()
+    }
+    fn own_nanos(&self, prec: Precision) -> Option<u64> {
+        self.plugin.own_nanos(prec)
+    }
+}
+
+impl Built {
+    /// The precisions it answers (its symbol's).
+    pub fn precisions(&self) -> Vec<Precision> {
+        self.plugin.precisions()
+    }
+}
+
+/// Compiles `source` (given as `spec`, `FILE.c:SYMBOL[:PREC]`) under each build of `list` into one
+/// scratch directory and loads each build's `symbol` as a routine `STEM.BUILD` of `shape`
+/// (workers: `worker`, each batch under `timeout`), with each build's command line.
+#[allow(clippy::too_many_arguments)]
+pub fn load_all(
+    spec: &str,
+    source: &Path,
+    symbol: &str,
+    prec: Precision,
+    list: &[Build],
+    shape: &crate::shapes::shape::ShapeInfo,
+    worker: &Path,
+    timeout: Duration,
+) -> Result<Vec<(Built, String)>, String> {
+    let dir = std::sync::Arc::new(
+        crate::output::ScratchDir::new("builds").map_err(|e| format!("{e:#}"))?,
+    );
+    let stem = symbol.trim_end_matches("_f32").trim_end_matches("_f64");
+    let mut out = vec![];
+    for b in list {
+        let lib = compile(b, source, &dir.0)?;
+        let line = b.line(source, &lib);
+        let name = format!("{stem}.{}", b.name);
+        let lib_spec = format!("{}:{symbol}:{}", lib.display(), prec.name());
+        let plugin =
+            crate::audit::plugin::Plugin::load(&[lib_spec], Some(&name), shape, worker, timeout)?;
+        let replay = format!(
+            "--source {} --build {}",
+            crate::audit::exec::shell_word(spec),
+            b.name
+        );
+        out.push((
+            Built {
+                plugin,
+                replay,
+                _dir: dir.clone(),
+            },
+            line,
+        ));
+    }
     Ok(out)
 }
 

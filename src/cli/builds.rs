@@ -39,15 +39,7 @@ pub struct BuildsArgs {
 }
 
 pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
-    let (file, symbol, prec) = parse_spec(&a.source).map_err(|e| anyhow!("--source: {e}"))?;
-    let source = Path::new(&file);
-    if !source.exists() {
-        anyhow::bail!("--source: no file {file}");
-    }
-    if !source.is_file() {
-        anyhow::bail!("--source {file}: not a regular file");
-    }
-    let source = source.canonicalize().context("--source")?;
+    let (source, symbol, prec) = source_of(&a.source, "--source")?;
     let shape = rayproof::shapes::shape_by_name(&a.shape)
         .ok_or_else(|| anyhow!("--shape {}: unknown shape", a.shape))?;
     if !(1..=1_000_000).contains(&a.cases) {
@@ -58,51 +50,7 @@ pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
         rayproof::output::check_outputs(&[p.as_path()], &[], &[source.as_path()])?;
         rayproof::output::check_json_target(p)?;
     }
-    // The compilers: asked for (each must run), or gcc and clang where installed
-    let runs = |c: &str| {
-        let line = format!("{} --version", rayproof::audit::exec::shell_word(c));
-        rayproof::process::run_with_timeout(
-            c,
-            &line,
-            None,
-            String::new(),
-            std::time::Duration::from_secs(20),
-        )
-        .is_ok()
-    };
-    let compilers: Vec<String> = match a.compiler.is_empty() {
-        false => {
-            if let Some(c) = a.compiler.iter().find(|c| !runs(c)) {
-                anyhow::bail!("--compiler {c}: it does not run (`{c} --version` failed)");
-            }
-            let mut seen = std::collections::HashSet::new();
-            if let Some(c) = a
-                .compiler
-                .iter()
-                .find(|c| !seen.insert(builds::compiler_name(c)))
-            {
-                anyhow::bail!("--compiler {c}: named twice");
-            }
-            a.compiler.clone()
-        }
-        true => {
-            let found: Vec<String> = ["gcc", "clang"]
-                .into_iter()
-                .filter(|c| runs(c))
-                .map(String::from)
-                .collect();
-            for c in ["gcc", "clang"]
-                .iter()
-                .filter(|c| !found.iter().any(|f| f == *c))
-            {
-                say!("{c}: not installed, its builds left out");
-            }
-            if found.is_empty() {
-                anyhow::bail!("no C compiler: neither gcc nor clang runs (give --compiler)");
-            }
-            found
-        }
-    };
+    let compilers = compilers(&a.compiler)?;
     let fma = builds::machine_has_fma();
     if !fma {
         say!("this machine has no FMA: only the builds with contraction off are made");
@@ -193,4 +141,110 @@ pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
         rayproof::output::write_json(p, &c)?;
     }
     Ok(u8::from(!c.flips.is_empty()))
+}
+
+/// The compilers of the builds: those asked for (each must run, none named twice), or gcc and
+/// clang where installed (each missing one said on stderr).
+fn compilers(asked: &[String]) -> Result<Vec<String>> {
+    let runs = |c: &str| {
+        let line = format!("{} --version", rayproof::audit::exec::shell_word(c));
+        rayproof::process::run_with_timeout(
+            c,
+            &line,
+            None,
+            String::new(),
+            std::time::Duration::from_secs(20),
+        )
+        .is_ok()
+    };
+    if !asked.is_empty() {
+        if let Some(c) = asked.iter().find(|c| !runs(c)) {
+            anyhow::bail!("--compiler {c}: it does not run (`{c} --version` failed)");
+        }
+        let mut seen = std::collections::HashSet::new();
+        if let Some(c) = asked
+            .iter()
+            .find(|c| !seen.insert(builds::compiler_name(c)))
+        {
+            anyhow::bail!("--compiler {c}: named twice");
+        }
+        return Ok(asked.to_vec());
+    }
+    let found: Vec<String> = ["gcc", "clang"]
+        .into_iter()
+        .filter(|c| runs(c))
+        .map(String::from)
+        .collect();
+    for c in ["gcc", "clang"]
+        .iter()
+        .filter(|c| !found.iter().any(|f| f == *c))
+    {
+        eprintln!("{c}: not installed, its builds left out");
+    }
+    if found.is_empty() {
+        anyhow::bail!("no C compiler: neither gcc nor clang runs (give --compiler)");
+    }
+    Ok(found)
+}
+
+/// The source file of a `FILE.c:SYMBOL` spec, checked (a regular file), and its symbol and
+/// precision.
+fn source_of(spec: &str, flag: &str) -> Result<(PathBuf, String, rayproof::numerics::Precision)> {
+    let (file, symbol, prec) = parse_spec(spec).map_err(|e| anyhow!("{flag}: {e}"))?;
+    let source = Path::new(&file);
+    if !source.exists() {
+        anyhow::bail!("{flag}: no file {file}");
+    }
+    if !source.is_file() {
+        anyhow::bail!("{flag} {file}: not a regular file");
+    }
+    Ok((
+        source.canonicalize().context(flag.to_string())?,
+        symbol,
+        prec,
+    ))
+}
+
+/// `--source FILE.c:SYMBOL` of the commands that audit outside routines: the standard builds
+/// (those `only` names, or all) of gcc and clang where installed, each loaded as a routine of
+/// `shape` named `STEM.BUILD`, with its precisions; each build's command line is printed on
+/// stderr.
+pub(super) fn built(
+    spec: &str,
+    only: &[String],
+    shape: &rayproof::shapes::shape::ShapeInfo,
+    timeout: std::time::Duration,
+) -> Result<
+    Vec<(
+        Box<dyn rayproof::audit::Method + Send>,
+        Vec<rayproof::numerics::Precision>,
+    )>,
+> {
+    let (source, symbol, prec) = source_of(spec, "--source")?;
+    let compilers = compilers(&[])?;
+    let mut list = builds::standard(
+        &compilers.iter().map(String::as_str).collect::<Vec<_>>(),
+        builds::machine_has_fma(),
+    );
+    if let Some(n) = only.iter().find(|n| !list.iter().any(|b| &&b.name == n)) {
+        let known: Vec<&str> = list.iter().map(|b| b.name.as_str()).collect();
+        anyhow::bail!(
+            "--build {n}: not a build of this machine (known: {})",
+            known.join(", ")
+        );
+    }
+    if !only.is_empty() {
+        list.retain(|b| only.contains(&b.name));
+    }
+    let worker = std::env::current_exe().context("cannot find rayproof's own executable")?;
+    let loaded = builds::load_all(spec, &source, &symbol, prec, &list, shape, &worker, timeout)
+        .map_err(|e| anyhow!("--source {spec}: {e}"))?;
+    Ok(loaded
+        .into_iter()
+        .map(|(b, line)| {
+            eprintln!("{:<24} {line}", rayproof::audit::Method::name(&b));
+            let has = b.precisions();
+            (Box::new(b) as Box<dyn rayproof::audit::Method + Send>, has)
+        })
+        .collect())
 }

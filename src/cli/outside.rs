@@ -24,6 +24,16 @@ pub struct OutsideArgs {
     /// without its precision suffix; `exec`, `exec2`, …).
     #[arg(long)]
     pub name: Vec<String>,
+    /// Audit a C routine under several builds side by side: FILE.c:SYMBOL (the plugin
+    /// signature, `rayproof header`; the precision from the symbol's `_f32`/`_f64` suffix or a
+    /// third field). Each of the standard builds of `rayproof builds` (gcc and clang where
+    /// installed; contraction off, contraction on with FMA, `-O3 -ffast-math`) is a routine of its
+    /// own, named SYMBOL-STEM.BUILD (`tri.gcc-fma`); the build lines are printed. Repeatable.
+    #[arg(long, value_name = "FILE.c:SYMBOL")]
+    pub source: Vec<String>,
+    /// Only these builds of each --source (`gcc-off`, `clang-fma`, …; repeat or comma-separate).
+    #[arg(long, value_delimiter = ',', requires = "source")]
+    pub build: Vec<String>,
     /// Run each --exec command once per batch of cases, its input closed at the batch's end
     /// (for a child that writes only when its input ends). Default: one child for the run when
     /// it answers its whole first batch with its input open, else one per batch.
@@ -55,6 +65,8 @@ impl OutsideArgs {
             plugin: vec![],
             exec: vec![],
             name: names.to_vec(),
+            source: vec![],
+            build: vec![],
             exec_per_batch: false,
             exec_keep: false,
             exec_timeout: timeout,
@@ -111,8 +123,14 @@ impl OutsideArgs {
                 .map(std::path::PathBuf::from)
                 .collect::<Vec<_>>()
         });
+        let sources = self
+            .source
+            .iter()
+            .filter_map(|spec| rayproof::audit::plugin::parse_spec(spec).ok())
+            .map(|(path, _, _)| std::path::PathBuf::from(path));
         plugins
             .chain(words)
+            .chain(sources)
             .filter(|p| p.metadata().is_ok_and(|m| m.is_file()))
             .collect()
     }
@@ -134,7 +152,7 @@ impl OutsideArgs {
 
     /// Whether any outside routine is given.
     pub fn any(&self) -> bool {
-        !self.plugin.is_empty() || !self.exec.is_empty()
+        !self.plugin.is_empty() || !self.exec.is_empty() || !self.source.is_empty()
     }
 
     /// The outside routines, for a shape (or spawn rules: `rayproof::audit::robustness::spawn::INFO`),
@@ -185,6 +203,11 @@ impl OutsideArgs {
                     .map_err(|e| anyhow!(e))?;
                 let has = p.precisions();
                 out.push((Box::new(p), Some(has)));
+            }
+        }
+        for spec in &self.source {
+            for (m, has) in super::builds::built(spec, &self.build, shape, timeout)? {
+                out.push((m, Some(has)));
             }
         }
         for (i, cmd) in self.exec.iter().enumerate() {
