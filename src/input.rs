@@ -59,7 +59,7 @@ pub fn read_capped(path: &Path, cap: u64, kind: Kind) -> Result<Vec<u8>, String>
             size(cap)
         ));
     }
-    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+    let file = open_without_waiting(path).map_err(|e| e.to_string())?;
     let mut bytes = Vec::new();
     file.take(cap + 1)
         .read_to_end(&mut bytes)
@@ -72,6 +72,25 @@ pub fn read_capped(path: &Path, cap: u64, kind: Kind) -> Result<Vec<u8>, String>
         ));
     }
     Ok(bytes)
+}
+
+/// Opens `path` for reading without waiting for a writer: a FIFO nobody writes to reads as
+/// empty instead of blocking in `open` (where no signal ends the run), and reads then block as
+/// usual (a pipe with a writer, `<(…)`, is read whole).
+fn open_without_waiting(path: &Path) -> std::io::Result<std::fs::File> {
+    use std::os::unix::fs::OpenOptionsExt;
+    use std::os::unix::io::AsRawFd;
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)?;
+    // SAFETY: fcntl on a descriptor this function owns, with integer arguments
+    let fd = file.as_raw_fd();
+    let flags = unsafe { libc::fcntl(fd, libc::F_GETFL) };
+    if flags < 0 || unsafe { libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK) } < 0 {
+        return Err(std::io::Error::last_os_error());
+    }
+    Ok(file)
 }
 
 /// [`read_capped`] as UTF-8 text.

@@ -96,8 +96,9 @@ fn main() -> ExitCode {
     }
 }
 
-/// An error is one line: a line break inside it (from a name or value read from a file, a
-/// path) is shown escaped, `\n` or `\r` (found by `tests/fuzz_surfaces.rs`).
+/// An error is one line of plain text: a line break inside it (from a name or value read from a
+/// file, a path) is shown escaped, `\n` or `\r` (found by `tests/fuzz_surfaces.rs`), and so is
+/// any other control character (an outside routine's ESC or NUL).
 fn escape_line_breaks(s: &str) -> String {
-    s.replace('\r', "\\r").replace('\n', "\\n")
+    rayproof::images::escape_controls(s)
 }

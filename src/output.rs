@@ -540,6 +540,28 @@ fn check_containment(outputs: &[(&Path, bool)], inputs: &[&Path]) -> Result<()> 
 /// have written. What an outside routine runs (a script named through the shell's quoting, a
 /// glob or a variable) is not always a word of its command line; it is never JSON.
 pub fn check_json_target(p: &Path) -> Result<()> {
+    check_replaceable(p, "--json replaces only JSON", &|head| {
+        matches!(
+            head.iter().find(|b| !b.is_ascii_whitespace()),
+            None | Some(b'[') | Some(b'{')
+        )
+    })
+}
+
+/// Fails with one line if `p` exists and is not a Markdown report that starts with `heading`
+/// (after white space): a `--markdown` output replaces only a report rayproof could have
+/// written (a source file or notes named by mistake are never one).
+pub fn check_markdown_target(p: &Path, heading: &str) -> Result<()> {
+    let rule = format!("--markdown replaces only a report that starts with `{heading}`");
+    check_replaceable(p, &rule, &|head| {
+        let start = head.iter().position(|b| !b.is_ascii_whitespace());
+        start.is_none_or(|i| head[i..].starts_with(heading.as_bytes()))
+    })
+}
+
+/// Fails with one line (`rule` says why) if `p` is an existing regular file whose first 4 KiB
+/// `ours` does not accept as a file rayproof could have written there.
+fn check_replaceable(p: &Path, rule: &str, ours: &dyn Fn(&[u8]) -> bool) -> Result<()> {
     use std::io::Read;
     let Ok(m) = std::fs::metadata(p) else {
         return Ok(());
@@ -552,13 +574,13 @@ pub fn check_json_target(p: &Path) -> Result<()> {
     let n = std::fs::File::open(p)
         .and_then(|mut f| f.read(&mut head))
         .with_context(|| format!("{}: cannot be read", p.display()))?;
-    match head[..n].iter().find(|b| !b.is_ascii_whitespace()) {
-        None | Some(b'[') | Some(b'{') => Ok(()),
-        Some(_) => bail!(
-            "{}: exists and is not a JSON file; --json replaces only JSON (a file rayproof could have written)",
-            p.display()
-        ),
+    if ours(&head[..n]) {
+        return Ok(());
     }
+    bail!(
+        "{}: exists and is not a file rayproof writes there; {rule} (a file rayproof could have written)",
+        p.display()
+    )
 }
 
 /// Fails with one line if an output's directory does not exist or cannot take a temporary, if

@@ -156,7 +156,7 @@ impl Built {
 }
 
 /// Compiles `source` (given as `spec`, `FILE.c:SYMBOL[:PREC]`) under each build of `list` into one
-/// scratch directory and loads each build's `symbol` as a routine `STEM.BUILD` of `shape`
+/// scratch directory and loads each build's `symbol` as a routine of `shape` named `name(build)`
 /// (workers: `worker`, each batch under `timeout`), with each build's command line.
 #[allow(clippy::too_many_arguments)]
 pub fn load_all(
@@ -168,16 +168,16 @@ pub fn load_all(
     shape: &crate::shapes::shape::ShapeInfo,
     worker: &Path,
     timeout: Duration,
+    name: &dyn Fn(&Build) -> String,
 ) -> Result<Vec<(Built, String)>, String> {
     let dir = std::sync::Arc::new(
         crate::output::ScratchDir::new("builds").map_err(|e| format!("{e:#}"))?,
     );
-    let stem = symbol.trim_end_matches("_f32").trim_end_matches("_f64");
     let mut out = vec![];
     for b in list {
         let lib = compile(b, source, &dir.0)?;
         let line = b.line(source, &lib);
-        let name = format!("{stem}.{}", b.name);
+        let name = name(b);
         let lib_spec = format!("{}:{symbol}:{}", lib.display(), prec.name());
         let plugin =
             crate::audit::plugin::Plugin::load(&[lib_spec], Some(&name), shape, worker, timeout)?;

@@ -196,7 +196,7 @@ impl Exec {
     }
 
     fn replay_line(&self, prec: Precision, x: &[f64]) -> String {
-        case_text(&self.shape, prec, self.replay().as_deref(), x)
+        case_text(&self.shape, self.name(), prec, self.replay().as_deref(), x)
     }
 
     /// The answers of a child kept for the run: `batch` written (or already written), one answer
@@ -353,13 +353,24 @@ pub fn case_line(prec: Precision, input: &[f64]) -> String {
     format!("{} {}\n", prec.name(), vals.join(" "))
 }
 
-/// How an error names an outside routine's case: its `rayproof probe` line, or for a spawn
-/// rule its query (a spawn replay needs the triangle too: `rayproof spawn` prints it).
-pub fn case_text(shape: &str, prec: Precision, replay: Option<&str>, x: &[f64]) -> String {
-    if shape == "spawn" {
-        return format!("the query {}", case_line(prec, x).trim_end());
+/// How an error names an outside routine's (`name`'s) case: its `rayproof probe` line, for a
+/// box guard its `rayproof guard --replay` line, or for a spawn rule its query (a spawn replay
+/// needs the triangle too: `rayproof spawn` prints it).
+pub fn case_text(
+    shape: &str,
+    name: &str,
+    prec: Precision,
+    replay: Option<&str>,
+    x: &[f64],
+) -> String {
+    match shape {
+        "spawn" => format!("the query {}", case_line(prec, x).trim_end()),
+        "guard" if x.len() == 13 => {
+            let v: [f64; 13] = std::array::from_fn(|k| x[k]);
+            crate::audit::robustness::guard::replay_line(replay, name, prec, &v)
+        }
+        _ => probe_line_with(shape, prec, replay, x),
     }
-    probe_line_with(shape, prec, replay, x)
 }
 
 /// Whether `b` holds `n` non-blank lines (the answers of `n` cases): the byte length they end at.

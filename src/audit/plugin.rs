@@ -552,7 +552,13 @@ impl Method for Plugin {
         let spec = &s.spec;
         let batch = s.batches.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         let at = |i: usize| {
-            crate::audit::exec::case_text(&self.shape, prec, self.replay().as_deref(), &inputs[i])
+            crate::audit::exec::case_text(
+                &self.shape,
+                self.name(),
+                prec,
+                self.replay().as_deref(),
+                &inputs[i],
+            )
         };
         let died = |how: String, said: String, case: String| {
             let said = if said.is_empty() {

@@ -175,10 +175,13 @@ pub fn shape_table(s: &ShapeReport) -> String {
     out
 }
 
+/// The first line of an audit's Markdown: `--markdown` replaces only a file that starts so.
+pub const MARKDOWN_HEADING: &str = "# rayproof audit";
+
 /// The whole report as Markdown: a table per shape, then the reintersection tests.
 pub fn markdown(report: &Report) -> String {
     let mut out = format!(
-        "# rayproof audit\n\nSeed {}, shard {}.\n",
+        "{MARKDOWN_HEADING}\n\nSeed {}, shard {}.\n",
         report.seed, report.shard
     );
     for s in &report.shapes {

@@ -260,6 +260,17 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     }
     plan.spawn_rules = spawn_rules_of(&a)?;
     let (guards, guard_inputs) = guards_of(&a, &plan.precisions)?;
+    // The box shape's audit runs the built-in guards: one named again would run twice
+    let box_whole = plan.shapes.iter().any(|p| {
+        p.shape.name() == "box"
+            && robustness::complete(p.shape, p.methods.iter().map(|m| m.name()), p.classes.len())
+    });
+    if let Some(guard::Owned::BuiltIn(g)) = guards
+        .iter()
+        .find(|g| box_whole && matches!(g, guard::Owned::BuiltIn(_)))
+    {
+        bail!("--guard {g}: the box shape's audit runs the built-in guards already");
+    }
     plan.guards = guards;
     // A shard is judged by its merge: without its file it would end unjudged (exit 0)
     if a.shard.1 > 1 && a.shard_out.is_none() {
@@ -538,6 +549,17 @@ impl AuditOutput {
             .collect();
         let inputs: Vec<&Path> = inputs.iter().map(|p| p.as_path()).collect();
         check_outputs(&files, &[], &inputs)?;
+        // Each replaces only what rayproof writes there: JSON (the report, a shard), the report
+        for p in [&self.json]
+            .into_iter()
+            .chain(extra.iter().copied())
+            .flatten()
+        {
+            rayproof::output::check_json_target(p)?;
+        }
+        if let Some(p) = &self.markdown {
+            rayproof::output::check_markdown_target(p, table::MARKDOWN_HEADING)?;
+        }
         Ok(Outputs::new().reading(&inputs))
     }
 }

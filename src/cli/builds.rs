@@ -6,7 +6,7 @@ use super::*;
 use anyhow::{anyhow, Context, Result};
 use clap::Args;
 use rayproof::audit::builds;
-use rayproof::audit::plugin::{parse_spec, Plugin};
+use rayproof::audit::plugin::parse_spec;
 use std::path::{Path, PathBuf};
 
 #[derive(Args, Debug)]
@@ -59,29 +59,34 @@ pub(super) fn run_builds(a: BuildsArgs) -> Result<u8> {
         &compilers.iter().map(String::as_str).collect::<Vec<_>>(),
         fma,
     );
-    let dir = rayproof::output::ScratchDir::new("builds")?;
     let worker = std::env::current_exe().context("cannot find rayproof's own executable")?;
     if a.timeout == 0 {
         anyhow::bail!("--timeout 0: give at least 1 second per batch");
     }
     let timeout = std::time::Duration::from_secs(a.timeout);
-    let mut loaded = vec![];
-    for b in &list {
-        let lib = builds::compile(b, &source, &dir.0).map_err(|e| anyhow!("{e}"))?;
-        let line = b.line(&source, &lib);
-        say!("{:<16} {line}", b.name);
-        let spec = format!("{}:{symbol}:{}", lib.display(), prec.name());
-        let p = Plugin::load(&[spec], Some(&b.name), shape.info(), &worker, timeout)
-            .map_err(|e| anyhow!(e))?;
-        loaded.push((b.name.clone(), line, p));
+    let spec = format!("{}:{symbol}:{}", source.display(), prec.name());
+    let loaded = builds::load_all(
+        &spec,
+        &source,
+        &symbol,
+        prec,
+        &list,
+        shape.info(),
+        &worker,
+        timeout,
+        &|b| b.name.clone(),
+    )
+    .map_err(|e| anyhow!(e))?;
+    for (b, line) in &loaded {
+        say!("{:<16} {line}", rayproof::audit::Method::name(b));
     }
     let methods: Vec<(&str, String, &dyn rayproof::shapes::shape::Method)> = loaded
         .iter()
-        .map(|(n, l, p)| {
+        .map(|(b, l)| {
             (
-                n.as_str(),
+                rayproof::audit::Method::name(b),
                 l.clone(),
-                p as &dyn rayproof::shapes::shape::Method,
+                b as &dyn rayproof::shapes::shape::Method,
             )
         })
         .collect();
@@ -237,8 +242,19 @@ pub(super) fn built(
         list.retain(|b| only.contains(&b.name));
     }
     let worker = std::env::current_exe().context("cannot find rayproof's own executable")?;
-    let loaded = builds::load_all(spec, &source, &symbol, prec, &list, shape, &worker, timeout)
-        .map_err(|e| anyhow!("--source {spec}: {e}"))?;
+    let stem = symbol.trim_end_matches("_f32").trim_end_matches("_f64");
+    let loaded = builds::load_all(
+        spec,
+        &source,
+        &symbol,
+        prec,
+        &list,
+        shape,
+        &worker,
+        timeout,
+        &|b| format!("{stem}.{}", b.name),
+    )
+    .map_err(|e| anyhow!("--source {spec}: {e}"))?;
     Ok(loaded
         .into_iter()
         .map(|(b, line)| {

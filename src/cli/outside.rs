@@ -117,10 +117,26 @@ impl OutsideArgs {
             .iter()
             .filter_map(|spec| rayproof::audit::plugin::parse_spec(spec).ok())
             .map(|(path, _, _)| std::path::PathBuf::from(path));
+        // Each word, the value of an `--opt=FILE` word, and each under the directories a `cd`
+        // in the command moves to (`cd tools && ./guard`)
         let words = self.exec.iter().flat_map(|cmd| {
-            cmd.split_whitespace()
+            let words: Vec<&str> = cmd
+                .split_whitespace()
                 .map(|w| w.trim_matches(|c| c == '\'' || c == '"'))
-                .map(std::path::PathBuf::from)
+                .collect();
+            let dirs: Vec<&str> = words
+                .windows(2)
+                .filter(|w| w[0] == "cd")
+                .map(|w| w[1])
+                .collect();
+            words
+                .iter()
+                .flat_map(|w| [*w, w.rsplit_once('=').map_or("", |(_, v)| v)])
+                .filter(|w| !w.is_empty())
+                .flat_map(|w| {
+                    std::iter::once(std::path::PathBuf::from(w))
+                        .chain(dirs.iter().map(move |d| std::path::Path::new(d).join(w)))
+                })
                 .collect::<Vec<_>>()
         });
         let sources = self

@@ -329,9 +329,27 @@ impl ImageError {
 const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
 const PNG_MAGIC: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
 
-/// `s` with every run of whitespace, newlines included, as one space.
+/// `s` with every run of whitespace, newlines included, as one space, and other control
+/// characters escaped ([`escape_controls`]).
 pub fn one_line(s: &str) -> String {
-    s.split_whitespace().collect::<Vec<_>>().join(" ")
+    escape_controls(&s.split_whitespace().collect::<Vec<_>>().join(" "))
+}
+
+/// `s` with each control character other than a space or a tab (ESC, NUL, a bell, C1 codes:
+/// bytes an outside routine wrote that a terminal would act on) shown as `\u{1b}`, and line
+/// breaks as `\n` and `\r`: an error stays one line of plain text.
+pub fn escape_controls(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push(c),
+            c if c.is_control() => out.push_str(&format!("\\u{{{:x}}}", c as u32)),
+            c => out.push(c),
+        }
+    }
+    out
 }
 
 /// Which layer of a multilayer EXR [`read_image_layer`] reads.

@@ -115,12 +115,12 @@ mod ztest;
 
 pub use flip::{flip_error, hdr_flip, heatmap_rgb8, ldr_flip, FlipKind};
 pub(crate) use io::check_declared;
-pub use io::one_line;
 pub use io::{
     decode_bounded, exr_planes_to, exr_to, png_rgb8_to, read_image, read_image_layer, srgb8,
     tonemap_rgb8, write_exr_rgb, write_png_rgb8, Image, ImageError, LayerInfo, LayerPick,
     LayerSelect, Window, MAX_ANCILLARY_BYTES, MAX_CHANNELS, MAX_IMAGE_BYTES, MAX_PIXELS,
 };
+pub use io::{escape_controls, one_line};
 pub use maps::{diff_map, diff_map_rgb8, fail_mask, mask_rgb8, DiffMap};
 pub use mask::{mask_overlay_rgb8, Mask, MaskCounts, MaskPart};
 pub use metrics::{
