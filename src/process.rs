@@ -434,6 +434,11 @@ impl Session {
         self.exchange_or_wait(input, close, complete, deadline, true)
     }
 
+    /// Output read but not yet taken by an exchange (what a process said before it broke off).
+    pub fn pending(&self) -> &[u8] {
+        &self.buf
+    }
+
     /// Reads the process's output until `complete` says the answer is whole, or until `until`
     /// passes, which (unlike an exchange's deadline) leaves the process running: `None` then.
     pub fn wait_for(

@@ -3278,6 +3278,7 @@ const ROWS: &[Row] = &[
         "tolerances_from_a_fifo_nobody_writes",
         tolerances_from_a_fifo_nobody_writes,
     ),
+    ("a_child_that_hangs_midway", a_child_that_hangs_midway),
 ];
 
 #[test]
@@ -3656,7 +3657,7 @@ fn tolerances_from_a_fifo_nobody_writes(d: &Path) -> Result<(), String> {
     ensure!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) } == 0, "mkfifo");
     let r = run(d, &["merge", "fifo.json"], 20);
     ensure!(!r.timed_out, "merge of a FIFO hung: {}", r.ended());
-    r.refused(2, &["not a rayproof audit shard"])?;
+    r.refused(2, &["fifo.json", "shard"])?;
     let r = run(
         d,
         &[
@@ -3671,5 +3672,40 @@ fn tolerances_from_a_fifo_nobody_writes(d: &Path) -> Result<(), String> {
         20,
     );
     ensure!(!r.timed_out, "--tolerances of a FIFO hung: {}", r.ended());
+    Ok(())
+}
+
+/// Issue 49, helper-18 F5: a child that answered 9 lines, flushed, and hung on the 10th was
+/// reported "no answer line arrived: does the child flush its output after each line? … after 0
+/// of 50 answers", its replay line the first case (which it had answered). The lines it wrote
+/// count: "after 9 of 50 answers", the replay line the 10th case, no advice about flushing.
+fn a_child_that_hangs_midway(d: &Path) -> Result<(), String> {
+    std::fs::write(
+        d.join("hang.py"),
+        "import sys, time\nfor i, line in enumerate(sys.stdin):\n    if i == 9:\n        time.sleep(60)\n    print(0, flush=True)\n",
+    )
+    .unwrap();
+    let r = run(
+        d,
+        &[
+            "audit",
+            "--shape",
+            "sphere",
+            "--precision",
+            "f32",
+            "--cases",
+            "50",
+            "--timeout",
+            "2",
+            "--exec-keep",
+            "--exec",
+            "python3 hang.py",
+            "--name",
+            "mine",
+        ],
+        60,
+    );
+    r.refused(4, &["after 9 of 50 answers", "rayproof probe sphere"])?;
+    ensure!(!r.stderr.contains("does the child flush"), "{}", r.ended());
     Ok(())
 }

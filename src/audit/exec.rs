@@ -220,12 +220,22 @@ impl Exec {
             let bytes = match got {
                 Ok(b) => b,
                 Err(e) => {
-                    let at = self.replay_line(prec, &inputs[answers.len()]);
+                    // The whole lines it wrote before it broke off are answers too: the first
+                    // unanswered case is the one after them
+                    let partial = child
+                        .pending()
+                        .split(|b| *b == b'\n')
+                        .rev()
+                        .skip(1)
+                        .filter(|l| !String::from_utf8_lossy(l).trim().is_empty())
+                        .count();
+                    let done = (answers.len() + partial).min(n - 1);
+                    let at = self.replay_line(prec, &inputs[done]);
                     let how = match e {
                         Broken::Deadline => format!(
                             "did not answer within {} s (killed){}",
                             self.timeout.as_secs_f64(),
-                            if answers.is_empty()
+                            if done == 0
                                 && !self.answered.load(std::sync::atomic::Ordering::Relaxed)
                             {
                                 "; no answer line arrived: does the child flush its output after each line? (or give --exec-per-batch)"
@@ -240,8 +250,7 @@ impl Exec {
                         },
                     };
                     return Err(format!(
-                        "{what} {how} after {} of {n} answers (the first unanswered: {at}){}",
-                        answers.len(),
+                        "{what} {how} after {done} of {n} answers (the first unanswered: {at}){}",
                         Self::said(child)
                     ));
                 }

@@ -398,25 +398,38 @@ fn named_as_given(name: &str, how: Option<String>) -> String {
     }
 }
 
-/// The box guards `--guard` names: built-ins, then `plugin:` and `exec:` guards (named by
-/// `--guard-name`), each batch under the audit's `--timeout`; and their files, inputs of the run.
-fn guards_of(a: &AuditArgs, precisions: &[Precision]) -> Result<(Vec<guard::Owned>, Vec<PathBuf>)> {
-    if let Some(r) = a
-        .guard
+/// The built-in names and the outside routines of one-string specs `--FLAG SPEC` (`exec:CMD`,
+/// `plugin:PATH:SYMBOL`, else a built-in's name), named by `--FLAG-name` (`--spawn-name` for
+/// `--spawn-rule`); an empty command or more names than routines is one line.
+fn specs_of(
+    specs: &[String],
+    names: &[String],
+    flag: &str,
+    timeout: f64,
+) -> Result<(Vec<String>, OutsideArgs)> {
+    if let Some(r) = specs
         .iter()
         .find(|r| r.strip_prefix("exec:").is_some_and(|c| c.trim().is_empty()))
     {
-        bail!("--guard '{r}': give the command after exec:");
+        bail!("--{flag} '{r}': give the command after exec:");
     }
-    let (builtin, theirs) =
-        OutsideArgs::from_specs(&a.guard, &a.guard_name, a.outside.exec_timeout);
-    if theirs.name.len() > theirs.plugin.len() + theirs.exec.len() {
+    let (builtin, theirs) = OutsideArgs::from_specs(specs, names, timeout);
+    let routines = theirs.plugin.len() + theirs.exec.len();
+    if theirs.name.len() > routines {
+        let name = format!("--{}-name", flag.trim_end_matches("-rule"));
         bail!(
-            "--guard-name given {} times for {} plugin: or exec: guard(s)",
+            "{name} given {} times for {routines} plugin: or exec: {}(s)",
             theirs.name.len(),
-            theirs.plugin.len() + theirs.exec.len()
+            flag.replace('-', " ")
         );
     }
+    Ok((builtin, theirs))
+}
+
+/// The box guards `--guard` names: built-ins, then `plugin:` and `exec:` guards (named by
+/// `--guard-name`), each batch under the audit's `--timeout`; and their files, inputs of the run.
+fn guards_of(a: &AuditArgs, precisions: &[Precision]) -> Result<(Vec<guard::Owned>, Vec<PathBuf>)> {
+    let (builtin, theirs) = specs_of(&a.guard, &a.guard_name, "guard", a.outside.exec_timeout)?;
     let mut out = vec![];
     for n in &builtin {
         let g = guard::GUARDS
@@ -465,22 +478,12 @@ fn guards_of(a: &AuditArgs, precisions: &[Precision]) -> Result<(Vec<guard::Owne
 fn spawn_rules_of(
     a: &AuditArgs,
 ) -> Result<Vec<Box<dyn rayproof::audit::robustness::spawn::SpawnRule>>> {
-    if let Some(r) = a
-        .spawn_rule
-        .iter()
-        .find(|r| r.strip_prefix("exec:").is_some_and(|c| c.trim().is_empty()))
-    {
-        bail!("--spawn-rule '{r}': give the command after exec:");
-    }
-    let (builtin, theirs) =
-        OutsideArgs::from_specs(&a.spawn_rule, &a.spawn_name, a.outside.exec_timeout);
-    if theirs.name.len() > theirs.plugin.len() + theirs.exec.len() {
-        bail!(
-            "--spawn-name given {} times for {} plugin: or exec: spawn rule(s)",
-            theirs.name.len(),
-            theirs.plugin.len() + theirs.exec.len()
-        );
-    }
+    let (builtin, theirs) = specs_of(
+        &a.spawn_rule,
+        &a.spawn_name,
+        "spawn-rule",
+        a.outside.exec_timeout,
+    )?;
     let precisions = if a.precision.is_empty() {
         Precision::ALL.to_vec()
     } else {
