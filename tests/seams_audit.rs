@@ -94,6 +94,7 @@ fn a_routine_of_yours_is_held_to_one_hit_per_mesh_and_to_its_transforms() {
             &spec,
             "--name",
             "mine",
+            "--seams",
             "--cases",
             "200",
             "--json",
@@ -193,6 +194,7 @@ fn seams_shard_and_merge_byte_for_byte() {
             &spec,
             "--name",
             "mine",
+            "--seams",
             "--cases",
             "60",
             "--guard",
@@ -348,6 +350,7 @@ fn contraction_side_by_side_in_the_audit() {
             &source,
             "--build",
             "gcc-off,gcc-fma",
+            "--seams",
             "--cases",
             "400",
         ]

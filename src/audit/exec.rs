@@ -374,10 +374,7 @@ pub fn case_text(
 ) -> String {
     match shape {
         "spawn" => format!("the query {}", case_line(prec, x).trim_end()),
-        "guard" if x.len() == 13 => {
-            let v: [f64; 13] = std::array::from_fn(|k| x[k]);
-            crate::audit::robustness::guard::replay_line(replay, name, prec, &v)
-        }
+        "guard" => crate::shapes::shape::guard_line_with(name, prec, replay, x),
         _ => probe_line_with(shape, prec, replay, x),
     }
 }

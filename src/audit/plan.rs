@@ -84,6 +84,8 @@ pub struct Plan {
     pub spawn_rules: Vec<Box<dyn robustness::spawn::SpawnRule>>,
     /// Box guards audited beside the shapes (`audit --guard`): run whole like the spawn rules.
     pub guards: Vec<robustness::guard::Owned>,
+    /// The seams (exactly once, transforms) run for the outside routines too (`audit --seams`).
+    pub outside_seams: bool,
 }
 
 /// Resolves names against a list, or all when empty.
@@ -173,6 +175,7 @@ impl Plan {
             every_shape,
             spawn_rules: vec![],
             guards: vec![],
+            outside_seams: false,
         })
     }
 
@@ -302,11 +305,15 @@ impl Plan {
                 continue;
             }
             let name = p.shape.name();
-            let (once, transform) =
-                robustness::seams::outside_seams(self.seed, name, &self.precisions, &outside)
-                    .map_err(super::run::MethodFailed)?;
-            rows.once.extend(once);
-            rows.transform.extend(transform);
+            // Asked for (`--seams`), the seams join an audit of the shape's every class (one
+            // narrowed by --class is about those cases alone)
+            if self.outside_seams && p.classes.len() == info.classes.len() {
+                let (once, transform) =
+                    robustness::seams::outside_seams(self.seed, name, &self.precisions, &outside)
+                        .map_err(super::run::MethodFailed)?;
+                rows.once.extend(once);
+                rows.transform.extend(transform);
+            }
             rows.reintersection.extend(
                 robustness::outside_reintersection(self.seed, name, &self.precisions, &outside)
                     .map_err(super::run::MethodFailed)?,

@@ -171,6 +171,8 @@ pub struct Shard {
     /// The box guards the audit was run with (`--guard`), named as the spawn rules are: every
     /// shard names the same, and shard 0 holds their rows.
     pub guards: Vec<String>,
+    /// The seams were run for the outside routines (`--seams`): shard 0 holds their rows.
+    pub outside_seams: bool,
     /// The reintersection and watertightness rows of routines from outside the crate: run whole
     /// by shard 0 (the built-in methods' are run by the merge; an outside routine may be gone by
     /// then).
@@ -194,6 +196,7 @@ impl Shard {
         tolerances: Option<UserTable>,
         parts: &[Tallies],
         [spawn_rules, guards]: [Vec<String>; 2],
+        outside_seams: bool,
         outside: Outside,
     ) -> Shard {
         let shapes = parts
@@ -241,6 +244,7 @@ impl Shard {
             shapes,
             spawn_rules,
             guards,
+            outside_seams,
             outside,
         }
     }
@@ -388,7 +392,10 @@ impl Shard {
         if k == 0 {
             crate::audit::robustness::seams::check_shard_rows(
                 &file.outside,
-                &outside_routines(&file),
+                &match file.outside_seams {
+                    true => outside_routines(&file),
+                    false => vec![],
+                },
                 &file.guards,
                 &file.shapes[0].precisions,
             )
@@ -539,6 +546,10 @@ fn check_one_audit(tool: &str, shards: &[(String, Shard)]) -> Result<(), Incompa
             ("tolerance table", UserTable::label(&s.tolerances)),
             ("spawn rules", s.spawn_rules.join("; ")),
             ("guards", s.guards.join("; ")),
+            (
+                "seams for outside routines (--seams)",
+                s.outside_seams.to_string(),
+            ),
         ]
     };
     let want = key(first);

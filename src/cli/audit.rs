@@ -68,6 +68,11 @@ pub struct AuditArgs {
     /// precision suffix; `exec`, `exec2`, …).
     #[arg(long, value_name = "NAME")]
     pub guard_name: Vec<String>,
+    /// Run the seams for your routines too: exactly one hit per mesh (a triangle routine) and
+    /// instance transforms (a sphere or triangle routine), judged like the built-ins' (an audit
+    /// of the shape's every class).
+    #[arg(long)]
+    pub seams: bool,
     #[command(flatten)]
     pub outside: OutsideArgs,
     #[command(flatten)]
@@ -272,6 +277,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         bail!("--guard {g}: the box shape's audit runs the built-in guards already");
     }
     plan.guards = guards;
+    plan.outside_seams = a.seams;
     // A shard is judged by its merge: without its file it would end unjudged (exit 0)
     if a.shard.1 > 1 && a.shard_out.is_none() {
         bail!(
@@ -372,6 +378,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
                     })
                     .collect(),
             ],
+            plan.outside_seams,
             outside,
         );
         outputs.write(p, file.to_json().as_bytes())?;

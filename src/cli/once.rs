@@ -83,7 +83,13 @@ pub(super) fn run_once(a: OnceArgs) -> Result<u8> {
         .map(Routine::BuiltIn)
         .chain(outside.iter().map(|(m, _)| Routine::Outside(m.as_ref())))
         .collect();
-    let rows = match once::rows(a.seed, &routines, &precs, a.per_cell) {
+    let rows = match once::rows(a.seed, &routines, &precs, a.per_cell).and_then(|r| {
+        // A child kept for the run ends here, and how it ended is checked
+        for (m, _) in &outside {
+            m.finish()?;
+        }
+        Ok(r)
+    }) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: {}", rayproof::images::one_line(&e));

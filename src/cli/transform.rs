@@ -105,7 +105,13 @@ pub(super) fn run_transform(a: TransformArgs) -> Result<u8> {
     if let Some(p) = &a.json {
         a.outside.check_json(p)?;
     }
-    let rows = match transform::rows(a.seed, &routines, &precs, a.cases) {
+    let rows = match transform::rows(a.seed, &routines, &precs, a.cases).and_then(|r| {
+        // A child kept for the run ends here, and how it ended is checked
+        for (m, _) in &outside {
+            m.finish()?;
+        }
+        Ok(r)
+    }) {
         Ok(r) => r,
         Err(e) => {
             eprintln!("error: {}", rayproof::images::one_line(&e));

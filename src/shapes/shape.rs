@@ -368,6 +368,18 @@ pub fn probe_line_with(shape: &str, prec: Precision, extra: Option<&str>, input:
     )
 }
 
+/// The replay command of a box-guard case (13 values: `o d lo hi t_max`) for the guard `name`,
+/// `extra` the options that bring a guard of yours (`--exec 'CMD' --name N`).
+pub fn guard_line_with(name: &str, prec: Precision, extra: Option<&str>, v: &[f64]) -> String {
+    let vals: Vec<String> = v.iter().map(|x| hex_text(*x)).collect();
+    let args = extra.map(|a| format!(" {a}")).unwrap_or_default();
+    format!(
+        "rayproof guard{args} --replay {name} {} {}",
+        prec.name(),
+        vals.join(" ")
+    )
+}
+
 /// Generates case `index` of a class (public for tests and benches).
 pub fn generate(
     shape: &dyn Shape,

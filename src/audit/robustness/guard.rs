@@ -38,7 +38,7 @@
 use crate::numerics::real::{gamma, Real};
 use crate::numerics::Precision;
 use crate::shapes::oracle::sample;
-use crate::shapes::shape::{case_rng, hex_text, Method, ShapeInfo};
+use crate::shapes::shape::{case_rng, Method, ShapeInfo};
 use crate::shapes::triangle::exact_tri;
 use rand::Rng;
 use serde::{Deserialize, Serialize};
@@ -441,13 +441,7 @@ pub fn default_verdict(r: &GuardRow) -> &'static str {
 
 /// The replay line of a case: `rayproof guard [OUTSIDE ARGS] --replay NAME PREC v×13`.
 pub fn replay_line(outside: Option<&str>, name: &str, prec: Precision, v: &[f64; 13]) -> String {
-    let vals: Vec<String> = v.iter().map(|x| hex_text(*x)).collect();
-    let args = outside.map(|a| format!(" {a}")).unwrap_or_default();
-    format!(
-        "rayproof guard{args} --replay {name} {} {}",
-        prec.name(),
-        vals.join(" ")
-    )
+    crate::shapes::shape::guard_line_with(name, prec, outside, v)
 }
 
 /// A user's guard on one case: entered or culled (its contract checked).

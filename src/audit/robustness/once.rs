@@ -578,7 +578,8 @@ fn builtin<F: crate::numerics::real::Real>(m: usize, ray: &OnceRay, t: &[V; 3]) 
     triangle::method::<F>(m)(f(ray.o), f(ray.d), t.map(f)).map(|h| h.t.to_f64())
 }
 
-/// The rows of `routines` × `precs` × meshes × aims, `n` meshes per kind, size and placement.
+/// The rows of `routines` × `precs` × meshes × aims, `n` meshes per kind, size and placement
+/// (a routine from outside keeps its child: the caller ends the run with `finish`).
 pub fn rows(
     seed: u64,
     routines: &[Routine],
@@ -613,12 +614,6 @@ pub fn rows(
                 row.verdict = default_verdict(row).to_string();
             }
             out.extend(rows);
-        }
-    }
-    // A child kept for the run ends here, and how it ended is checked
-    for r in routines {
-        if let Routine::Outside(m) = r {
-            m.finish()?;
         }
     }
     Ok(out)

@@ -4,9 +4,10 @@
 //!
 //! **Which rows run.** With the box shape audited whole, the four built-in guards; with the
 //! triangle, every built-in triangle routine on the exactly-once meshes and the default triangle
-//! methods under transforms; with the sphere, its default methods under transforms. A routine
-//! of yours (`--exec`, `--plugin` with `--shape triangle` or `sphere`) gets the exactly-once rows
-//! (triangle) and the transform rows; a guard of yours comes in as `--guard exec:CMD` or
+//! methods under transforms; with the sphere, its default methods under transforms. With
+//! `--seams`, a routine of yours (`--exec`, `--plugin`, `--source` with `--shape triangle` or
+//! `sphere`, every class) gets the exactly-once rows (triangle) and the transform rows; a guard
+//! of yours comes in as `--guard exec:CMD` or
 //! `--guard plugin:PATH:SYMBOL`. The sizes are [`super::GUARD_PER_CELL`],
 //! [`super::ONCE_PER_CELL`] and [`super::TRANSFORM_CASES`]; the rows are not sharded (the merge
 //! runs the built-in ones, shard 0 carries yours) and carry no timing (the report depends on the
