@@ -1475,8 +1475,9 @@ fn tolerance_case(m: &Mutation) -> Result<(), TestCaseError> {
     std::fs::create_dir_all(d.join("tmp")).unwrap();
     let input = mutate(rcp_tolerances(), m, Style::Toml, toml_hostile());
     std::fs::write(d.join("t.toml"), &input).unwrap();
-    std::fs::write(d.join("out.json"), b"previous").unwrap();
-    std::fs::write(d.join("out.md"), b"previous").unwrap();
+    // A previous run's report: what --json and --markdown may replace
+    std::fs::write(d.join("out.json"), b"{\"previous\": true}").unwrap();
+    std::fs::write(d.join("out.md"), b"# rayproof audit\n\nprevious\n").unwrap();
     let args = os(&[
         "audit",
         "--shape",
@@ -1600,7 +1601,7 @@ fn score_case(shape: usize, target: usize, m: &Mutation) -> Result<(), TestCaseE
     };
     std::fs::write(d.join("cases.txt"), &cases).unwrap();
     std::fs::write(d.join("answers.txt"), &answers).unwrap();
-    std::fs::write(d.join("out.json"), b"previous").unwrap();
+    std::fs::write(d.join("out.json"), b"{\"previous\": true}").unwrap();
     let args = os(&[
         "score",
         "--cases",
@@ -1659,7 +1660,7 @@ proptest! {
 fn exec_case(kind: usize, at: usize, val: usize) -> Result<(), TestCaseError> {
     let d = fresh("exec");
     std::fs::create_dir_all(d.join("tmp")).unwrap();
-    std::fs::write(d.join("out.json"), b"previous").unwrap();
+    std::fs::write(d.join("out.json"), b"{\"previous\": true}").unwrap();
     let cmd = format!("'{}' sphere {kind} {at} {val}", child().display());
     let mut args = os(&[
         "audit",
