@@ -442,3 +442,46 @@ fn contraction_side_by_side_in_the_audit() {
         stderr(&o)
     );
 }
+
+/// `--seams` in an audit narrowed by `--class` gives a routine of yours no seam rows (those
+/// cases alone are audited), and the merge expects none: its shards merge into the unsharded
+/// report (the reader expected the rows of a whole-class audit: "its exactly-once rows (0) are
+/// not the 12 a run of its routines makes", exit 2).
+#[test]
+fn seams_narrowed_by_class_shard_and_merge() {
+    let dir = crate::common::temp_dir("seams-narrowed");
+    let lib = crate::common::build_library("routines.c", &dir);
+    let spec = format!("{}:triangle_mt_f32", lib.display());
+    let args = |extra: &[&str]| -> Vec<String> {
+        let mut a: Vec<String> = [
+            "audit", "--shape", "triangle", "--class", "generic", "--cases", "40", "--plugin",
+            &spec, "--name", "mine", "--method", "mine", "--seams",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect();
+        a.extend(extra.iter().map(|x| x.to_string()));
+        a
+    };
+    let run = |a: Vec<String>| {
+        let a: Vec<&str> = a.iter().map(|x| x.as_str()).collect();
+        rayproof(&a)
+    };
+    let whole = dir.join("whole.json");
+    let o = run(args(&["--json", s(&whole)]));
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{}", stderr(&o));
+    let w = json(&whole);
+    assert!(rows(&w, "once").is_empty() && rows(&w, "transform").is_empty());
+    let (s0, s1) = (dir.join("s0.json"), dir.join("s1.json"));
+    for (k, p) in [("0/2", &s0), ("1/2", &s1)] {
+        let o = run(args(&["--shard", k, "--shard-out", s(p)]));
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    }
+    let merged = dir.join("merged.json");
+    let o = rayproof(&["merge", s(&s0), s(&s1), "--json", s(&merged)]);
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(&whole).unwrap(),
+        std::fs::read(&merged).unwrap()
+    );
+}

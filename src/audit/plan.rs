@@ -305,9 +305,7 @@ impl Plan {
                 continue;
             }
             let name = p.shape.name();
-            // Asked for (`--seams`), the seams join an audit of the shape's every class (one
-            // narrowed by --class is about those cases alone)
-            if self.outside_seams && p.classes.len() == info.classes.len() {
+            if self.outside_seams && robustness::seams::run_for(&info, p.classes.len()) {
                 let (once, transform) =
                     robustness::seams::outside_seams(self.seed, name, &self.precisions, &outside)
                         .map_err(super::run::MethodFailed)?;

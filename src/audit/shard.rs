@@ -471,13 +471,18 @@ impl Shard {
     }
 }
 
-/// The routines from outside the crate of a shard's shapes, as `(shape, name)`.
+/// The routines from outside the crate that have seam rows in a shard run with `--seams`, as
+/// `(shape, name)` ([`crate::audit::robustness::seams::run_for`]).
 fn outside_routines(file: &Shard) -> Vec<(String, String)> {
     let mut out = vec![];
     for s in &file.shapes {
-        let builtin: Vec<&str> = crate::shapes::shape_by_name(&s.shape)
-            .map(|x| x.info().methods.iter().map(|m| m.name).collect())
-            .unwrap_or_default();
+        let Some(info) = crate::shapes::shape_by_name(&s.shape).map(|x| x.info()) else {
+            continue;
+        };
+        if !crate::audit::robustness::seams::run_for(&info, s.classes.len()) {
+            continue;
+        }
+        let builtin: Vec<&str> = info.methods.iter().map(|m| m.name).collect();
         for m in s
             .methods
             .iter()

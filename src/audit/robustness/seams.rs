@@ -215,6 +215,14 @@ pub fn outside_seams(
     Ok((once, transform))
 }
 
+/// Whether `audit --seams` gives a routine of `shape` seam rows when `classes` of its classes
+/// are audited: a sphere or triangle routine in an audit of its shape's every class (one narrowed
+/// by `--class` is about those cases alone). The plan runs them and a shard's reader expects them
+/// by this one rule.
+pub fn run_for(shape: &crate::shapes::shape::ShapeInfo, classes: usize) -> bool {
+    matches!(shape.name, "sphere" | "triangle") && classes == shape.classes.len()
+}
+
 /// The box-guard rows of the audit's guards (`audit --guard`; none: empty).
 pub fn guard_rows(
     seed: u64,
