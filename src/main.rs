@@ -90,15 +90,14 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => ExitCode::from(code),
         Err(e) => {
-            eprintln!("error: {}", escape_line_breaks(&format!("{e:#}")));
+            // One line of plain text: line breaks (from a name or value read from a file, a
+            // path: tests/fuzz_surfaces.rs) and other control characters (an outside
+            // routine's ESC or NUL) shown escaped
+            eprintln!(
+                "error: {}",
+                rayproof::images::escape_controls(&format!("{e:#}"))
+            );
             ExitCode::from(error_exit_code(&e))
         }
     }
-}
-
-/// An error is one line of plain text: a line break inside it (from a name or value read from a
-/// file, a path) is shown escaped, `\n` or `\r` (found by `tests/fuzz_surfaces.rs`), and so is
-/// any other control character (an outside routine's ESC or NUL).
-fn escape_line_breaks(s: &str) -> String {
-    rayproof::images::escape_controls(s)
 }

@@ -227,7 +227,7 @@ impl Exec {
                         .split(|b| *b == b'\n')
                         .rev()
                         .skip(1)
-                        .filter(|l| !String::from_utf8_lossy(l).trim().is_empty())
+                        .filter(|l| l.iter().any(|b| !b.is_ascii_whitespace()))
                         .count();
                     let done = (answers.len() + partial).min(n - 1);
                     let at = self.replay_line(prec, &inputs[done]);

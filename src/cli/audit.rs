@@ -263,7 +263,8 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     if !outside_named.is_empty() {
         narrow_to(&mut plan, &builtin, &outside_named)?;
     }
-    plan.spawn_rules = spawn_rules_of(&a)?;
+    let (spawn_rules, spawn_inputs) = spawn_rules_of(&a)?;
+    plan.spawn_rules = spawn_rules;
     let (guards, guard_inputs) = guards_of(&a, &plan.precisions)?;
     // The box shape's audit runs the built-in guards: one named again would run twice
     let box_whole = plan.shapes.iter().any(|p| {
@@ -294,6 +295,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         .iter()
         .cloned()
         .chain(a.outside.input_files())
+        .chain(spawn_inputs)
         .chain(guard_inputs)
         .collect();
     let mut outputs = a.out.outputs(&[&a.shard_out], &inputs)?;
@@ -481,10 +483,14 @@ fn guards_of(a: &AuditArgs, precisions: &[Precision]) -> Result<(Vec<guard::Owne
 }
 
 /// The spawn rules `--spawn-rule` names: built-ins, then `plugin:` and `exec:` rules (named by
-/// `--spawn-name`), each batch under the audit's `--timeout`.
+/// `--spawn-name`), each batch under the audit's `--timeout`; and their files, inputs of the run.
+#[allow(clippy::type_complexity)]
 fn spawn_rules_of(
     a: &AuditArgs,
-) -> Result<Vec<Box<dyn rayproof::audit::robustness::spawn::SpawnRule>>> {
+) -> Result<(
+    Vec<Box<dyn rayproof::audit::robustness::spawn::SpawnRule>>,
+    Vec<PathBuf>,
+)> {
     let (builtin, theirs) = specs_of(
         &a.spawn_rule,
         &a.spawn_name,
@@ -496,7 +502,8 @@ fn spawn_rules_of(
     } else {
         a.precision.clone()
     };
-    super::spawn::spawn_rules(&builtin, &theirs, &precisions, "--spawn-name")
+    let rules = super::spawn::spawn_rules(&builtin, &theirs, &precisions, "--spawn-name")?;
+    Ok((rules, theirs.input_files()))
 }
 
 /// Prints the reintersection and watertightness tests' summary (with `--verbose`, tables).

@@ -337,33 +337,43 @@ pub fn judge(mut r: Robustness, built_in: (usize, usize), rules: &[RobustRule]) 
         .into();
     }
     spawn::judge_rows(&mut r.spawn, &|x| spawn_goal(x, rules));
-    // The seams: the first rule naming the row, else the test's default (a bad t fails any)
-    for x in r.guard.iter_mut() {
-        x.verdict = match rule(&x.guard, Test::Guard, &x.precision) {
-            Some(u) if x.cases > 0 => u.verdict(Test::Guard, x.lost),
-            Some(_) => "fail",
-            None => guard::default_verdict(x),
+    // The seams: the first rule naming the row bounds its failures, else the test's default; a
+    // row with a bad t, or with no case, fails under any rule
+    let seam = |u: Option<&RobustRule>, t: Test, broken: bool, failures: u64, default: &str| {
+        match u {
+            Some(_) if broken => "fail",
+            Some(u) => u.verdict(t, failures),
+            None => default,
         }
-        .into();
+        .to_string()
+    };
+    for x in r.guard.iter_mut() {
+        let u = rule(&x.guard, Test::Guard, &x.precision);
+        x.verdict = seam(
+            u,
+            Test::Guard,
+            x.cases == 0,
+            x.lost,
+            guard::default_verdict(x),
+        );
     }
     for x in r.once.iter_mut() {
-        x.verdict = match rule(&x.routine, Test::Once, &x.precision) {
-            Some(_) if x.bad > 0 || x.rays == 0 => "fail",
-            Some(u) => u.verdict(Test::Once, once::failures(x)),
-            None => once::default_verdict(x),
-        }
-        .into();
+        let u = rule(&x.routine, Test::Once, &x.precision);
+        let broken = x.bad > 0 || x.rays == 0;
+        x.verdict = seam(
+            u,
+            Test::Once,
+            broken,
+            once::failures(x),
+            once::default_verdict(x),
+        );
     }
     for x in r.transform.iter_mut() {
-        let named = rules.iter().find(|u| {
+        let u = rules.iter().find(|u| {
             u.applies(&x.routine, Test::Transform, &x.precision) && u.names_mode(&x.mode)
         });
-        x.verdict = match named {
-            Some(_) if x.bad_t > 0 || x.cases == 0 => "fail",
-            Some(u) => u.verdict(Test::Transform, transform::failures(x)),
-            None => transform::default_verdict(x),
-        }
-        .into();
+        let (broken, n) = (x.bad_t > 0 || x.cases == 0, transform::failures(x));
+        x.verdict = seam(u, Test::Transform, broken, n, transform::default_verdict(x));
     }
     r
 }
