@@ -471,11 +471,35 @@ fn check_dir_target(path: &Path) -> Result<()> {
 /// `path` absolute and without `.` or `..`: its longest existing ancestor canonicalised (links
 /// resolved), the rest joined to it word by word (so `g/../g/x` and `g/x` are one path even
 /// before `x` exists).
+///
+/// Each path's resolution is remembered for the rest of the process, whether it resolved or
+/// not (a suite of 10,000 tests names the same few directories and 10,000 goldens not yet
+/// written about 50,000 times: each `realpath` costs a `readlink` per component, and
+/// validating it took over a second on a 2-core machine, issue 46 item 6). rayproof never
+/// changes its working directory and never makes a link, so a path it later creates resolves
+/// as its parent and name did: the remembered answer stays the answer.
 pub fn canonical(path: &Path) -> PathBuf {
+    use std::collections::HashMap;
     use std::path::Component;
-    let abs = std::env::current_dir().unwrap_or_default().join(path);
+    use std::sync::{Mutex, OnceLock};
+    static CWD: OnceLock<PathBuf> = OnceLock::new();
+    type Memo = Mutex<HashMap<PathBuf, Option<PathBuf>>>;
+    static RESOLVED: OnceLock<Memo> = OnceLock::new();
+    let cwd = CWD.get_or_init(|| std::env::current_dir().unwrap_or_default());
+    let resolve = |base: &Path| -> Option<PathBuf> {
+        let memo = RESOLVED.get_or_init(Default::default);
+        if let Some(p) = memo.lock().ok().and_then(|m| m.get(base).cloned()) {
+            return p;
+        }
+        let p = std::fs::canonicalize(base).ok();
+        if let Ok(mut m) = memo.lock() {
+            m.insert(base.to_path_buf(), p.clone());
+        }
+        p
+    };
+    let abs = cwd.join(path);
     for base in abs.ancestors() {
-        if let Ok(mut out) = std::fs::canonicalize(base) {
+        if let Some(mut out) = resolve(base) {
             for c in abs.strip_prefix(base).unwrap_or(Path::new("")).components() {
                 match c {
                     Component::ParentDir => {

@@ -115,7 +115,19 @@ fn embree_triangles_are_watertight_in_robust_mode_and_fail_huge_and_tiny_by_rang
         symbol("tri_robust_f32"),
         symbol("tri_prescaled_f32"),
     );
-    let rules = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/embree/tolerances.toml");
+    // The example file, and a rule that reports Embree's default mode (audited beside robust
+    // mode here, not in the example's command)
+    let example = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("examples/embree/tolerances.toml");
+    let rules = std::env::temp_dir().join(format!(
+        "rayproof-embree-{}-tolerances.toml",
+        std::process::id()
+    ));
+    std::fs::write(
+        &rules,
+        std::fs::read_to_string(&example).unwrap()
+            + "\n[[rule]]\nshape = \"triangle\"\nmethod = \"tri\"\nwhy = \"reported: the default mode is not watertight by design; its watertightness rows judge it\"\n",
+    )
+    .unwrap();
     let (code, table, v) = audit(
         "embree-tri",
         &[

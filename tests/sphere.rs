@@ -194,7 +194,7 @@ fn teeth_seed_methods_fail_near_tangents_in_both_precisions() {
 fn teeth_the_table_raises_an_alarm_when_a_known_failure_passes() {
     let mut r: Row = row("algebraic", Precision::F32, Class::FarSmall).clone();
     (r.false_hit, r.false_miss, r.wrong_root, r.nonfinite_t) = (0, 0, 0, 0);
-    let v = Table::built_in().verdict("sphere", &r, |_| 0);
+    let v = Table::built_in().verdict("sphere", &r, false, |_| 0);
     assert_eq!(v.status, Status::Fail);
     assert!(
         v.reasons.iter().any(|b| b.contains("harness broken")),

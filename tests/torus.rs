@@ -208,7 +208,7 @@ fn teeth_the_table_raises_an_alarm_when_a_known_failure_passes() {
     let mut r = row(torus_report(), "ferrari", Precision::F32, "far").clone();
     (r.false_hit, r.false_miss, r.wrong_root, r.nonfinite_t) = (0, 0, 0, 0);
     r.ulps.max = 0.0;
-    let v = table.verdict("torus", &r, |_| 0);
+    let v = table.verdict("torus", &r, false, |_| 0);
     assert!(
         v.reasons.iter().any(|b| b.contains("known failure lost")),
         "{v:?}"
@@ -216,7 +216,7 @@ fn teeth_the_table_raises_an_alarm_when_a_known_failure_passes() {
     // And a robust row with one wrong verdict breaks the table
     let mut r = row(torus_report(), "robust", Precision::F64, "far").clone();
     r.false_miss = 1;
-    let v = table.verdict("torus", &r, |_| 0);
+    let v = table.verdict("torus", &r, false, |_| 0);
     assert_eq!(v.status, rayproof::audit::tolerance::Status::Fail, "{v:?}");
 }
 

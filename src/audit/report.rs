@@ -4,7 +4,7 @@
 
 use super::row::{Row, RowKey, Status};
 use super::run::Tallies;
-use super::tolerance::Table;
+use super::tolerance::{Table, DEFAULT_GOAL};
 use crate::audit::robustness::Robustness;
 use serde::Serialize;
 
@@ -60,7 +60,9 @@ impl Tallies {
                     has_residual: info.reports_residual,
                 };
                 let mut row = t.row(&key);
-                row.verdict = table.map(|tb| tb.verdict(info.name, &row, |u| t.ulps.above(u)));
+                let yours = !info.methods.iter().any(|b| b.name == m.name);
+                row.verdict =
+                    table.map(|tb| tb.verdict(info.name, &row, yours, |u| t.ulps.above(u)));
                 rows.push(row);
             }
         }
@@ -182,8 +184,12 @@ impl ShapeReport {
             .filter(|r| r.verdict.as_ref().is_some_and(|v| v.status == Status::Fail))
             .map(|r| {
                 let v = r.verdict.as_ref().expect("filtered");
+                let goal = match v.rule.as_deref() {
+                    Some(DEFAULT_GOAL) => format!(" ({DEFAULT_GOAL}: see `rayproof audit --help`)"),
+                    _ => String::new(),
+                };
                 format!(
-                    "{} {} {} {}: {}",
+                    "{} {} {} {}: {}{goal}",
                     self.shape,
                     r.method,
                     r.precision.name(),

@@ -435,12 +435,28 @@ impl Shard {
                 .iter()
                 .map(|g| (g.precision, g.class.as_str()))
                 .collect();
-            if got != expected {
+            if got.len() != expected.len() {
                 return corrupt(format!(
                     "{}: {} precision × class groups where the selection has {}",
                     s.shape,
                     got.len(),
                     expected.len()
+                ));
+            }
+            if let Some((i, (g, e))) = got
+                .iter()
+                .zip(&expected)
+                .enumerate()
+                .find(|(_, (g, e))| g != e)
+            {
+                return corrupt(format!(
+                    "{}: precision × class group {} is {} {} where the selection's order has {} {}",
+                    s.shape,
+                    i + 1,
+                    g.0.name(),
+                    g.1,
+                    e.0.name(),
+                    e.1
                 ));
             }
             let per_group = super::run::shard_len(s.cases_per_class, (k, n));

@@ -165,6 +165,8 @@ pub struct Rule {
     pub max_err_over_cond: Option<f64>,
     /// Invalid inputs must be rejected (no hit, no NaN value).
     pub reject_invalid: bool,
+    /// A hit on valid input must have a finite value (routines of yours: see [`completed`]).
+    pub finite_hits: bool,
     /// Where the rule's numbers came from.
     pub why: String,
 }
@@ -215,6 +217,113 @@ pub struct Table {
     pub measured: BTreeMap<(String, String, Precision, String), (u64, u64)>,
     /// The `[[robustness]]` rules, in the order they are tried (the user's file first).
     pub robustness: Vec<RobustRule>,
+    /// The goal of a routine of yours that no rule names, one per shape and precision
+    /// ([`default_goals`]): tried after every rule, for outside routines only.
+    pub yours: Vec<Rule>,
+}
+
+/// The `rule` of a verdict given by [`Table::yours`].
+pub const DEFAULT_GOAL: &str = "default goal of a routine no rule names";
+
+/// What a routine of yours is held to when no rule names it, per shape and precision: no wrong
+/// verdict on a well-posed case, no NaN or infinite hit, invalid input rejected (absolute: they
+/// need no analysis of your code), and its values within the loosest bound the reviewed table
+/// proves for a built-in method of the shape *offered as robust* in that precision:
+/// `max_err_over_cond` where the shape's oracle gives the case's sensitivity and a robust
+/// method's rule bounds it, `max_ulps` otherwise. Each of those bounds is an error analysis
+/// written beside its rule, so the default is one too: your routine is held to no less than
+/// the least accurate robust built-in (approximations such as the reciprocal bit tricks, not
+/// offered as robust, do not set it). A shape whose robust methods have no such bound holds
+/// your routine's verdicts only (the `why` says so). Derived from the built-in table alone: a
+/// user's rule for a built-in method cannot loosen it.
+fn default_goals(built_in: &[Rule], known: &Known) -> Vec<Rule> {
+    let mut out = vec![];
+    for (shape, _, _) in &known.shapes {
+        let cond = known.with_cond.contains(shape);
+        let robust: Vec<&str> = crate::shapes::shape_by_name(shape)
+            .map(|s| {
+                s.info()
+                    .methods
+                    .iter()
+                    .filter(|m| m.robust)
+                    .map(|m| m.name)
+                    .collect()
+            })
+            .unwrap_or_default();
+        for p in Precision::ALL {
+            let applies: Vec<&Rule> = built_in
+                .iter()
+                .filter(|r| {
+                    r.shape == *shape
+                        && r.precisions.as_ref().is_none_or(|ps| ps.contains(&p))
+                        && r.methods.iter().any(|m| robust.contains(&m.as_str()))
+                })
+                .collect();
+            let loosest = |bound: &dyn Fn(&Rule) -> Option<f64>| {
+                applies
+                    .iter()
+                    .filter_map(|r| bound(r).map(|b| (b, *r)))
+                    .max_by(|a, b| a.0.total_cmp(&b.0))
+            };
+            let by_cond = loosest(&|r: &Rule| r.max_err_over_cond).filter(|_| cond);
+            let by_ulps = loosest(&|r: &Rule| r.max_ulps.map(|u| u as f64));
+            let (bound, what) = match (by_cond, by_ulps) {
+                (Some(b), _) => (Some(b), "× the case's sensitivity"),
+                (None, b) => (b, "ulps"),
+            };
+            let values = match bound {
+                Some((b, r)) => format!(
+                    "values within {b} {what}, the loosest bound the reviewed table proves for a robust built-in {shape} method in {} ({}: {})",
+                    p.name(),
+                    r.origin,
+                    r.methods.join(", ")
+                ),
+                None => format!(
+                    "values not bounded (the reviewed table proves no bound for a robust {shape} method in {})",
+                    p.name()
+                ),
+            };
+            out.push(Rule {
+                origin: DEFAULT_GOAL.into(),
+                shape: shape.to_string(),
+                methods: vec![],
+                precisions: Some(vec![p]),
+                classes: None,
+                wrong: Some(Wrong::None),
+                max_false_hits: None,
+                max_false_misses: None,
+                max_ulps: bound.filter(|_| by_cond.is_none()).map(|(b, _)| b as u64),
+                max_err_over_cond: by_cond.map(|(b, _)| b),
+                reject_invalid: true,
+                finite_hits: true,
+                why: format!(
+                    "no rule names it: no wrong verdict on a well-posed case, no NaN or infinite hit, invalid input rejected, {values}; a --tolerances rule naming the routine replaces what it gives (one with only `why` reports it only)"
+                ),
+            });
+        }
+    }
+    out
+}
+
+/// A rule that names a routine of yours, completed by the default goal: what the rule leaves
+/// out is still judged. Its verdict checks (`wrong`, `known_failure`, `max_false_hits`,
+/// `max_false_misses`) replace the goal's `wrong = "none"`; its value bounds (`max_ulps`,
+/// `max_err_over_cond`) replace the goal's bound; invalid input is rejected and a hit is finite
+/// in every case. A rule with only `why` checks nothing and reports the routine only.
+fn completed(rule: &Rule, goal: &Rule) -> Rule {
+    let mut r = rule.clone();
+    if rule.checks_nothing() {
+        return r;
+    }
+    if rule.wrong.is_none() && rule.max_false_hits.is_none() && rule.max_false_misses.is_none() {
+        r.wrong = goal.wrong;
+    }
+    if rule.max_ulps.is_none() && rule.max_err_over_cond.is_none() {
+        (r.max_ulps, r.max_err_over_cond) = (goal.max_ulps, goal.max_err_over_cond);
+    }
+    r.reject_invalid = true;
+    r.finite_hits = true;
+    r
 }
 
 /// A row's measurement key.
@@ -330,6 +439,7 @@ fn parse_table(
                 max_ulps: r.max_ulps,
                 max_err_over_cond: r.max_err_over_cond,
                 reject_invalid,
+                finite_hits: false,
                 why: r.why,
             })
         })
@@ -342,8 +452,9 @@ impl Table {
     /// against `known`. Errors are one line.
     pub fn load(user: Option<(&str, &str)>, known: &Known) -> Result<Table, String> {
         // The built-in table must hold together on its own
-        let built_in = Table::parse(BUILT_IN, "built-in tolerances.toml", known)?;
+        let mut built_in = Table::parse(BUILT_IN, "built-in tolerances.toml", known)?;
         built_in.check_complete(known)?;
+        built_in.yours = default_goals(&built_in.rules, known);
         let Some((file, text)) = user else {
             return Ok(built_in);
         };
@@ -352,6 +463,7 @@ impl Table {
         table.check_complete(known)?;
         table.rules.extend(built_in.rules);
         table.robustness.extend(built_in.robustness);
+        table.yours = built_in.yours;
         for (k, v) in built_in.measured {
             table.measured.entry(k).or_insert(v);
         }
@@ -439,6 +551,7 @@ impl Table {
                     &known.guards,
                 ),
             )?,
+            yours: vec![],
         })
     }
 
@@ -554,9 +667,40 @@ impl Table {
             || j.ulps().zip(r.max_ulps).is_some_and(|(u, m)| u > m)
     }
 
-    /// The verdict of a row.
-    pub fn verdict(&self, shape: &str, row: &Row, ulps_above: impl Fn(u64) -> u64) -> Verdict {
-        let rule = self.rule(shape, &row.method, row.precision, &row.class);
+    /// The rule that applies to a row of a routine of yours: the first that names it, else the
+    /// default goal of its shape and precision.
+    pub fn rule_of_yours(
+        &self,
+        shape: &str,
+        method: &str,
+        prec: Precision,
+        class: &str,
+    ) -> Option<Rule> {
+        let goal = self.yours.iter().find(|r| {
+            r.shape == shape && r.precisions.as_ref().is_some_and(|p| p.contains(&prec))
+        })?;
+        Some(match self.rule(shape, method, prec, class) {
+            Some(r) => completed(r, goal),
+            None => goal.clone(),
+        })
+    }
+
+    /// The verdict of a row; `yours`: the row's method is an outside routine, held to its
+    /// shape's default goal when no rule names it.
+    pub fn verdict(
+        &self,
+        shape: &str,
+        row: &Row,
+        yours: bool,
+        ulps_above: impl Fn(u64) -> u64,
+    ) -> Verdict {
+        let completed;
+        let rule = if yours {
+            completed = self.rule_of_yours(shape, &row.method, row.precision, &row.class);
+            completed.as_ref()
+        } else {
+            self.rule(shape, &row.method, row.precision, &row.class)
+        };
         let key = (
             shape.to_string(),
             row.method.clone(),
@@ -674,6 +818,12 @@ fn bounds(rule: &Rule, row: &Row) -> Vec<String> {
                 s.max
             ));
         }
+    }
+    if rule.finite_hits && rule.wrong != Some(Wrong::None) && row.nonfinite_t > 0 {
+        fail.push(format!(
+            "{} hit(s) with a NaN or infinite value on valid input",
+            row.nonfinite_t
+        ));
     }
     if rule.reject_invalid && row.invalid.nonfinite_t + row.invalid.hit > 0 {
         fail.push(format!(

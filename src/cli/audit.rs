@@ -110,7 +110,7 @@ pub(super) fn add_outside(plan: &mut Plan, o: &OutsideArgs, precisions_given: bo
     for (m, _) in outside {
         if p.methods.iter().any(|x| x.name() == m.name()) {
             bail!(
-                "--name {}: a built-in method of {} has that name",
+                "routine name {}: a built-in method of {} has that name (a routine is named by --name, else by its symbol or command: give --name)",
                 m.name(),
                 p.shape.name()
             );
@@ -160,6 +160,10 @@ fn narrow_to(plan: &mut Plan, builtin: &[String], outside: &[String]) -> Result<
 #[derive(Args, Debug)]
 pub struct AuditOutput {
     /// Tolerance rules tried before the built-in table (TOML in the built-in table's format).
+    /// A routine of yours that no rule names is held to its shape's default goal: no wrong
+    /// verdict on a well-posed case, no NaN hit, invalid input rejected, values within the
+    /// loosest bound the built-in table proves for a robust built-in method of the shape. A rule
+    /// naming it replaces only the checks it gives; one with only `why` reports it unjudged.
     #[arg(long, value_name = "FILE")]
     pub tolerances: Option<PathBuf>,
     /// Write the full report as JSON (for `merge`: byte-identical to the unsharded audit's).
@@ -395,7 +399,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
     }
     let report = plan.run(&table, progress_bar, &mut each)?;
     progress.iter().for_each(|l| eprintln!("{l}"));
-    finish(report, judge, outputs, &a.out)
+    finish(report, judge.then_some(&table), outputs, &a.out)
 }
 
 /// A spawn rule's or a guard's name in a shard file: with how it was given, for one from outside
@@ -547,7 +551,7 @@ pub(super) fn run_merge(m: MergeArgs) -> Result<u8> {
             t.methods.len()
         );
     });
-    finish(report, true, outputs, &m.out)
+    finish(report, Some(&table), outputs, &m.out)
 }
 
 impl AuditOutput {
@@ -596,7 +600,7 @@ fn write_files(outputs: &mut Outputs, report: &Report, out: &AuditOutput) -> Res
 /// returns the exit code (the same for `audit`, `merge` and `score`).
 pub(super) fn finish(
     report: Report,
-    judged: bool,
+    table: Option<&Table>,
     mut outputs: Outputs,
     out: &AuditOutput,
 ) -> Result<u8> {
@@ -605,10 +609,27 @@ pub(super) fn finish(
     }
     write_files(&mut outputs, &report, out)?;
     outputs.commit()?;
-    if !judged {
+    let Some(table) = table else {
         return Ok(0);
-    }
+    };
     let o = report.outcome();
+    // A rule of the user's file that judged no row of this run (a precision or class the run
+    // did not audit) is said, so that its silence is not read as its pass
+    for r in table
+        .rules
+        .iter()
+        .filter(|r| !r.origin.starts_with("built-in"))
+    {
+        if !report
+            .rows()
+            .any(|(_, x)| x.verdict.as_ref().and_then(|v| v.rule.as_ref()) == Some(&r.origin))
+        {
+            say!(
+                "note: {} judged no row of this run (its shape, method, precision and class: none audited here)",
+                r.origin
+            );
+        }
+    }
     say!(
         "\ntolerance table: {} rows — {} within their rule, {} known failures shown, {} reported only, {} too few cases to tell, {} out of tolerance",
         o.rows,

@@ -144,12 +144,20 @@ pub fn parse(args: Vec<std::ffi::OsString>) -> Result<Cli, clap::Error> {
         .iter()
         .map(|s| format!("  {:<16} {}", s.name(), s.info().about))
         .collect();
-    let cmd = Cli::command().mut_subcommand("probe", |c| {
+    let mut cmd = Cli::command().mut_subcommand("probe", |c| {
         c.after_help(format!(
             "Shapes (probe NAME --help for their values):\n{}",
             list.join("\n")
         ))
     });
+    // The judged commands say their exit codes where a CI author looks (all: src/lib.rs)
+    for name in ["audit", "merge", "score"] {
+        cmd = cmd.mut_subcommand(name, |c| {
+            c.after_help(
+                "Exit codes: 0 no row out of tolerance and no goal missed; 1 one is; 2 bad usage or input (one line on stderr); 3 merge: the shards are not one audit's, or --tolerances is not the table they ran with; 4 a routine of yours failed (crashed, hung past --timeout, answered a line that is not an answer); 71 out of memory; 130 interrupted (no output replaced). Every command's codes: the crate documentation, src/lib.rs.",
+            )
+        });
+    }
     Cli::from_arg_matches(&cmd.try_get_matches_from(args)?)
 }
 

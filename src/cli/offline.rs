@@ -128,7 +128,7 @@ pub(super) fn run_score(a: ScoreArgs) -> Result<u8> {
             shapes: vec![report],
             robustness: None,
         },
-        true,
+        Some(&table),
         outputs,
         &a.out,
     )

@@ -262,7 +262,7 @@ impl OutsideArgs {
         for (i, (m, _)) in out.iter().enumerate() {
             if out[..i].iter().any(|(x, _)| x.name() == m.name()) {
                 bail!(
-                    "two outside routines are named {}: give --name for each",
+                    "two outside routines are named {}: give each its own name (--name, or --guard-name for a guard, --spawn-name for a spawn rule)",
                     m.name()
                 );
             }

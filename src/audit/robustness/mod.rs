@@ -469,16 +469,23 @@ pub fn check(r: &Robustness) -> Vec<String> {
         .collect();
     let mut out = vec![];
     for row in r.reintersection.iter().filter(|x| x.verdict == "fail") {
-        out.push(format!(
-            "reintersection {} {} {}: {} re-hits of {} spawned rays (goal 0, besides {} neighbour \
-             crossings)",
-            row.shape,
-            row.method,
-            row.precision,
-            row.rehits - row.neighbour,
-            row.rays,
-            row.neighbour
-        ));
+        out.push(if row.rays == 0 {
+            format!(
+                "reintersection {} {} {}: no ray spawned (the routine reported no hit to spawn from, so the test has nothing to judge)",
+                row.shape, row.method, row.precision
+            )
+        } else {
+            format!(
+                "reintersection {} {} {}: {} re-hits of {} spawned rays (goal 0, besides {} neighbour \
+                 crossings)",
+                row.shape,
+                row.method,
+                row.precision,
+                row.rehits - row.neighbour,
+                row.rays,
+                row.neighbour
+            )
+        });
     }
     // Teeth: without the rule (or with it 1000× too weak) some method of each shape must re-hit
     let shapes = surfaces(&r.reintersection);

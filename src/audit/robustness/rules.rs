@@ -312,7 +312,7 @@ fn parse_each(
                         ),
                     };
                     return bad(format!(
-                        "no {what} '{m}' in this audit ({hint}; this audit's: {})",
+                        "no {what} '{m}' in this audit ({hint}; known: {})",
                         if list.is_empty() {
                             "none".into()
                         } else {
