@@ -34,7 +34,7 @@ pub(super) fn run_report(r: ReportArgs) -> Result<u8> {
     let sphere = rayproof::shapes::shape_by_name("sphere").expect("registered");
     let mut routines = r.outside.methods(sphere.info())?;
     if routines.len() > 1 {
-        anyhow::bail!("report puts one outside ray–sphere routine beside the built-in methods: give one --plugin routine or one --exec");
+        anyhow::bail!("report puts one outside ray–sphere routine beside the built-in methods: give one --plugin routine, one --exec, or one --source with one --build");
     }
     let (outside, outside_precisions) = match routines.pop() {
         Some((m, has)) => (
