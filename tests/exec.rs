@@ -203,7 +203,12 @@ fn a_failing_child_stops_the_audit_with_one_line_and_exit_4() {
         "--cases", "5",
     ]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--name rtg7"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("routine name rtg7: a built-in method of sphere")
+            && err.contains("give --name"),
+        "{err}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

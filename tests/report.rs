@@ -252,18 +252,36 @@ fn an_outside_routine_joins_the_accuracy_vs_cost_section() {
 /// puts one routine beside them).
 #[test]
 fn a_source_build_joins_the_report() {
-    if std::process::Command::new("gcc").arg("--version").output().is_err() {
+    if std::process::Command::new("gcc")
+        .arg("--version")
+        .output()
+        .is_err()
+    {
         panic!("gcc is needed (.ci/run installs it)");
     }
-    let src = format!("{}/tests/outside/routines.c:sphere_textbook_f32", env!("CARGO_MANIFEST_DIR"));
+    let src = format!(
+        "{}/tests/outside/routines.c:sphere_textbook_f32",
+        env!("CARGO_MANIFEST_DIR")
+    );
     let out = tmp("report-source");
     let o = rayproof(&[
-        "report", "--quick", "--cases", "200", "--source", &src, "--build", "gcc-fma", "--out",
+        "report",
+        "--quick",
+        "--cases",
+        "200",
+        "--source",
+        &src,
+        "--build",
+        "gcc-fma",
+        "--out",
         out.to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(0), "{err}");
-    assert!(err.contains("gcc -O2 -ffp-contract=fast"), "the build line: {err}");
+    assert!(
+        err.contains("gcc -O2 -ffp-contract=fast"),
+        "the build line: {err}"
+    );
     let json: Value =
         serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
     let rows: Vec<&Value> = json["cost"]
@@ -277,10 +295,25 @@ fn a_source_build_joins_the_report() {
         assert!(r["ns"]["median_ns"].as_f64().unwrap() > 0.0, "{r}");
     }
     let o = rayproof(&[
-        "report", "--quick", "--cases", "200", "--source", &src, "--build", "gcc-off,gcc-fma",
-        "--out", tmp("report-source-2").to_str().unwrap(),
+        "report",
+        "--quick",
+        "--cases",
+        "200",
+        "--source",
+        &src,
+        "--build",
+        "gcc-off,gcc-fma",
+        "--out",
+        tmp("report-source-2").to_str().unwrap(),
     ]);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(err.trim_end().lines().last().unwrap().contains("one --source with one --build"), "{err}");
+    assert!(
+        err.trim_end()
+            .lines()
+            .last()
+            .unwrap()
+            .contains("one --source with one --build"),
+        "{err}"
+    );
 }

@@ -3292,6 +3292,11 @@ const ROWS: &[Row] = &[
         "a_rule_with_one_check_keeps_the_goal",
         a_rule_with_one_check_keeps_the_goal,
     ),
+    ("your_nan_on_ill_posed_cases", your_nan_on_ill_posed_cases),
+    (
+        "far_root_under_hit_and_miss_bounds",
+        far_root_under_hit_and_miss_bounds,
+    ),
 ];
 
 #[test]
@@ -3909,4 +3914,89 @@ fn a_rule_with_one_check_keeps_the_goal(d: &Path) -> Result<(), String> {
         "box mine f32 invalid:",
         "invalid input(s) answered with a hit",
     )
+}
+
+/// A routine of yours that answers the oracle's own answer (through `rayproof probe --json`),
+/// changed by `change` (Python, on `o`: the oracle's JSON, `w`: the case's words).
+fn oracle_routine(d: &Path, name: &str, shape: &str, change: &str) {
+    std::fs::write(
+        d.join(name),
+        format!(
+            "import sys, json, subprocess\nfrom fractions import Fraction as F\nfor line in sys.stdin:\n    w = line.split()\n    o = json.loads(subprocess.run([{:?}, 'probe', '{shape}', '--precision', w[0], '--json', '--'] + w[1:], capture_output=True, text=True).stdout)['oracle']\n    vals = o['values'] or []\n{change}\n    print(' '.join([str(o['count'])] + vals), flush=True)\n",
+            env!("CARGO_BIN_EXE_rayproof")
+        ),
+    )
+    .unwrap();
+}
+
+/// Issue 49, helper-20 finding 1: NaN values on ill-posed hits were excused as disagreements:
+/// a quadratic routine exact but for `2 nan nan` on every ill-posed case passed the default
+/// goal (audit and score), and under a rule naming it. A routine of yours has finite hits on
+/// every valid case.
+fn your_nan_on_ill_posed_cases(d: &Path) -> Result<(), String> {
+    oracle_routine(
+        d,
+        "illnan.py",
+        "quadratic",
+        "    if o['ill_posed'] and o['count']: vals = ['nan'] * len(vals)",
+    );
+    let r = run(
+        d,
+        &[
+            "audit",
+            "--shape",
+            "quadratic",
+            "--precision",
+            "f64",
+            "--cases",
+            "40",
+            "--class",
+            "clustered",
+            "--exec",
+            "python3 illnan.py",
+            "--name",
+            "mine",
+        ],
+        120,
+    );
+    fails_its_goal(&r, "quadratic mine f64 clustered:", "on ill-posed cases)")
+}
+
+/// Issue 49, helper-20 finding 2: a rule bounding false hits and false misses (`= 0` each) of a
+/// sphere routine answering the far root judged nothing else: 142 wrong roots passed. Each kind
+/// of wrong verdict such a rule does not bound stays forbidden.
+fn far_root_under_hit_and_miss_bounds(d: &Path) -> Result<(), String> {
+    oracle_routine(
+        d,
+        "far.py",
+        "sphere",
+        "    if o['count'] == 1 and not any(s in ('nan', 'inf', '-inf') for s in w[1:]):\n        x = [F(float.fromhex(s)) for s in w[1:]]\n        dd = x[3:6]; f = [x[i] - x[6 + i] for i in range(3)]\n        t = F(float.fromhex(vals[0]))\n        tf = -2 * sum(dd[i] * f[i] for i in range(3)) / sum(di * di for di in dd) - t\n        vals = [(float(tf) if tf > t else float(t)).hex()]",
+    );
+    std::fs::write(
+        d.join("far.toml"),
+        "[[rule]]\nshape = \"sphere\"\nmethod = \"far\"\nmax_false_hits = 0\nmax_false_misses = 0\nwhy = \"no false hit and no false miss allowed\"\n",
+    )
+    .unwrap();
+    let r = run(
+        d,
+        &[
+            "audit",
+            "--shape",
+            "sphere",
+            "--precision",
+            "f64",
+            "--cases",
+            "40",
+            "--class",
+            "random",
+            "--exec",
+            "python3 far.py",
+            "--name",
+            "far",
+            "--tolerances",
+            "far.toml",
+        ],
+        120,
+    );
+    fails_its_goal(&r, "sphere far f64 random:", "wrong root(s)")
 }

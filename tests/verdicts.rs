@@ -506,6 +506,37 @@ fn a_routine_no_rule_names_is_held_to_the_default_goal() {
     };
     assert!(failing("far") >= 4, "{:#?}", r.failures());
     assert_eq!(failing("mine"), 0);
+    // Bounding false hits and misses, and values loosely, leaves wrong roots forbidden
+    // (helper-20's finding 2: the far root passed such a rule)
+    let r = audit(Some(
+        "[[rule]]\nshape = \"sphere\"\nmethod = \"far\"\nmax_false_hits = 0\nmax_false_misses = 0\nmax_err_over_cond = 1e300\nwhy = \"hits and misses are what I watch\"\n",
+    ));
+    let f = r.failures();
+    assert!(
+        f.iter()
+            .any(|l| l.starts_with("sphere far ") && l.contains("wrong root(s)")),
+        "{f:#?}"
+    );
+    // NaN hits on ill-posed cases fail a routine of yours (helper-20's finding 1: they were
+    // excused as disagreements), and only yours
+    let mut row = r
+        .rows
+        .iter()
+        .find(|x| x.method == "mine" && x.class == "tangent")
+        .unwrap()
+        .clone();
+    let t = Table::built_in();
+    row.ill_posed_nonfinite = 3;
+    let v = t.verdict("sphere", &row, true, |_| 0);
+    assert_eq!(v.status, Status::Fail, "{v:?}");
+    assert!(
+        v.reasons
+            .iter()
+            .any(|x| x.contains("(3 on ill-posed cases)")),
+        "{v:?}"
+    );
+    row.method = "certified".into();
+    assert_ne!(t.verdict("sphere", &row, false, |_| 0).status, Status::Fail);
 }
 
 /// The default goal is what the reviewed table proves for the shape's built-in methods, never

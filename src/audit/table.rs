@@ -48,6 +48,9 @@ fn wrong(r: &Row) -> String {
     if range > 0 {
         s += &format!(" +{range} t≤0");
     }
+    if r.ill_posed_nonfinite > 0 {
+        s += &format!(" +{} nf ill-posed", r.ill_posed_nonfinite);
+    }
     if r.malformed > 0 {
         s += &format!(" +{} malformed", r.malformed);
     }

@@ -134,6 +134,10 @@ pub struct Counts {
     /// one-ulp move makes `t ≤ 0` right).
     #[serde(default)]
     pub ill_posed_out_of_range: u64,
+    /// Ill-posed cases answered with a hit whose value is NaN or infinite (a routine of yours
+    /// is held to finite hits on every case: [`super::tolerance`]).
+    #[serde(default)]
+    pub ill_posed_nonfinite: u64,
     /// Cases of any kind (valid or invalid, well- or ill-posed) answered outside the answer
     /// contract ([`super::contract`]): a row with one fails whatever its rule.
     #[serde(default)]
@@ -161,6 +165,7 @@ impl Counts {
         self.nonfinite_t += o.nonfinite_t;
         self.out_of_range += o.out_of_range;
         self.ill_posed_out_of_range += o.ill_posed_out_of_range;
+        self.ill_posed_nonfinite += o.ill_posed_nonfinite;
         self.malformed += o.malformed;
     }
 }
@@ -277,6 +282,10 @@ impl Tally {
                 self.ill_posed_out_of_range += 1;
                 self.offer("out_of_range", candidate(None, 0), 0, case.index);
             }
+            if s.judgement == Judgement::NonfiniteT {
+                self.ill_posed_nonfinite += 1;
+                self.offer("nonfinite_t", candidate(None, 0), 0, case.index);
+            }
             return;
         }
         self.well_posed += 1;
@@ -368,7 +377,8 @@ impl Tally {
             (
                 "ill-posed findings ≤ ill-posed cases",
                 self.ill_posed_disagree <= self.ill_posed
-                    && self.ill_posed_out_of_range <= self.ill_posed_disagree,
+                    && self.ill_posed_out_of_range + self.ill_posed_nonfinite
+                        <= self.ill_posed_disagree,
             ),
             ("malformed ≤ cases", self.malformed <= self.cases),
             (
@@ -409,7 +419,10 @@ impl Tally {
                     ("false_hit", self.false_hit),
                     ("false_miss", self.false_miss),
                     ("wrong_root", self.wrong_root),
-                    ("nonfinite_t", self.nonfinite_t),
+                    (
+                        "nonfinite_t",
+                        self.nonfinite_t.saturating_add(self.ill_posed_nonfinite),
+                    ),
                     (
                         "out_of_range",
                         self.out_of_range

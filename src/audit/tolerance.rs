@@ -165,8 +165,12 @@ pub struct Rule {
     pub max_err_over_cond: Option<f64>,
     /// Invalid inputs must be rejected (no hit, no NaN value).
     pub reject_invalid: bool,
-    /// A hit on valid input must have a finite value (routines of yours: see [`completed`]).
+    /// A hit on valid input, well- or ill-posed, must have a finite value (routines of yours:
+    /// see [`completed`]).
     pub finite_hits: bool,
+    /// No wrong root and no hit at `t ≤ 0` on a well-posed case (routines of yours whose rule
+    /// bounds only false hits or misses: see [`completed`]).
+    pub no_wrong_root: bool,
     /// Where the rule's numbers came from.
     pub why: String,
 }
@@ -296,6 +300,7 @@ fn default_goals(built_in: &[Rule], known: &Known) -> Vec<Rule> {
                 max_err_over_cond: by_cond.map(|(b, _)| b),
                 reject_invalid: true,
                 finite_hits: true,
+                no_wrong_root: false,
                 why: format!(
                     "no rule names it: no wrong verdict on a well-posed case, no NaN or infinite hit, invalid input rejected, {values}; a --tolerances rule naming the routine replaces what it gives (one with only `why` reports it only)"
                 ),
@@ -306,17 +311,22 @@ fn default_goals(built_in: &[Rule], known: &Known) -> Vec<Rule> {
 }
 
 /// A rule that names a routine of yours, completed by the default goal: what the rule leaves
-/// out is still judged. Its verdict checks (`wrong`, `known_failure`, `max_false_hits`,
-/// `max_false_misses`) replace the goal's `wrong = "none"`; its value bounds (`max_ulps`,
-/// `max_err_over_cond`) replace the goal's bound; invalid input is rejected and a hit is finite
-/// in every case. A rule with only `why` checks nothing and reports the routine only.
+/// out is still judged. Its `wrong` or `known_failure` replaces every verdict check of the goal;
+/// without one, each kind of wrong verdict it does not bound stays at none: `max_false_hits`
+/// bounds false hits alone, `max_false_misses` false misses alone, and wrong roots and hits at
+/// `t ≤ 0` stay forbidden (helper-20: a rule bounding both let a routine answering the far root
+/// pass). Its value bounds (`max_ulps`, `max_err_over_cond`) replace the goal's bound; invalid
+/// input is rejected and every hit finite, ill-posed cases included. A rule with only `why`
+/// checks nothing and reports the routine only.
 fn completed(rule: &Rule, goal: &Rule) -> Rule {
     let mut r = rule.clone();
     if rule.checks_nothing() {
         return r;
     }
-    if rule.wrong.is_none() && rule.max_false_hits.is_none() && rule.max_false_misses.is_none() {
-        r.wrong = goal.wrong;
+    if rule.wrong.is_none() {
+        r.max_false_hits = rule.max_false_hits.or(Some(0));
+        r.max_false_misses = rule.max_false_misses.or(Some(0));
+        r.no_wrong_root = true;
     }
     if rule.max_ulps.is_none() && rule.max_err_over_cond.is_none() {
         (r.max_ulps, r.max_err_over_cond) = (goal.max_ulps, goal.max_err_over_cond);
@@ -440,6 +450,7 @@ fn parse_table(
                 max_err_over_cond: r.max_err_over_cond,
                 reject_invalid,
                 finite_hits: false,
+                no_wrong_root: false,
                 why: r.why,
             })
         })
@@ -819,10 +830,27 @@ fn bounds(rule: &Rule, row: &Row) -> Vec<String> {
             ));
         }
     }
-    if rule.finite_hits && rule.wrong != Some(Wrong::None) && row.nonfinite_t > 0 {
-        fail.push(format!(
-            "{} hit(s) with a NaN or infinite value on valid input",
+    // Hits with a NaN or infinite value (those on well-posed cases are wrong verdicts already
+    // under `wrong = "none"`) and, for a rule of yours bounding false hits or misses alone, the
+    // other wrong verdicts
+    if rule.finite_hits {
+        let counted = if rule.wrong == Some(Wrong::None) {
+            0
+        } else {
             row.nonfinite_t
+        };
+        let n = counted + row.ill_posed_nonfinite;
+        if n > 0 {
+            fail.push(format!(
+                "{n} hit(s) with a NaN or infinite value on valid input ({} on ill-posed cases)",
+                row.ill_posed_nonfinite
+            ));
+        }
+    }
+    if rule.no_wrong_root && row.wrong_root + row.out_of_range > 0 {
+        fail.push(format!(
+            "{} wrong root(s) and {} hit(s) at t ≤ 0 (allowed none: the rule bounds only false hits and misses)",
+            row.wrong_root, row.out_of_range
         ));
     }
     if rule.reject_invalid && row.invalid.nonfinite_t + row.invalid.hit > 0 {
