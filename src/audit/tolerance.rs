@@ -166,10 +166,10 @@ pub struct Rule {
     /// Invalid inputs must be rejected (no hit, no NaN value).
     pub reject_invalid: bool,
     /// A hit on valid input, well- or ill-posed, must have a finite value (routines of yours:
-    /// see [`completed`]).
+    /// see `completed`).
     pub finite_hits: bool,
     /// No wrong root and no hit at `t ≤ 0` on a well-posed case (routines of yours whose rule
-    /// bounds only false hits or misses: see [`completed`]).
+    /// bounds only false hits or misses: see `completed`).
     pub no_wrong_root: bool,
     /// Where the rule's numbers came from.
     pub why: String,
@@ -222,7 +222,7 @@ pub struct Table {
     /// The `[[robustness]]` rules, in the order they are tried (the user's file first).
     pub robustness: Vec<RobustRule>,
     /// The goal of a routine of yours that no rule names, one per shape and precision
-    /// ([`default_goals`]): tried after every rule, for outside routines only.
+    /// (`default_goals`): tried after every rule, for outside routines only.
     pub yours: Vec<Rule>,
 }
 
