@@ -3297,6 +3297,10 @@ const ROWS: &[Row] = &[
         "far_root_under_hit_and_miss_bounds",
         far_root_under_hit_and_miss_bounds,
     ),
+    (
+        "a_measured_rate_on_five_cases",
+        a_measured_rate_on_five_cases,
+    ),
 ];
 
 #[test]
@@ -3999,4 +4003,56 @@ fn far_root_under_hit_and_miss_bounds(d: &Path) -> Result<(), String> {
         120,
     );
     fails_its_goal(&r, "sphere far f64 random:", "wrong root(s)")
+}
+
+/// Issue 49, helper-20 finding 3: a `wrong = "measured"` rule (1 of 100) said `ok` for a routine
+/// wrong on 5 cases of 5. Five cases cannot reject the measurement (P = 8.7e-5 > 1e-6), but they
+/// are no evidence for it either: the row is undecided, says how many cases would tell, and the
+/// verdict line says so; with that many cases the same routine fails.
+fn a_measured_rate_on_five_cases(d: &Path) -> Result<(), String> {
+    oracle_routine(
+        d,
+        "flip.py",
+        "box",
+        "    if not o['count'] and not vals: vals = ['0x1p+0']\n    elif o['count']: vals = []\n    o['count'] = 1 - o['count']",
+    );
+    std::fs::write(
+        d.join("rate.toml"),
+        "[[rule]]\nshape = \"box\"\nmethod = \"mine\"\nprecision = \"f32\"\nclass = \"generic\"\nwrong = \"measured\"\nwhy = \"a rate\"\n\n[measured]\n\"box mine f32 generic\" = [1, 100]\n",
+    )
+    .unwrap();
+    let audit = |cases: &str| {
+        run(
+            d,
+            &[
+                "audit", "--shape", "box", "--precision", "f32", "--cases", cases, "--class",
+                "generic", "--exec", "python3 flip.py", "--name", "mine", "--tolerances",
+                "rate.toml",
+            ],
+            300,
+        )
+    };
+    let r = audit("5");
+    r.exited(0)?;
+    let line = r
+        .stdout
+        .lines()
+        .find(|l| l.contains("undecided: box mine f32 generic:"))
+        .ok_or_else(|| format!("no undecided row: {}", r.stdout))?;
+    ensure!(
+        line.contains("5 wrong of 5") && line.contains("too few cases to tell"),
+        "{line}"
+    );
+    ensure!(
+        r.stdout.contains("verdict: pass, with 1 row(s) too few cases to tell"),
+        "{}",
+        r.stdout
+    );
+    let need: String = line
+        .split("needs about ")
+        .nth(1)
+        .and_then(|t| t.split(' ').next())
+        .ok_or_else(|| format!("no case count named: {line}"))?
+        .to_string();
+    fails_its_goal(&audit(&need), "box mine f32 generic:", "the measured 1 of 100 allows")
 }

@@ -255,6 +255,7 @@ fn every_row_has_one_verdict_at_every_seed() {
     use std::collections::BTreeMap;
     let dir = crate::common::scratch("seed-sweep");
     let mut seen: BTreeMap<String, (u64, String)> = BTreeMap::new();
+    let mut undecided = 0;
     for seed in 1..=6u64 {
         let json = dir.join(format!("s{seed}.json"));
         let o = crate::common::rayproof(&[
@@ -288,6 +289,15 @@ fn every_row_has_one_verdict_at_every_seed() {
                 );
                 let status = r["verdict"]["status"].as_str().unwrap().to_string();
                 assert_ne!(status, "fail", "seed {seed}: {key}: {}", r["verdict"]);
+                // Too few cases to tell is the statistics' own answer for a small sample (a
+                // rate row's count above its measurement's bound but not incompatible with it,
+                // a known failure not shown): it depends on the sample by nature, and only a
+                // measured row may give it. Every decided verdict is the same at every seed.
+                if status == "undecided" {
+                    assert!(r["verdict"]["count"].is_array(), "{key}: {}", r["verdict"]);
+                    undecided += 1;
+                    continue;
+                }
                 match seen.get(&key) {
                     Some((s0, st)) => assert_eq!(
                         *st, status,
@@ -301,6 +311,10 @@ fn every_row_has_one_verdict_at_every_seed() {
         }
         assert!(rows > 800, "seed {seed}: {rows} rows");
     }
+    // Rare: measured for the change, 9 of 6 × 894 rows at 300 cases (a measured rate's bound is
+    // its measurement's 1e-6 Clopper–Pearson bound, far above its rate)
+    assert!(undecided <= 6 * 5, "{undecided} undecided rows in 6 seeds");
+    eprintln!("{undecided} undecided rows in 6 seeds");
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -317,6 +317,13 @@ pub fn summary(s: &ShapeReport) -> String {
             "unjudged (shard)".to_string()
         } else if count(Status::Fail) > 0 {
             format!("FAIL ({} rows out of tolerance)", count(Status::Fail))
+        } else if count(Status::Undecided) > 0 {
+            format!(
+                "pass ({} rows within their rule, {} known failures, {} too few cases to tell)",
+                count(Status::Pass),
+                count(Status::KnownFailure),
+                count(Status::Undecided)
+            )
         } else {
             format!(
                 "pass ({} rows within their rule, {} known failures)",

@@ -13,7 +13,8 @@
 //!   `[measured]` section: k wrong verdicts in n well-posed cases) fails only when the row's
 //!   count is incompatible with the measurement: when the probability of seeing at least as
 //!   many wrong verdicts, at the rate of the measurement's one-sided Clopper–Pearson upper
-//!   bound, is at most [`ALPHA`];
+//!   bound, is at most [`ALPHA`]. A count above that bound in too few cases to reject it says
+//!   so (undecided, with about how many cases would tell), never `ok`;
 //! - a **known failure** (`known_failure = true`, measured likewise; failures are wrong
 //!   verdicts and, with `known_failure_beyond_ulps`, errors above that many ulps) must keep
 //!   failing by the same rule: it is an alarm when the row's count is incompatible with the
@@ -775,6 +776,31 @@ fn at_most(k: u64, n: u64, p: f64) -> f64 {
         .unwrap_or(1.0)
 }
 
+/// About how many cases, at the observed rate `k / n` (above `p`), make the count incompatible
+/// with a rate of `p` (`at_least` at most ALPHA): the smallest such multiple of `n`'s power-of-two
+/// steps, refined by bisection. Saturates at u64::MAX / 2 (never reached for p < 1).
+fn cases_to_tell(k: u64, n: u64, p: f64) -> u64 {
+    let r = k as f64 / n as f64;
+    let rejects = |m: u64| at_least((r * m as f64).ceil() as u64, m, p) <= ALPHA;
+    let (mut lo, mut hi) = (n, n.max(1));
+    while !rejects(hi) {
+        if hi >= u64::MAX / 4 {
+            return hi;
+        }
+        lo = hi;
+        hi *= 2;
+    }
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if rejects(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
+}
+
 fn pct(x: f64) -> String {
     format!("{:.4}%", 100.0 * x)
 }
@@ -901,6 +927,19 @@ fn judge_wrong(
                     pct(k as f64 / n.max(1) as f64),
                     pct(p)
                 ));
+            } else if k as f64 > p * n as f64 {
+                // Above what the measurement allows, yet too few cases to reject it: neither
+                // `ok` (the count points away from the measurement) nor a failure (the
+                // measurement's rate explains it with probability above ALPHA)
+                out.note = Some((
+                    Status::Undecided,
+                    format!(
+                        "{k} wrong of {n} ({}) is above the {} the measured {k0} of {n0} allows, in too few cases to tell (P = {prob:.1e} > {ALPHA:.0e}; needs about {} well-posed cases at this rate)",
+                        pct(k as f64 / n as f64),
+                        pct(p),
+                        cases_to_tell(k, n, p)
+                    ),
+                ));
             }
         }
         // A known failure: incompatible with the measurement's lower bound?
@@ -1010,6 +1049,34 @@ mod tests {
         // None measured: the upper bound is 1 − α^(1/n)
         let u = upper_bound(0, 1000);
         assert!((u - (1.0 - ALPHA.powf(1e-3))).abs() < 1e-9, "{u}");
+    }
+
+    /// A measured rate (1 of 100): a count it explains is `ok`; one above its bound in too few
+    /// cases to reject it is undecided, naming about how many cases would tell; one it cannot
+    /// explain fails (helper-20's F3: 5 wrong of 5 said `ok`).
+    #[test]
+    fn a_measured_rate_on_too_few_cases_is_undecided_never_ok() {
+        let judge = |k, n| judge_wrong(Some(Wrong::Measured), Some((1, 100)), (k, n), |_| 0);
+        let p = upper_bound(1, 100);
+        // Consistent with the measurement: no note, no failure
+        let ok = judge(1, 100);
+        assert!(ok.fail.is_none() && ok.note.is_none(), "{:?}", ok.note);
+        // 5 of 5: P = p^5 > ALPHA, undecided
+        assert!(at_least(5, 5, p) > ALPHA);
+        let few = judge(5, 5);
+        assert!(few.fail.is_none());
+        let (status, note) = few.note.expect("a note");
+        assert_eq!(status, Status::Undecided);
+        assert!(note.contains("too few cases to tell"), "{note}");
+        // The cases named would tell: at that rate the count is rejected there, not one below
+        let need = cases_to_tell(5, 5, p);
+        assert_eq!(need, (ALPHA.ln() / p.ln()).ceil() as u64, "all wrong: p^m ≤ α");
+        assert!(note.contains(&format!("needs about {need} ")), "{note}");
+        assert!(judge(need, need).fail.is_some());
+        assert!(judge(need - 1, need - 1).fail.is_none());
+        // Just at the bound's rate in many cases: within what the measurement allows
+        let at = (p * 10_000.0).floor() as u64;
+        assert!(judge(at, 10_000).note.is_none() && judge(at, 10_000).fail.is_none());
     }
 
     fn known() -> Known<'static> {

@@ -154,7 +154,7 @@ pub fn parse(args: Vec<std::ffi::OsString>) -> Result<Cli, clap::Error> {
     for name in ["audit", "merge", "score"] {
         cmd = cmd.mut_subcommand(name, |c| {
             c.after_help(
-                "Exit codes: 0 no row out of tolerance and no goal missed; 1 one is; 2 bad usage or input (one line on stderr); 3 merge: the shards are not one audit's, or --tolerances is not the table they ran with; 4 a routine of yours failed (crashed, hung past --timeout, answered a line that is not an answer); 71 out of memory; 130 interrupted (no output replaced). Every command's codes: the crate documentation, src/lib.rs.",
+                "Exit codes: 0 no row out of tolerance and no goal missed (rows with too few cases to tell are listed as undecided); 1 one is; 2 bad usage or input (one line on stderr); 3 merge: the shards are not one audit's, or --tolerances is not the table they ran with; 4 a routine of yours failed (crashed, hung past --timeout, answered a line that is not an answer); 71 out of memory; 130 interrupted (no output replaced). Every command's codes: the crate documentation, src/lib.rs.",
             )
         });
     }
