@@ -273,14 +273,15 @@ fn once_judges_a_routine_of_yours() {
             "{line}"
         );
     }
+    // An answer outside the triangle's contract (two hits) is a bad answer of its ray, as the
+    // main rows count a malformed one: every row fails (it stopped the run, exit 4, before the
+    // seams ran in every audit of a routine of yours)
     let o = run("awk '{print \"2 1 2\"; fflush()}'");
-    assert_eq!(o.status.code(), Some(4), "{}{}", stdout(&o), stderr(&o));
-    assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("want count 0, or 1 and T"),
-        "{}",
-        stderr(&o)
-    );
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    for r in rows() {
+        assert_eq!(r["verdict"], "fail", "{r}");
+        assert_eq!(r["bad"], r["rays"], "{r}");
+    }
     for bad in [
         &["once", "--method", "nope"][..],
         &["once", "--per-cell", "0"],
@@ -347,7 +348,8 @@ fn transforms_lose_verdicts_where_the_carrying_rounds() {
         let o = rayproof(&ideal);
         assert_eq!(o.status.code(), Some(0), "{line}: {}", stdout(&o));
     }
-    // A routine of yours that breaks the contract stops the run: one line, exit 4
+    // A routine of yours that answers outside the contract (two hits) has a bad t on every
+    // case, as a malformed answer counts in the main rows: every row fails, exit 1
     let o = rayproof(&[
         "transform",
         "--cases",
@@ -358,6 +360,33 @@ fn transforms_lose_verdicts_where_the_carrying_rounds() {
         "f32",
         "--exec",
         "awk '{print \"2 1 2\"; fflush()}'",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let table = stdout(&o);
+    let rows: Vec<&str> = table
+        .lines()
+        .filter(|l| l.starts_with("triangle  exec"))
+        .collect();
+    assert!(
+        !rows.is_empty()
+            && rows.iter().all(|l| {
+                let w: Vec<&str> = l.split_whitespace().collect();
+                // cases … bad t … verdict: every case a bad t, the row failed
+                w[5] == w[9] && w.last() == Some(&"fail")
+            }),
+        "{table}"
+    );
+    // A line that is not an answer at all stops the run: one line, exit 4
+    let o = rayproof(&[
+        "transform",
+        "--cases",
+        "5",
+        "--shape",
+        "triangle",
+        "--precision",
+        "f32",
+        "--exec",
+        "awk '{print \"junk\"; fflush()}'",
     ]);
     assert_eq!(o.status.code(), Some(4), "{}{}", stdout(&o), stderr(&o));
     assert_eq!(stderr(&o).lines().count(), 1, "{}", stderr(&o));

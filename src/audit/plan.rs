@@ -84,7 +84,7 @@ pub struct Plan {
     pub spawn_rules: Vec<Box<dyn robustness::spawn::SpawnRule>>,
     /// Box guards audited beside the shapes (`audit --guard`): run whole like the spawn rules.
     pub guards: Vec<robustness::guard::Owned>,
-    /// The seams (exactly once, transforms) run for the outside routines too (`audit --seams`).
+    /// The seams (exactly once, transforms) run for the outside routines too (`audit` runs them unless `--no-seams`; the library's plan does not unless this is set).
     pub outside_seams: bool,
 }
 

@@ -171,7 +171,7 @@ pub struct Shard {
     /// The box guards the audit was run with (`--guard`), named as the spawn rules are: every
     /// shard names the same, and shard 0 holds their rows.
     pub guards: Vec<String>,
-    /// The seams were run for the outside routines (`--seams`): shard 0 holds their rows.
+    /// The seams were run for the outside routines (the default; not with `--no-seams`): shard 0 holds their rows.
     pub outside_seams: bool,
     /// The reintersection and watertightness rows of routines from outside the crate: run whole
     /// by shard 0 (the built-in methods' are run by the merge; an outside routine may be gone by
@@ -487,7 +487,7 @@ impl Shard {
     }
 }
 
-/// The routines from outside the crate that have seam rows in a shard run with `--seams`, as
+/// The routines from outside the crate that have seam rows in a shard run without `--no-seams`, as
 /// `(shape, name)` ([`crate::audit::robustness::seams::run_for`]).
 fn outside_routines(file: &Shard) -> Vec<(String, String)> {
     let mut out = vec![];
@@ -568,7 +568,7 @@ fn check_one_audit(tool: &str, shards: &[(String, Shard)]) -> Result<(), Incompa
             ("spawn rules", s.spawn_rules.join("; ")),
             ("guards", s.guards.join("; ")),
             (
-                "seams for outside routines (--seams)",
+                "seams for outside routines (not --no-seams)",
                 s.outside_seams.to_string(),
             ),
         ]

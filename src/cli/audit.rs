@@ -68,10 +68,13 @@ pub struct AuditArgs {
     /// precision suffix; `exec`, `exec2`, …).
     #[arg(long, value_name = "NAME")]
     pub guard_name: Vec<String>,
-    /// Run the seams for your routines too: exactly one hit per mesh (a triangle routine) and
-    /// instance transforms (a sphere or triangle routine), judged like the built-ins' (an audit
-    /// of the shape's every class).
+    /// Skip the seams for your routines: by default a sphere or triangle routine of yours, in an
+    /// audit of the shape's every class, gets exactly-one-hit-per-mesh rows (a triangle
+    /// routine) and instance-transform rows, judged like the built-ins'.
     #[arg(long)]
+    pub no_seams: bool,
+    /// The default (kept so that older command lines still run).
+    #[arg(long, hide = true, conflicts_with = "no_seams")]
     pub seams: bool,
     #[command(flatten)]
     pub outside: OutsideArgs,
@@ -282,7 +285,7 @@ pub(super) fn run_audit(a: AuditArgs) -> Result<u8> {
         bail!("--guard {g}: the box shape's audit runs the built-in guards already");
     }
     plan.guards = guards;
-    plan.outside_seams = a.seams;
+    plan.outside_seams = !a.no_seams;
     // A shard is judged by its merge: without its file it would end unjudged (exit 0)
     if a.shard.1 > 1 && a.shard_out.is_none() {
         bail!(

@@ -4,8 +4,8 @@
 //!
 //! **Which rows run.** With the box shape audited whole, the four built-in guards; with the
 //! triangle, every built-in triangle routine on the exactly-once meshes and the default triangle
-//! methods under transforms; with the sphere, its default methods under transforms. With
-//! `--seams`, a routine of yours (`--exec`, `--plugin`, `--source` with `--shape triangle` or
+//! methods under transforms; with the sphere, its default methods under transforms. Unless
+//! `--no-seams`, a routine of yours (`--exec`, `--plugin`, `--source` with `--shape triangle` or
 //! `sphere`, every class) gets the exactly-once rows (triangle) and the transform rows; a guard
 //! of yours comes in as `--guard exec:CMD` or
 //! `--guard plugin:PATH:SYMBOL`. The sizes are [`super::GUARD_PER_CELL`],
@@ -215,7 +215,7 @@ pub fn outside_seams(
     Ok((once, transform))
 }
 
-/// Whether `audit --seams` gives a routine of `shape` seam rows when `classes` of its classes
+/// Whether `audit` (without `--no-seams`) gives a routine of `shape` seam rows when `classes` of its classes
 /// are audited: a sphere or triangle routine in an audit of its shape's every class (one narrowed
 /// by `--class` is about those cases alone). The plan runs them and a shard's reader expects them
 /// by this one rule.

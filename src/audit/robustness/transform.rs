@@ -560,6 +560,10 @@ impl Routine<'_> {
                 (1, &[t]) => Ok(Some(t)),
                 (0, _) if !outside => Ok(None),
                 (1, &[t, ..]) if !outside => Ok(Some(t)),
+                // Outside the contract (a count the shape cannot have, values that do not match
+                // it): a hit at a bad t of its row, as the main rows count a malformed answer
+                // (never excused, never a stop)
+                _ if outside => Ok(Some(f64::NAN)),
                 _ => Err(format!(
                     "routine '{}': answered {} {:?} to the case {}; want count 0, or 1 and T",
                     self.name(),
@@ -575,7 +579,8 @@ impl Routine<'_> {
 /// What a routine's answer to a case is worth against the exact oracle.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Verdict {
-    /// A hit at a t that is not finite and positive: wrong whatever the case.
+    /// A hit at a t that is not finite and positive (or a routine's answer outside the
+    /// contract): wrong whatever the case.
     BadT,
     /// Within [`MARGIN`] of the boundary: not judged.
     NotJudged,
@@ -620,7 +625,8 @@ pub struct TransformRow {
     pub false_hit: u64,
     /// Judged cases the exact oracle hits and the routine misses.
     pub false_miss: u64,
-    /// Cases (judged or not) the routine hits at a t that is not finite and positive.
+    /// Cases (judged or not) the routine hits at a t that is not finite and positive, or
+    /// answers outside the shape's contract.
     pub bad_t: u64,
     /// The largest error of t, in ulps of the precision, where both hit.
     pub worst_ulps: f64,
