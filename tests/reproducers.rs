@@ -2918,9 +2918,18 @@ fn transform_answers_and_replays(d: &Path) -> Result<(), String> {
             "{c}: rows without bad_t"
         );
     }
-    // F7: a miss with a value breaks the contract
-    let (r, _) = rows(&["--exec", "python3 count0.py", "--name", "z"])?;
-    r.refused(4, &["0 [1.0]"])?;
+    // F7: a miss with a value breaks the contract: never taken as a miss, it is a bad answer
+    // of every row (as the main rows count a malformed answer; it stopped the run, exit 4,
+    // before the seams ran in every audit of a routine of yours)
+    let (r, got) = rows(&["--exec", "python3 count0.py", "--name", "z"])?;
+    r.exited(1)?;
+    ensure!(
+        !got.is_empty()
+            && got
+                .iter()
+                .all(|r| r["bad_t"].as_u64().unwrap_or(0) > 0 && r["verdict"] == "fail"),
+        "a row with answers outside the contract not counted bad: {got:?}"
+    );
     // F4: a zero radius or direction is bad input, one line, exit 2
     let m = "1 0 0 0 0 1 0 0 0 0 1 0";
     for (vals, why) in [
