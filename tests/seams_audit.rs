@@ -94,7 +94,6 @@ fn a_routine_of_yours_is_held_to_one_hit_per_mesh_and_to_its_transforms() {
             &spec,
             "--name",
             "mine",
-            "--seams",
             "--cases",
             "200",
             "--json",
@@ -157,6 +156,17 @@ fn a_routine_of_yours_is_held_to_one_hit_per_mesh_and_to_its_transforms() {
         "{}",
         stdout(&o)
     );
+    // --no-seams skips them (its main, reintersection and watertightness rows stay), and
+    // cannot be asked together with --seams
+    let o = audit(&["--no-seams"]);
+    assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    let r = json(&out);
+    assert!(rows(&r, "once").iter().all(|x| x["routine"] != "mine"));
+    assert!(rows(&r, "transform").iter().all(|x| x["routine"] != "mine"));
+    assert!(rows(&r, "watertight").iter().any(|x| x["method"] == "mine"));
+    let o = audit(&["--no-seams", "--seams"]);
+    assert_eq!(o.status.code(), Some(2), "{}{}", stdout(&o), stderr(&o));
+    assert_eq!(stderr(&o).trim_end().lines().count(), 1, "{}", stderr(&o));
     // Bad rules: one line, exit 2
     for (text, says) in [
         ("method = \"mine\"\ntest = \"once\"\nmax_escapes = 1\nwhy = \"x\"\n", "max_failures"),
@@ -194,6 +204,7 @@ fn seams_shard_and_merge_byte_for_byte() {
             &spec,
             "--name",
             "mine",
+            // The default since the seams run for every routine of yours: still accepted
             "--seams",
             "--cases",
             "60",
@@ -350,7 +361,6 @@ fn contraction_side_by_side_in_the_audit() {
             &source,
             "--build",
             "gcc-off,gcc-fma",
-            "--seams",
             "--cases",
             "400",
         ]
