@@ -121,7 +121,7 @@ struct TableText {
     rule: Vec<RuleText>,
     /// `"shape method precision class" = [k, n]`.
     #[serde(default)]
-    measured: BTreeMap<String, [u64; 2]>,
+    measured: BTreeMap<String, Vec<u64>>,
     /// What reintersection and watertightness rows are held to, before the defaults.
     #[serde(default)]
     robustness: Vec<RobustRuleText>,
@@ -367,8 +367,14 @@ fn parse_table(
     })?;
     // Measurements: "shape method precision class" = [k, n]
     let mut measured = vec![];
-    for (key, [k, n]) in t.measured {
+    for (key, kn) in t.measured {
         let origin = format!("{file} measured \"{key}\"");
+        // Exactly two counts: serde's fixed-size array dropped a third silently (helper-21 F3)
+        let [k, n] = kn[..] else {
+            return Err(format!(
+                "{origin}: {kn:?} is not [k, n] (k wrong of n cases: two counts)"
+            ));
+        };
         let parts: Vec<&str> = key.split_whitespace().collect();
         let [shape, method, prec, class] = parts[..] else {
             return Err(format!("{origin}: not \"shape method precision class\""));
@@ -777,15 +783,18 @@ fn at_most(k: u64, n: u64, p: f64) -> f64 {
 }
 
 /// About how many cases, at the observed rate `k / n` (above `p`), make the count incompatible
-/// with a rate of `p` (`at_least` at most ALPHA): the smallest such multiple of `n`'s power-of-two
-/// steps, refined by bisection. Saturates at u64::MAX / 2 (never reached for p < 1).
-fn cases_to_tell(k: u64, n: u64, p: f64) -> u64 {
-    let r = k as f64 / n as f64;
-    let rejects = |m: u64| at_least((r * m as f64).ceil() as u64, m, p) <= ALPHA;
-    let (mut lo, mut hi) = (n, n.max(1));
+/// with a rate of `p`: the fewest cases `m` at which `j` wrong ones, `j / m` at that rate, have
+/// `at_least(j, m, p)` at most ALPHA. The count `j` steps by whole cases (one wrong case in 44
+/// needs a second before anything can be told: about 88 cases, not 45), by doubling and then
+/// bisection on `j` (the probability falls as `j` grows at a fixed rate). `None`: more than
+/// [`DECIDABLE`] cases, in practice never.
+fn cases_to_tell(k: u64, n: u64, p: f64) -> Option<u64> {
+    let cases = |j: u64| (j as f64 * n as f64 / k as f64).ceil();
+    let rejects = |j: u64| at_least(j, cases(j) as u64, p) <= ALPHA;
+    let (mut lo, mut hi) = (k.max(1), k.max(1));
     while !rejects(hi) {
-        if hi >= u64::MAX / 4 {
-            return hi;
+        if cases(hi) > DECIDABLE as f64 {
+            return None;
         }
         lo = hi;
         hi *= 2;
@@ -798,8 +807,13 @@ fn cases_to_tell(k: u64, n: u64, p: f64) -> u64 {
             lo = mid;
         }
     }
-    hi
+    let m = cases(hi) as u64;
+    (m <= DECIDABLE).then_some(m)
 }
+
+/// The most cases an undecided row's advice names: 10^9 well-posed cases is days of a
+/// routine's audit; beyond it the row is said to be undecidable in practice.
+const DECIDABLE: u64 = 1_000_000_000;
 
 fn pct(x: f64) -> String {
     format!("{:.4}%", 100.0 * x)
@@ -934,10 +948,13 @@ fn judge_wrong(
                 out.note = Some((
                     Status::Undecided,
                     format!(
-                        "{k} wrong of {n} ({}) is above the {} the measured {k0} of {n0} allows, in too few cases to tell (P = {prob:.1e} > {ALPHA:.0e}; needs about {} well-posed cases at this rate)",
+                        "{k} wrong of {n} ({}) is above the {} the measured {k0} of {n0} allows, in too few cases to tell (P = {prob:.1e} > {ALPHA:.0e}; {})",
                         pct(k as f64 / n as f64),
                         pct(p),
-                        cases_to_tell(k, n, p)
+                        match cases_to_tell(k, n, p) {
+                            Some(m) => format!("needs about {m} well-posed cases at this rate"),
+                            None => format!("at this rate, so close to the bound, more than {DECIDABLE} well-posed cases would be needed: in practice it cannot be told"),
+                        }
                     ),
                 ));
             }
@@ -1069,11 +1086,23 @@ mod tests {
         assert_eq!(status, Status::Undecided);
         assert!(note.contains("too few cases to tell"), "{note}");
         // The cases named would tell: at that rate the count is rejected there, not one below
-        let need = cases_to_tell(5, 5, p);
+        let need = cases_to_tell(5, 5, p).unwrap();
         assert_eq!(need, (ALPHA.ln() / p.ln()).ceil() as u64, "all wrong: p^m ≤ α");
         assert!(note.contains(&format!("needs about {need} ")), "{note}");
         assert!(judge(need, need).fail.is_some());
         assert!(judge(need - 1, need - 1).fail.is_none());
+        // helper-21 F1: one wrong case in 44 against a tiny measured rate (0 of 10^7) cannot
+        // be told until a second wrong case: at that rate about 88 cases, not 45, and 88 do
+        let tiny = upper_bound(0, 10_000_000);
+        assert!(at_least(1, 44, tiny) > ALPHA);
+        let need = cases_to_tell(1, 44, tiny).unwrap();
+        assert_eq!(need, 88);
+        assert!(at_least(2, need, tiny) <= ALPHA && at_least(1, need, tiny) > ALPHA);
+        // helper-21 F2: a rate just above the bound would need 10^11 cases: said, not advised
+        let close = upper_bound(1_048_000, 10_000_000);
+        let k = (close * 1e6).ceil() as u64;
+        assert!(k as f64 > close * 1e6 && at_least(k, 1_000_000, close) > ALPHA);
+        assert_eq!(cases_to_tell(k, 1_000_000, close), None);
         // Just at the bound's rate in many cases: within what the measurement allows
         let at = (p * 10_000.0).floor() as u64;
         assert!(judge(at, 10_000).note.is_none() && judge(at, 10_000).fail.is_none());
@@ -1086,6 +1115,15 @@ mod tests {
     /// Loads a user file before the built-in table; the error, if any.
     fn user(text: &str) -> Result<Table, String> {
         Table::load(Some(("user.toml", text)), &known())
+    }
+
+    /// helper-21 F3: `[50, 1000, 3]` loaded as 50 of 1000; a measurement is two counts.
+    #[test]
+    fn a_measurement_is_exactly_two_counts() {
+        for v in ["[50, 1000, 3]", "[50]", "[]"] {
+            let e = user(&format!("[measured]\n\"sphere rtg7 f32 tangent\" = {v}\n")).unwrap_err();
+            assert!(e.contains("is not [k, n]"), "{v}: {e}");
+        }
     }
 
     #[test]
