@@ -115,6 +115,19 @@ fn a_routine_of_yours_is_held_to_one_hit_per_mesh_and_to_its_transforms() {
     assert!(once
         .iter()
         .all(|x| x["routine"] == "mine" && x["verdict"] == "fail"));
+    // Its watertightness rows' replay lines name the routine (helper-21 F5: they replayed the
+    // built-ins)
+    let wt: Vec<&Value> = rows(&r, "watertight")
+        .into_iter()
+        .filter(|x| x["method"] == "mine" && x["replay"].is_string())
+        .collect();
+    assert!(
+        !wt.is_empty()
+            && wt
+                .iter()
+                .all(|x| x["replay"].as_str().unwrap().contains(&format!("--plugin {spec}"))),
+        "{wt:?}"
+    );
     let tr = rows(&r, "transform");
     assert_eq!(tr.len(), 6 * 4, "6 classes × 4 modes");
     for x in &tr {

@@ -34,7 +34,7 @@ use crate::numerics::exact::q;
 use crate::numerics::real::Real;
 use crate::numerics::Precision;
 use crate::shapes::oracle::sample::{add, ball, lu, mul, normalize, rpv, sub, unit, V};
-use crate::shapes::shape::{case_rng, probe_line, Truth};
+use crate::shapes::shape::{case_rng, probe_line_with, Truth};
 use crate::shapes::triangle::{self, exact_tri, method, ExactTri, METHODS};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
@@ -171,13 +171,21 @@ fn flat(o: V, d: V, p: [V; 3]) -> Vec<f64> {
     [&o[..], &d[..], &p.concat()[..]].concat()
 }
 
-/// The triangle of `tris` the exact oracle says the ray crosses first, as a probe line.
-fn replay_line(prec: Precision, tris: &[[V; 3]], o: V, d: V) -> Option<String> {
+/// The triangle of `tris` the exact oracle says the ray crosses first, as a probe line (with a
+/// routine of yours named by `extra`, its `--plugin`/`--exec` options: helper-21 F5 found them
+/// left out, so the line replayed the built-ins, not the routine that escaped).
+fn replay_line(
+    prec: Precision,
+    extra: Option<&str>,
+    tris: &[[V; 3]],
+    o: V,
+    d: V,
+) -> Option<String> {
     let first = tris
         .iter()
         .filter_map(|p| exact_tri(&flat(o, d, *p)).t().map(|t| (t, *p)))
         .min_by(|a, b| a.0.cmp(&b.0))?;
-    Some(probe_line("triangle", prec, &flat(o, d, first.1)))
+    Some(probe_line_with("triangle", prec, extra, &flat(o, d, first.1)))
 }
 
 /// The rays from inside one closed mesh, each drawn from its own seed.
@@ -289,7 +297,9 @@ pub fn run_outside(
                 r.oracle_violations = violations as u64;
                 r.replay = escaped
                     .first()
-                    .and_then(|&k| replay_line(prec, &tris, cases[k].0, cases[k].1));
+                    .and_then(|&k| {
+                        replay_line(prec, m.replay().as_deref(), &tris, cases[k].0, cases[k].1)
+                    });
                 rows.push(r);
             }
         }
@@ -308,7 +318,7 @@ pub fn run_outside(
             .filter(|(_, h)| !**h)
             .map(|(f, _)| f)
             .collect();
-        let mut r = fold_row(&missed, prec, folds.len());
+        let mut r = fold_row(&missed, prec, m.replay().as_deref(), folds.len());
         r.method = m.name().to_string();
         rows.push(r);
     }
@@ -440,7 +450,7 @@ fn closed(
             r.oracle_violations = violations as u64;
             r.replay = escaped
                 .first()
-                .and_then(|&k| replay_line(prec, &tris, cases[k].0, cases[k].1));
+                .and_then(|&k| replay_line(prec, None, &tris, cases[k].0, cases[k].1));
             rows.push(r);
         }
     }
@@ -504,7 +514,12 @@ fn fold_cases(seed: u64, rays: u64, prec: Precision) -> Vec<Fold> {
 
 /// The fold row of a method from the fold rays it missed (leaks where the edge is no
 /// silhouette, grazing misses where it is).
-fn fold_row(missed: &[&Fold], prec: Precision, rays: usize) -> WatertightRow {
+fn fold_row(
+    missed: &[&Fold],
+    prec: Precision,
+    extra: Option<&str>,
+    rays: usize,
+) -> WatertightRow {
     let leaks: Vec<_> = missed.iter().filter(|x| !x.3).collect();
     let mut r = row(0, prec, "fold", "shared_edge", rays as u64);
     r.escaped = leaks.len() as u64;
@@ -518,7 +533,7 @@ fn fold_row(missed: &[&Fold], prec: Precision, rays: usize) -> WatertightRow {
         .first()
         .map(|x| ***x)
         .or(missed.first().map(|x| **x))
-        .and_then(|(tris, o, d, _)| replay_line(prec, &tris, o, d));
+        .and_then(|(tris, o, d, _)| replay_line(prec, extra, &tris, o, d));
     r
 }
 
@@ -534,7 +549,7 @@ fn folds(seed: u64, rays: u64, prec: Precision) -> Vec<WatertightRow> {
                     Precision::F64 => !any_hit::<f64>(m, tris, *o, *d),
                 })
                 .collect();
-            let mut r = fold_row(&missed, prec, cases.len());
+            let mut r = fold_row(&missed, prec, None, cases.len());
             r.method = METHODS[m].name.to_string();
             r
         })
