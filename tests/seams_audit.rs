@@ -171,8 +171,21 @@ fn a_routine_of_yours_is_held_to_one_hit_per_mesh_and_to_its_transforms() {
     );
     // --no-seams skips them (its main, reintersection and watertightness rows stay), and
     // cannot be asked together with --seams
-    let o = audit(&["--no-seams"]);
+    let o = audit(&["--no-seams", "--tolerances", s(&rules)]);
     assert_eq!(o.status.code(), Some(1), "{}{}", stdout(&o), stderr(&o));
+    // ... and the rules naming them say they judged nothing (helper-21 F4): the once and the
+    // transform rules, not the watertightness one
+    let text = stdout(&o);
+    let notes: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("note: ") && l.contains("judged no row"))
+        .map(|l| match l {
+            _ if l.contains("robustness rule 1 ") => "once",
+            _ if l.contains("robustness rule 3 ") => "transform",
+            _ => l,
+        })
+        .collect();
+    assert_eq!(notes, ["once", "transform"], "{text}");
     let r = json(&out);
     assert!(rows(&r, "once").iter().all(|x| x["routine"] != "mine"));
     assert!(rows(&r, "transform").iter().all(|x| x["routine"] != "mine"));

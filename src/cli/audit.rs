@@ -633,6 +633,18 @@ pub(super) fn finish(
             );
         }
     }
+    for r in table
+        .robustness
+        .iter()
+        .filter(|r| !r.origin.starts_with("built-in"))
+    {
+        if !report.robustness.as_ref().is_some_and(|x| r.names_a_row(x)) {
+            say!(
+                "note: {} judged no row of this run (its routine, test, precision and mode: none run here; the seams need an audit of every class and no --no-seams)",
+                r.origin
+            );
+        }
+    }
     say!(
         "\ntolerance table: {} rows — {} within their rule, {} known failures shown, {} reported only, {} too few cases to tell, {} out of tolerance",
         o.rows,

@@ -184,6 +184,24 @@ impl RobustRule {
                 .is_none_or(|ps| ps.iter().any(|p| p.name() == precision))
     }
 
+    /// Whether the rule names some row of `r`: a rule of the user's file that names none is
+    /// said in a `note:` line, so that its silence is not read as its pass (helper-21 F4).
+    pub fn names_a_row(&self, r: &super::Robustness) -> bool {
+        let a = |m: &str, t: Test, p: &str| self.applies(m, t, p);
+        r.reintersection
+            .iter()
+            .any(|x| a(&x.method, Test::Reintersection, &x.precision))
+            || r.watertight
+                .iter()
+                .any(|x| a(&x.method, Test::Watertight, &x.precision))
+            || r.spawn.iter().any(|x| a(&x.rule, Test::Spawn, &x.precision))
+            || r.guard.iter().any(|x| a(&x.guard, Test::Guard, &x.precision))
+            || r.once.iter().any(|x| a(&x.routine, Test::Once, &x.precision))
+            || r.transform.iter().any(|x| {
+                a(&x.routine, Test::Transform, &x.precision) && self.names_mode(&x.mode)
+            })
+    }
+
     /// Whether the rule names a transform row's mode (every mode when it names none).
     pub fn names_mode(&self, mode: &str) -> bool {
         self.modes
