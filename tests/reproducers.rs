@@ -3310,6 +3310,9 @@ const ROWS: &[Row] = &[
         "a_measured_rate_on_five_cases",
         a_measured_rate_on_five_cases,
     ),
+    ("one_wrong_case_against_a_tiny_rate", one_wrong_case_against_a_tiny_rate),
+    ("a_measurement_of_three_counts", a_measurement_of_three_counts),
+    ("a_seam_rule_that_judges_nothing", a_seam_rule_that_judges_nothing),
 ];
 
 #[test]
@@ -4068,4 +4071,91 @@ fn a_measured_rate_on_five_cases(d: &Path) -> Result<(), String> {
         .ok_or_else(|| format!("no case count named: {line}"))?
         .to_string();
     fails_its_goal(&audit(&need), "box mine f32 generic:", "the measured 1 of 100 allows")
+}
+
+/// helper-21 F1: one wrong case in 44 against a measured 0 of 10^7 said "needs about 45
+/// well-posed cases", and every rerun with that many said one more: one wrong case can never be
+/// told from the measurement, a second is needed, about twice the cases.
+fn one_wrong_case_against_a_tiny_rate(d: &Path) -> Result<(), String> {
+    oracle_routine(
+        d,
+        "once.py",
+        "box",
+        "    if o['count'] == 1 and not o['ill_posed'] and not globals().get('done'):\n        done = True; o['count'] = 0; vals = []",
+    );
+    std::fs::write(
+        d.join("tiny.toml"),
+        "[[rule]]\nshape = \"box\"\nmethod = \"mine\"\nprecision = \"f32\"\nclass = \"generic\"\nwrong = \"measured\"\nwhy = \"a rate\"\n\n[measured]\n\"box mine f32 generic\" = [0, 10000000]\n",
+    )
+    .unwrap();
+    let r = run(
+        d,
+        &[
+            "audit", "--shape", "box", "--precision", "f32", "--cases", "44", "--class",
+            "generic", "--exec", "python3 once.py", "--name", "mine", "--exec-keep",
+            "--tolerances", "tiny.toml",
+        ],
+        300,
+    );
+    r.exited(0)?;
+    let line = r
+        .stdout
+        .lines()
+        .find(|l| l.contains("undecided: box mine f32 generic: 1 wrong of "))
+        .ok_or_else(|| format!("no undecided row of 1 wrong: {}", r.stdout))?;
+    let num = |after: &str| -> Result<u64, String> {
+        line.split(after)
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .and_then(|t| t.parse().ok())
+            .ok_or_else(|| format!("no number after {after:?}: {line}"))
+    };
+    let (n, need) = (num("1 wrong of ")?, num("needs about ")?);
+    ensure!(need + 1 >= 2 * n, "{n} cases, 1 wrong, needs about {need}: {line}");
+    Ok(())
+}
+
+/// helper-21 F3: `[50, 1000, 3]` in `[measured]` loaded as 50 of 1000 (the third value dropped).
+fn a_measurement_of_three_counts(d: &Path) -> Result<(), String> {
+    std::fs::write(d.join("miss.sh"), "while read l; do echo 0; done\n").unwrap();
+    std::fs::write(
+        d.join("three.toml"),
+        "[[rule]]\nshape = \"box\"\nmethod = \"mine\"\nprecision = \"f32\"\nclass = \"generic\"\nwrong = \"measured\"\nwhy = \"a rate\"\n\n[measured]\n\"box mine f32 generic\" = [50, 1000, 3]\n",
+    )
+    .unwrap();
+    run(
+        d,
+        &[
+            "audit", "--shape", "box", "--precision", "f32", "--cases", "5", "--class",
+            "generic", "--exec", "sh miss.sh", "--name", "mine", "--tolerances", "three.toml",
+        ],
+        120,
+    )
+    .refused(2, &["is not [k, n]"])
+}
+
+/// helper-21 F4: a `[[robustness]]` rule for the transform rows of a routine of yours, in a run
+/// with `--no-seams` (no such rows), said nothing: its silence read as its pass. It is named in
+/// a `note:` line, as a `[[rule]]` that judges no row is.
+fn a_seam_rule_that_judges_nothing(d: &Path) -> Result<(), String> {
+    std::fs::write(d.join("miss.sh"), "while read l; do echo 0; done\n").unwrap();
+    std::fs::write(
+        d.join("seam.toml"),
+        "[[robustness]]\nmethod = \"tb\"\ntest = \"transform\"\nmode = [\"ideal\"]\nmax_failures = 0\nwhy = \"held\"\n",
+    )
+    .unwrap();
+    let r = run(
+        d,
+        &[
+            "audit", "--shape", "sphere", "--precision", "f32", "--cases", "20", "--exec",
+            "sh miss.sh", "--name", "tb", "--tolerances", "seam.toml", "--no-seams",
+        ],
+        300,
+    );
+    ensure!(
+        r.stdout.lines().any(|l| l.starts_with("note: seam.toml robustness rule 1 judged no row")),
+        "{}",
+        r.ended()
+    );
+    Ok(())
 }
