@@ -155,7 +155,10 @@ fn embree_triangles_are_watertight_in_robust_mode_and_fail_huge_and_tiny_by_rang
         .filter(|l| l.contains("(goal 0); replay"))
         .collect::<Vec<_>>();
     assert!(
-        wt_failures.len() == 4 && wt_failures.iter().all(|l| l.contains("watertight tri f32 ")),
+        wt_failures.len() == 4
+            && wt_failures
+                .iter()
+                .all(|l| l.contains("watertight tri f32 ")),
         "{table}"
     );
     let once_failures = table

@@ -3310,9 +3310,18 @@ const ROWS: &[Row] = &[
         "a_measured_rate_on_five_cases",
         a_measured_rate_on_five_cases,
     ),
-    ("one_wrong_case_against_a_tiny_rate", one_wrong_case_against_a_tiny_rate),
-    ("a_measurement_of_three_counts", a_measurement_of_three_counts),
-    ("a_seam_rule_that_judges_nothing", a_seam_rule_that_judges_nothing),
+    (
+        "one_wrong_case_against_a_tiny_rate",
+        one_wrong_case_against_a_tiny_rate,
+    ),
+    (
+        "a_measurement_of_three_counts",
+        a_measurement_of_three_counts,
+    ),
+    (
+        "a_seam_rule_that_judges_nothing",
+        a_seam_rule_that_judges_nothing,
+    ),
 ];
 
 #[test]
@@ -4041,8 +4050,20 @@ fn a_measured_rate_on_five_cases(d: &Path) -> Result<(), String> {
         run(
             d,
             &[
-                "audit", "--shape", "box", "--precision", "f32", "--cases", cases, "--class",
-                "generic", "--exec", "python3 flip.py", "--name", "mine", "--tolerances",
+                "audit",
+                "--shape",
+                "box",
+                "--precision",
+                "f32",
+                "--cases",
+                cases,
+                "--class",
+                "generic",
+                "--exec",
+                "python3 flip.py",
+                "--name",
+                "mine",
+                "--tolerances",
                 "rate.toml",
             ],
             300,
@@ -4060,7 +4081,8 @@ fn a_measured_rate_on_five_cases(d: &Path) -> Result<(), String> {
         "{line}"
     );
     ensure!(
-        r.stdout.contains("verdict: pass, with 1 row(s) too few cases to tell"),
+        r.stdout
+            .contains("verdict: pass, with 1 row(s) too few cases to tell"),
         "{}",
         r.stdout
     );
@@ -4070,7 +4092,11 @@ fn a_measured_rate_on_five_cases(d: &Path) -> Result<(), String> {
         .and_then(|t| t.split(' ').next())
         .ok_or_else(|| format!("no case count named: {line}"))?
         .to_string();
-    fails_its_goal(&audit(&need), "box mine f32 generic:", "the measured 1 of 100 allows")
+    fails_its_goal(
+        &audit(&need),
+        "box mine f32 generic:",
+        "the measured 1 of 100 allows",
+    )
 }
 
 /// helper-21 F1: one wrong case in 44 against a measured 0 of 10^7 said "needs about 45
@@ -4091,9 +4117,22 @@ fn one_wrong_case_against_a_tiny_rate(d: &Path) -> Result<(), String> {
     let r = run(
         d,
         &[
-            "audit", "--shape", "box", "--precision", "f32", "--cases", "44", "--class",
-            "generic", "--exec", "python3 once.py", "--name", "mine", "--exec-keep",
-            "--tolerances", "tiny.toml",
+            "audit",
+            "--shape",
+            "box",
+            "--precision",
+            "f32",
+            "--cases",
+            "44",
+            "--class",
+            "generic",
+            "--exec",
+            "python3 once.py",
+            "--name",
+            "mine",
+            "--exec-keep",
+            "--tolerances",
+            "tiny.toml",
         ],
         300,
     );
@@ -4111,7 +4150,10 @@ fn one_wrong_case_against_a_tiny_rate(d: &Path) -> Result<(), String> {
             .ok_or_else(|| format!("no number after {after:?}: {line}"))
     };
     let (n, need) = (num("1 wrong of ")?, num("needs about ")?);
-    ensure!(need + 1 >= 2 * n, "{n} cases, 1 wrong, needs about {need}: {line}");
+    ensure!(
+        need + 1 >= 2 * n,
+        "{n} cases, 1 wrong, needs about {need}: {line}"
+    );
     Ok(())
 }
 
@@ -4126,8 +4168,21 @@ fn a_measurement_of_three_counts(d: &Path) -> Result<(), String> {
     run(
         d,
         &[
-            "audit", "--shape", "box", "--precision", "f32", "--cases", "5", "--class",
-            "generic", "--exec", "sh miss.sh", "--name", "mine", "--tolerances", "three.toml",
+            "audit",
+            "--shape",
+            "box",
+            "--precision",
+            "f32",
+            "--cases",
+            "5",
+            "--class",
+            "generic",
+            "--exec",
+            "sh miss.sh",
+            "--name",
+            "mine",
+            "--tolerances",
+            "three.toml",
         ],
         120,
     )
@@ -4147,13 +4202,27 @@ fn a_seam_rule_that_judges_nothing(d: &Path) -> Result<(), String> {
     let r = run(
         d,
         &[
-            "audit", "--shape", "sphere", "--precision", "f32", "--cases", "20", "--exec",
-            "sh miss.sh", "--name", "tb", "--tolerances", "seam.toml", "--no-seams",
+            "audit",
+            "--shape",
+            "sphere",
+            "--precision",
+            "f32",
+            "--cases",
+            "20",
+            "--exec",
+            "sh miss.sh",
+            "--name",
+            "tb",
+            "--tolerances",
+            "seam.toml",
+            "--no-seams",
         ],
         300,
     );
     ensure!(
-        r.stdout.lines().any(|l| l.starts_with("note: seam.toml robustness rule 1 judged no row")),
+        r.stdout
+            .lines()
+            .any(|l| l.starts_with("note: seam.toml robustness rule 1 judged no row")),
         "{}",
         r.ended()
     );

@@ -123,9 +123,10 @@ fn a_routine_of_yours_is_held_to_one_hit_per_mesh_and_to_its_transforms() {
         .collect();
     assert!(
         !wt.is_empty()
-            && wt
-                .iter()
-                .all(|x| x["replay"].as_str().unwrap().contains(&format!("--plugin {spec}"))),
+            && wt.iter().all(|x| x["replay"]
+                .as_str()
+                .unwrap()
+                .contains(&format!("--plugin {spec}"))),
         "{wt:?}"
     );
     let tr = rows(&r, "transform");

@@ -1087,7 +1087,11 @@ mod tests {
         assert!(note.contains("too few cases to tell"), "{note}");
         // The cases named would tell: at that rate the count is rejected there, not one below
         let need = cases_to_tell(5, 5, p).unwrap();
-        assert_eq!(need, (ALPHA.ln() / p.ln()).ceil() as u64, "all wrong: p^m ≤ α");
+        assert_eq!(
+            need,
+            (ALPHA.ln() / p.ln()).ceil() as u64,
+            "all wrong: p^m ≤ α"
+        );
         assert!(note.contains(&format!("needs about {need} ")), "{note}");
         assert!(judge(need, need).fail.is_some());
         assert!(judge(need - 1, need - 1).fail.is_none());

@@ -194,12 +194,18 @@ impl RobustRule {
             || r.watertight
                 .iter()
                 .any(|x| a(&x.method, Test::Watertight, &x.precision))
-            || r.spawn.iter().any(|x| a(&x.rule, Test::Spawn, &x.precision))
-            || r.guard.iter().any(|x| a(&x.guard, Test::Guard, &x.precision))
-            || r.once.iter().any(|x| a(&x.routine, Test::Once, &x.precision))
-            || r.transform.iter().any(|x| {
-                a(&x.routine, Test::Transform, &x.precision) && self.names_mode(&x.mode)
-            })
+            || r.spawn
+                .iter()
+                .any(|x| a(&x.rule, Test::Spawn, &x.precision))
+            || r.guard
+                .iter()
+                .any(|x| a(&x.guard, Test::Guard, &x.precision))
+            || r.once
+                .iter()
+                .any(|x| a(&x.routine, Test::Once, &x.precision))
+            || r.transform
+                .iter()
+                .any(|x| a(&x.routine, Test::Transform, &x.precision) && self.names_mode(&x.mode))
     }
 
     /// Whether the rule names a transform row's mode (every mode when it names none).

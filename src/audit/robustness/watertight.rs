@@ -185,7 +185,12 @@ fn replay_line(
         .iter()
         .filter_map(|p| exact_tri(&flat(o, d, *p)).t().map(|t| (t, *p)))
         .min_by(|a, b| a.0.cmp(&b.0))?;
-    Some(probe_line_with("triangle", prec, extra, &flat(o, d, first.1)))
+    Some(probe_line_with(
+        "triangle",
+        prec,
+        extra,
+        &flat(o, d, first.1),
+    ))
 }
 
 /// The rays from inside one closed mesh, each drawn from its own seed.
@@ -295,11 +300,9 @@ pub fn run_outside(
                 r.rate = r.escaped as f64 / rays.max(1) as f64;
                 r.oracle_checked = sample.len() as u64;
                 r.oracle_violations = violations as u64;
-                r.replay = escaped
-                    .first()
-                    .and_then(|&k| {
-                        replay_line(prec, m.replay().as_deref(), &tris, cases[k].0, cases[k].1)
-                    });
+                r.replay = escaped.first().and_then(|&k| {
+                    replay_line(prec, m.replay().as_deref(), &tris, cases[k].0, cases[k].1)
+                });
                 rows.push(r);
             }
         }
@@ -514,12 +517,7 @@ fn fold_cases(seed: u64, rays: u64, prec: Precision) -> Vec<Fold> {
 
 /// The fold row of a method from the fold rays it missed (leaks where the edge is no
 /// silhouette, grazing misses where it is).
-fn fold_row(
-    missed: &[&Fold],
-    prec: Precision,
-    extra: Option<&str>,
-    rays: usize,
-) -> WatertightRow {
+fn fold_row(missed: &[&Fold], prec: Precision, extra: Option<&str>, rays: usize) -> WatertightRow {
     let leaks: Vec<_> = missed.iter().filter(|x| !x.3).collect();
     let mut r = row(0, prec, "fold", "shared_edge", rays as u64);
     r.escaped = leaks.len() as u64;
