@@ -544,7 +544,7 @@ fn hits(r: Routine, prec: Precision, rays: &[&OnceRay]) -> Result<Vec<Vec<Option
             let mut answers = Vec::with_capacity(inputs.len());
             for chunk in inputs.chunks(crate::audit::run::CHUNK as usize) {
                 let a = crate::audit::run::answers(&[m], prec, chunk)?;
-                for (a, q) in a[0].iter().zip(chunk) {
+                for a in &a[0] {
                     // Held to the triangle's contract: a miss, or one hit and its t. An answer
                     // outside it (a count a triangle cannot have, values that do not match it)
                     // is a bad answer of its ray, counted and replayed like a hit at a bad t, as
