@@ -4041,34 +4041,7 @@ fn a_measured_rate_on_five_cases(d: &Path) -> Result<(), String> {
         "box",
         "    if not o['count'] and not vals: vals = ['0x1p+0']\n    elif o['count']: vals = []\n    o['count'] = 1 - o['count']",
     );
-    std::fs::write(
-        d.join("rate.toml"),
-        "[[rule]]\nshape = \"box\"\nmethod = \"mine\"\nprecision = \"f32\"\nclass = \"generic\"\nwrong = \"measured\"\nwhy = \"a rate\"\n\n[measured]\n\"box mine f32 generic\" = [1, 100]\n",
-    )
-    .unwrap();
-    let audit = |cases: &str| {
-        run(
-            d,
-            &[
-                "audit",
-                "--shape",
-                "box",
-                "--precision",
-                "f32",
-                "--cases",
-                cases,
-                "--class",
-                "generic",
-                "--exec",
-                "python3 flip.py",
-                "--name",
-                "mine",
-                "--tolerances",
-                "rate.toml",
-            ],
-            300,
-        )
-    };
+    let audit = |cases: &str| box_rate_audit(d, "python3 flip.py", "[1, 100]", cases, &[]);
     let r = audit("5");
     r.exited(0)?;
     let line = r
@@ -4109,32 +4082,12 @@ fn one_wrong_case_against_a_tiny_rate(d: &Path) -> Result<(), String> {
         "box",
         "    if o['count'] == 1 and not o['ill_posed'] and not globals().get('done'):\n        done = True; o['count'] = 0; vals = []",
     );
-    std::fs::write(
-        d.join("tiny.toml"),
-        "[[rule]]\nshape = \"box\"\nmethod = \"mine\"\nprecision = \"f32\"\nclass = \"generic\"\nwrong = \"measured\"\nwhy = \"a rate\"\n\n[measured]\n\"box mine f32 generic\" = [0, 10000000]\n",
-    )
-    .unwrap();
-    let r = run(
+    let r = box_rate_audit(
         d,
-        &[
-            "audit",
-            "--shape",
-            "box",
-            "--precision",
-            "f32",
-            "--cases",
-            "44",
-            "--class",
-            "generic",
-            "--exec",
-            "python3 once.py",
-            "--name",
-            "mine",
-            "--exec-keep",
-            "--tolerances",
-            "tiny.toml",
-        ],
-        300,
+        "python3 once.py",
+        "[0, 10000000]",
+        "44",
+        &["--exec-keep"],
     );
     r.exited(0)?;
     let line = r
@@ -4160,33 +4113,7 @@ fn one_wrong_case_against_a_tiny_rate(d: &Path) -> Result<(), String> {
 /// helper-21 F3: `[50, 1000, 3]` in `[measured]` loaded as 50 of 1000 (the third value dropped).
 fn a_measurement_of_three_counts(d: &Path) -> Result<(), String> {
     std::fs::write(d.join("miss.sh"), "while read l; do echo 0; done\n").unwrap();
-    std::fs::write(
-        d.join("three.toml"),
-        "[[rule]]\nshape = \"box\"\nmethod = \"mine\"\nprecision = \"f32\"\nclass = \"generic\"\nwrong = \"measured\"\nwhy = \"a rate\"\n\n[measured]\n\"box mine f32 generic\" = [50, 1000, 3]\n",
-    )
-    .unwrap();
-    run(
-        d,
-        &[
-            "audit",
-            "--shape",
-            "box",
-            "--precision",
-            "f32",
-            "--cases",
-            "5",
-            "--class",
-            "generic",
-            "--exec",
-            "sh miss.sh",
-            "--name",
-            "mine",
-            "--tolerances",
-            "three.toml",
-        ],
-        120,
-    )
-    .refused(2, &["is not [k, n]"])
+    box_rate_audit(d, "sh miss.sh", "[50, 1000, 3]", "5", &[]).refused(2, &["is not [k, n]"])
 }
 
 /// helper-21 F4: a `[[robustness]]` rule for the transform rows of a routine of yours, in a run
@@ -4227,4 +4154,36 @@ fn a_seam_rule_that_judges_nothing(d: &Path) -> Result<(), String> {
         r.ended()
     );
     Ok(())
+}
+
+/// An audit of the box routine `child`, named `mine`, on `cases` generic f32 cases, under a rule
+/// of `wrong = "measured"` with `[measured]` count `measured` (as written: `[1, 100]`).
+fn box_rate_audit(d: &Path, child: &str, measured: &str, cases: &str, extra: &[&str]) -> Run {
+    std::fs::write(
+        d.join("rate.toml"),
+        format!(
+            "[[rule]]\nshape = \"box\"\nmethod = \"mine\"\nprecision = \"f32\"\nclass = \"generic\"\nwrong = \"measured\"\nwhy = \"a rate\"\n\n[measured]\n\"box mine f32 generic\" = {}\n",
+            measured
+        ),
+    )
+    .unwrap();
+    let mut args = vec![
+        "audit",
+        "--shape",
+        "box",
+        "--precision",
+        "f32",
+        "--cases",
+        cases,
+        "--class",
+        "generic",
+        "--exec",
+        child,
+        "--name",
+        "mine",
+        "--tolerances",
+        "rate.toml",
+    ];
+    args.extend_from_slice(extra);
+    run(d, &args, 300)
 }
