@@ -146,6 +146,30 @@ impl Report {
         out
     }
 
+    /// The rules of the user's file (`[[rule]]` and `[[robustness]]`) that judged no row of
+    /// this run (a precision, class, test or mode the run did not audit), one line each: said,
+    /// so that a rule's silence is not read as its pass.
+    pub fn unused_rules(&self, table: &Table) -> Vec<String> {
+        let yours = |origin: &str| !origin.starts_with("built-in");
+        let rules = table
+            .rules
+            .iter()
+            .filter(|r| yours(&r.origin))
+            .filter(|r| {
+                !self.rows().any(|(_, x)| {
+                    x.verdict.as_ref().and_then(|v| v.rule.as_ref()) == Some(&r.origin)
+                })
+            })
+            .map(|r| format!("{} judged no row of this run (its shape, method, precision and class: none audited here)", r.origin));
+        let robust = table
+            .robustness
+            .iter()
+            .filter(|r| yours(&r.origin))
+            .filter(|r| !self.robustness.as_ref().is_some_and(|x| r.names_a_row(x)))
+            .map(|r| format!("{} judged no row of this run (its routine, test, precision and mode: none run here; the seams need an audit of every class and no --no-seams)", r.origin));
+        rules.chain(robust).collect()
+    }
+
     /// Rows whose known failure could not be shown with so few cases, one line each.
     pub fn undecided(&self) -> Vec<String> {
         self.rows()

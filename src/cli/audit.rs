@@ -616,34 +616,8 @@ pub(super) fn finish(
         return Ok(0);
     };
     let o = report.outcome();
-    // A rule of the user's file that judged no row of this run (a precision or class the run
-    // did not audit) is said, so that its silence is not read as its pass
-    for r in table
-        .rules
-        .iter()
-        .filter(|r| !r.origin.starts_with("built-in"))
-    {
-        if !report
-            .rows()
-            .any(|(_, x)| x.verdict.as_ref().and_then(|v| v.rule.as_ref()) == Some(&r.origin))
-        {
-            say!(
-                "note: {} judged no row of this run (its shape, method, precision and class: none audited here)",
-                r.origin
-            );
-        }
-    }
-    for r in table
-        .robustness
-        .iter()
-        .filter(|r| !r.origin.starts_with("built-in"))
-    {
-        if !report.robustness.as_ref().is_some_and(|x| r.names_a_row(x)) {
-            say!(
-                "note: {} judged no row of this run (its routine, test, precision and mode: none run here; the seams need an audit of every class and no --no-seams)",
-                r.origin
-            );
-        }
+    for note in report.unused_rules(table) {
+        say!("note: {note}");
     }
     say!(
         "\ntolerance table: {} rows — {} within their rule, {} known failures shown, {} reported only, {} too few cases to tell, {} out of tolerance",
